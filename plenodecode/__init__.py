@@ -1,0 +1,55 @@
+"""plenodecode: plenoptic camera raws to calibrated 4D light fields.
+
+Importing the package is light: the public functions below are loaded on first use.
+
+>>> import plenodecode as pd
+>>> raw = pd.read_raw("sample_raws/illum-mini/scene.lfr")      # doctest: +SKIP
+>>> grid = pd.calibrate("sample_raws/illum-mini/MOD_0000.RAW")  # doctest: +SKIP
+>>> lf = pd.decode(raw, grid)                                   # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+from . import errors
+from .errors import CalibrationError, DecodeError, FormatError, MetadataError, PlenodecodeError
+from .types import CameraMetadata, LensletGrid, LightField, RawCapture
+
+__version__ = "0.1.0"
+
+#: public name -> module that defines it (imported on first access)
+_LAZY = {
+    "read_raw": "plenodecode.io",
+    "simulate": "plenodecode.io.synthetic",
+    "calibrate": "plenodecode.calib",
+    "decode": "plenodecode.decode",
+    "refocus": "plenodecode.render",
+    "focal_stack": "plenodecode.render",
+    "all_in_focus": "plenodecode.render",
+    "perspective": "plenodecode.render",
+    "estimate_depth": "plenodecode.depth",
+    "disparity_to_depth": "plenodecode.depth",
+    "save_lightfield": "plenodecode.io.lightfield",
+    "load_lightfield": "plenodecode.io.lightfield",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'plenodecode' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
+
+__all__ = [
+    "__version__", "errors", "PlenodecodeError", "FormatError", "MetadataError", "CalibrationError",
+    "DecodeError", "CameraMetadata", "RawCapture", "LensletGrid", "LightField", *_LAZY,
+]

@@ -1,0 +1,1 @@
+"""Command-line interface: ``plenodecode.cli.main:cli`` and one thin module per command."""

@@ -1,0 +1,93 @@
+"""The ``plenodecode`` command group.
+
+Commands live in one module each (``plenodecode.cli.<name>``, attribute ``command``) and
+are imported only when run, so ``plenodecode --help`` stays fast.  A first argument that
+is not a command but a file (``plenodecode raw.lfr --refocus 1.2``) runs ``render``.
+
+Exit codes: 0 success, 1 data error (one line on stderr; traceback with ``-v``), 2 usage error.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import sys
+
+import click
+
+from .. import __version__
+from ..errors import PlenodecodeError
+
+#: command name -> (module, one-line description shown by --help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "info": ("plenodecode.cli.info", "Describe a raw or container: camera, serial, kind, sizes, sections."),
+    "synth": ("plenodecode.cli.synth", "Generate a synthetic plenoptic raw with exact ground truth."),
+    "calibrate": ("plenodecode.cli.calibrate", "Fit the lenslet grid from white images; build a calibration database."),
+    "decode": ("plenodecode.cli.decode", "Decode a raw into a 4D light field and write it."),
+    "export": ("plenodecode.cli.export", "Convert a saved light field to another format."),
+    "refocus": ("plenodecode.cli.refocus", "Refocus a raw or light field (slope or alpha), or write a focal stack."),
+    "render": ("plenodecode.cli.render", "Decode and refocus in one call: plenodecode RAW --refocus ALPHA."),
+    "views": ("plenodecode.cli.views", "Write sub-aperture or perspective views."),
+    "parallax": ("plenodecode.cli.parallax", "Write a parallax animation (circle of viewpoints)."),
+    "depth": ("plenodecode.cli.depth", "Estimate disparity / metric depth and write PFM, EXR, PNG, PLY."),
+    "batch": ("plenodecode.cli.batch", "Decode and render many raws, locally or on a Dask cluster."),
+}
+
+
+class LazyGroup(click.Group):
+    """A click group whose commands are imported on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return [name for name in COMMANDS if name != "render"]
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        if name not in COMMANDS:
+            return None
+        module = importlib.import_module(COMMANDS[name][0])
+        return module.command
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        rows = [(name, COMMANDS[name][1]) for name in self.list_commands(ctx)]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
+    def resolve_command(self, ctx: click.Context, args: list[str]):
+        if args and args[0] not in COMMANDS and not args[0].startswith("-"):
+            args = ["render", *args]
+        return super().resolve_command(ctx, args)
+
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except PlenodecodeError as exc:
+            if ctx.obj and ctx.obj.get("verbose", 0) > 0:
+                raise
+            click.echo(f"error: {exc}", err=True)
+            ctx.exit(1)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="plenodecode")
+@click.option("-v", "--verbose", count=True, help="More log output; -v also shows tracebacks.")
+@click.option("-q", "--quiet", is_flag=True, help="Only errors.")
+@click.pass_context
+def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
+    """plenodecode: decode plenoptic camera raws into 4D light fields.
+
+    \b
+    Example:
+      plenodecode raw.lfr --refocus 1.2 -o photo.png
+    """
+    ctx.ensure_object(dict)
+    ctx.obj["verbose"] = verbose
+    ctx.obj["quiet"] = quiet
+    level = logging.ERROR if quiet else (logging.DEBUG if verbose > 1 else logging.INFO if verbose else logging.WARNING)
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+
+
+def main() -> None:  # pragma: no cover - console entry
+    cli(obj={})
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

@@ -1,0 +1,31 @@
+"""Exception tree of plenodecode.
+
+Every error the library raises on bad data derives from :class:`PlenodecodeError`;
+messages say what was expected, what was found and what to do.  Bad arguments
+raise :class:`ValueError` naming the parameter.
+"""
+
+from __future__ import annotations
+
+
+class PlenodecodeError(Exception):
+    """Base class of every data error raised by plenodecode."""
+
+
+class FormatError(PlenodecodeError):
+    """A file is not in the format it claims to be (magic, lengths, sizes, checksums)."""
+
+
+class MetadataError(PlenodecodeError):
+    """Metadata is missing, unparsable, or inconsistent with the data."""
+
+
+class CalibrationError(PlenodecodeError):
+    """No usable lenslet grid: bad white image, wrong camera, failed fit."""
+
+
+class DecodeError(PlenodecodeError):
+    """A raw cannot be decoded with the given grid or options."""
+
+
+__all__ = ["PlenodecodeError", "FormatError", "MetadataError", "CalibrationError", "DecodeError"]

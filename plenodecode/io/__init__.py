@@ -1,0 +1,51 @@
+"""Readers and writers.  :func:`read_raw` picks the reader from the file's content.
+
+Only this subpackage, ``report``, ``batch`` and ``cli`` touch the disk.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from ..errors import FormatError
+from ..types import RawCapture
+
+#: First bytes of a Lytro LFP/LFR container.
+LYTRO_MAGIC = b"\x89LFP\r\n\x1a\n"
+#: Extensions of headerless Lytro white images / raws that come with a JSON .TXT/.json sidecar.
+LYTRO_PAIR_EXTENSIONS = (".raw",)
+
+
+def read_raw(path: str | os.PathLike) -> RawCapture:
+    """Read any supported raw file into a :class:`RawCapture`.
+
+    Dispatch: Lytro container by magic (``.lfp``/``.lfr`` of any case); a headerless
+    ``.RAW`` with a ``.TXT``/``.json`` metadata sidecar (Lytro white images and frames);
+    a PNG/TIFF/BMP with a ``RayCalibData`` XML beside it (Raytrix); other images with a
+    JSON sidecar (plain 16-bit mosaics); anything else through rawpy (DNG, camera raws).
+
+    Raises
+    ------
+    FormatError
+        The file is missing, of no supported kind, or malformed.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FormatError(f"{p}: no such file")
+    with open(p, "rb") as fh:
+        head = fh.read(8)
+    from . import lytro
+
+    if head == LYTRO_MAGIC:
+        return lytro.read_lytro(p)
+    if p.suffix.lower() in LYTRO_PAIR_EXTENSIONS and lytro.find_sidecar(p) is not None:
+        return lytro.read_raw_pair(p)
+    from . import generic, raytrix
+
+    if raytrix.find_calibration_xml(p) is not None:
+        return raytrix.read_raytrix(p)
+    return generic.read_generic(p)
+
+
+__all__ = ["read_raw", "LYTRO_MAGIC"]
