@@ -1,0 +1,66 @@
+"""Benchmarks (not tests).  ``make bench`` runs every ``bench/bench_*.py`` module's ``run()``.
+
+Each ``run()`` returns a list of :class:`Figure`; this module measures and prints them.
+Peak memory is the peak of traced allocations (numpy registers its buffers with
+tracemalloc) during one call, so it is the working set a function adds, not the
+process's resident size.
+"""
+
+from __future__ import annotations
+
+import gc
+import time
+import tracemalloc
+from dataclasses import dataclass
+from typing import Any, Callable
+
+
+@dataclass
+class Figure:
+    """One row of the benchmark table."""
+
+    name: str
+    seconds: float
+    peak_mb: float | None = None
+    target_s: float | None = None
+    ratio: float | None = None      # speed-up against the named baseline (>1 = faster)
+    baseline: str | None = None
+    note: str = ""
+
+
+def measure(fn: Callable[[], Any], *, repeat: int = 1, memory: bool = True) -> tuple[Any, float, float | None]:
+    """Run ``fn`` and return ``(result, best wall seconds, peak traced MB)``.
+
+    The timing runs are untraced; one extra traced run gives the peak memory.
+    """
+    best = float("inf")
+    result = None
+    for _ in range(repeat):
+        gc.collect()
+        t0 = time.perf_counter()
+        result = fn()
+        best = min(best, time.perf_counter() - t0)
+    peak = None
+    if memory:
+        del result
+        gc.collect()
+        tracemalloc.start()
+        result = fn()
+        _, peak_b = tracemalloc.get_traced_memory()
+        tracemalloc.stop()
+        peak = peak_b / 2**20
+    return result, best, peak
+
+
+def print_table(figures: list[Figure]) -> None:
+    """Print figures as an aligned text table."""
+    head = f"{'benchmark':58s} {'seconds':>9s} {'target':>8s} {'peak MB':>9s} {'ratio':>8s}  note"
+    print(head)
+    print("-" * len(head))
+    for f in figures:
+        target = f"<={f.target_s:g}" if f.target_s is not None else ""
+        peak = f"{f.peak_mb:9.0f}" if f.peak_mb is not None else f"{'':9s}"
+        ratio = f"{f.ratio:7.1f}x" if f.ratio is not None else f"{'':8s}"
+        note = f.note + (f" (vs {f.baseline})" if f.baseline else "")
+        status = "" if f.target_s is None else ("  ok" if f.seconds <= f.target_s else "  SLOW")
+        print(f"{f.name:58s} {f.seconds:9.3f} {target:>8s} {peak} {ratio}  {note}{status}")
