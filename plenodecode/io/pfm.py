@@ -1,0 +1,63 @@
+"""Portable Float Map (PFM) reading and writing, as the HCI benchmark toolkit uses it.
+
+Format: ``"Pf"`` (1 channel) or ``"PF"`` (3 channels), newline, ``"W H"``, newline, a scale
+whose sign gives the byte order (negative = little-endian), newline, then float32 rows
+stored **bottom-up**.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FormatError
+
+
+def read_pfm(path: str | os.PathLike) -> np.ndarray:
+    """Read a PFM file.
+
+    Returns
+    -------
+    ndarray, shape (H, W) or (H, W, 3), float32
+        Rows top-down (the file's bottom-up order is undone).
+    """
+    p = Path(path)
+    try:
+        with open(p, "rb") as fh:
+            kind = fh.readline().strip()
+            dims = fh.readline().split()
+            scale = float(fh.readline().strip())
+            body = fh.read()
+        channels = {b"Pf": 1, b"PF": 3}[kind]
+        width, height = int(dims[0]), int(dims[1])
+    except (KeyError, ValueError, IndexError, OSError) as exc:
+        raise FormatError(f"{p}: not a PFM file ({exc.__class__.__name__}: {exc})") from exc
+    if not (0 < width <= 1 << 16 and 0 < height <= 1 << 16):
+        raise FormatError(f"{p}: PFM declares an impossible size {width}x{height}")
+    n = width * height * channels
+    if len(body) < 4 * n:
+        raise FormatError(f"{p}: PFM payload has {len(body)} bytes, {4 * n} expected for {width}x{height}x{channels}")
+    dtype = np.dtype("<f4") if scale < 0 else np.dtype(">f4")
+    data = np.frombuffer(body, dtype, count=n).astype(np.float32)
+    shape = (height, width) if channels == 1 else (height, width, 3)
+    return np.ascontiguousarray(data.reshape(shape)[::-1])
+
+
+def write_pfm(path: str | os.PathLike, image: np.ndarray, *, overwrite: bool = False) -> Path:
+    """Write a (H, W) or (H, W, 3) array as little-endian PFM (rows bottom-up), atomically."""
+    p = Path(path)
+    img = np.asarray(image, np.float32)
+    if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] != 3):
+        raise ValueError(f"image must have shape (H, W) or (H, W, 3), got {img.shape}")
+    if p.exists() and not overwrite:
+        raise FileExistsError(f"{p} exists; pass overwrite=True to replace it")
+    kind = b"Pf" if img.ndim == 2 else b"PF"
+    header = kind + b"\n" + f"{img.shape[1]} {img.shape[0]}\n-1.0\n".encode()
+    tmp = p.with_name(f".{p.name}.tmp{os.getpid()}")
+    with open(tmp, "wb") as fh:
+        fh.write(header)
+        fh.write(np.ascontiguousarray(img[::-1]).astype("<f4").tobytes())
+    os.replace(tmp, p)
+    return p
