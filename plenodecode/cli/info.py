@@ -1,0 +1,157 @@
+"""``plenodecode info FILE...``: describe raws and Lytro containers without decoding them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Mapping
+
+import click
+
+from ..errors import FormatError, PlenodecodeError
+
+
+def _levels(a) -> str:
+    vals = sorted({float(v) for v in a.ravel()})
+    return "/".join(f"{v:g}" for v in vals)
+
+
+def _camera_lines(model, make, serial, extra: str = "") -> list[str]:
+    cam = model or "unknown model"
+    if make:
+        cam += f" ({make})"
+    return [f"  camera   {cam}{extra}", f"  serial   {serial or '-'}"]
+
+
+def _describe_container(path: Path) -> list[str]:
+    from ..io import lytro
+
+    c = lytro.read_container(path)
+    lines = [f"{path}: Lytro container ({len(c.sections)} sections)"]
+    make = lytro._get(c.metadata, "camera", "make")
+    lines += _camera_lines(c.model, make if isinstance(make, str) else None, c.serial,
+                           " (inferred from the TOC layout)" if c.model_source == "toc layout" else "")
+    if c.kind == "raw":
+        kind = "raw, white image" if c.white_image else "raw"
+    else:
+        kind = {"processed": "processed (Lytro Desktop output, no raw inside)",
+                "calibration": "calibration archive (data.C.N)"}[c.kind]
+    lines.append(f"  kind     {kind}")
+    if c.metadata is not None and _has_image(c.metadata):
+        try:
+            cam, cfa, black, white, w, h, bits, endian = lytro.metadata_from_lytro(
+                c.metadata, c.private_metadata, path, white_image=c.white_image)
+        except PlenodecodeError as exc:
+            lines.append(f"  metadata unreadable: {exc}")
+        else:
+            if c.kind == "raw":
+                lines.append(f"  raw      {w} x {h}, {bits} bit ({endian}), {cfa}, black {_levels(black)}, "
+                             f"white {_levels(white)}")
+            else:
+                lines.append(f"  sensor   {w} x {h}, {bits} bit, {cfa} (the raw is not in this file)")
+            lines += _lens_lines(cam)
+    images = [it for it in c.contents() if it.type != "json"]
+    if images:
+        lines.append("  contents")
+        for it in images:
+            lines.append(f"    {it.name:22s} {it.describe()}, {it.size} B")
+    lines.append("  sections")
+    lines.append(f"    {'kind':4s} {'offset':>10s} {'length':>10s}  {'sha1':12s}  toc key")
+    for s in c.sections:
+        it = c.item(s.sha1)
+        role = "table of contents" if s.kind == "LFM" else \
+            f"{it.key}  [{it.name}: {it.type}]" if it is not None else "(not referenced by the TOC)"
+        lines.append(f"    {s.kind:4s} {s.offset:10d} {s.length:10d}  {s.sha1[5:17]:12s}  {role}")
+    return lines
+
+
+def _has_image(meta) -> bool:
+    return isinstance(meta, Mapping) and isinstance(meta.get("image"), Mapping)
+
+
+def _lens_lines(cam) -> list[str]:
+    parts = []
+    if cam.zoom_step is not None or cam.focus_step is not None:
+        parts.append(f"zoom {cam.zoom_step:g}" if cam.zoom_step is not None else "zoom ?")
+        parts.append(f"focus {cam.focus_step:g}" if cam.focus_step is not None else "focus ?")
+    if cam.focal_length_m is not None:
+        parts.append(f"f = {cam.focal_length_m * 1e3:.2f} mm")
+    if cam.f_number is not None:
+        parts.append(f"f/{cam.f_number:.2f}")
+    if cam.exposure_s is not None:
+        parts.append(f"{cam.exposure_s * 1e3:.2f} ms")
+    if cam.iso is not None:
+        parts.append(f"ISO {cam.iso:g}")
+    pitch = cam.lenslet_pitch_px()
+    if pitch:
+        parts.append(f"lenslet pitch {pitch:.3f} px")
+    return [f"  lens     {', '.join(parts)}"] if parts else []
+
+
+def _describe_raw_pair(path: Path) -> list[str]:
+    from ..io import lytro
+
+    cam, cfa, black, white, w, h, bits, endian = lytro.read_raw_pair_metadata(path)
+    side = lytro.find_sidecar(path)
+    lines = [f"{path}: headerless Lytro raw with metadata {side.name if side else '?'}"]
+    lines += _camera_lines(cam.model, cam.make, cam.serial)
+    lines.append(f"  kind     {'raw, white image' if cam.is_white_image else 'raw'}")
+    lines.append(f"  raw      {w} x {h}, {bits} bit ({endian}), {cfa}, black {_levels(black)}, white {_levels(white)}")
+    lines += _lens_lines(cam)
+    return lines
+
+
+def _describe_other(path: Path) -> list[str]:
+    try:
+        from ..io import read_raw
+
+        raw = read_raw(path)
+    except ImportError as exc:
+        raise FormatError(f"{path}: not a Lytro file, and the reader for other formats is not available "
+                          f"({exc}); install the full plenodecode") from None
+    m = raw.metadata
+    h, w = raw.shape
+    lines = [f"{path}: raw image"]
+    lines += _camera_lines(m.model, m.make, m.serial)
+    lines.append(f"  kind     {'raw, white image' if m.is_white_image else 'raw'}")
+    lines.append(f"  raw      {w} x {h}, {raw.cfa or 'monochrome'}, black {_levels(raw.black)}, "
+                 f"white {_levels(raw.white)}, values {int(raw.mosaic.min())}..{int(raw.mosaic.max())}")
+    lines += _lens_lines(m)
+    return lines
+
+
+def describe(path: Path) -> list[str]:
+    """Lines that ``plenodecode info`` prints for one file."""
+    from ..io import LYTRO_MAGIC
+    from ..io import lytro
+
+    if not path.is_file():
+        raise FormatError(f"{path}: no such file" if not path.exists() else f"{path}: is not a file")
+    with open(path, "rb") as fh:
+        head = fh.read(8)
+    if head == LYTRO_MAGIC:
+        return _describe_container(path)
+    if path.suffix.lower() == ".raw" and lytro.find_sidecar(path) is not None:
+        return _describe_raw_pair(path)
+    return _describe_other(path)
+
+
+@click.command("info")
+@click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path))
+def info(files: tuple[Path, ...]) -> None:
+    """Describe raws and containers: camera, serial, kind, image sizes, sections.
+
+    Works on Lytro .lfp/.LFP/.lfr containers (raw or processed), MOD_NNNN.RAW + .TXT
+    white images, and any raw plenodecode reads.
+
+    \b
+    Example:
+      plenodecode info IMG_0001.lfr MOD_0000.RAW demo.LFP
+    """
+    for i, path in enumerate(files):
+        if i:
+            click.echo("")
+        for line in describe(path):
+            click.echo(line)
+
+
+command = info
