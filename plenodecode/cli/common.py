@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 from typing import Callable
 
@@ -34,7 +35,7 @@ def progress_bar(label: str, ctx: click.Context | None = None) -> Callable[[int,
             return
         bar = state.get("bar")
         if bar is None:
-            bar = click.progressbar(length=total, label=label, file=click.get_text_stream("stderr"))
+            bar = click.progressbar(length=total, label=label, file=sys.stderr)
             bar.__enter__()
             state["bar"] = bar
             state["done"] = 0
