@@ -1,0 +1,65 @@
+"""Benchmark of :func:`plenodecode.calib.calibrate` on full-size white images (issue #3: Illum <= 2 s).
+
+The white images come from the synthetic generator (``simulate_white('illum')``, 7728 x 5368,
+and ``simulate_white('f01')``, 3280 x 3280) and are cached in ``bench/_cache/``.  The note gives
+the accuracy against the true grid (RMS over lenses fully on the sensor, pitch error).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from . import Figure, measure
+
+CACHE = Path(__file__).resolve().parent / "_cache"
+
+
+def _white(preset: str, seed: int = 0):
+    """Full-size synthetic white image + true grid (generated once, then cached)."""
+    from plenodecode.types import CameraMetadata, LensletGrid, RawCapture
+
+    CACHE.mkdir(exist_ok=True)
+    path = CACHE / f"calib_{preset}_white_seed{seed}.npz"
+    if not path.exists():
+        from plenodecode.io.synthetic import simulate_white
+
+        raw, grid = simulate_white(preset, seed=seed)
+        tmp = path.with_suffix(".tmp.npz")
+        np.savez(tmp, mosaic=raw.mosaic, cfa=str(raw.cfa), black=raw.black, white=raw.white,
+                 meta=json.dumps(raw.metadata.to_dict()), grid=grid.to_json())
+        tmp.replace(path)
+    z = np.load(path)
+    cfa = str(z["cfa"])
+    raw = RawCapture(z["mosaic"], None if cfa == "None" else cfa, z["black"], z["white"],
+                     CameraMetadata.from_dict(json.loads(str(z["meta"]))))
+    return raw, LensletGrid.from_json(str(z["grid"]))
+
+
+def _accuracy(grid, truth) -> str:
+    from scipy.spatial import cKDTree
+
+    H, W = truth.sensor_shape
+    t = truth.centres()
+    R = truth.radius
+    full = (t[:, 0] - R >= -0.5) & (t[:, 0] + R <= H - 0.5) & (t[:, 1] - R >= -0.5) & (t[:, 1] + R <= W - 0.5)
+    d, _ = cKDTree(grid.centres()).query(t[full])
+    rot = abs(((grid.rotation - truth.rotation) + math.pi / 2) % math.pi - math.pi / 2)
+    return (f"{int(full.sum())} lenses, RMS {np.sqrt(np.mean(d ** 2)):.4f} px, max {d.max():.4f} px, "
+            f"pitch err {abs(grid.pitch - truth.pitch):.1e} px, rot err {rot:.1e} rad")
+
+
+def run() -> list[Figure]:
+    from plenodecode.calib import calibrate
+
+    figures = []
+    for preset, target in (("illum", 2.0), ("f01", None)):
+        white, truth = _white(preset)
+        calibrate(white)  # warm-up: numba cache load, FFT plans
+        grid, seconds, peak = measure(lambda: calibrate(white), repeat=3)
+        figures.append(Figure(f"calibrate: full-size {preset} white {white.shape[1]}x{white.shape[0]}",
+                              seconds, peak, target_s=target, note=_accuracy(grid, truth)))
+    return figures

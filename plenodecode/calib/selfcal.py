@@ -1,0 +1,311 @@
+"""Calibration without a white image: from a scene raw, and Raytrix grids from RayCalibData.
+
+Self-calibration (:func:`calibrate_from_scene`) uses the same chain as a white image but
+relies on the local structure of the micro-images: the scene brightness is divided out by the
+local-linear mean over 1.5 pitches (:func:`~plenodecode.calib.centroids.devignette`), so every
+lit micro-image becomes a bright disk between dark borders whatever the scene's brightness;
+the zero-sum difference-of-Gaussians peak of each disk is its centre.  Disks in black parts of
+the scene give no peak, and disks whose content is lopsided (an edge inside the micro-image)
+give displaced peaks; the robust lattice fit (:mod:`.grid`) rejects both, and the lattice then
+places every lens, found or not.  Per-lens refinement is off by default here because scene
+content biases individual centres coherently over neighbouring lenses.
+
+Raytrix (:func:`calibrate_raytrix`): the grid of a ``RayCalibData`` XML is used as given (with
+its lens types); ``refine=True`` re-fits origin, rotation, pitch and row spacing to the disks
+found in the image, keeping every lens's index and type.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from ..errors import CalibrationError, FormatError, MetadataError
+from ..types import LensletGrid, RawCapture
+from . import centroids as _c
+from . import grid as _g
+
+log = logging.getLogger(__name__)
+
+Progress = Callable[[int, int], None] | None
+
+#: Extensions read as plain images (e.g. a lenslet mosaic saved as JPEG) when no raw reader applies.
+IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".exr")
+
+
+def _scene_image(raw: RawCapture | np.ndarray | str | os.PathLike) -> tuple[np.ndarray, dict[str, Any],
+                                                                              float | None]:
+    """Flattened image, provenance and a pitch hint from a raw, an array or a path."""
+    if isinstance(raw, (str, os.PathLike)):
+        from ..io import read_raw
+        p = Path(raw)
+        try:
+            raw = read_raw(p)
+        except FormatError:
+            if p.suffix.lower() not in IMAGE_EXTENSIONS:
+                raise
+            from ..io.images import read_image
+            img = read_image(p)
+            return _c.flatten_image(img), {"source": str(p)}, None
+    if isinstance(raw, RawCapture):
+        md = raw.metadata
+        info = {"source": raw.path, "camera_model": md.model, "camera_make": md.make, "serial": md.serial,
+                "zoom_step": md.zoom_step, "focus_step": md.focus_step}
+        return _c.flatten_white(raw, equalise=raw.cfa is not None), info, md.lenslet_pitch_px()
+    arr = np.asarray(raw)
+    if arr.ndim not in (2, 3) or arr.size == 0:
+        raise ValueError(f"raw must be a RawCapture, a path or a 2-D/3-D image array, got shape {arr.shape}")
+    return _c.flatten_image(arr), {"source": None}, None
+
+
+def calibrate_from_scene(raw: RawCapture | np.ndarray | str | os.PathLike, *, lattice: str = "auto",
+                         pitch_hint: float | None = None, method: str = "dog", refine: bool = False,
+                         min_contrast: float = 0.1, progress: Progress = None) -> LensletGrid:
+    """Fit the lenslet grid from a scene raw, without a white image (self-calibration).
+
+    Parameters
+    ----------
+    raw : RawCapture, ndarray (H, W) or (H, W, C), or path
+        A scene raw; an array or an image file (e.g. a lenslet mosaic saved as 8-bit JPEG)
+        is read as one channel (channels averaged) and low-passed with the 3x3 binomial.
+    lattice : 'auto', 'hex' or 'square'
+    pitch_hint : float, optional
+        Expected pitch in px (default from metadata when available).
+    method : str
+        Sub-pixel estimator (:data:`~plenodecode.calib.centroids.CENTROID_METHODS`).
+    refine : bool
+        Keep per-lens deviations (off by default: scene content biases single lenses).
+    min_contrast : float
+        Relative disk contrast below which a peak is ignored (dark scene parts).
+    progress : callable(done, total), optional
+
+    Returns
+    -------
+    LensletGrid
+        ``info['self_calibrated']`` is True.
+
+    Raises
+    ------
+    CalibrationError
+        No lattice found (a black frame, or an image without lenslet structure).
+    """
+    from . import calibrate_image
+
+    img, info, hint = _scene_image(raw)
+    if float(np.percentile(img[::7, ::7], 99.9)) <= 0.0:
+        raise CalibrationError("the scene is black: no lenslet disk is lit, so the grid cannot be found; "
+                               "use a white image or a brighter exposure")
+    info["self_calibrated"] = True
+    grid = calibrate_image(img, img.shape, lattice=lattice, pitch_hint=pitch_hint or hint, method=method,
+                           refine=refine, min_contrast=min_contrast, info=info, progress=progress)
+    return grid
+
+
+def _reciprocal_vectors(grid: LensletGrid) -> np.ndarray:
+    """The three shortest reciprocal lattice vectors (cycles/px, (row, col)), one per +- pair."""
+    e_row, e_col = grid.axes()
+    v1 = grid.pitch * e_col
+    v2 = grid.row_spacing * e_row + grid.odd_row_shift * grid.pitch * e_col
+    B = np.linalg.inv(np.stack([v1, v2], axis=0)).T  # rows b1, b2 with b_i . v_j = delta_ij
+    cands = [h1 * B[0] + h2 * B[1] for h1 in (-1, 0, 1) for h2 in (0, 1) if (h2 > 0 or h1 > 0)]
+    cands.sort(key=lambda k: float(np.hypot(*k)))
+    n = 3 if grid.lattice == "hex" else 2
+    return np.array(cands[:n])
+
+
+def _refine_disks(grid: LensletGrid, image: np.ndarray, *, method: str = "dog", min_contrast: float = 0.1,
+                  max_shift: float = 0.3) -> LensletGrid:
+    """Refit to disk centres detected as for a white image (accurate where the disks are visible)."""
+    contrast = _c.devignette(image, grid.pitch)
+    peaks, _ = _c.detect_peaks(contrast, grid.pitch, min_contrast=min_contrast)
+    cen, ok = _c.refine_peaks(contrast, peaks, grid.pitch, method=method)
+    pts = cen[ok]
+    H, W = image.shape
+    edge = grid.pitch
+    away = (pts[:, 0] > edge) & (pts[:, 1] > edge) & (pts[:, 0] < H - 1 - edge) & (pts[:, 1] < W - 1 - edge)
+    out = _g.refit_grid(grid, pts[away], max_shift=max_shift)
+    return out.replace(info={**out.info, "refit": {**out.info["refit"], "method": "disks"}})
+
+
+def refine_grid(grid: LensletGrid, image: np.ndarray, *, method: str = "auto", tile_pitches: float = 5.0,
+                max_shift: float = 0.3) -> LensletGrid:
+    """Re-fit a grid's origin, rotation, pitch and row spacing to an image.
+
+    ``method='disks'`` detects every micro-image disk as for a white image and refits to their
+    centres (:func:`plenodecode.calib.grid.refit_grid`); accurate to a few hundredths of a pixel
+    where the disks are separated by dark rims.  ``'phase'`` uses the phase of the lattice
+    pattern (:func:`_refine_phase`), robust when micro-images tile the sensor without rims
+    (focused cameras) but only good to ~0.1-1 px.  ``'auto'`` takes 'disks' when its per-lens
+    residual sigma is below 3 % of the pitch and it used at least a third of the lenses,
+    else 'phase'.
+    """
+    if method not in ("auto", "disks", "phase"):
+        raise ValueError(f"method must be 'auto', 'disks' or 'phase', got {method!r}")
+    if method in ("auto", "disks"):
+        try:
+            out = _refine_disks(grid, image, max_shift=max_shift)
+            rf = out.info["refit"]
+            n_lens = grid.shape[0] * grid.shape[1]
+            if method == "disks" or (rf["sigma_px"] < 0.03 * grid.pitch and rf["n_points"] >= n_lens / 3):
+                return out
+            log.info("disk refit unreliable (sigma %.2f px, %d disks); using the lattice phase",
+                     rf["sigma_px"], rf["n_points"])
+        except CalibrationError:
+            if method == "disks":
+                raise
+    try:
+        out = _refine_phase(grid, image, tile_pitches=tile_pitches, max_shift=max_shift)
+    except CalibrationError as exc:
+        if method == "phase":
+            raise
+        reason = str(exc)
+    else:
+        if method == "phase" or out.info["refit"]["sigma_px"] < 0.05 * grid.pitch:
+            return out
+        reason = (f"the tiles disagree by {out.info['refit']['sigma_px']:.2f} px (sigma), so the image does not "
+                  "constrain the grid")
+    msg = f"grid refinement skipped, the given grid is kept: {reason}"
+    log.warning(msg)
+    warnings = list(grid.info.get("warnings", [])) + [msg]
+    return grid.replace(info={**grid.info, "refit": {"method": "none", "reason": reason}, "warnings": warnings})
+
+
+def _refine_phase(grid: LensletGrid, image: np.ndarray, *, tile_pitches: float = 5.0,
+                  max_shift: float = 0.3) -> LensletGrid:
+    """Re-fit a grid's origin, rotation, pitch and row spacing from the phase of the lattice pattern.
+
+    The micro-image structure that repeats under every lens -- the dark rim or, in focused
+    (Raytrix) images whose micro-images tile the sensor, the discontinuity at the cell borders --
+    is coherent over many lenses while the scene is not.  The image is split into tiles of about
+    ``tile_pitches`` lenses; in each tile the Fourier coefficients of the local gradient energy
+    ``|grad(I / L)|`` at the grid's first-order reciprocal vectors ``k_i`` are measured relative to
+    the grid (``c_i = sum E(x) exp(-2 pi i k_i . (x - origin))``).  A pattern shifted by ``d``
+    from the grid has ``arg c_i = -2 pi k_i . d`` (plus 0 or pi, fixed from the whole image, for a
+    pattern symmetric about the lens centre), so each tile gives its shift by least squares; the
+    lens at each tile centre, moved by that shift, is a measured centre for
+    :func:`plenodecode.calib.grid.refit_grid`, which keeps shape, indices and lens types.
+
+    Parameters
+    ----------
+    grid : LensletGrid
+        Starting grid (e.g. from a RayCalibData XML), within ~1/8 pitch of the truth locally.
+    image : ndarray (H, W) float32
+        Flattened image (:func:`~plenodecode.calib.centroids.flatten_white`).
+    tile_pitches : float
+        Tile side in lens pitches.
+
+    Returns
+    -------
+    LensletGrid
+        ``info['refit']`` records the tiles used and the parameter changes.
+    """
+    H, W = image.shape
+    c = _c.devignette(image, grid.pitch)
+    gy, gx = np.gradient(c)
+    energy = np.hypot(gy, gx).astype(np.float32)
+    ks = _reciprocal_vectors(grid)
+    side = max(8, int(round(tile_pitches * grid.pitch)))
+    nty, ntx = max(1, H // side), max(1, W // side)
+    ty = np.minimum(np.arange(H) * nty // H, nty - 1)
+    tx = np.minimum(np.arange(W) * ntx // W, ntx - 1)
+    tile = (ty[:, None] * ntx + tx[None, :]).ravel()
+    rr, cc = np.mgrid[0:H, 0:W]
+    dr = (rr - grid.origin[0]).ravel()
+    dc = (cc - grid.origin[1]).ravel()
+    e = energy.ravel().astype(np.float64)
+    coef = np.empty((nty * ntx, len(ks)), np.complex128)
+    for i, k in enumerate(ks):
+        ph = 2 * np.pi * (k[0] * dr + k[1] * dc)
+        re = np.bincount(tile, weights=e * np.cos(ph), minlength=nty * ntx)
+        im = np.bincount(tile, weights=-e * np.sin(ph), minlength=nty * ntx)
+        coef[:, i] = re + 1j * im
+    total = coef.sum(axis=0)
+    base = np.where(np.cos(np.angle(total)) >= 0, 0.0, np.pi)  # symmetric pattern: real up to a sign
+    t = np.angle(coef * np.exp(-1j * base))                      # = -2 pi k . d per tile
+    wts = np.abs(coef)
+    pts = []
+    ii, jj = np.meshgrid(np.arange(nty), np.arange(ntx), indexing="ij")
+    centres = np.stack([(ii.ravel() + 0.5) * H / nty, (jj.ravel() + 0.5) * W / ntx], axis=1)
+    A_full = 2 * np.pi * ks
+    for q in range(nty * ntx):
+        w = wts[q] / (wts[q].max() + 1e-300)
+        A = A_full * w[:, None]
+        d, *_ = np.linalg.lstsq(A, -t[q] * w, rcond=None)
+        # the lens nearest the tile centre, moved by the tile's shift
+        a, b = grid.sensor_to_lattice(centres[q])
+        i = np.round(a / grid.row_spacing)
+        j = np.round(b / grid.pitch - grid.odd_row_shift * (i % 2))
+        p0 = grid.lattice_to_sensor(np.array(i * grid.row_spacing),
+                                    np.array((j + grid.odd_row_shift * (i % 2)) * grid.pitch))
+        pts.append(p0 + d)
+    pts_arr = np.array(pts)
+    if len(pts_arr) < 10:
+        raise CalibrationError(f"the image holds only {len(pts_arr)} tiles of {tile_pitches:g} lenses; too small to "
+                               "refine the grid (use refine=False)")
+    out = _g.refit_grid(grid, pts_arr, max_shift=max_shift, n_reject=1, k_sigma=5.0)
+    return out.replace(info={**out.info, "refit": {**out.info["refit"], "method": "tile-phase",
+                                                   "n_tiles": int(len(pts_arr))}})
+
+
+def _raytrix_calibration(raw: RawCapture, cal: Any) -> Any:
+    from ..io import raytrix as rx
+    if cal is None:
+        doc = raw.metadata.extra.get("raytrix") if isinstance(raw.metadata.extra, Mapping) else None
+        if doc is None:
+            raise CalibrationError("no Raytrix calibration: expected metadata.extra['raytrix'] (read the image "
+                                   "with its RayCalibData XML beside it) or pass cal=")
+        return rx.RaytrixCalibration.from_dict(doc)
+    if isinstance(cal, rx.RaytrixCalibration):
+        return cal
+    if isinstance(cal, Mapping):
+        return rx.RaytrixCalibration.from_dict(cal)
+    if isinstance(cal, (str, os.PathLike)):
+        return rx.parse_raycalib(cal)
+    raise ValueError(f"cal must be a RaytrixCalibration, a dict, an XML path or None, got {type(cal).__name__}")
+
+
+def calibrate_raytrix(raw: RawCapture, cal: Any = None, *, refine: bool = False,
+                      refine_method: str = "auto") -> LensletGrid:
+    """The lenslet grid of a Raytrix raw from its ``RayCalibData``, optionally refined on the image.
+
+    Parameters
+    ----------
+    raw : RawCapture
+        A Raytrix image (:func:`plenodecode.io.raytrix.read_raytrix`).
+    cal : RaytrixCalibration, dict, path or None
+        The calibration; default ``raw.metadata.extra['raytrix']``.
+    refine : bool
+        Re-fit origin, rotation, pitch and row spacing to the micro-image disks of ``raw``
+        (:func:`refine_grid`); lens indices and types are kept.
+    refine_method : 'auto', 'disks' or 'phase'
+        See :func:`refine_grid`.
+
+    Returns
+    -------
+    LensletGrid
+        With ``lens_type`` from the XML's three lens types.
+
+    Raises
+    ------
+    CalibrationError
+        No calibration available, or an unusable one.
+    """
+    from ..io import raytrix as rx
+    calib = _raytrix_calibration(raw, cal)
+    try:
+        grid = rx.grid_from_raycalib(calib, raw.shape)
+    except MetadataError as exc:
+        raise CalibrationError(f"the RayCalibData cannot be used: {exc}") from exc
+    info = {**grid.info, "source": raw.path, "serial": raw.metadata.serial, "camera_model": raw.metadata.model}
+    grid = grid.replace(info=info)
+    if refine:
+        img = _c.flatten_white(raw, equalise=raw.cfa is not None)
+        grid = refine_grid(grid, img, method=refine_method)
+    return grid
+
+
+__all__ = ["calibrate_from_scene", "calibrate_raytrix", "refine_grid", "IMAGE_EXTENSIONS"]

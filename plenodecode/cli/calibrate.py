@@ -1,0 +1,121 @@
+"""``plenodecode calibrate``: fit the lenslet grid from white images; build or query a calibration database."""
+
+from __future__ import annotations
+
+import os
+import uuid
+from pathlib import Path
+
+import click
+
+from .common import check_output, overwrite_option, progress_bar
+
+
+def _write_text(path: Path, text: str) -> None:
+    """Atomic write (temporary name in the same folder, then rename)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+@click.command("calibrate")
+@click.argument("inputs", nargs=-1, type=click.Path(exists=True, path_type=Path), metavar="WHITE...")
+@click.option("-o", "--output", type=click.Path(path_type=Path, dir_okay=False), default=None,
+              help="Grid JSON to write (required unless building a database).")
+@click.option("--report", type=click.Path(path_type=Path, dir_okay=False), default=None,
+              help="Also write a self-contained HTML calibration report.")
+@click.option("--lattice", type=click.Choice(["auto", "hex", "square"]), default="auto", show_default=True,
+              help="Lenslet lattice type.")
+@click.option("--pitch", "pitch_hint", type=float, default=None,
+              help="Approximate lens pitch in px (a hint; default from metadata or the image).")
+@click.option("--database", type=click.Path(path_type=Path, file_okay=False), default=None,
+              help="Calibration database folder: with WHITE folders of MOD_NNNN.RAW/.TXT pairs it is built; "
+                   "with --for RAW the grid of the matching white image is written to -o.")
+@click.option("--for", "for_raw", type=click.Path(exists=True, path_type=Path, dir_okay=False), default=None,
+              help="With --database: pick the white image for this raw (same serial, nearest zoom/focus).")
+@click.option("--scene", is_flag=True, help="Self-calibrate from a scene raw or image (no white image).")
+@click.option("--refine", is_flag=True, help="Raytrix: refine the RayCalibData grid on the image.")
+@overwrite_option
+@click.pass_context
+def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, report: Path | None, lattice: str,
+            pitch_hint: float | None, database: Path | None, for_raw: Path | None, scene: bool, refine: bool,
+            overwrite: bool) -> None:
+    """Fit the lenslet grid of a camera from one or more WHITE images (averaged).
+
+    A Raytrix image (PNG + RayCalibData XML) gives the XML's grid (--refine fits it to the
+    image); --scene finds the grid in a scene raw or a lenslet image (e.g. a JPEG).
+
+    \b
+    Examples:
+      plenodecode calibrate MOD_0000.RAW -o grid.json --report grid.html
+      plenodecode calibrate radiometry.png --lattice square -o grid.json
+      plenodecode calibrate --database calib/ sample_raws/illum-mini/
+      plenodecode calibrate --database calib/ --for scene.lfr -o grid.json
+    """
+    from ..calib import store
+
+    if output is not None:
+        check_output(output, overwrite)
+    if report is not None:
+        check_output(report, overwrite)
+    if database is not None and for_raw is None:
+        if not inputs:
+            raise click.UsageError("--database needs the folder(s) of MOD_NNNN.RAW/.TXT white images to index")
+        entries = []
+        for folder in inputs:
+            if not folder.is_dir():
+                raise click.UsageError(f"{folder} is not a folder; --database indexes folders of white images")
+            entries = store.build_database(folder, database, overwrite=overwrite, lattice=lattice,
+                                           progress=progress_bar(f"fitting whites in {folder}", ctx))
+        serials = sorted({str(e.serial) for e in entries})
+        click.echo(f"{database}: {len(entries)} white image(s) of camera(s) {', '.join(serials)}")
+        return
+    if output is None:
+        raise click.UsageError("missing -o/--output (the grid JSON to write)")
+    white = None
+    if database is not None:
+        from ..io import read_raw
+        raw = read_raw(for_raw)
+        entry = store.select_white(database, raw)
+        grid = store.grid_for(raw, database, lattice=lattice)
+        white = Path(os.path.normpath(database / entry.file))
+        click.echo(f"white image {entry.file} (serial {entry.serial}, zoom {entry.zoom_step}, focus {entry.focus_step})",
+                   err=True)
+    else:
+        if not inputs:
+            raise click.UsageError("give at least one WHITE image (or --database with a folder)")
+        if any(p.is_dir() for p in inputs):
+            raise click.UsageError("a folder was given: use --database DIR to index a folder of white images")
+        grid = _calibrate_inputs(ctx, inputs, lattice=lattice, pitch_hint=pitch_hint, scene=scene, refine=refine)
+        white = list(inputs)
+    for msg in grid.info.get("warnings", []):
+        click.echo(f"warning: {msg}", err=True)
+    _write_text(output, grid.to_json())
+    click.echo(f"grid  {output}  ({grid.lattice}, pitch {grid.pitch:.4f} px, rotation {grid.rotation:.6f} rad, "
+               f"{grid.shape[0]}x{grid.shape[1]} lenses, RMS {grid.residual_rms or 0:.3f} px)")
+    if report is not None:
+        from ..report.calibration import write_calibration_report
+        write_calibration_report(grid, white, report, overwrite=overwrite)
+        click.echo(f"report {report}")
+
+
+def _calibrate_inputs(ctx: click.Context, inputs: tuple[Path, ...], *, lattice: str, pitch_hint: float | None,
+                      scene: bool, refine: bool):
+    from ..calib import calibrate
+    from ..calib.selfcal import calibrate_from_scene, calibrate_raytrix
+    from ..io import read_raw
+
+    if scene:
+        if len(inputs) != 1:
+            raise click.UsageError("--scene takes exactly one raw or image")
+        return calibrate_from_scene(inputs[0], lattice=lattice, pitch_hint=pitch_hint,
+                                    progress=progress_bar("self-calibrating", ctx))
+    raws = [read_raw(p) for p in inputs]
+    if "raytrix" in raws[0].metadata.extra:
+        return calibrate_raytrix(raws[0], refine=refine)
+    return calibrate(raws, lattice=lattice, pitch_hint=pitch_hint, progress=progress_bar("calibrating", ctx))

@@ -1,0 +1,115 @@
+"""``plenodecode calibrate`` through click's CliRunner, and the HTML calibration report."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from plenodecode.cli.main import cli
+from plenodecode.io.lytro import write_raw_pair
+from plenodecode.io.synthetic import simulate, simulate_white
+from plenodecode.report.calibration import vignetting_profile, write_calibration_report
+from plenodecode.types import LensletGrid, RawCapture
+
+SHAPE = (260, 320)
+
+
+@pytest.fixture(scope="module")
+def white_pair(tmp_path_factory):
+    d = tmp_path_factory.mktemp("whites")
+    raw, truth = simulate_white("f01-mini", seed=4, shape=SHAPE, rotation=0.003, offset=(0.4, -0.2))
+    p, _ = write_raw_pair(d / "MOD_0000.RAW", raw)
+    return p, truth
+
+
+def run(*args):
+    return CliRunner().invoke(cli, list(map(str, args)), obj={}, catch_exceptions=False)
+
+
+def test_calibrate_writes_grid_and_report(white_pair, tmp_path):
+    path, truth = white_pair
+    out, rep = tmp_path / "grid.json", tmp_path / "report.html"
+    r = run("calibrate", path, "-o", out, "--report", rep)
+    assert r.exit_code == 0, r.output
+    grid = LensletGrid.from_json(out.read_text())
+    from scipy.spatial import cKDTree
+    t = truth.centres()
+    R = truth.radius
+    full = (t[:, 0] - R >= 0) & (t[:, 0] + R <= SHAPE[0] - 1) & (t[:, 1] - R >= 0) & (t[:, 1] + R <= SHAPE[1] - 1)
+    d, _ = cKDTree(grid.centres()).query(t[full])
+    assert np.sqrt(np.mean(d ** 2)) < 0.05
+    html = rep.read_text()
+    assert html.count("data:image/png;base64,") == 3          # overlays, residuals, vignetting
+    assert "Fitted parameters" in html and "pitch (along rows)" in html and f"{grid.pitch:.5f}" in html
+    assert "http://" not in html and "https://" not in html   # self-contained
+    # no overwrite without --overwrite (usage error, exit 2); with it, fine
+    r = run("calibrate", path, "-o", out)
+    assert r.exit_code == 2 and "--overwrite" in r.output
+    assert run("calibrate", path, "-o", out, "--overwrite", "--lattice", "hex").exit_code == 0
+
+
+def test_bad_inputs_exit_1_with_one_line(white_pair, tmp_path):
+    path, _ = white_pair
+    dark = replace(simulate_white("f01-mini", shape=SHAPE)[0], mosaic=np.full(SHAPE, 168, np.uint16))
+    write_raw_pair(tmp_path / "MOD_0009.RAW", dark)
+    r = CliRunner().invoke(cli, ["calibrate", str(tmp_path / "MOD_0009.RAW"), "-o", str(tmp_path / "g.json")],
+                           obj={})
+    assert r.exit_code == 1
+    err = r.output.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and "dark" in err[0]
+    assert not (tmp_path / "g.json").exists()
+    # a scene raw where a white is expected: calibrates but warns
+    sim = simulate("f01-mini", seed=1, shape=(300, 300))
+    write_raw_pair(tmp_path / "scene.RAW", replace(sim.raw, metadata=replace(sim.raw.metadata, is_white_image=False)))
+    r = CliRunner().invoke(cli, ["calibrate", str(tmp_path / "scene.RAW"), "-o", str(tmp_path / "s.json")], obj={})
+    assert r.exit_code == 0 and "warning: this looks like a scene" in r.output
+    r = run("calibrate", path)
+    assert r.exit_code == 2 and "-o" in r.output
+
+
+def test_database_build_and_wrong_camera(white_pair, tmp_path):
+    path, _ = white_pair
+    db = tmp_path / "calib"
+    r = run("calibrate", "--database", db, path.parent)
+    assert r.exit_code == 0, r.output
+    assert json.loads((db / "index.json").read_text())["entries"][0]["grid"]
+    # the matching camera: the grid comes from the database
+    raw, _ = simulate_white("f01-mini", seed=9, shape=SHAPE)
+    write_raw_pair(tmp_path / "pic" / "frame.RAW", replace(raw, metadata=replace(raw.metadata, is_white_image=False)))
+    r = run("calibrate", "--database", db, "--for", tmp_path / "pic" / "frame.RAW", "-o", tmp_path / "g.json")
+    assert r.exit_code == 0, r.output
+    # another camera: exit 1, the message names the serial the database holds
+    other = replace(raw, metadata=replace(raw.metadata, serial="A999", is_white_image=False))
+    write_raw_pair(tmp_path / "pic2" / "frame.RAW", other)
+    r = CliRunner().invoke(cli, ["calibrate", "--database", str(db), "--for", str(tmp_path / "pic2" / "frame.RAW"),
+                                 "-o", str(tmp_path / "h.json")], obj={})
+    assert r.exit_code == 1 and raw.metadata.serial in r.output and "A999" in r.output
+    assert len(r.output.strip().splitlines()) == 1
+
+
+def test_report_function_atomic_and_warnings(white_pair, tmp_path):
+    path, truth = white_pair
+    from plenodecode.io import read_raw
+    raw = read_raw(path)
+    off = truth.replace(origin=(truth.origin[0] + 2.0, truth.origin[1]))      # a wrong grid is flagged
+    rep = write_calibration_report(off, raw, tmp_path / "r.html")
+    html = rep.read_text()
+    assert "more than 0.5 px from the grid" in html or "RMS residual" in html
+    with pytest.raises(FileExistsError):
+        write_calibration_report(off, raw, tmp_path / "r.html")
+    write_calibration_report(truth, raw, tmp_path / "r.html", overwrite=True)
+    assert "no problems found" in (tmp_path / "r.html").read_text()
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+def test_vignetting_profile_of_a_radial_falloff():
+    yy, xx = np.mgrid[0:201, 0:301]
+    r = np.hypot(yy - 100, xx - 150)
+    img = (1.0 - 0.002 * r).astype(np.float32)
+    radius, mean = vignetting_profile(img, bins=20)
+    ok = np.isfinite(mean)
+    np.testing.assert_allclose(mean[ok], 1.0 - 0.002 * radius[ok], atol=0.01)

@@ -1,0 +1,108 @@
+"""The white-image database: build from MOD pairs, select by serial/zoom/focus, fit once, cache."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from plenodecode.calib import store
+from plenodecode.errors import CalibrationError
+from plenodecode.io.lytro import write_raw_pair
+from plenodecode.io.synthetic import simulate_white
+from plenodecode.types import CameraMetadata, RawCapture
+
+SHAPE = (240, 300)
+
+
+def _white(serial: str, zoom: float, focus: float, seed: int = 0, offset=(0.3, 0.4)) -> tuple[RawCapture, object]:
+    raw, truth = simulate_white("f01-mini", seed=seed, shape=SHAPE, offset=offset)
+    md = replace(raw.metadata, serial=serial, zoom_step=zoom, focus_step=focus)
+    return replace(raw, metadata=md), truth
+
+
+@pytest.fixture
+def whites(tmp_path):
+    """Three white images of camera A (zooms 100/500, focus 10/300) and one of camera B, as MOD pairs."""
+    src = tmp_path / "caldata"
+    (src / "A").mkdir(parents=True)
+    (src / "B").mkdir()
+    truths = {}
+    for k, (serial, zoom, focus, off) in enumerate([("A000000001", 100, 10, (0.3, 0.4)),
+                                                    ("A000000001", 500, 10, (1.3, -0.4)),
+                                                    ("A000000001", 500, 300, (-0.7, 0.9)),
+                                                    ("A000000002", 100, 10, (0.0, 0.0))]):
+        raw, truth = _white(serial, zoom, focus, seed=k, offset=off)
+        path = src / serial[-1:].replace("1", "A").replace("2", "B") / f"MOD_{k:04d}.RAW"
+        write_raw_pair(path, raw)
+        truths[path.name] = truth
+    return src, truths
+
+
+def test_build_select_and_cache(whites, tmp_path, monkeypatch):
+    src, truths = whites
+    db = tmp_path / "calib"
+    entries = store.build_database(src, db, fit=False)
+    assert len(entries) == 4
+    doc = json.loads((db / "index.json").read_text())
+    assert doc["format"] == "plenodecode.calibration-db" and len(doc["entries"]) == 4
+    assert all(not e["file"].startswith("/") for e in doc["entries"])      # relative paths
+
+    def md(serial, zoom, focus):
+        return CameraMetadata(serial=serial, zoom_step=zoom, focus_step=focus)
+    assert store.select_white(db, md("A000000001", 480, 250)).file.endswith("MOD_0002.RAW")   # zoom, then focus
+    assert store.select_white(db, md("A000000001", 480, 0)).file.endswith("MOD_0001.RAW")
+    assert store.select_white(db, md("A000000001", 90, 999)).file.endswith("MOD_0000.RAW")    # zoom wins
+    assert store.select_white(db, md("A000000002", 500, 300)).file.endswith("MOD_0003.RAW")   # serial first
+    with pytest.raises(CalibrationError, match="A000000001, A000000002"):
+        store.select_white(db, md("B999", 100, 10))
+    with pytest.raises(CalibrationError, match="several cameras"):
+        store.select_white(db, md(None, 100, 10))
+
+    # grid_for fits on first use and then reads the cache
+    raw = RawCapture(np.zeros(SHAPE, np.uint16), "BGGR", 168.0, 4095.0,
+                     md("A000000001", 500, 290))
+    calls = []
+    import plenodecode.calib as calib_pkg
+    real = calib_pkg.calibrate
+
+    def counting(*a, **k):
+        calls.append(a)
+        return real(*a, **k)
+    monkeypatch.setattr(calib_pkg, "calibrate", counting)
+    g1 = store.grid_for(raw, db)
+    g2 = store.grid_for(raw, db)
+    assert len(calls) == 1
+    truth = truths["MOD_0002.RAW"]
+    np.testing.assert_allclose(g1.centres(), g2.centres())
+    from scipy.spatial import cKDTree
+    t = truth.centres()
+    R = truth.radius
+    full = (t[:, 0] - R >= 0) & (t[:, 0] + R <= SHAPE[0] - 1) & (t[:, 1] - R >= 0) & (t[:, 1] + R <= SHAPE[1] - 1)
+    d, _ = cKDTree(g1.centres()).query(t[full])
+    assert np.sqrt(np.mean(d ** 2)) < 0.05
+    entry = [e for e in store.load_index(db) if e.file.endswith("MOD_0002.RAW")][0]
+    assert entry.grid is not None and (db / entry.grid).is_file()
+    wrong = replace(raw, mosaic=np.zeros((100, 100), np.uint16))
+    with pytest.raises(CalibrationError, match="another sensor"):
+        store.grid_for(wrong, db)
+
+
+def test_build_with_fit_and_errors(whites, tmp_path):
+    src, _ = whites
+    db = tmp_path / "db2"
+    entries = store.build_database(src / "B", db)                 # fits now
+    assert len(entries) == 1 and entries[0].grid is not None
+    assert (db / entries[0].grid).is_file()
+    with pytest.raises(CalibrationError, match="no MOD_NNNN.RAW"):
+        store.build_database(db, tmp_path / "db3")               # a folder without white images
+    with pytest.raises(CalibrationError, match="not a folder"):
+        store.build_database(tmp_path / "nope", tmp_path / "db3")
+    with pytest.raises(CalibrationError, match="no calibration database"):
+        store.load_index(tmp_path / "empty")
+    (tmp_path / "bad").mkdir()
+    (tmp_path / "bad" / "index.json").write_text('{"format": "other"}')
+    with pytest.raises(CalibrationError, match="not a plenodecode calibration index"):
+        store.load_index(tmp_path / "bad")
