@@ -68,6 +68,9 @@ def _temp_sibling(p: Path) -> Path:
     """A fresh, unique temporary file next to ``p`` with the same extension."""
     fd, tmp = tempfile.mkstemp(prefix=f".{p.stem}.", suffix=p.suffix, dir=p.parent)
     os.close(fd)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; outputs get the usual permissions
     return Path(tmp)
 
 

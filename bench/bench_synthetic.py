@@ -1,0 +1,56 @@
+"""Benchmark of the synthetic generator :mod:`plenodecode.io.synthetic`.
+
+* full-size ``illum`` (7728 x 5368): scene raw + white image, no ground-truth light field
+  (target <= 60 s; rows are rendered in bands of ``BAND_ROWS``, so memory stays bounded);
+* ``illum-mini`` scene + white, and its 15 x 15 ground-truth light field;
+* the white image alone, compiled kernel against the plain-numpy reference model
+  (``assign_pixels`` + ``disk_response`` + ``vignetting``, the functions the tests check the
+  kernel with) on ``illum-mini``.
+
+The first call compiles the numba kernels (cached on disk afterwards); a warm-up on a tiny
+sensor runs before any timing.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import Figure, measure
+
+
+def _numpy_white(preset: str) -> np.ndarray:
+    from plenodecode.io import synthetic as syn
+
+    p = syn.PRESETS[preset]
+    grid = syn.make_grid(p)
+    h, w = grid.sensor_shape
+    rr, cc = np.meshgrid(np.arange(h), np.arange(w), indexing="ij")
+    lens = syn.assign_pixels(grid, rr, cc)
+    sig = (syn.disk_response(lens.oa, lens.ob, grid.radius, edge_px=p.edge_px, falloff=p.disk_falloff)
+           * syn.vignetting(rr, cc, (h, w), p.vignette_corner, p.sensor_shape) * p.exposure)
+    return np.rint(p.black + sig * (p.white - p.black)).astype(np.uint16)
+
+
+def run() -> list[Figure]:
+    from plenodecode.io import synthetic as syn
+
+    syn.simulate("illum", shape=(64, 64))                      # compile / load the kernels
+    figures = []
+    sim, t, peak = measure(lambda: syn.simulate("illum", seed=1))
+    h, w = sim.raw.shape
+    figures.append(Figure(f"synthetic: simulate illum {w}x{h} (raw + white)", t, peak, target_s=60.0,
+                          note=f"{2 * h * w / t / 1e6:.1f} Mpx/s"))
+    del sim
+    sim, t, peak = measure(lambda: syn.simulate("illum-mini", seed=1), repeat=3)
+    figures.append(Figure("synthetic: simulate illum-mini 1544x1072 (raw + white)", t, peak))
+    lf, t, peak = measure(lambda: sim.ground_truth_lightfield(), repeat=1)
+    figures.append(Figure("synthetic: ground-truth LF illum-mini " + "x".join(map(str, lf.shape)), t, peak))
+    _, t_ref, _ = measure(lambda: _numpy_white("illum-mini"), memory=False)
+    (white, _), t_fast, peak = measure(lambda: syn.simulate_white("illum-mini", noise=False), repeat=3)
+    same = np.array_equal(white.mosaic, _numpy_white("illum-mini"))
+    figures.append(Figure("synthetic: white illum-mini, noise-free", t_fast, peak, ratio=t_ref / t_fast,
+                          baseline="numpy reference model",
+                          note="bit-identical" if same else "DIFFERS from the reference"))
+    (white, _), t, peak = measure(lambda: syn.simulate_white("illum", seed=1))
+    figures.append(Figure("synthetic: white illum 7728x5368 with noise", t, peak, target_s=30.0))
+    return figures
