@@ -1,1 +1,23 @@
-"""plenodecode.render"""
+"""Rendering: refocusing (shift-sum, Fourier slice), focal stacks, all-in-focus images, perspective views.
+
+Conventions (design.md): a light field is ``(V, U, Y, X, C)`` float32; a refocus slope ``s`` is in spatial
+samples per view step and a surface of disparity ``d`` is sharp at ``s = d``; ``alpha`` is Ng's relative film
+depth (1 = focus as captured), converted by :func:`alpha_to_slope` (derivation in
+:mod:`plenodecode.render.refocus`).
+"""
+
+from __future__ import annotations
+
+from .focalstack import (all_in_focus, default_slopes, depth_from_focus, focal_stack, focus_curve, focus_measure,
+                         refocus_per_pixel, sharpest_slope)
+from .fourier import FourierRefocuser
+from .perspective import parallax_path, perspective, render_parallax
+from .refocus import (REFOCUS_CONSTANTS, REFOCUS_METHODS, alpha_to_slope, aperture_mask, refocus, refocus_constants,
+                      shift_sum, slope_per_alpha_unit, slope_to_alpha)
+
+__all__ = [
+    "refocus", "focal_stack", "all_in_focus", "perspective", "parallax_path", "render_parallax",
+    "REFOCUS_METHODS", "REFOCUS_CONSTANTS", "alpha_to_slope", "slope_to_alpha", "slope_per_alpha_unit",
+    "refocus_constants", "aperture_mask", "shift_sum", "FourierRefocuser", "focus_measure", "focus_curve",
+    "sharpest_slope", "depth_from_focus", "refocus_per_pixel", "default_slopes",
+]

@@ -1,0 +1,343 @@
+"""Focal stacks, focus measures, the sharpest slope of a region, and all-in-focus images.
+
+The focus measure is the gradient energy (Tenengrad with Sobel derivatives; Krotkov 1988, Subbarao et al.
+1993): a refocused surface is sharpest, i.e. has the most gradient energy, at the slope equal to its disparity.
+All-in-focus images follow Levoy et al. / Ng (2005): either pick, per pixel, the slope of the sharpest slice of a
+focal stack (depth from focus, smoothed), or take a disparity map, and refocus every pixel at its own slope.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Any, Callable
+
+import cv2
+import numpy as np
+
+from ..types import LightField
+from .refocus import aperture_mask, check_lightfield, get_method
+
+log = logging.getLogger(__name__)
+
+#: Default slopes of a focal stack when neither the caller nor the metadata ('disparity_range') gives any.
+DEFAULT_SLOPE_RANGE = (-2.0, 2.0)
+
+
+def default_slopes(lf: LightField, n: int = 33) -> np.ndarray:
+    """``n`` slopes over ``lf.metadata['disparity_range']`` (widened by 10 %) or :data:`DEFAULT_SLOPE_RANGE`."""
+    rng = lf.metadata.get("disparity_range") if lf.metadata else None
+    if rng is not None and len(rng) == 2 and np.all(np.isfinite(rng)) and rng[1] > rng[0]:
+        lo, hi = float(rng[0]), float(rng[1])
+        pad = 0.1 * (hi - lo) + 0.05
+        lo, hi = lo - pad, hi + pad
+    else:
+        lo, hi = DEFAULT_SLOPE_RANGE
+    return np.linspace(lo, hi, n)
+
+
+def focal_stack(lf: LightField, slopes: np.ndarray | list[float], *, method: str = "shift-sum",
+                aperture: float | np.ndarray = 1.0, upsample: int = 1,
+                progress: Callable[[int, int], None] | None = None, **kw: Any) -> np.ndarray:
+    """Photographs refocused at each slope.
+
+    Parameters
+    ----------
+    lf : LightField
+    slopes : array_like (S,)
+        Spatial samples per view step.
+    method : str
+        A key of :data:`plenodecode.render.refocus.REFOCUS_METHODS`.  'shift-sum' computes a quarter of the
+        slices (at least 8, at most ~512 MB) per pass over the light field; 'fourier-slice' reuses one cached
+        4D transform.
+    aperture, upsample, **kw
+        As :func:`plenodecode.render.refocus.refocus`.
+    progress : callable(done, total), optional
+        Called with the number of slices done.
+
+    Returns
+    -------
+    ndarray, shape (S, upsample Y, upsample X, C), float32
+    """
+    check_lightfield(lf)
+    s = np.atleast_1d(np.asarray(slopes, np.float64)).ravel()
+    if s.size == 0 or not np.all(np.isfinite(s)):
+        raise ValueError(f"slopes must be a non-empty sequence of finite numbers, got {slopes}")
+    fn = get_method(method)
+    if method != "shift-sum":
+        return fn(lf, s, aperture=aperture, upsample=upsample, progress=progress, **kw)
+    _, _, ny, nx, nc = lf.shape
+    per_slice = 2 * ny * nx * nc * 4 * upsample * upsample
+    # slices per pass over the light field: ~4 passes (progress), at least 8 slices, at most ~512 MB of buffers
+    chunk = int(max(1, min(len(s), max(8, -(-len(s) // 4)), (512 << 20) // per_slice)))
+    out = np.empty((len(s), upsample * ny, upsample * nx, nc), np.float32)
+    for i0 in range(0, len(s), chunk):
+        out[i0:i0 + chunk] = fn(lf, s[i0:i0 + chunk], aperture=aperture, upsample=upsample, **kw)
+        if progress is not None:
+            progress(min(len(s), i0 + chunk), len(s))
+    return out
+
+
+def _grey(img: np.ndarray) -> np.ndarray:
+    img = np.asarray(img, np.float32)
+    return img.mean(axis=-1) if img.ndim == 3 else img
+
+
+def gradient_energy(img: np.ndarray) -> np.ndarray:
+    """Squared gradient magnitude of the grey image (Sobel, border replicated).
+
+    Parameters
+    ----------
+    img : ndarray (Y, X) or (Y, X, C)
+
+    Returns
+    -------
+    ndarray, shape (Y, X), float32
+    """
+    g = _grey(img)
+    gx = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3, borderType=cv2.BORDER_REPLICATE)
+    gy = cv2.Sobel(g, cv2.CV_32F, 0, 1, ksize=3, borderType=cv2.BORDER_REPLICATE)
+    return gx * gx + gy * gy
+
+
+def focus_measure(img: np.ndarray, *, window: int = 9) -> np.ndarray:
+    """Local Tenengrad focus measure: gradient energy averaged over a ``window`` x ``window`` box.
+
+    Returns
+    -------
+    ndarray, shape (Y, X), float32
+    """
+    if int(window) != window or window < 1:
+        raise ValueError(f"window must be a positive integer, got {window}")
+    return cv2.boxFilter(gradient_energy(img), -1, (int(window), int(window)), borderType=cv2.BORDER_REFLECT)
+
+
+def _parabolic_peak(values: np.ndarray, i: np.ndarray) -> np.ndarray:
+    """Sub-sample offset in [-0.5, 0.5] of the vertex of the parabola through values[i-1], values[i], values[i+1]
+    (along axis 0; 0 at the ends)."""
+    n = values.shape[0]
+    im = np.clip(i - 1, 0, n - 1)
+    ip = np.clip(i + 1, 0, n - 1)
+    take = lambda k: np.take_along_axis(values, k[None], 0)[0] if values.ndim > 1 else values[k]  # noqa: E731
+    f0, fm, fp = take(i), take(im), take(ip)
+    den = fm - 2 * f0 + fp
+    with np.errstate(divide="ignore", invalid="ignore"):
+        off = np.where((den < 0) & (i > 0) & (i < n - 1), 0.5 * (fm - fp) / den, 0.0)
+    return np.clip(off, -0.5, 0.5)
+
+
+def _bbox(region: Any, shape: tuple[int, int]) -> tuple[slice, slice, np.ndarray | None]:
+    """Bounding box (row slice, col slice) of a region given as a pair of slices or a boolean (Y, X) mask."""
+    if isinstance(region, np.ndarray):
+        if region.shape != shape or region.dtype != bool:
+            raise ValueError(f"region mask must be a boolean array of shape {shape}, got {region.dtype} {region.shape}")
+        rows, cols = np.flatnonzero(region.any(1)), np.flatnonzero(region.any(0))
+        if rows.size == 0:
+            raise ValueError("region mask selects no pixel")
+        rs, cs = slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1)
+        return rs, cs, region[rs, cs]
+    if isinstance(region, tuple) and len(region) == 2 and all(isinstance(r, slice) for r in region):
+        rs = slice(*region[0].indices(shape[0])[:2])
+        cs = slice(*region[1].indices(shape[1])[:2])
+        if rs.stop <= rs.start or cs.stop <= cs.start:
+            raise ValueError(f"region {region} is empty")
+        return rs, cs, None
+    raise ValueError("region must be (row_slice, col_slice) or a boolean (Y, X) mask")
+
+
+def focus_curve(lf: LightField, slopes: np.ndarray | list[float], *, region: Any = None, method: str = "shift-sum",
+                aperture: float | np.ndarray = 1.0, **kw: Any) -> np.ndarray:
+    """Gradient energy of a region of the photograph refocused at each slope.
+
+    Only the region's bounding box plus the margin the largest shift needs is refocused.
+
+    Parameters
+    ----------
+    lf : LightField
+    slopes : array_like (S,)
+    region : (row_slice, col_slice) or ndarray (Y, X) bool, optional
+        Default: the whole image.
+    method, aperture, **kw
+        As :func:`focal_stack`.
+
+    Returns
+    -------
+    ndarray, shape (S,), float64
+        Mean gradient energy over the region per slope.
+    """
+    check_lightfield(lf)
+    s = np.atleast_1d(np.asarray(slopes, np.float64)).ravel()
+    nv, nu, ny, nx, _ = lf.shape
+    rs, cs, mask = _bbox(region if region is not None else (slice(None), slice(None)), (ny, nx))
+    vc, uc = lf.centre_index
+    reach = max(vc, uc, nv - 1 - vc, nu - 1 - uc)
+    m = int(math.ceil(np.max(np.abs(s)) * reach)) + 3
+    y0, y1 = max(0, rs.start - m), min(ny, rs.stop + m)
+    x0, x1 = max(0, cs.start - m), min(nx, cs.stop + m)
+    sub = lf.replace(data=lf.data[:, :, y0:y1, x0:x1],
+                     weight=None if lf.weight is None else lf.weight[:, :, y0:y1, x0:x1])
+    stack = focal_stack(sub, s, method=method, aperture=aperture, **kw)
+    inner = (slice(rs.start - y0, rs.stop - y0), slice(cs.start - x0, cs.stop - x0))
+    out = np.empty(len(s))
+    for i in range(len(s)):
+        e = gradient_energy(stack[i])[inner]
+        out[i] = float(e[mask].mean() if mask is not None else e.mean())
+    return out
+
+
+def sharpest_slope(lf: LightField, *, region: Any = None, slopes: np.ndarray | list[float] | None = None,
+                   method: str = "shift-sum", aperture: float | np.ndarray = 1.0, refine: bool = True,
+                   **kw: Any) -> float:
+    """The slope at which a region of the refocused photograph is sharpest (its disparity, design.md).
+
+    A coarse focus curve over ``slopes`` (default :func:`default_slopes`, 33 values), its maximum refined by a
+    parabola; with ``refine`` a second curve at a tenth of the step around it, refined the same way.
+
+    Returns
+    -------
+    float
+        Spatial samples per view step.
+    """
+    s = default_slopes(lf) if slopes is None else np.atleast_1d(np.asarray(slopes, np.float64)).ravel()
+    if s.size < 3:
+        raise ValueError(f"slopes must hold at least 3 values, got {s.size}")
+    s = np.sort(s)
+    curve = focus_curve(lf, s, region=region, method=method, aperture=aperture, **kw)
+    i = int(np.argmax(curve))
+    step = float(np.median(np.diff(s)))
+    best = float(s[i] + _parabolic_peak(curve, np.array(i)) * (s[min(i + 1, len(s) - 1)] - s[max(i - 1, 0)]) / 2)
+    if not refine:
+        return best
+    fine = best + np.linspace(-1.5 * step, 1.5 * step, 31)
+    curve = focus_curve(lf, fine, region=region, method=method, aperture=aperture, **kw)
+    j = int(np.argmax(curve))
+    return float(fine[j] + _parabolic_peak(curve, np.array(j)) * (fine[1] - fine[0]))
+
+
+def depth_from_focus(stack: np.ndarray, slopes: np.ndarray | list[float], *, window: int = 9,
+                     smooth: int = 5) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel slope of the sharpest slice of a focal stack.
+
+    Parameters
+    ----------
+    stack : ndarray (S, Y, X, C) or (S, Y, X)
+    slopes : array_like (S,), increasing
+    window : int
+        Box size of the focus measure (:func:`focus_measure`).
+    smooth : int
+        Size of the median filter applied to the slope map: 1 (none), 3 or 5.
+
+    Returns
+    -------
+    slope : ndarray (Y, X) float32
+        Sharpest slope, refined between slices by a parabola, median-filtered.
+    confidence : ndarray (Y, X) float32
+        Peak focus measure over its mean across the stack, minus 1 (0 = flat curve, e.g. no texture).
+    """
+    s = np.asarray(slopes, np.float64).ravel()
+    if stack.shape[0] != s.size:
+        raise ValueError(f"slopes has {s.size} values for a stack of {stack.shape[0]} slices")
+    if s.size > 1 and not np.all(np.diff(s) > 0):
+        raise ValueError("slopes must be strictly increasing")
+    if smooth not in (1, 3, 5):
+        raise ValueError(f"smooth must be 1, 3 or 5, got {smooth}")
+    fm = np.stack([focus_measure(stack[i], window=window) for i in range(s.size)])
+    idx = np.argmax(fm, axis=0)
+    off = _parabolic_peak(fm, idx)
+    pos = np.clip(idx + off, 0, s.size - 1)
+    slope = np.interp(pos.ravel(), np.arange(s.size), s).reshape(pos.shape).astype(np.float32)
+    if smooth > 1:
+        slope = cv2.medianBlur(slope, int(smooth))
+    peak = np.take_along_axis(fm, idx[None], 0)[0]
+    conf = (peak / np.maximum(fm.mean(0), 1e-12) - 1.0).astype(np.float32)
+    return slope, conf
+
+
+def refocus_per_pixel(lf: LightField, slope_map: np.ndarray, *, aperture: float | np.ndarray = 1.0,
+                      interp: str = "linear", progress: Callable[[int, int], None] | None = None) -> np.ndarray:
+    """Every pixel refocused at its own slope: ``E(y, x) = mean_{v,u} L_vu(y - d(y,x) a, x - d(y,x) b)``.
+
+    Weight-normalised like the shift-sum; one ``cv2.remap`` per view (bilinear or bicubic, border replicated).
+
+    Parameters
+    ----------
+    lf : LightField
+    slope_map : ndarray (Y, X)
+        Slope (disparity) per output pixel, spatial samples per view step.
+
+    Returns
+    -------
+    ndarray, shape (Y, X, C), float32
+    """
+    check_lightfield(lf)
+    nv, nu, ny, nx, nc = lf.shape
+    d = np.asarray(slope_map, np.float32)
+    if d.shape != (ny, nx) or not np.all(np.isfinite(d)):
+        raise ValueError(f"slope_map must be a finite (Y, X) = {(ny, nx)} array, got {d.shape}")
+    flags = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC}.get(interp)
+    if flags is None:
+        raise ValueError(f"interp must be 'linear' or 'cubic', got {interp!r}")
+    mask = aperture_mask((nv, nu), aperture)
+    vc, uc = lf.centre_index
+    yy, xx = np.mgrid[0:ny, 0:nx].astype(np.float32)
+    num = np.zeros((ny, nx, nc), np.float32)
+    den = np.zeros((ny, nx), np.float32)
+    views = [(v, u) for v in range(nv) for u in range(nu) if mask[v, u] > 0]
+    for i, (v, u) in enumerate(views):
+        mx = xx - d * np.float32(u - uc)
+        my = yy - d * np.float32(v - vc)
+        img = cv2.remap(lf.data[v, u], mx, my, flags, borderMode=cv2.BORDER_REPLICATE).reshape(ny, nx, nc)
+        if lf.weight is not None:
+            w = cv2.remap(lf.weight[v, u], mx, my, flags, borderMode=cv2.BORDER_REPLICATE) * mask[v, u]
+            num += img * w[..., None]
+            den += w
+        else:
+            num += img * mask[v, u]
+            den += mask[v, u]
+        if progress is not None:
+            progress(i + 1, len(views))
+    return np.where(den[..., None] > 1e-12, num / np.maximum(den, 1e-12)[..., None], 0).astype(np.float32)
+
+
+def all_in_focus(lf: LightField, *, slopes: np.ndarray | list[float] | None = None, depth: np.ndarray | None = None,
+                 method: str = "shift-sum", aperture: float | np.ndarray = 1.0, window: int = 9,
+                 progress: Callable[[int, int], None] | None = None, **kw: Any) -> np.ndarray:
+    """An image sharp everywhere.
+
+    With ``depth`` (a disparity map of the centre view) every pixel is refocused at its own disparity
+    (:func:`refocus_per_pixel`).  Otherwise a focal stack over ``slopes`` (default :func:`default_slopes`) gives
+    each pixel the slope of its sharpest slice (:func:`depth_from_focus`: Tenengrad in a ``window`` box,
+    parabolic refinement, 5x5 median), and that slope map is rendered the same way.
+
+    Parameters
+    ----------
+    lf : LightField
+    slopes : array_like (S,), optional
+    depth : ndarray (Y, X), optional
+        Disparity, spatial samples per view step.
+    method : str
+        Refocus method of the focal stack.
+    aperture : float or ndarray (V, U)
+    window : int
+    progress : callable(done, total), optional
+
+    Returns
+    -------
+    ndarray, shape (Y, X, C), float32
+    """
+    check_lightfield(lf)
+    if depth is not None:
+        if slopes is not None:
+            raise ValueError("pass slopes or depth, not both")
+        return refocus_per_pixel(lf, depth, aperture=aperture, progress=progress)
+    s = default_slopes(lf) if slopes is None else np.sort(np.atleast_1d(np.asarray(slopes, np.float64)).ravel())
+    if s.size < 2:
+        raise ValueError("slopes must hold at least 2 values")
+    total = 2 * s.size
+    stack = focal_stack(lf, s, method=method, aperture=aperture,
+                        progress=None if progress is None else (lambda d, t: progress(d, total)), **kw)
+    slope_map, _ = depth_from_focus(stack, s, window=window)
+    del stack
+    return refocus_per_pixel(lf, slope_map, aperture=aperture,
+                             progress=None if progress is None else
+                             (lambda d, t: progress(s.size + round(d * s.size / t), total)))
