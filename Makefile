@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 JOBS   ?= 2
 
-.PHONY: venv demo test bench bench-depth clean
+.PHONY: venv system-deps demo test bench bench-depth clean
 
 venv: $(STAMP)
 
@@ -16,10 +16,18 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
+# Debian's chromium renders the HTML reports in the browser tests (skipped where it cannot be installed).
+system-deps:
+	@command -v chromium >/dev/null 2>&1 || { \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    echo "installing Debian chromium for the report tests"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; \
+	  else echo "note: chromium not installed and not root; browser tests will be skipped"; fi; }
+
 demo: $(STAMP)
 	$(PY) -m plenodecode.demo demo_out
 
-test: $(STAMP)
+test: $(STAMP) system-deps
 	$(PY) -m pytest -n $(JOBS) -q
 
 bench: $(STAMP)

@@ -35,7 +35,7 @@ def progress_bar(label: str, ctx: click.Context | None = None) -> Callable[[int,
             return
         bar = state.get("bar")
         if bar is None:
-            bar = click.progressbar(length=total, label=label, file=sys.stderr)
+            bar = click.progressbar(length=total, label=label, show_pos=True, show_eta=True, file=sys.stderr)
             bar.__enter__()
             state["bar"] = bar
             state["done"] = 0

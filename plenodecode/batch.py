@@ -1,0 +1,849 @@
+"""Batch decoding of many raws: a local process pool by default, a Dask cluster when asked.
+
+Each raw becomes one task that runs entirely on a worker (read -> pick the calibration from
+the database -> decode -> render the requested outputs -> write), so a light field never
+travels between processes; only small :class:`TaskResult` records stream back.  At most
+``max_in_flight`` tasks are submitted at a time and a task holds one light field, so the light
+fields in memory never exceed the number of tasks running at once (local processes, or the
+threads of the Dask workers).
+
+Layout of ``out_dir``::
+
+    out_dir/<name>/           one folder per raw, <name> = the raw's file stem (made unique)
+        centre.png, refocus_s+0.00.png, disparity.pfm, lightfield.zarr, views/ ...
+        thumbs/<product>.png  8-bit thumbnails (longest side <= THUMB_SIZE) for the index
+        .done.json            the task key, the products and thumbnails (written last)
+    out_dir/summary.json      every result of the last run
+    out_dir/index.html        thumbnails of every output and the error of every failure
+
+All-or-nothing per raw: a task writes into a hidden staging folder ``out_dir/.<name>.<random>.partial``
+and renames it to ``out_dir/<name>`` only when every product and the ``.done.json`` marker are
+written, so a killed run leaves no output under its final name (stale staging folders are removed by
+the next run).  Two batches must not write into the same ``out_dir`` at the same time.
+
+Resuming: ``.done.json`` holds the task key, the SHA-256 of the input's bytes and of the options
+(:func:`task_key`); a later run with the same key skips the raw, a changed input or option re-runs it
+and replaces its folder.  A folder ``out_dir/<name>`` without a marker was not written by a batch
+and is replaced only with ``overwrite=True``.
+
+On a Dask cluster (``scheduler=``) the workers must see the inputs, the calibration database and
+``out_dir`` under the same paths as the client (a shared file system).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import multiprocessing
+import os
+import shutil
+import socket
+import tempfile
+import time
+import traceback
+import uuid
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterable, Sequence
+
+from .errors import CalibrationError, PlenodecodeError
+
+log = logging.getLogger(__name__)
+
+Progress = Callable[[int, int], None] | None
+
+#: Suffixes always taken as raws when a folder is searched (Lytro containers, camera raws).
+RAW_SUFFIXES = (".lfr", ".lfp", ".dng", ".cr2", ".cr3", ".nef", ".arw", ".raf", ".orf", ".rw2")
+#: Headerless Lytro raws: taken when their JSON sidecar (.TXT/.json) is beside them.
+PAIR_SUFFIXES = (".raw",)
+#: Image mosaics: taken when a plenodecode mosaic sidecar or a Raytrix calibration XML is beside them.
+MOSAIC_SUFFIXES = (".png", ".tif", ".tiff", ".exr", ".pgm")
+#: Outputs a batch can produce per raw; the CLI's --outputs choices.
+BATCH_OUTPUTS = ("lightfield", "views", "centre", "refocus", "depth")
+#: Light-field file formats of the 'lightfield' output -> name of the written file or folder.
+LIGHTFIELD_NAMES = {"zarr": "lightfield.zarr", "views": "lightfield_views", "mat": "lightfield.mat",
+                    "npy": "lightfield.npy", "eslf": "lightfield.eslf.png"}
+DONE_MARKER = ".done.json"
+STAGING_SUFFIX = ".partial"
+THUMB_DIR = "thumbs"
+SUMMARY_JSON = "summary.json"
+INDEX_HTML = "index.html"
+SUMMARY_FILES = (SUMMARY_JSON, INDEX_HTML)
+SUMMARY_FORMAT = "plenodecode.BatchSummary"
+#: Longest side of a thumbnail, px.
+THUMB_SIZE = 256
+
+
+# ---------------------------------------------------------------------------------- data
+@dataclass(frozen=True)
+class BatchOptions:
+    """What to produce for every raw (all of it is hashed into each task's key).
+
+    Attributes
+    ----------
+    outputs : tuple of str
+        Non-empty subset of :data:`BATCH_OUTPUTS`.
+    db_dir : str
+        Calibration database folder (:mod:`plenodecode.calib.store`).
+    lightfield_format : str
+        Format of the 'lightfield' output, a key of :data:`LIGHTFIELD_NAMES`.
+    bit_depth : {8, 16, 32}
+        Image outputs: 8/16-bit sRGB-encoded PNG, or 32 = linear float EXR.
+    slope : float
+        Refocus slope of the 'refocus' output (px per view step, design.md).
+    depth_method : str or None
+        Method of the 'depth' output (None: the library's default).
+    """
+
+    outputs: tuple[str, ...] = ("centre",)
+    db_dir: str = "calib"
+    lightfield_format: str = "zarr"
+    bit_depth: int = 16
+    slope: float = 0.0
+    depth_method: str | None = None
+
+    def __post_init__(self) -> None:
+        outs = tuple(self.outputs) if not isinstance(self.outputs, str) else (self.outputs,)
+        bad = [o for o in outs if o not in BATCH_OUTPUTS]
+        if bad or not outs:
+            raise ValueError(f"outputs must be a non-empty subset of {BATCH_OUTPUTS}, got {self.outputs!r}")
+        object.__setattr__(self, "outputs", tuple(dict.fromkeys(outs)))
+        if self.lightfield_format not in LIGHTFIELD_NAMES:
+            raise ValueError(f"lightfield_format must be one of {sorted(LIGHTFIELD_NAMES)}, "
+                             f"got {self.lightfield_format!r}")
+        if self.bit_depth not in (8, 16, 32):
+            raise ValueError(f"bit_depth must be 8, 16 or 32, got {self.bit_depth!r}")
+        if self.depth_method is not None:
+            from .depth import DEPTH_METHODS
+
+            if self.depth_method not in DEPTH_METHODS:
+                raise ValueError(f"depth_method must be one of {sorted(DEPTH_METHODS)} or None, "
+                                 f"got {self.depth_method!r}")
+        object.__setattr__(self, "slope", float(self.slope))
+        object.__setattr__(self, "db_dir", str(self.db_dir))
+
+    def as_key_dict(self) -> dict[str, Any]:
+        """The options as hashed into the task key.
+
+        The database folder is made absolute; options of products not asked for are left out, so
+        changing them does not redo finished raws.
+        """
+        d = asdict(self)
+        d["outputs"] = list(self.outputs)
+        d["db_dir"] = str(Path(self.db_dir).resolve())
+        for option, product in (("slope", "refocus"), ("depth_method", "depth"), ("lightfield_format", "lightfield")):
+            if product not in self.outputs:
+                d.pop(option)
+        return d
+
+
+@dataclass(frozen=True)
+class TaskResult:
+    """What a worker reports for one raw (small: it travels back from the worker).
+
+    Attributes
+    ----------
+    source : str
+        The raw.
+    status : str
+        'done', 'skipped' (finished by an earlier run with the same key) or 'failed'.
+    outputs : tuple of str
+        Written products (files or folders), absolute paths.
+    thumbnails : tuple of str or None
+        8-bit PNG thumbnail of each output (same order), None where there is none.
+    error : str or None
+        One line: the exception's class and message.
+    seconds : float
+        Wall time of the task on the worker.
+    worker : str
+        ``host:pid`` of the process that ran the task.
+    worker_peak_mb : float or None
+        Peak resident memory of that process so far (``ru_maxrss``), MB.
+    """
+
+    source: str
+    status: str
+    outputs: tuple[str, ...] = ()
+    thumbnails: tuple[str | None, ...] = ()
+    error: str | None = None
+    seconds: float = 0.0
+    worker: str = ""
+    worker_peak_mb: float | None = None
+
+
+@dataclass(frozen=True)
+class BatchSummary:
+    """All results of a batch, in input order, and the wall time of the run."""
+
+    results: tuple[TaskResult, ...] = ()
+    seconds: float = 0.0
+
+    def count(self, status: str) -> int:
+        """Number of results with ``status``."""
+        return sum(r.status == status for r in self.results)
+
+    @property
+    def failed(self) -> tuple[TaskResult, ...]:
+        """The failed results."""
+        return tuple(r for r in self.results if r.status == "failed")
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-serialisable form (what ``summary.json`` holds)."""
+        return {"format": SUMMARY_FORMAT, "version": 1, "seconds": self.seconds,
+                "total": len(self.results), "done": self.count("done"), "skipped": self.count("skipped"),
+                "failed": self.count("failed"), "results": [asdict(r) for r in self.results]}
+
+
+# ---------------------------------------------------------------------------- discovery
+def _is_mosaic_with_sidecar(p: Path) -> bool:
+    """An image with a plenodecode mosaic sidecar (not flagged as a white image) or a Raytrix XML."""
+    from .io import generic, raytrix
+
+    side = generic.find_sidecar(p)
+    if side is not None:
+        try:
+            doc = json.loads(side.read_text(encoding="utf-8", errors="replace"))
+        except (OSError, ValueError):
+            doc = None
+        if isinstance(doc, dict) and doc.get("format") == generic.SIDECAR_FORMAT:
+            meta = doc.get("metadata")
+            return not (isinstance(meta, dict) and meta.get("is_white_image"))
+    return raytrix.find_calibration_xml(p) is not None
+
+
+def _is_raw_candidate(p: Path) -> bool:
+    name = p.name
+    if name.startswith(".") or name.upper().startswith("MOD_") or ".truth." in name.lower():
+        return False      # hidden / staging files, white images, generator ground truth
+    suffix = p.suffix.lower()
+    if suffix in RAW_SUFFIXES:
+        return True
+    if suffix in PAIR_SUFFIXES:
+        from .io import lytro
+
+        return lytro.find_sidecar(p) is not None
+    if suffix in MOSAIC_SUFFIXES:
+        return _is_mosaic_with_sidecar(p)
+    return False
+
+
+def _walk(folder: Path, exclude: set[Path]) -> list[Path]:
+    """Raw candidates under ``folder``; skips hidden folders, ``exclude`` and batch output folders."""
+    found: list[Path] = []
+    for root, dirs, files in os.walk(folder):
+        here = Path(root)
+        if DONE_MARKER in files:          # a batch output folder: nothing in it is an input
+            dirs[:] = []
+            continue
+        dirs[:] = sorted(d for d in dirs if not d.startswith(".") and (here / d).resolve() not in exclude)
+        found.extend(here / f for f in sorted(files) if _is_raw_candidate(here / f))
+    return found
+
+
+def find_raws(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os.PathLike] = ()) -> list[Path]:
+    """Every raw file under ``inputs``.
+
+    Files are taken as given.  Folders are searched recursively for Lytro containers
+    (``.lfr``/``.lfp``), camera raws and DNG, headerless ``.raw`` files with their JSON sidecar, and
+    image mosaics with a plenodecode sidecar or a Raytrix XML.  Skipped: white images
+    (``MOD_*``, or a mosaic whose sidecar says ``is_white_image``), the synthetic generator's ground
+    truth (``*.truth.*``), sidecars, hidden files and folders, folders in ``exclude`` (e.g. the
+    batch's own output folder) and batch output folders.
+
+    Parameters
+    ----------
+    inputs : iterable of path-like
+    exclude : iterable of path-like
+        Folders not to search.
+
+    Returns
+    -------
+    list of Path
+        In the order of ``inputs``, each folder's files sorted; duplicates removed.
+    """
+    skip = {Path(e).resolve() for e in exclude}
+    found: list[Path] = []
+    for item in inputs:
+        p = Path(item)
+        if p.is_dir():
+            if p.resolve() not in skip:
+                found.extend(_walk(p, skip))
+        else:
+            found.append(p)
+    seen: set[Path] = set()
+    unique = []
+    for f in found:
+        r = f.resolve()
+        if r not in seen:
+            seen.add(r)
+            unique.append(f)
+    return unique
+
+
+def output_names(files: Sequence[str | os.PathLike]) -> list[str]:
+    """The output folder name of each raw: its file stem, made unique.
+
+    Raws with the same stem in different folders get their folder path (relative to the
+    folders' common ancestor) as a prefix, joined by ``__``: ``a/IMG_1.LFR`` and ``b/IMG_1.LFR`` ->
+    ``a__IMG_1``, ``b__IMG_1``; any name still repeated gets its suffix (``IMG_1.lfr`` ->
+    ``IMG_1_lfr``).
+    """
+    paths = [Path(f).resolve() for f in files]
+    names = [p.stem for p in paths]
+    for attempt in ("folder", "suffix"):
+        counts: dict[str, int] = {}
+        for n in names:
+            counts[n] = counts.get(n, 0) + 1
+        dup = [i for i, n in enumerate(names) if counts[n] > 1]
+        if not dup:
+            break
+        if attempt == "folder":
+            groups: dict[str, list[int]] = {}
+            for i in dup:
+                groups.setdefault(names[i], []).append(i)
+            for group in groups.values():
+                root = Path(os.path.commonpath([str(paths[i].parent) for i in group]))
+                for i in group:
+                    rel = paths[i].parent.relative_to(root).parts
+                    names[i] = "__".join((*rel, names[i])) if rel else names[i]
+        else:
+            for i in dup:
+                names[i] = f"{names[i]}_{paths[i].suffix.lstrip('.').lower()}"
+    counts = {}
+    for n in names:
+        counts[n] = counts.get(n, 0) + 1
+    return [n if counts[n] == 1 else f"{n}_{i}" for i, n in enumerate(names)]
+
+
+def task_key(path: str | os.PathLike, options: BatchOptions) -> str:
+    """SHA-256 of the input's bytes followed by the options as canonical JSON.
+
+    Equal keys mean the outputs would be equal (for the same calibration database and code).
+    """
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 22), b""):
+            h.update(chunk)
+    h.update(b"\0plenodecode-batch-options\0")
+    h.update(json.dumps(options.as_key_dict(), sort_keys=True).encode())
+    return h.hexdigest()
+
+
+# ------------------------------------------------------------------------- calibration
+def calibration_for(raw: Any, db_dir: str | os.PathLike) -> tuple[Any, Any]:
+    """The lenslet grid and the white image of ``raw``'s camera from the calibration database.
+
+    Glue over :mod:`plenodecode.calib.store`: :func:`~plenodecode.calib.store.grid_for` gives the
+    grid (fitted once, then cached by the store) and the entry that
+    :func:`~plenodecode.calib.store.select_white` picks (same serial, nearest zoom, then focus step)
+    names the white image, read here for devignetting.
+
+    Parameters
+    ----------
+    raw : RawCapture
+    db_dir : path-like
+        Database folder.
+
+    Returns
+    -------
+    (LensletGrid, RawCapture)
+
+    Raises
+    ------
+    CalibrationError
+        No database, no white image of this camera, or one of another sensor size.
+    """
+    from .calib import store
+    from .io import read_raw
+
+    db = Path(db_dir)
+    grid = store.grid_for(raw, db)
+    entry = store.select_white(db, raw)
+    white = read_raw(db / entry.file)
+    if white.shape != raw.shape:
+        raise CalibrationError(f"the white image {entry.file} is {white.shape[1]}x{white.shape[0]} but the raw is "
+                               f"{raw.shape[1]}x{raw.shape[0]}; rebuild the database {db}")
+    return grid, white
+
+
+# ------------------------------------------------------------------------------- tasks
+def _worker_id() -> str:
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def _peak_mb() -> float:
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0   # KiB on Linux
+
+
+def _one_line(exc: BaseException) -> str:
+    text = f"{type(exc).__name__}: {exc}".strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def _read_marker(folder: Path) -> dict[str, Any] | None:
+    try:
+        doc = json.loads((folder / DONE_MARKER).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return doc if isinstance(doc, dict) else None
+
+
+def _skip_result(src: Path, target: Path, key: str, t0: float) -> TaskResult | None:
+    done = _read_marker(target)
+    if not done or done.get("key") != key:
+        return None
+    outs = [target / o for o in done.get("outputs", [])]
+    if not outs or not all(o.exists() for o in outs):
+        return None
+    thumbs = tuple(None if t is None else str(target / t) for t in done.get("thumbnails", [None] * len(outs)))
+    return TaskResult(str(src), "skipped", tuple(str(o) for o in outs), thumbs,
+                      seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb())
+
+
+def _staging_folder(out: Path, name: str) -> Path:
+    """A new hidden folder ``out/.<name>.<random>.partial`` (permissions from the umask, unlike mkdtemp's 0700)."""
+    while True:
+        p = out / f".{name}.{uuid.uuid4().hex[:12]}{STAGING_SUFFIX}"
+        try:
+            p.mkdir()
+            return p
+        except FileExistsError:  # pragma: no cover - 48 random bits
+            continue
+
+
+def _commit_folder(staging: Path, target: Path) -> None:
+    """Move a finished staging folder to ``target``, replacing an older one."""
+    if target.exists() or target.is_symlink():
+        trash = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
+        os.replace(target, trash / target.name)
+        os.replace(staging, target)
+        shutil.rmtree(trash, ignore_errors=True)
+    else:
+        os.replace(staging, target)
+
+
+def _set_threads(threads: int | None) -> None:
+    if threads is None:
+        return
+    try:
+        import numba
+
+        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+    except Exception:  # pragma: no cover - numba missing or threading layer refuses
+        log.debug("could not set numba threads", exc_info=True)
+
+
+def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: BatchOptions, *,
+                name: str | None = None, overwrite: bool = False, threads: int | None = None) -> TaskResult:
+    """Decode one raw and write the requested outputs into ``out_dir/<name>`` (runs on a worker).
+
+    Parameters
+    ----------
+    path : path-like
+        The raw.
+    out_dir : path-like
+        Batch output folder (must exist).
+    options : BatchOptions
+    name : str, optional
+        Output folder name (default: the raw's stem; see :func:`output_names`).
+    overwrite : bool
+        Redo the raw even when a previous run finished it with the same key, and replace a
+        folder ``out_dir/<name>`` that a batch did not write.
+    threads : int, optional
+        Threads for decoding and rendering (default: all cores).
+
+    Returns
+    -------
+    TaskResult
+        Never raises for bad data: a :class:`~plenodecode.errors.PlenodecodeError` or an
+        ``OSError`` becomes a 'failed' result carrying the one-line message; any other exception
+        (a bug) too, with its traceback logged.
+    """
+    t0 = time.perf_counter()
+    src = Path(path)
+    out = Path(out_dir)
+    target = out / (name or src.stem)
+    staging: Path | None = None
+    try:
+        key = task_key(src, options)
+        if not overwrite:
+            skipped = _skip_result(src, target, key, t0)
+            if skipped is not None:
+                return skipped
+            if target.exists() and _read_marker(target) is None:
+                raise FileExistsError(f"{target} exists and was not written by a batch run; "
+                                      "pass --overwrite (overwrite=True) to replace it")
+        _set_threads(threads)
+        from .io import read_raw
+
+        raw = read_raw(src)
+        staging = _staging_folder(out, target.name)
+        products = _write_products(raw, staging, options, threads=threads)
+        rel_out = [str(p.relative_to(staging)) for p, _ in products]
+        rel_thumb = [None if t is None else str(t.relative_to(staging)) for _, t in products]
+        marker = {"key": key, "source": str(src.resolve()), "outputs": rel_out, "thumbnails": rel_thumb,
+                  "options": options.as_key_dict()}
+        (staging / DONE_MARKER).write_text(json.dumps(marker, indent=1), encoding="utf-8")
+        _commit_folder(staging, target)
+        staging = None
+        return TaskResult(str(src), "done", tuple(str(target / o) for o in rel_out),
+                          tuple(None if t is None else str(target / t) for t in rel_thumb),
+                          seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb())
+    except (PlenodecodeError, OSError) as exc:
+        log.info("%s failed: %s", src, exc)
+        return TaskResult(str(src), "failed", error=_one_line(exc), seconds=time.perf_counter() - t0,
+                          worker=_worker_id(), worker_peak_mb=_peak_mb())
+    except Exception as exc:  # a bug, not bad data: keep the batch going, keep the traceback in the log
+        log.error("unexpected error on %s:\n%s", src, traceback.format_exc())
+        return TaskResult(str(src), "failed", error=f"internal error: {_one_line(exc)}",
+                          seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb())
+    finally:
+        if staging is not None:
+            shutil.rmtree(staging, ignore_errors=True)
+
+
+# ---------------------------------------------------------------------------- products
+def _image_name(stem: str, bit_depth: int) -> str:
+    return f"{stem}.exr" if bit_depth == 32 else f"{stem}.png"
+
+
+def _thumbnail(image: Any, path: Path, *, encode_srgb: bool) -> Path:
+    """8-bit PNG, longest side <= THUMB_SIZE (area-averaged), of a float image in [0, 1]."""
+    import cv2
+    import numpy as np
+
+    from .io.images import write_image
+
+    img = np.nan_to_num(np.asarray(image, np.float32), nan=0.0)
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    h, w = img.shape[:2]
+    scale = min(1.0, THUMB_SIZE / max(h, w))
+    if scale < 1.0:
+        img = cv2.resize(img, (max(1, round(w * scale)), max(1, round(h * scale))), interpolation=cv2.INTER_AREA)
+    return write_image(path, np.clip(img, 0.0, 1.0), bit_depth=8, encode_srgb=encode_srgb)
+
+
+def _colour_mapped(values: Any) -> Any:
+    """A disparity map as RGB in [0, 1] (viridis, 2nd..98th percentile), NaN black."""
+    import numpy as np
+    from matplotlib import colormaps
+
+    d = np.asarray(values, np.float64)
+    finite = np.isfinite(d)
+    if not finite.any():
+        return np.zeros((*d.shape, 3), np.float32)
+    lo, hi = np.percentile(d[finite], [2.0, 98.0])
+    t = np.clip((d - lo) / (hi - lo if hi > lo else 1.0), 0.0, 1.0)
+    rgb = colormaps["viridis"](np.where(finite, t, 0.0))[..., :3].astype(np.float32)
+    rgb[~finite] = 0.0
+    return rgb
+
+
+def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
+                    threads: int | None = None) -> list[tuple[Path, Path | None]]:
+    """Decode ``raw`` with its camera's calibration and write ``options.outputs`` into ``folder``.
+
+    Image outputs are sRGB-encoded 8/16-bit PNGs of the linear light field clipped to [0, 1]
+    (``bit_depth=32``: linear float EXR); the light field itself is saved linear.
+
+    Returns
+    -------
+    list of (product path, thumbnail path or None), in the order of ``options.outputs``.
+    """
+    import numpy as np
+
+    from .decode import decode
+    from .io.images import write_image
+    from .io.lightfield import save_lightfield
+
+    grid, white = calibration_for(raw, options.db_dir)
+    lf = decode(raw, grid, white=white, workers=threads)
+    encode = lf.colour == "linear-srgb" and options.bit_depth != 32
+    thumb_encode = lf.colour == "linear-srgb"
+    centre = np.clip(lf.centre_view(), 0.0, 1.0)
+    thumbs = folder / THUMB_DIR
+    thumbs.mkdir()
+    written: list[tuple[Path, Path | None]] = []
+    for product in options.outputs:
+        if product == "lightfield":
+            dest = save_lightfield(lf, folder / LIGHTFIELD_NAMES[options.lightfield_format],
+                                   format=options.lightfield_format, bit_depth=options.bit_depth)
+            written.append((Path(dest), _thumbnail(centre, thumbs / "lightfield.png", encode_srgb=thumb_encode)))
+        elif product == "views":
+            dest = save_lightfield(lf, folder / "views", format="views", bit_depth=options.bit_depth,
+                                   encode_srgb=encode)
+            written.append((Path(dest), _thumbnail(centre, thumbs / "views.png", encode_srgb=thumb_encode)))
+        elif product == "centre":
+            dest = write_image(folder / _image_name("centre", options.bit_depth), centre,
+                               bit_depth=options.bit_depth, encode_srgb=encode)
+            written.append((Path(dest), _thumbnail(centre, thumbs / "centre.png", encode_srgb=thumb_encode)))
+        elif product == "refocus":
+            from .render import refocus
+
+            photo = np.clip(refocus(lf, slope=options.slope), 0.0, 1.0)
+            stem = f"refocus_s{options.slope:+.2f}"
+            dest = write_image(folder / _image_name(stem, options.bit_depth), photo,
+                               bit_depth=options.bit_depth, encode_srgb=encode)
+            written.append((Path(dest), _thumbnail(photo, thumbs / f"{stem}.png", encode_srgb=thumb_encode)))
+        elif product == "depth":
+            from .depth import estimate_depth
+            from .io.pfm import write_pfm
+
+            kw = {"method": options.depth_method} if options.depth_method else {}
+            dm = estimate_depth(lf, **kw)
+            dest = write_pfm(folder / "disparity.pfm", dm.disparity)
+            written.append((Path(dest), _thumbnail(_colour_mapped(dm.disparity), thumbs / "disparity.png",
+                                                   encode_srgb=False)))
+    return written
+
+
+# ------------------------------------------------------------------------------ runners
+def _clean_stale(out: Path) -> None:
+    """Remove the staging folders, replaced folders and temporary files a killed run left in ``out``."""
+    for p in out.iterdir():
+        if not p.name.startswith("."):
+            continue
+        if p.is_dir() and (p.name.endswith(STAGING_SUFFIX) or p.name.endswith(".old")):
+            log.info("removing %s left by an interrupted run", p)
+            shutil.rmtree(p, ignore_errors=True)
+        elif p.is_file() and p.name.endswith(".tmp") and p.name[1:].startswith(SUMMARY_FILES):
+            p.unlink(missing_ok=True)
+
+
+def run_batch(inputs: Sequence[str | os.PathLike], out_dir: str | os.PathLike, options: BatchOptions | None = None,
+              *, jobs: int | None = None, scheduler: str | Any | None = None, max_in_flight: int | None = None,
+              overwrite: bool = False, progress: Progress = None) -> BatchSummary:
+    """Process every raw under ``inputs`` into ``out_dir`` (see the module docstring).
+
+    Parameters
+    ----------
+    inputs : sequence of path-like
+        Raw files and folders (searched by :func:`find_raws`; ``out_dir`` itself is excluded).
+    out_dir : path-like
+        Output folder (created).
+    options : BatchOptions, optional
+    jobs : int, optional
+        Local worker processes (default: all cores); ``jobs=1`` runs in this process.
+        Ignored with ``scheduler``.
+    scheduler : str or dask.distributed.Client, optional
+        Address of a Dask scheduler (``tcp://host:8786``) or a Client: run the same tasks there.
+    max_in_flight : int, optional
+        Tasks submitted at once (default: 2 per worker).
+    overwrite : bool
+        Redo every raw, ignoring earlier results.
+    progress : callable(done, total), optional
+        Called once with ``(0, total)`` and after every finished raw.
+
+    Returns
+    -------
+    BatchSummary
+        One result per raw in input order; failures carry their error, nothing is raised for bad files.
+    """
+    if jobs is not None and jobs < 1:
+        raise ValueError(f"jobs must be >= 1, got {jobs}")
+    if max_in_flight is not None and max_in_flight < 1:
+        raise ValueError(f"max_in_flight must be >= 1, got {max_in_flight}")
+    options = options or BatchOptions()
+    out = Path(out_dir).resolve()
+    files = [f.resolve() for f in find_raws(inputs, exclude=[out])]
+    names = output_names(files)
+    out.mkdir(parents=True, exist_ok=True)
+    _clean_stale(out)
+    t0 = time.perf_counter()
+    if progress is not None:
+        progress(0, len(files))
+    tasks = [(f, n) for f, n in zip(files, names)]
+    if scheduler is not None:
+        results = _run_dask(tasks, out, options, scheduler, max_in_flight, overwrite, progress)
+    else:
+        jobs = min(jobs or os.cpu_count() or 1, max(1, len(files)))
+        if jobs == 1:
+            results = []
+            for i, (f, n) in enumerate(tasks):
+                results.append(process_raw(f, out, options, name=n, overwrite=overwrite))
+                if progress is not None:
+                    progress(i + 1, len(files))
+        else:
+            threads = max(1, (os.cpu_count() or 1) // jobs)
+            results = _run_pool(tasks, out, options, jobs, max_in_flight or 2 * jobs, overwrite, threads, progress)
+    summary = BatchSummary(tuple(results), time.perf_counter() - t0)
+    log.info("batch: %d done, %d skipped, %d failed in %.1f s", summary.count("done"), summary.count("skipped"),
+             summary.count("failed"), summary.seconds)
+    return summary
+
+
+def _lost(path: Path, exc: BaseException) -> TaskResult:
+    return TaskResult(str(path), "failed", error=f"worker failed: {_one_line(exc)}")
+
+
+def _run_pool(tasks: list[tuple[Path, str]], out: Path, options: BatchOptions, jobs: int, limit: int,
+              overwrite: bool, threads: int, progress: Progress) -> list[TaskResult]:
+    """Local worker processes (spawned, so no state is inherited), at most ``limit`` tasks submitted.
+
+    A worker that dies (e.g. killed for memory) fails the tasks in flight and the pool is restarted
+    for the rest.
+    """
+    ctx = multiprocessing.get_context("spawn")
+    results: list[TaskResult | None] = [None] * len(tasks)
+    pending: dict[Future, int] = {}
+    nxt = finished = 0
+    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx)
+    try:
+        while nxt < len(tasks) or pending:
+            while nxt < len(tasks) and len(pending) < limit:
+                f, n = tasks[nxt]
+                try:
+                    fut = pool.submit(process_raw, f, out, options, name=n, overwrite=overwrite, threads=threads)
+                except BrokenProcessPool:
+                    pool.shutdown(wait=False, cancel_futures=True)
+                    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx)
+                    continue
+                pending[fut] = nxt
+                nxt += 1
+            done, _ = wait(list(pending), return_when=FIRST_COMPLETED)
+            for fut in done:
+                idx = pending.pop(fut)
+                try:
+                    results[idx] = fut.result()
+                except Exception as exc:  # the worker process died: report it, keep going
+                    results[idx] = _lost(tasks[idx][0], exc)
+                finished += 1
+                if progress is not None:
+                    progress(finished, len(tasks))
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+    return results  # type: ignore[return-value]
+
+
+def _run_dask(tasks: list[tuple[Path, str]], out: Path, options: BatchOptions, scheduler: Any,
+              max_in_flight: int | None, overwrite: bool, progress: Progress) -> list[TaskResult]:
+    """The same tasks on a Dask distributed cluster, results streamed back as they finish."""
+    from distributed import Client, as_completed
+
+    own = not isinstance(scheduler, Client)
+    client = Client(scheduler, set_as_default=False) if own else scheduler
+    try:
+        n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+        limit = max_in_flight or 2 * n_workers
+        results: list[TaskResult | None] = [None] * len(tasks)
+        index: dict[str, int] = {}
+        queue = iter(enumerate(tasks))
+        tag = os.urandom(4).hex()
+
+        def submit_next() -> Any:
+            try:
+                i, (f, n) = next(queue)
+            except StopIteration:
+                return None
+            fut = client.submit(process_raw, str(f), str(out), options, name=n, overwrite=overwrite, threads=1,
+                                key=f"plenodecode-batch-{tag}-{i}", pure=False)
+            index[fut.key] = i
+            return fut
+
+        first = [fut for fut in (submit_next() for _ in range(limit)) if fut is not None]
+        finished = 0
+        ac = as_completed(first, loop=client.loop)
+        for fut in ac:
+            i = index.pop(fut.key)
+            try:
+                results[i] = fut.result()
+            except Exception as exc:   # worker lost (KilledWorker) or unpicklable result
+                results[i] = _lost(tasks[i][0], exc)
+            fut.release()
+            finished += 1
+            if progress is not None:
+                progress(finished, len(tasks))
+            nxt = submit_next()
+            if nxt is not None:
+                ac.add(nxt)
+        return results  # type: ignore[return-value]
+    finally:
+        if own:
+            client.close()
+
+
+# ------------------------------------------------------------------------------ summary
+def _atomic_write_text(path: Path, text: str, *, overwrite: bool = True) -> Path:
+    if path.exists() and not overwrite:
+        raise FileExistsError(f"{path} exists; pass overwrite=True to replace it")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+def check_summary_files(out_dir: str | os.PathLike) -> None:
+    """Raise FileExistsError when ``summary.json`` or ``index.html`` in ``out_dir`` was not written by a batch.
+
+    The batch's own summary and index describe the latest run and are replaced by the next one;
+    files of the same name that something else wrote are never replaced (pass ``overwrite``).
+    """
+    from .report.batch import GENERATOR
+
+    out = Path(out_dir)
+    js, index = out / SUMMARY_JSON, out / INDEX_HTML
+    if js.exists():
+        try:
+            ours = json.loads(js.read_text(encoding="utf-8")).get("format") == SUMMARY_FORMAT
+        except (OSError, ValueError, AttributeError):
+            ours = False
+        if not ours:
+            raise FileExistsError(f"{js} exists and was not written by a batch run; pass --overwrite "
+                                  "(overwrite=True) or choose another output folder")
+    if index.exists():
+        try:
+            with open(index, encoding="utf-8", errors="replace") as fh:
+                ours = GENERATOR in fh.read(4096)
+        except OSError:
+            ours = False
+        if not ours:
+            raise FileExistsError(f"{index} exists and was not written by a batch run; pass --overwrite "
+                                  "(overwrite=True) or choose another output folder")
+
+
+def write_summary(summary: BatchSummary, out_dir: str | os.PathLike, *, overwrite: bool = False) -> tuple[Path, Path]:
+    """Write ``summary.json`` and the HTML index (thumbnails and errors) into ``out_dir``.
+
+    Both describe the latest run and replace those of an earlier batch run in that folder.
+
+    Parameters
+    ----------
+    summary : BatchSummary
+    out_dir : path-like
+    overwrite : bool
+        Also replace a ``summary.json`` / ``index.html`` that a batch did not write.
+
+    Returns
+    -------
+    (Path, Path)
+        ``summary.json`` and ``index.html``.
+
+    Raises
+    ------
+    FileExistsError
+        See :func:`check_summary_files`.
+    """
+    from .report.batch import write_batch_index
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    if not overwrite:
+        check_summary_files(out)
+    js = _atomic_write_text(out / SUMMARY_JSON, json.dumps(summary.to_dict(), indent=1))
+    html = write_batch_index(summary, out / INDEX_HTML, overwrite=True)
+    return js, html
+
+
+__all__ = ["BATCH_OUTPUTS", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
+           "task_key", "calibration_for", "process_raw", "run_batch", "write_summary", "check_summary_files"]

@@ -1,0 +1,103 @@
+"""``plenodecode batch``: decode and render many raws, locally or on a Dask cluster."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES
+from ..batch import LIGHTFIELD_NAMES
+from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
+from ..depth import DEPTH_METHODS
+from .common import bit_depth_option, jobs_option, progress_bar
+
+LIGHTFIELD_FORMATS = tuple(LIGHTFIELD_NAMES)
+
+
+def _parse_outputs(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
+    items = tuple(v.strip() for v in value.split(",") if v.strip())
+    bad = [v for v in items if v not in OUTPUT_CHOICES]
+    if bad or not items:
+        raise click.BadParameter(f"{', '.join(bad) or 'nothing given'}; choose from {', '.join(OUTPUT_CHOICES)}")
+    return items
+
+
+def _echo_table(summary) -> None:
+    """The summary table: one line per raw (its error when it failed)."""
+    names = [Path(r.source).name for r in summary.results]
+    width = max([len("raw"), *map(len, names)])
+    click.echo(f"{'raw':{width}s}  {'status':8s} {'seconds':>8s}  detail")
+    for name, r in zip(names, summary.results):
+        detail = r.error if r.error else f"{len(r.outputs)} output{'s' * (len(r.outputs) != 1)}"
+        click.echo(f"{name:{width}s}  {r.status:8s} {r.seconds:8.1f}  {detail}")
+
+
+@click.command("batch")
+@click.argument("inputs", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
+@click.option("-o", "--output", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="Output folder: one sub-folder per raw, summary.json and index.html.")
+@jobs_option
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Dask scheduler address (tcp://host:8786): run the tasks on that cluster (--jobs is ignored).")
+@click.option("--outputs", default="centre", show_default=True, callback=_parse_outputs,
+              help=f"Comma-separated products per raw: {', '.join(OUTPUT_CHOICES)}.")
+@click.option("--database", "--white-dir", "db_dir", type=click.Path(path_type=Path), default=Path("calib"),
+              show_default=True, help="Calibration database (white images and fitted grids).")
+@click.option("--format", "lf_format", type=click.Choice(LIGHTFIELD_FORMATS), default="zarr", show_default=True,
+              help="Format of the 'lightfield' product.")
+@bit_depth_option
+@click.option("--slope", type=float, default=0.0, show_default=True, help="Refocus slope of the 'refocus' product.")
+@click.option("--depth-method", type=click.Choice(list(DEPTH_METHODS)), default=DEFAULT_DEPTH_METHOD,
+              show_default=True, help="Method of the 'depth' product.")
+@click.option("--overwrite", is_flag=True, help="Redo raws a previous run finished and replace their outputs.")
+@click.pass_context
+def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, db_dir, lf_format, bit_depth, slope,
+            depth_method, overwrite) -> None:
+    """Decode every raw under INPUTS and write the chosen outputs per raw into OUTPUT/<name>/.
+
+    Each raw is matched to its camera's calibration in the database (by serial, zoom and
+    focus).  Bad files are reported, not fatal; the run ends with a table, summary.json and
+    index.html, and exits 1 when any raw failed.  Run it again to resume: raws already done
+    with the same input bytes and options are skipped.
+
+    \b
+    Example:
+      plenodecode batch shoot/ -o decoded/ --outputs centre,refocus,depth --jobs 2
+      plenodecode batch shoot/ -o decoded/ --scheduler tcp://10.0.0.5:8786
+    """
+    from ..batch import BatchOptions, check_summary_files, find_raws, run_batch, write_summary
+
+    if jobs is not None and jobs < 1:
+        raise click.BadParameter(f"must be >= 1, got {jobs}", param_hint="--jobs")
+    if not db_dir.is_dir():
+        raise click.BadParameter(f"{db_dir} is not a folder; build the database with `plenodecode calibrate "
+                                 "--database`", param_hint="--database")
+    if not overwrite:
+        try:
+            check_summary_files(out_dir)
+        except FileExistsError as exc:
+            raise click.UsageError(str(exc)) from None
+    files = find_raws(inputs, exclude=[out_dir])
+    if not files:
+        raise click.UsageError(f"no raws found under {', '.join(map(str, inputs))}")
+    options = BatchOptions(outputs=outputs, db_dir=str(db_dir), lightfield_format=lf_format,
+                           bit_depth=int(bit_depth), slope=slope, depth_method=depth_method)
+    try:
+        summary = run_batch(files, out_dir, options, jobs=jobs, scheduler=scheduler, overwrite=overwrite,
+                            progress=progress_bar(f"decoding {len(files)} raws", ctx))
+    except OSError as exc:   # cannot reach the scheduler, cannot create the output folder
+        where = f"the Dask scheduler {scheduler}" if scheduler else f"{out_dir}"
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        click.echo(f"error: cannot use {where}: {msg}", err=True)
+        ctx.exit(1)
+    js, index = write_summary(summary, out_dir, overwrite=overwrite)
+    quiet = bool((ctx.obj or {}).get("quiet"))
+    if not quiet:
+        _echo_table(summary)
+        click.echo(f"{summary.count('done')} done, {summary.count('skipped')} skipped, "
+                   f"{summary.count('failed')} failed in {summary.seconds:.1f} s; summary: {js}; index: {index}")
+    n_failed = summary.count("failed")
+    if n_failed:
+        click.echo(f"error: {n_failed} of {len(summary.results)} raws failed; see {index}", err=True)
+        ctx.exit(1)

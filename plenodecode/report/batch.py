@@ -1,0 +1,100 @@
+"""HTML index of a batch run: one card per raw with a thumbnail of each output, or its error.
+
+The index lives in the batch's output folder and links the thumbnails and outputs by relative
+paths (so it stays small for hundreds of raws and keeps working when the folder is moved).  No
+scripts: the page renders the same in any browser, without network access.
+"""
+
+from __future__ import annotations
+
+import html
+import os
+from pathlib import Path
+from typing import Any
+
+#: ``<meta name="generator">`` of the index; marks an index.html a later run may replace.
+GENERATOR = "plenodecode batch index"
+
+_STYLE = """
+body{font-family:system-ui,-apple-system,sans-serif;margin:1.5em;color:#222;background:#fafafa}
+h1{font-size:1.4em;margin:0 0 .4em} .sum{margin-bottom:1em} .sum b{font-size:1.1em}
+.grid{display:flex;flex-wrap:wrap;gap:12px}
+.card{background:#fff;border:1px solid #ddd;border-radius:6px;padding:8px;max-width:540px}
+.done{border-left:6px solid #2a2}.skipped{border-left:6px solid #68a}.failed{border-left:6px solid #c22}
+.name{font-weight:600;word-break:break-all;margin-bottom:4px}
+.meta{color:#555;font-size:.85em;margin-bottom:6px}
+.thumbs{display:flex;flex-wrap:wrap;gap:6px}
+figure{margin:0;text-align:center;font-size:.8em}
+figure img{display:block;width:160px;height:auto;background:#eee;border:1px solid #ccc}
+figcaption{margin-top:2px;word-break:break-all}
+.err{color:#a00;font-family:ui-monospace,monospace;font-size:.85em;white-space:pre-wrap;max-width:520px}
+table{border-collapse:collapse;margin-top:1.2em;font-size:.85em}
+td,th{border:1px solid #ddd;padding:3px 8px;text-align:left}
+"""
+
+
+def _rel(path: str, base: Path) -> str:
+    """``path`` relative to ``base`` as a URL path (forward slashes, escaped for an attribute)."""
+    rel = os.path.relpath(Path(path).resolve(), base.resolve())
+    return html.escape(Path(rel).as_posix(), quote=True)
+
+
+def _card(r: Any, base: Path) -> str:
+    name = html.escape(Path(r.source).name)
+    meta = f"{html.escape(r.status)} &middot; {r.seconds:.1f} s"
+    figs = []
+    thumbs = tuple(r.thumbnails) + (None,) * max(0, len(r.outputs) - len(r.thumbnails))
+    for out, thumb in zip(r.outputs, thumbs):
+        label = html.escape(Path(out).name)
+        if thumb and Path(thumb).is_file():
+            img = f'<img alt="{label}" src="{_rel(thumb, base)}">'
+        else:
+            img = ""
+        figs.append(f'<figure><a href="{_rel(out, base)}">{img}</a><figcaption>{label}</figcaption></figure>')
+    err = f'<div class="err">{html.escape(r.error)}</div>' if r.error else ""
+    return (f'<div class="card {html.escape(r.status)}"><div class="name" title="{html.escape(r.source)}">{name}</div>'
+            f'<div class="meta">{meta}</div><div class="thumbs">{"".join(figs)}</div>{err}</div>')
+
+
+def render_batch_index(summary: Any, base: str | os.PathLike = ".") -> str:
+    """The index page of a :class:`plenodecode.batch.BatchSummary`.
+
+    Parameters
+    ----------
+    summary : BatchSummary
+    base : path-like
+        Folder the page will be saved in; thumbnails and outputs are linked relative to it.
+
+    Returns
+    -------
+    str
+        A complete HTML document (UTF-8, no scripts).
+    """
+    base = Path(base)
+    cards = "".join(_card(r, base) for r in summary.results)
+    failed = [r for r in summary.results if r.status == "failed"]
+    rows = "".join(f"<tr><td>{html.escape(Path(r.source).name)}</td><td class='err'>{html.escape(r.error or '')}"
+                   f"</td></tr>" for r in failed)
+    table = (f"<h2>Failures</h2><table><tr><th>raw</th><th>error</th></tr>{rows}</table>" if failed else "")
+    head = (f'<div class="sum"><b>{len(summary.results)}</b> raws: <b>{summary.count("done")}</b> decoded, '
+            f'<b>{summary.count("skipped")}</b> skipped (already done), <b>{summary.count("failed")}</b> failed, '
+            f'in {summary.seconds:.1f} s</div>')
+    return ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
+            f"<meta name='generator' content='{GENERATOR}'>"
+            "<meta name='viewport' content='width=device-width, initial-scale=1'>"
+            f"<title>plenodecode batch</title><style>{_STYLE}</style></head><body>"
+            f"<h1>plenodecode batch</h1>{head}<div class='grid'>{cards}</div>{table}</body></html>\n")
+
+
+def write_batch_index(summary: Any, path: str | os.PathLike, *, overwrite: bool = False) -> Path:
+    """Write :func:`render_batch_index` to ``path`` atomically (temporary name, then rename).
+
+    Raises
+    ------
+    FileExistsError
+        ``path`` exists and ``overwrite`` is False.
+    """
+    from .html import write_html
+
+    p = Path(path)
+    return write_html(p, render_batch_index(summary, p.parent), overwrite=overwrite)

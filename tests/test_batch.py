@@ -1,0 +1,470 @@
+"""Batch decoding: discovery, calibration lookup, products, failures, resuming, atomicity, CLI, Dask.
+
+Generated 'illum-mini' raws on a tiny 200 x 280 sensor (17 x 20 lenses) keep it fast.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from plenodecode.batch import (BATCH_OUTPUTS, DONE_MARKER, BatchOptions, BatchSummary, find_raws, output_names,
+                               run_batch, task_key, write_summary)
+from plenodecode.cli.main import cli
+
+SHAPE = (200, 280)
+SEEDS = (1, 2, 3)
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    """Three good raws (one folder each, as the generator writes them), bad files, a calibration database."""
+    from plenodecode.calib.store import build_database
+    from plenodecode.io import lytro
+    from plenodecode.io.synthetic import PRESETS, simulate, write_simulation
+
+    root = tmp_path_factory.mktemp("batch")
+    shoot = root / "shoot"
+    for seed in SEEDS:
+        sim = simulate("illum-mini", seed=seed, shape=SHAPE)
+        write_simulation(sim, shoot / f"take{seed}", name=f"scene{seed}")
+    whites = root / "whites"
+    whites.mkdir()
+    for f in (shoot / "take1").glob("MOD_0000.*"):
+        shutil.copy(f, whites / f.name)
+    db = root / "db"
+    db.mkdir()     # calib.store resolves white paths through the database folder, so it must exist first
+    build_database(whites, db)
+
+    bad = root / "bad"
+    bad.mkdir()
+    good = (shoot / "take1" / "scene1.lfr").read_bytes()
+    (bad / "corrupt.lfr").write_bytes(good[: len(good) // 2])          # truncated container
+    stranger = simulate(replace(PRESETS["illum-mini"], serial="B0000000001"), seed=4, shape=SHAPE)
+    lytro.write_lfr(bad / "stranger.LFR", stranger.raw)                   # a camera the database lacks
+    other = simulate("illum-mini", seed=5, shape=(160, 240))
+    lytro.write_lfr(bad / "cropped.LFR", other.raw)                       # known camera, no white of its size
+    return {"root": root, "shoot": shoot, "bad": bad, "db": db}
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file() and p.name not in ("summary.json", "index.html")}
+
+
+# ------------------------------------------------------------------------------ discovery
+def test_find_raws_skips_whites_truth_sidecars_outputs(data, tmp_path):
+    shoot = data["shoot"]
+    listed = sorted(p.name for p in shoot.rglob("*") if p.is_file())
+    assert any(".truth." in n for n in listed) and any(n.startswith("MOD_") for n in listed)  # generator wrote them
+    found = find_raws([shoot])
+    assert [p.name for p in found] == ["scene1.lfr", "scene2.lfr", "scene3.lfr"]
+    # explicit files are taken as given, duplicates removed, the output folder excluded
+    out = shoot / "decoded"
+    out.mkdir()
+    try:
+        (out / "x.lfr").write_bytes(b"")
+        assert find_raws([shoot, shoot / "take1" / "scene1.lfr"], exclude=[out]) == found
+        # a folder written by a batch (it has a marker) is never searched
+        (out / DONE_MARKER).write_text("{}")
+        assert find_raws([shoot]) == found
+    finally:
+        shutil.rmtree(out)
+
+
+def test_output_names_are_unique(tmp_path):
+    files = [tmp_path / "a" / "IMG_1.LFR", tmp_path / "b" / "IMG_1.LFR", tmp_path / "b" / "IMG_2.LFR",
+             tmp_path / "c" / "IMG_3.lfr", tmp_path / "c" / "IMG_3.LFP"]
+    names = output_names(files)
+    assert names == ["a__IMG_1", "b__IMG_1", "IMG_2", "IMG_3_lfr", "IMG_3_lfp"]
+    assert len(set(names)) == len(names)
+
+
+def test_task_key_depends_on_bytes_and_options(tmp_path):
+    a = tmp_path / "a.lfr"
+    a.write_bytes(b"123")
+    opt = BatchOptions(outputs=("centre",), db_dir=str(tmp_path))
+    k = task_key(a, opt)
+    assert len(k) == 64 and k == task_key(a, BatchOptions(outputs=("centre",), db_dir=str(tmp_path)))
+    assert k == task_key(a, replace(opt, slope=0.5))                  # no refocus product: slope is irrelevant
+    with_refocus = replace(opt, outputs=("centre", "refocus"))
+    assert task_key(a, with_refocus) != task_key(a, replace(with_refocus, slope=0.5))
+    assert k != task_key(a, replace(opt, outputs=("centre", "refocus")))
+    a.write_bytes(b"124")
+    assert k != task_key(a, opt)
+
+
+def test_options_validate_arguments():
+    with pytest.raises(ValueError, match="outputs"):
+        BatchOptions(outputs=("centre", "thumbnail"))
+    with pytest.raises(ValueError, match="outputs"):
+        BatchOptions(outputs=())
+    with pytest.raises(ValueError, match="bit_depth"):
+        BatchOptions(bit_depth=12)
+    with pytest.raises(ValueError, match="lightfield_format"):
+        BatchOptions(lightfield_format="hdf5")
+    assert set(BATCH_OUTPUTS) >= {"centre", "refocus", "depth", "views", "lightfield"}
+
+
+# ------------------------------------------------------------------------------ a local run
+@pytest.fixture(scope="module")
+def local_run(data, tmp_path_factory):
+    """One in-process run over good and bad raws; products: centre, refocus, depth, lightfield (npy)."""
+    out = tmp_path_factory.mktemp("local")
+    opts = BatchOptions(outputs=("centre", "refocus", "depth", "lightfield"), db_dir=str(data["db"]), slope=0.3,
+                        lightfield_format="npy", depth_method="fast")
+    calls = []
+    summary = run_batch([data["shoot"], data["bad"]], out, opts, jobs=1, progress=lambda d, t: calls.append((d, t)))
+    write_summary(summary, out)
+    return {"out": out, "opts": opts, "summary": summary, "calls": calls}
+
+
+def test_local_run_decodes_good_raws_and_reports_bad_ones(data, local_run):
+    summary, out = local_run["summary"], local_run["out"]
+    by_name = {Path(r.source).name: r for r in summary.results}
+    assert sorted(by_name) == ["corrupt.lfr", "cropped.LFR", "scene1.lfr", "scene2.lfr", "scene3.lfr",
+                               "stranger.LFR"]
+    for seed in SEEDS:
+        r = by_name[f"scene{seed}.lfr"]
+        assert r.status == "done", r.error
+        names = [Path(o).name for o in r.outputs]
+        assert names == ["centre.png", "refocus_s+0.30.png", "disparity.pfm", "lightfield.npy"]
+        assert all(Path(o).parent == out / f"scene{seed}" for o in r.outputs)
+        assert all(t is not None and Path(t).is_file() for t in r.thumbnails)
+        assert r.worker_peak_mb and r.worker_peak_mb > 10 and ":" in r.worker
+    assert by_name["corrupt.lfr"].status == "failed" and "FormatError" in by_name["corrupt.lfr"].error
+    assert by_name["stranger.LFR"].status == "failed" and "CalibrationError" in by_name["stranger.LFR"].error
+    assert "B0000000001" in by_name["stranger.LFR"].error
+    assert by_name["cropped.LFR"].status == "failed" and "CalibrationError" in by_name["cropped.LFR"].error
+    assert "240x160" in by_name["cropped.LFR"].error
+    for r in summary.failed:
+        assert "\n" not in r.error and not (out / Path(r.source).stem).exists()
+    # progress: (0, n) first, then one call per raw, counts increasing to n
+    assert local_run["calls"] == [(i, 6) for i in range(7)]
+
+
+def test_products_match_a_direct_decode(data, local_run):
+    """The batch writes what decode + refocus give for that raw with the database's calibration."""
+    from plenodecode.batch import calibration_for
+    from plenodecode.decode import decode
+    from plenodecode.io import read_raw
+    from plenodecode.io.images import read_image
+    from plenodecode.io.lightfield import load_lightfield
+    from plenodecode.render import refocus
+
+    raw = read_raw(data["shoot"] / "take2" / "scene2.lfr")
+    grid, white = calibration_for(raw, data["db"])
+    assert white.metadata.is_white_image and white.shape == raw.shape
+    lf = decode(raw, grid, white=white)
+    folder = local_run["out"] / "scene2"
+    saved = load_lightfield(folder / "lightfield.npy")
+    np.testing.assert_array_equal(saved.data, lf.data)
+    photo = refocus(lf, slope=0.3)
+    png = read_image(folder / "refocus_s+0.30.png").astype(np.float64) / 65535.0
+    from plenodecode.io.images import srgb_encode
+    expect = srgb_encode(np.clip(photo, 0, 1))
+    assert png.shape == expect.shape
+    assert np.abs(png - expect).max() <= 0.5 / 65535 + 1e-6     # 16-bit quantisation only
+    from plenodecode.depth import estimate_depth
+    from plenodecode.io.pfm import read_pfm
+    np.testing.assert_array_equal(read_pfm(folder / "disparity.pfm"), estimate_depth(lf, method="fast").disparity)
+
+
+def test_batch_uses_the_right_calibration(data, local_run):
+    """Against the generator's truth: the database grid is the camera's, and the white was used.
+
+    Decoded with the white the centre view is ~34 dB from the true one; without it ~21 dB.
+    """
+    from plenodecode.batch import calibration_for
+    from plenodecode.io import read_raw
+    from plenodecode.io.synthetic import load_truth
+
+    truth = load_truth(data["shoot"] / "take2" / "scene2.truth.json")
+    grid, _ = calibration_for(read_raw(data["shoot"] / "take2" / "scene2.lfr"), data["db"])
+    assert grid.shape == truth.grid.shape
+    assert np.abs(grid.centres() - truth.grid.centres()).max() < 0.05
+    got = np.load(local_run["out"] / "scene2" / "lightfield.npy")
+    vc, uc = got.shape[0] // 2, got.shape[1] // 2
+    err = got[vc, uc, 2:-2, 2:-2] - truth.lightfield.data[vc, uc, 2:-2, 2:-2]
+    assert 10 * np.log10(1.0 / np.mean(err.astype(np.float64) ** 2)) > 30.0
+
+
+def test_summary_json_and_index(local_run):
+    out, summary = local_run["out"], local_run["summary"]
+    doc = json.loads((out / "summary.json").read_text())
+    assert (doc["total"], doc["done"], doc["skipped"], doc["failed"]) == (6, 3, 0, 3)
+    assert [r["status"] for r in doc["results"]] == [r.status for r in summary.results]
+    page = (out / "index.html").read_text()
+    for r in summary.results:
+        if r.status == "done":
+            for t in r.thumbnails:
+                rel = Path(t).relative_to(out).as_posix()
+                assert f'src="{rel}"' in page
+        else:
+            import html
+            assert html.escape(r.error) in page
+    assert page.count("<img") == 12 and "<script" not in page
+
+
+# --------------------------------------------------------------------------- resuming
+def test_second_run_skips_finished_raws_and_keeps_files(data, local_run, tmp_path):
+    out = tmp_path / "out"
+    shutil.copytree(local_run["out"], out)
+    stamps = {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()}
+    again = run_batch([data["shoot"], data["bad"]], out, local_run["opts"], jobs=1)
+    status = {Path(r.source).name: r.status for r in again.results}
+    assert [status[f"scene{s}.lfr"] for s in SEEDS] == ["skipped"] * 3
+    assert status["corrupt.lfr"] == "failed"
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()} == stamps
+    skipped = next(r for r in again.results if r.status == "skipped")
+    assert [Path(o).name for o in skipped.outputs] == ["centre.png", "refocus_s+0.30.png", "disparity.pfm",
+                                                        "lightfield.npy"]
+    # a changed option re-runs and replaces the folder (the old refocus is gone, the new one there)
+    changed = replace(local_run["opts"], slope=-0.2)
+    third = run_batch([data["shoot"]], out, changed, jobs=1)
+    assert [r.status for r in third.results] == ["done"] * 3
+    assert (out / "scene1" / "refocus_s-0.20.png").is_file()
+    assert not (out / "scene1" / "refocus_s+0.30.png").exists()
+    # overwrite redoes everything
+    fourth = run_batch([data["shoot"] / "take3"], out, changed, jobs=1, overwrite=True)
+    assert [r.status for r in fourth.results] == ["done"]
+
+
+def test_changed_input_reruns(data, tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    shutil.copy(data["shoot"] / "take1" / "scene1.lfr", src / "a.LFR")
+    opts = BatchOptions(outputs=("centre",), db_dir=str(data["db"]))
+    out = tmp_path / "out"
+    assert run_batch([src], out, opts, jobs=1).results[0].status == "done"
+    assert run_batch([src], out, opts, jobs=1).results[0].status == "skipped"
+    shutil.copy(data["shoot"] / "take2" / "scene2.lfr", src / "a.LFR")
+    assert run_batch([src], out, opts, jobs=1).results[0].status == "done"
+
+
+def test_refuses_a_foreign_folder_without_overwrite(data, tmp_path):
+    out = tmp_path / "out"
+    (out / "scene1").mkdir(parents=True)
+    (out / "scene1" / "mine.txt").write_text("keep me")
+    opts = BatchOptions(outputs=("centre",), db_dir=str(data["db"]))
+    r = run_batch([data["shoot"] / "take1"], out, opts, jobs=1).results[0]
+    assert r.status == "failed" and "overwrite" in r.error
+    assert (out / "scene1" / "mine.txt").read_text() == "keep me"
+    r = run_batch([data["shoot"] / "take1"], out, opts, jobs=1, overwrite=True).results[0]
+    assert r.status == "done" and not (out / "scene1" / "mine.txt").exists()
+
+
+# ------------------------------------------------------------------- no half-written outputs
+def _final_files(out: Path) -> set[str]:
+    """Files under final names (hidden staging folders excluded)."""
+    rels = [p.relative_to(out) for p in out.rglob("*") if p.is_file()]
+    return {str(r) for r in rels if not any(part.startswith(".") and part != DONE_MARKER for part in r.parts)}
+
+
+def test_writer_failing_mid_write_leaves_nothing_under_final_names(data, tmp_path, monkeypatch):
+    import plenodecode.io.images as images
+
+    real = images.write_image
+    state = {"n": 0}
+
+    def failing(path, image, **kw):
+        state["n"] += 1
+        if state["n"] == 7:        # raw 2, its refocus image: half a file, then the disk is full
+            Path(path).write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 64)
+            raise OSError(28, "No space left on device")
+        return real(path, image, **kw)
+
+    monkeypatch.setattr(images, "write_image", failing)
+    out = tmp_path / "out"
+    opts = BatchOptions(outputs=("centre", "refocus"), db_dir=str(data["db"]))
+    summary = run_batch([data["shoot"]], out, opts, jobs=1)
+    assert [r.status for r in summary.results] == ["done", "failed", "done"]
+    assert "No space left" in summary.results[1].error
+    assert not (out / "scene2").exists()
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]          # staging removed
+    assert all(not f.startswith("scene2") for f in _final_files(out))
+
+
+def test_killed_run_leaves_no_partial_output_and_resumes(data, tmp_path):
+    """A real SIGKILL in the middle of writing the 2nd raw's refocus image."""
+    out = tmp_path / "out"
+    script = textwrap.dedent(f"""
+        import os, signal
+        from pathlib import Path
+        import plenodecode.io.images as images
+        from plenodecode.batch import BatchOptions, run_batch
+        real, n = images.write_image, [0]
+        def dying(path, image, **kw):
+            n[0] += 1
+            if n[0] == 7:
+                Path(path).write_bytes(b"\\x89PNG\\r\\n\\x1a\\n" + b"\\0" * 64)
+                os.kill(os.getpid(), signal.SIGKILL)
+            return real(path, image, **kw)
+        images.write_image = dying
+        run_batch([{str(data["shoot"])!r}], {str(out)!r},
+                  BatchOptions(outputs=("centre", "refocus"), db_dir={str(data["db"])!r}), jobs=1)
+    """)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == -9, proc.stderr
+    assert (out / "scene1" / DONE_MARKER).is_file()
+    assert not (out / "scene2").exists() and not (out / "scene3").exists()
+    staging = [p for p in out.iterdir() if p.name.startswith(".")]
+    assert len(staging) == 1 and staging[0].name.startswith(".scene2.")   # the half-written files are here only
+    assert _final_files(out) == {f"scene1/{n}" for n in ("centre.png", "refocus_s+0.00.png", DONE_MARKER,
+                                                          "thumbs/centre.png", "thumbs/refocus_s+0.00.png")}
+    again = run_batch([data["shoot"]], out, BatchOptions(outputs=("centre", "refocus"), db_dir=str(data["db"])),
+                      jobs=1)
+    assert [r.status for r in again.results] == ["skipped", "done", "done"]
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]
+
+
+# ---------------------------------------------------------------------------------- CLI
+def test_cli_runs_reports_and_exits_1_on_failures(data, tmp_path):
+    out = tmp_path / "out"
+    args = ["batch", str(data["shoot"]), str(data["bad"]), "-o", str(out), "--database", str(data["db"]),
+            "--jobs", "1", "--outputs", "centre,refocus,views", "--slope", "0.25", "--bit-depth", "8"]
+    res = CliRunner().invoke(cli, args)
+    assert res.exit_code == 1, res.output
+    assert "decoding 6 raws" in res.stderr
+    lines = res.stdout.splitlines()
+    for name in ("scene1.lfr", "scene2.lfr", "scene3.lfr"):
+        assert any(line.startswith(name) and " done " in line for line in lines)
+    for name, what in (("corrupt.lfr", "FormatError"), ("stranger.LFR", "CalibrationError")):
+        assert any(line.startswith(name) and "failed" in line and what in line for line in lines)
+    assert "3 done, 0 skipped, 3 failed" in res.stdout
+    assert res.stderr.strip().splitlines()[-1].startswith("error: 3 of 6 raws failed")
+    assert (out / "scene1" / "refocus_s+0.25.png").is_file() and (out / "index.html").is_file()
+    views = sorted((out / "scene1" / "views").glob("input_Cam*.png"))
+    assert len(views) == 15 * 15
+    from plenodecode.io.images import read_image
+    assert read_image(views[0]).dtype == np.uint8 and read_image(out / "scene1" / "centre.png").shape == (17, 22, 3)
+    # again, only the good ones: all skipped, exit 0
+    res = CliRunner().invoke(cli, ["-q", *args[:2], *args[3:]])
+    assert res.exit_code == 0, res.output
+    assert res.stdout == ""
+    assert json.loads((out / "summary.json").read_text())["skipped"] == 3
+
+
+@pytest.mark.parametrize("extra", [["--outputs", "centre,bogus"], ["--jobs", "0"], ["--database", "/nonexistent"],
+                                   ["--format", "hdf5"]])
+def test_cli_usage_errors_exit_2(data, tmp_path, extra):
+    args = ["batch", str(data["shoot"]), "-o", str(tmp_path / "o"), "--database", str(data["db"]), *extra]
+    res = CliRunner().invoke(cli, args)
+    assert res.exit_code == 2, res.output
+
+
+def test_cli_no_raws_is_a_usage_error(data, tmp_path):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    res = CliRunner().invoke(cli, ["batch", str(empty), "-o", str(tmp_path / "o"), "--database", str(data["db"])])
+    assert res.exit_code == 2 and "no raws" in res.output
+
+
+# -------------------------------------------------------------------- processes and Dask
+def test_process_pool_and_dask_cluster_equal_the_local_run(data, local_run, tmp_path):
+    """jobs=2 and a two-worker LocalCluster write the same bytes as the in-process run (PNG, PFM, npy, markers)."""
+    from distributed import Client, LocalCluster
+
+    good = [data["shoot"] / "take1", data["shoot"] / "take2"]
+    expect = {k: v for k, v in _files(local_run["out"]).items() if k.startswith(("scene1/", "scene2/"))}
+    assert sum(k.endswith((".png", ".pfm", ".npy")) for k in expect) >= 2 * 7
+    pool_out = tmp_path / "pool"
+    s = run_batch(good, pool_out, local_run["opts"], jobs=2)
+    assert [r.status for r in s.results] == ["done"] * 2
+    assert len({r.worker for r in s.results}) == 2                         # one raw on each worker process
+    dask_out = tmp_path / "dask"
+    calls = []
+    with LocalCluster(n_workers=2, processes=True, threads_per_worker=1, host="127.0.0.1",
+                      dashboard_address=None) as cluster:
+        # through the scheduler's address, as the CLI does (run_batch opens and closes its own Client)
+        def progress(done, total):      # bounded submission: never more than max_in_flight batch tasks queued/running
+            active = [t for k, t in cluster.scheduler.tasks.items() if str(k).startswith("plenodecode-batch")
+                      and t.state in ("waiting", "queued", "processing", "no-worker")]
+            calls.append((done, len(active)))
+
+        d = run_batch(good, dask_out, local_run["opts"], scheduler=cluster.scheduler_address, max_in_flight=1,
+                      progress=progress)
+        # a second run through a caller's Client skips everything
+        with Client(cluster) as client:
+            again = run_batch(good, dask_out, local_run["opts"], scheduler=client)
+    assert [r.status for r in d.results] == ["done"] * 2 and [c[0] for c in calls] == [0, 1, 2]
+    assert max(c[1] for c in calls) == 0      # with max_in_flight=1 the next task is submitted only after this one
+    assert [r.status for r in again.results] == ["skipped"] * 2
+    assert all(r.worker_peak_mb > 10 and r.worker != s.results[0].worker for r in d.results)
+    for out in (pool_out, dask_out):
+        got = _files(out)
+        assert sorted(got) == sorted(expect)
+        assert [k for k in expect if got[k] != expect[k]] == []
+
+
+def test_foreign_summary_files_are_not_replaced(data, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "index.html").write_text("<html>someone's page</html>")
+    args = ["batch", str(data["shoot"] / "take1"), "-o", str(out), "--database", str(data["db"]), "--jobs", "1"]
+    res = CliRunner().invoke(cli, args)
+    assert res.exit_code == 2 and "index.html" in res.output
+    assert (out / "index.html").read_text() == "<html>someone's page</html>" and not (out / "scene1").exists()
+    with pytest.raises(FileExistsError, match="index.html"):
+        write_summary(BatchSummary(), out)
+    res = CliRunner().invoke(cli, [*args, "--overwrite"])
+    assert res.exit_code == 0, res.output
+    assert "plenodecode batch" in (out / "index.html").read_text()
+
+
+def test_index_renders_in_a_browser(local_run, tmp_path):
+    """Headless Chromium shows the index without console errors; the screenshot has the thumbnails."""
+    from conftest import browser_screenshot
+
+    from plenodecode.io.images import read_image
+
+    shot = tmp_path / "index.png"
+    console = browser_screenshot(local_run["out"] / "index.html", shot, size=(1200, 900))
+    assert console == []
+    img = read_image(shot).astype(np.float64)
+    assert img.shape[:2] == (900, 1200)
+    rgb = img[..., :3] / (255.0 if img.max() > 1 else 1.0)
+    assert rgb.std() > 0.05                                         # not blank
+    red = (rgb[..., 0] > 0.6) & (rgb[..., 1] < 0.3) & (rgb[..., 2] < 0.3)
+    green = (rgb[..., 1] > 0.5) & (rgb[..., 0] < 0.3) & (rgb[..., 2] < 0.3)
+    assert red.sum() > 200 and green.sum() > 200                    # failed and done cards' borders drawn
+
+
+def test_cli_unreachable_scheduler_exits_1_with_one_line(data, tmp_path):
+    import dask
+
+    args = ["batch", str(data["shoot"] / "take1"), "-o", str(tmp_path / "o"), "--database", str(data["db"]),
+            "--scheduler", "tcp://127.0.0.1:9"]
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        res = CliRunner().invoke(cli, args)
+    assert res.exit_code == 1
+    err = res.stderr.strip().splitlines()
+    assert err[-1].startswith("error: cannot use the Dask scheduler tcp://127.0.0.1:9")
+    assert "Traceback" not in res.output
+
+
+def test_output_folders_follow_the_umask(local_run):
+    mode = (local_run["out"] / "scene1").stat().st_mode & 0o777
+    umask = os.umask(0)
+    os.umask(umask)
+    assert mode == 0o777 & ~umask
+
+
+def test_find_raws_takes_mosaics_but_not_their_whites(tmp_path):
+    """'square' (PNG + sidecar) and 'raytrix' (PNG + RayCalibData XML) as the generator writes them."""
+    from plenodecode.io.synthetic import simulate, write_simulation
+
+    write_simulation(simulate("square", seed=1, shape=(120, 140)), tmp_path / "sq", name="lfm")
+    write_simulation(simulate("raytrix", seed=1, shape=(110, 150)), tmp_path / "rx", name="rtx")
+    (tmp_path / "sq" / "notes.png").write_bytes(b"\x89PNG")                 # an image without a sidecar
+    assert [p.relative_to(tmp_path).as_posix() for p in find_raws([tmp_path])] == ["rx/rtx.png", "sq/lfm.png"]

@@ -1,0 +1,44 @@
+"""The command line as a whole: every command listed, documented with an example, consistent exit codes."""
+
+import pytest
+from click.testing import CliRunner
+
+from plenodecode import __version__
+from plenodecode.cli.main import COMMANDS, cli
+
+PUBLIC = [name for name in COMMANDS if name != "render"]
+
+
+def test_help_lists_every_command_with_a_description():
+    res = CliRunner().invoke(cli, ["--help"])
+    assert res.exit_code == 0
+    for name in PUBLIC:
+        assert name in res.output
+    assert "--version" in res.output
+
+
+@pytest.mark.parametrize("name", list(COMMANDS))
+def test_each_command_help_shows_an_example(name):
+    res = CliRunner().invoke(cli, [name, "--help"])
+    assert res.exit_code == 0, res.output
+    assert "Example" in res.output and "plenodecode" in res.output.split("Example", 1)[1]
+
+
+def test_version():
+    res = CliRunner().invoke(cli, ["--version"])
+    assert res.exit_code == 0 and __version__ in res.output
+
+
+def test_usage_error_exits_2():
+    res = CliRunner().invoke(cli, ["decode"])
+    assert res.exit_code == 2
+
+
+def test_data_error_exits_1_with_one_line(tmp_path):
+    bad = tmp_path / "bad.lfr"
+    bad.write_bytes(b"\x89LFP\r\n\x1a\n" + b"\x00" * 7)
+    res = CliRunner().invoke(cli, ["info", str(bad)])
+    assert res.exit_code == 1
+    err = res.stderr.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and "bad.lfr" in err[0]
+    assert "Traceback" not in res.output
