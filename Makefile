@@ -24,8 +24,16 @@ system-deps:
 	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; \
 	  else echo "note: chromium not installed and not root; browser tests will be skipped"; fi; }
 
+# The main job on the bundled sample raws: decode (calibration from calib/), refocus, depth, index page.
 demo: $(STAMP)
-	$(PY) -m plenodecode.demo demo_out
+	$(VENV)/bin/plenodecode info sample_raws/illum-mini/scene.lfr
+	$(VENV)/bin/plenodecode batch sample_raws/illum-mini sample_raws/f01-mini -o demo_out \
+	    --outputs lightfield,centre,refocus,depth --database calib
+	$(VENV)/bin/plenodecode sample_raws/illum-mini/scene.lfr --refocus 1.02 -o demo_out/illum-mini_refocus_alpha1.02.png --overwrite
+	$(VENV)/bin/plenodecode refocus demo_out/illum-mini__scene/lightfield.zarr --focal-stack -1:1:9 -o demo_out/focal_stack --overwrite
+	@echo
+	@echo "Demo outputs are in $(CURDIR)/demo_out/: open demo_out/index.html for the batch index;"
+	@echo "light fields (Zarr), centre views, refocused photographs, disparity maps and a focal stack are beside it."
 
 test: $(STAMP) system-deps
 	$(PY) -m pytest -n $(JOBS) -q
