@@ -1,0 +1,101 @@
+"""Regenerate the decoding figures of the README (docs/img/) from the real data in ../shared/data.
+
+    .venv/bin/python docs/make_figures.py [--overwrite]
+
+* ``antleg_centre.png`` / ``antleg_views.png``: the light-field microscope capture
+  (lf-microscopy-antleg), calibrated from its radiometry frame, decoded with white and dark frames:
+  the centre view and every third view of the 27 x 27 (a 9 x 9 grid).
+* ``f01_img1_centre.png`` / ``f01_img1_views.png``: the real Lytro F01 mosaic IMG_1.jpg (Tao et al.),
+  self-calibrated from the scene (no white image), decoded to 9 x 9 views; the views grid shows every
+  second view (5 x 5) at half size.
+* ``r42_total_focus.png``: the Raytrix R42 crop rendered all-in-focus (focused plenoptic).
+
+Display only: values are scaled by their 99.5th percentile and sRGB-encoded; the F01 JPEG has no
+colour metadata, so its camera RGB is grey-world balanced for the picture.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT.parent / "shared" / "data"
+OUT = ROOT / "docs" / "img"
+
+
+def display(img: np.ndarray, *, grey_world: bool = False) -> np.ndarray:
+    """Linear image (H, W, C) -> [0, 1] for an sRGB-encoded 8-bit PNG."""
+    a = np.asarray(img, np.float64)
+    if a.ndim == 2:
+        a = a[..., None]
+    if grey_world and a.shape[-1] == 3:
+        a = a * (a.mean() / np.maximum(a.reshape(-1, 3).mean(0), 1e-9))
+    return np.clip(a / max(np.percentile(a, 99.5), 1e-9), 0.0, 1.0).astype(np.float32)
+
+
+def view_grid(data: np.ndarray, step: int, gap: int = 2) -> np.ndarray:
+    """Tile every ``step``-th view of (V, U, Y, X, C) into one image with ``gap`` px borders."""
+    v_idx = list(range((data.shape[0] // 2) % step, data.shape[0], step))     # includes the centre view
+    ny, nx, c = data.shape[2:]
+    n = len(v_idx)
+    out = np.zeros((n * ny + (n - 1) * gap, n * nx + (n - 1) * gap, c), data.dtype)
+    for a, v in enumerate(v_idx):
+        for b, u in enumerate(v_idx):
+            out[a * (ny + gap):a * (ny + gap) + ny, b * (nx + gap):b * (nx + gap) + nx] = data[v, u]
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--overwrite", action="store_true")
+    args = ap.parse_args()
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    from plenodecode.calib import calibrate
+    from plenodecode.calib.selfcal import calibrate_from_scene
+    from plenodecode.decode import decode
+    from plenodecode.decode.focused import render_total_focus
+    from plenodecode.io import read_raw
+    from plenodecode.io.images import read_image, write_image
+    from plenodecode.io.raytrix import grid_from_raycalib, parse_raycalib, read_raytrix_rgb
+    from plenodecode.types import CameraMetadata, RawCapture
+
+    OUT.mkdir(parents=True, exist_ok=True)
+
+    def save(name: str, img: np.ndarray) -> None:
+        write_image(OUT / name, img, bit_depth=8, overwrite=args.overwrite, encode_srgb=True)
+        print("wrote", OUT / name)
+
+    # light-field microscope: square grid, white (radiometry) and dark frames
+    d = DATA / "lf-microscopy-antleg"
+    raw, white, dark = (read_raw(d / n) for n in ("light_field.png", "radiometry_frame.png", "dark_frame.tif"))
+    lf = decode(raw, calibrate(white), white=white, dark=dark)
+    save("antleg_centre.png", display(lf.centre_view()))
+    save("antleg_views.png", display(view_grid(lf.data, 3)))
+
+    # real F01 mosaic saved as JPEG: self-calibrated grid, no white, no colour metadata
+    p = DATA / "lytro-f01-lenslet-jpg" / "IMG_1.jpg"
+    img = read_image(p)
+    mosaic = (img if img.ndim == 2 else img[..., 0]).astype(np.uint16)
+    f01 = RawCapture(mosaic, "BGGR", 0, 255, CameraMetadata(make="Lytro", model="F01"), path=str(p))
+    lf = decode(f01, calibrate_from_scene(f01))
+    save("f01_img1_centre.png", display(lf.centre_view(), grey_world=True))
+    import cv2
+
+    half = np.stack([[cv2.resize(lf.data[v, u], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+                      for u in range(lf.shape[1])] for v in range(lf.shape[0])])
+    save("f01_img1_views.png", display(view_grid(half, 2, gap=3), grey_world=True))
+
+    # Raytrix R42: focused plenoptic total focus
+    png = DATA / "raytrix-r42" / "sc2_klein.png"
+    rgb = read_raytrix_rgb(png).astype(np.float32) / 255.0
+    grid = grid_from_raycalib(parse_raycalib(png.with_suffix(".xml")), rgb.shape[:2])
+    tf = render_total_focus(rgb, grid)
+    save("r42_total_focus.png", np.clip(tf.image, 0, 1) ** 2.2)       # the export is display-encoded already
+
+
+if __name__ == "__main__":
+    main()

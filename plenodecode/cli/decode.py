@@ -1,0 +1,116 @@
+"""``plenodecode decode``: decode a raw into a 4D light field and write it."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import click
+
+from ..decode.colour import DECODE_COLOURS
+from ..decode.demosaic import DEMOSAIC_METHODS
+from ..io.lightfield import LIGHTFIELD_FORMATS
+from .common import bit_depth_option, check_output, output_option, overwrite_option, progress_bar
+
+log = logging.getLogger(__name__)
+
+
+def _resolve_calibration(raw, calibration: Path | None, white: Path | None, white_dir: Path | None):
+    """(grid, white RawCapture or None) from the options; CalibrationError with what to pass."""
+    from ..errors import CalibrationError
+    from ..io import read_raw
+    from ..types import LensletGrid
+
+    white_raw = read_raw(white) if white is not None else None
+    if calibration is not None:
+        try:
+            text = calibration.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise CalibrationError(f"{calibration}: cannot read the grid file ({exc}); pass a grid written by "
+                                   "'plenodecode calibrate'") from exc
+        return LensletGrid.from_json(text), white_raw
+    if white_raw is not None:
+        from ..calib import calibrate
+
+        return calibrate(white_raw), white_raw
+    from ..calib import store
+
+    db = white_dir if white_dir is not None else Path(store.DEFAULT_DB)
+    if not (db / store.INDEX_NAME).is_file():
+        serial = raw.metadata.serial or "unknown serial"
+        raise CalibrationError(
+            f"no calibration for this raw (camera {raw.metadata.model or '?'} {serial}): "
+            f"{'no database at ' + str(db) if white_dir is not None else 'no calibration database in ./calib'}; "
+            "pass --calibration grid.json, --white WHITE_IMAGE or --white-dir DATABASE")
+    try:
+        grid = store.grid_for(raw, db)
+        entry = store.select_white(db, raw)
+    except CalibrationError as exc:
+        raise CalibrationError(f"{exc}; or pass --calibration grid.json or --white WHITE_IMAGE") from exc
+    wpath = Path(entry.file) if Path(entry.file).is_absolute() else db / entry.file
+    return grid, read_raw(wpath)
+
+
+@click.command("decode")
+@click.argument("raw_path", metavar="RAW", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@output_option
+@click.option("--calibration", "-g", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
+              help="Lenslet grid JSON written by 'plenodecode calibrate'.")
+@click.option("--white", "-w", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
+              help="White image of the same zoom/focus: devignetting (and the grid, if no --calibration).")
+@click.option("--white-dir", type=click.Path(exists=True, file_okay=False, path_type=Path), default=None,
+              help="Calibration database folder (picks the white by serial, zoom, focus) [default: ./calib].")
+@click.option("--dark", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
+              help="Dark frame, subtracted from raw and white (microscopes).")
+@click.option("--format", "fmt", type=click.Choice(sorted(LIGHTFIELD_FORMATS)), default=None,
+              help="Output format (default: from OUTPUT's extension; a path without one is a views folder).")
+@bit_depth_option
+@click.option("--demosaic", type=click.Choice(sorted(DEMOSAIC_METHODS)), default="malvar", show_default=True,
+              help="Demosaicing method (within each micro-image).")
+@click.option("--views", "n_views", type=int, default=None,
+              help="Views per angular axis (odd) [default: 2*floor(pitch/2)+1].")
+@click.option("--colour", type=click.Choice(list(DECODE_COLOURS)), default="linear-srgb", show_default=True,
+              help="Colour of the output: white balance + colour matrix, or camera RGB.")
+@click.option("--no-hot-pixels", is_flag=True, help="Do not repair hot pixels.")
+@overwrite_option
+@click.pass_context
+def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path | None, white: Path | None,
+            white_dir: Path | None, dark: Path | None, fmt: str | None, bit_depth: str, demosaic: str,
+            n_views: int | None, colour: str, no_hot_pixels: bool, overwrite: bool) -> None:
+    """Decode RAW into a 4D light field (V, U, Y, X, C) and write it to OUTPUT.
+
+    The lenslet grid comes from --calibration, from --white (calibrated on the fly), or from the
+    calibration database (--white-dir, default ./calib) by camera serial, zoom and focus.
+
+    \b
+    Examples:
+      plenodecode decode scene.lfr --white-dir calib/ -o scene.zarr
+      plenodecode decode scene.lfr -g grid.json -w MOD_0000.RAW -o views/ --format views --bit-depth 8
+      plenodecode decode lf.png -w white.png --dark dark.tif -o lf.mat
+    """
+    from ..decode import decode
+    from ..io import read_raw
+    from ..io.lightfield import detect_format, save_lightfield
+
+    if white_dir is not None and (calibration is not None or white is not None):
+        raise click.UsageError("--white-dir cannot be combined with --calibration or --white")
+    if n_views is not None and (n_views < 1 or n_views % 2 == 0):
+        raise click.BadParameter("must be a positive odd number", param_hint="--views")
+    check_output(output, overwrite)
+    try:
+        name = fmt or detect_format(output)
+    except ValueError as exc:
+        raise click.UsageError(f"{exc} (use --format)") from exc
+    raw = read_raw(raw_path)
+    grid, white_raw = _resolve_calibration(raw, calibration, white, white_dir)
+    dark_raw = read_raw(dark) if dark is not None else None
+    lf = decode(raw, grid, white=white_raw, dark=dark_raw, demosaic=demosaic, colour=colour, n_views=n_views,
+                hot_pixels=not no_hot_pixels, progress=progress_bar("decoding", ctx))
+    try:
+        out = save_lightfield(lf, output, format=name, bit_depth=int(bit_depth), overwrite=overwrite,
+                              progress=progress_bar(f"writing {name}", ctx))
+    except FileExistsError as exc:
+        raise click.UsageError(f"{exc}; pass --overwrite") from exc
+    if not (ctx.obj or {}).get("quiet"):
+        V, U, Y, X, C = lf.shape
+        click.echo(f"wrote {out} ({name}: {V}x{U} views of {Y}x{X}x{C}, colour {lf.colour})")

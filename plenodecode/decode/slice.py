@@ -1,0 +1,310 @@
+"""Slicing a lenslet image into sub-aperture samples.
+
+A sub-aperture view ``(v, u)`` takes, from every lens ``k``, the value of the micro-image at
+``c_k + (v - vc) * e_row + (u - uc) * e_col`` (sensor px; ``c_k`` the lens centre, ``e_row``,
+``e_col`` the lattice axes, so the view offset is expressed in the lattice frame, one view step =
+one sensor pixel; see the decoded sampling contract in :mod:`plenodecode.types`).
+
+The value is interpolated bilinearly from the pixels of the *same* micro-image only: every pixel
+carries the label of the lens whose Voronoi cell contains it (:func:`lens_labels`) and
+pixels of other lenses, or pixels without a value (NaN), are left out and the remaining bilinear
+weights renormalised (normalised convolution, Knutsson & Westin, CVPR 1993).  So light never
+mixes across lenslet borders.
+
+The sensor is processed in bands of lens rows (:func:`plan_bands`) to bound memory.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..types import LensletGrid
+
+#: Half-size (in units of the lens pitch) of the box searched around each lens when labelling
+#: pixels: covers the Voronoi cell of a hex (0.577 pitch) and a square (0.707 pitch) lattice.
+CELL_REACH = 0.75
+
+
+def view_offsets(grid: LensletGrid, n_views: int) -> np.ndarray:
+    """Sensor offset of every view from its lens centre.
+
+    Parameters
+    ----------
+    grid : LensletGrid
+    n_views : int
+        Views per angular axis (odd).
+
+    Returns
+    -------
+    ndarray, shape (n_views, n_views, 2), float64
+        ``(row, col)`` offset ``(v - vc) * e_row + (u - uc) * e_col`` with ``vc = uc = n_views // 2``.
+    """
+    e_row, e_col = grid.axes()
+    k = np.arange(n_views, dtype=np.float64) - n_views // 2
+    return k[:, None, None] * e_row + k[None, :, None] * e_col
+
+
+@dataclass(frozen=True)
+class Band:
+    """One band of lens rows and the sensor rows it needs.
+
+    ``rows`` = lens rows ``[i0, i1)`` decoded by this band; ``ext`` = lens rows ``[e0, e1)`` labelled
+    (one more on each side, so Voronoi cells at the band border are right); ``sensor`` = sensor rows
+    ``[r0, r1)`` read (``r0`` even so the CFA phase is kept).
+    """
+
+    i0: int
+    i1: int
+    e0: int
+    e1: int
+    r0: int
+    r1: int
+
+
+def plan_bands(grid: LensletGrid, *, max_pixels: int = 2_500_000, margin: int = 4) -> list[Band]:
+    """Split the lens rows into bands whose sensor footprint has at most about ``max_pixels`` pixels.
+
+    Parameters
+    ----------
+    grid : LensletGrid
+    max_pixels : int
+        Target number of sensor pixels per band (memory per worker is about 40 bytes per pixel).
+    margin : int
+        Extra sensor rows above and below the lens cells (demosaicing and hot-pixel neighbourhoods).
+
+    Returns
+    -------
+    list of Band
+    """
+    h, w = grid.sensor_shape
+    rows = grid.shape[0]
+    centres = grid.centres_2d()
+    reach = CELL_REACH * max(grid.pitch, grid.row_spacing) + margin
+    # sensor row span of each lens row (its lenses' centres +- reach), robust to NaN
+    with np.errstate(all="ignore"):
+        lo = np.nanmin(centres[..., 0], axis=1) - reach
+        hi = np.nanmax(centres[..., 0], axis=1) + reach
+    lo = np.where(np.isfinite(lo), lo, 0.0)
+    hi = np.where(np.isfinite(hi), hi, 0.0)
+    n_per = max(1, min(rows, int(max_pixels // max(1.0, grid.row_spacing * w))))
+    bands = []
+    for i0 in range(0, rows, n_per):
+        i1 = min(rows, i0 + n_per)
+        e0, e1 = max(0, i0 - 1), min(rows, i1 + 1)
+        r0 = int(math.floor(lo[e0:e1].min()))
+        r1 = int(math.ceil(hi[e0:e1].max())) + 1
+        r0 = max(0, min(h, r0))
+        r0 -= r0 % 2
+        r1 = max(r0, min(h, r1))
+        bands.append(Band(i0, i1, e0, e1, r0, r1))
+    return bands
+
+
+@njit(cache=True, nogil=True)
+def _label_cells(centres, reach, labels, dist2):  # pragma: no cover - numba
+    h, w = labels.shape
+    nr, nc = centres.shape[0], centres.shape[1]
+    r2 = reach * reach
+    for y in range(h):
+        for x in range(w):
+            labels[y, x] = -1
+            dist2[y, x] = r2
+    for i in range(nr):
+        for j in range(nc):
+            cy = centres[i, j, 0]
+            cx = centres[i, j, 1]
+            if not (cy == cy and cx == cx):
+                continue
+            y0 = max(0, int(math.floor(cy - reach)))
+            y1 = min(h - 1, int(math.ceil(cy + reach)))
+            x0 = max(0, int(math.floor(cx - reach)))
+            x1 = min(w - 1, int(math.ceil(cx + reach)))
+            lab = i * nc + j
+            for y in range(y0, y1 + 1):
+                dy = y - cy
+                for x in range(x0, x1 + 1):
+                    dx = x - cx
+                    d = dy * dy + dx * dx
+                    if d < dist2[y, x]:
+                        dist2[y, x] = d
+                        labels[y, x] = lab
+
+
+def lens_labels(centres: np.ndarray, shape: tuple[int, int], reach: float, *,
+                out: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Label every pixel with the lens whose centre is nearest (the lens's Voronoi cell).
+
+    Parameters
+    ----------
+    centres : ndarray, shape (R, C, 2), float64
+        Lens centres ``(row, col)`` in the coordinates of the labelled image; NaN = no lens.
+    shape : (int, int)
+        ``(H, W)`` of the labelled image.
+    reach : float
+        Pixels farther than ``reach`` px from every lens stay unlabelled.
+    out : (ndarray int32, ndarray float32), optional
+        Destinations of the labels and distances.
+
+    Returns
+    -------
+    labels : ndarray, shape (H, W), int32
+        ``i * C + j`` for lens ``(i, j)``, -1 where no lens is within ``reach``.
+    dist : ndarray, shape (H, W), float32
+        Distance to that lens centre, px.
+    """
+    labels, dist2 = (np.empty(shape, np.int32), np.empty(shape, np.float32)) if out is None else out
+    _label_cells(np.ascontiguousarray(centres, np.float64), float(reach), labels, dist2)
+    np.sqrt(dist2, out=dist2)
+    return labels, dist2
+
+
+#: LLVM fast-math flags without 'nnan'/'ninf' (NaN marks missing pixels)
+FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
+
+
+@njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy")
+def _sample(image, rel, labels, centres, first_label, nc_label, offsets, inner, reach, matrix, out, out_w):  # pragma: no cover
+    h, w, nch = image.shape
+    nr, nc = centres.shape[0], centres.shape[1]
+    nv, nu = offsets.shape[0], offsets.shape[1]
+    m00, m01, m02 = matrix[0, 0], matrix[0, 1], matrix[0, 2]
+    m10, m11, m12 = matrix[1, 0], matrix[1, 1], matrix[1, 2]
+    m20, m21, m22 = matrix[2, 0], matrix[2, 1], matrix[2, 2]
+    zero = np.float32(0.0)
+    for i in range(nr):
+        for j in range(nc):
+            cy = centres[i, j, 0]
+            cx = centres[i, j, 1]
+            lab = first_label + i * nc_label + j
+            if not (cy == cy and cx == cx):
+                for v in range(nv):
+                    for u in range(nu):
+                        out_w[v, u, i, j] = zero
+                        for c in range(nch):
+                            out[v, u, i, j, c] = zero
+                continue
+            interior = cy - reach >= 0.0 and cy + reach < h - 1 and cx - reach >= 0.0 and cx + reach < w - 1
+            for v in range(nv):
+                for u in range(nu):
+                    py = cy + offsets[v, u, 0]
+                    px = cx + offsets[v, u, 1]
+                    fy0 = math.floor(py)
+                    fx0 = math.floor(px)
+                    y0 = int(fy0)
+                    x0 = int(fx0)
+                    fy = np.float32(py - fy0)
+                    fx = np.float32(px - fx0)
+                    a0 = zero
+                    a1 = zero
+                    a2 = zero
+                    wsum = zero
+                    wrel = zero
+                    # near the lens centre and away from the image border every tap is this lens's own
+                    fast = interior and inner[v, u]
+                    for t in range(4):
+                        dy = t >> 1
+                        dx = t & 1
+                        yy = y0 + dy
+                        xx = x0 + dx
+                        if not fast:
+                            if yy < 0 or yy >= h or xx < 0 or xx >= w:
+                                continue
+                            if labels[yy, xx] != lab:
+                                continue
+                        wgt = (fy if dy == 1 else np.float32(1.0) - fy) * (fx if dx == 1 else np.float32(1.0) - fx)
+                        wrel += wgt * rel[yy, xx]
+                        p0 = image[yy, xx, 0]
+                        if p0 != p0:
+                            continue
+                        wsum += wgt
+                        a0 += wgt * p0
+                        if nch == 3:
+                            a1 += wgt * image[yy, xx, 1]
+                            a2 += wgt * image[yy, xx, 2]
+                    if wsum > 1e-4:
+                        inv = np.float32(1.0) / wsum
+                        if nch == 3:
+                            r = a0 * inv
+                            g = a1 * inv
+                            b = a2 * inv
+                            out[v, u, i, j, 0] = m00 * r + m01 * g + m02 * b
+                            out[v, u, i, j, 1] = m10 * r + m11 * g + m12 * b
+                            out[v, u, i, j, 2] = m20 * r + m21 * g + m22 * b
+                        else:
+                            out[v, u, i, j, 0] = a0 * inv
+                        out_w[v, u, i, j] = min(np.float32(1.0), max(zero, wrel))
+                    else:
+                        for c in range(nch):
+                            out[v, u, i, j, c] = zero
+                        out_w[v, u, i, j] = zero
+
+
+def safe_radius(grid: LensletGrid) -> float:
+    """Radius around every lens centre inside which all pixels belong to that lens's Voronoi cell.
+
+    Half the nearest-neighbour distance of the lattice, less the largest deviation of a refined
+    centre from the lattice (twice: both lenses of a pair may move towards each other).
+    """
+    nn = grid.pitch if grid.shape[0] < 2 else min(grid.pitch, math.hypot(grid.row_spacing, grid.odd_row_shift * grid.pitch))
+    dev = 0.0
+    if grid.refined is not None:
+        d = np.linalg.norm(grid.centres_2d() - grid.lattice_centres(), axis=-1)
+        dev = float(np.nanmax(d)) if d.size else 0.0
+    return max(0.0, 0.5 * nn - 2.0 * dev)
+
+
+def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centres: np.ndarray,
+                  offsets: np.ndarray, *, first_label: int = 0, label_cols: int | None = None,
+                  matrix: np.ndarray | None = None, safe_radius: float = 0.0,
+                  out: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Sample every view offset under every lens, from that lens's own pixels only.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, C), float32
+        Demosaiced micro-images; a pixel is known in all channels or NaN in all (left out).
+    rel : ndarray, shape (H, W), float32
+        Relative white (fraction of the lens's peak light) per pixel, gives the weight.
+    labels : ndarray, shape (H, W), int32
+        Lens label of every pixel (:func:`lens_labels`).
+    centres : ndarray, shape (R, K, 2), float64
+        Centres (image coordinates) of the lenses to sample; lens ``(i, j)`` has label
+        ``first_label + i * label_cols + j``.
+    offsets : ndarray, shape (V, U, 2), float64
+        View offsets (:func:`view_offsets`).
+    matrix : ndarray (3, 3) or None
+        Colour matrix applied to each 3-channel sample (identity when None).
+    safe_radius : float
+        Pixels closer than this to a lens centre are known to carry its label (a speed-up;
+        :func:`safe_radius`); 0 checks every label.
+    out : (ndarray, ndarray), optional
+        Destinations of the samples and weights.
+
+    Returns
+    -------
+    samples : ndarray, shape (V, U, R, K, C), float32
+        Bilinear value at ``centre + offset`` (0 where the lens has no pixel with a value there).
+    weight : ndarray, shape (V, U, R, K), float32
+        Bilinear interpolation of ``rel`` over the lens's own pixels, clipped to [0, 1].
+    """
+    h, w, nch = image.shape
+    nr, nc = centres.shape[:2]
+    nv, nu = offsets.shape[:2]
+    if out is None:
+        out, out_w = np.empty((nv, nu, nr, nc, nch), np.float32), np.empty((nv, nu, nr, nc), np.float32)
+    else:
+        out, out_w = out
+    m = np.eye(3, dtype=np.float32) if matrix is None else np.asarray(matrix, np.float32)
+    offsets = np.ascontiguousarray(offsets, np.float64)
+    inner = np.hypot(offsets[..., 0], offsets[..., 1]) + 1.5 < safe_radius
+    reach = float(np.abs(offsets).max()) + 2.0
+    _sample(image, np.ascontiguousarray(rel, np.float32), labels, np.ascontiguousarray(centres, np.float64),
+            int(first_label), int(nc if label_cols is None else label_cols), offsets, inner, reach, m, out, out_w)
+    return out, out_w
+
+
+__all__ = ["view_offsets", "plan_bands", "Band", "lens_labels", "sample_lenses", "safe_radius", "CELL_REACH"]
