@@ -1,0 +1,712 @@
+"""Building blocks shared by the depth methods.
+
+* :func:`prepare_views`: matching-ready views (normalised, display-encoded when linear), per-view weights
+  from ``lf.weight`` (dark border views of decoded camera light fields are dropped or down-weighted).
+* :func:`disparity_range`: from the caller, the metadata, or estimated from a coarse search.
+* :func:`half_plane_cost_volume`: the occlusion-aware photo-consistency cost volume.
+* :func:`sgm`: semi-global aggregation (Hirschmueller, TPAMI 2008) with an edge-adaptive penalty.
+* :func:`winner`: sub-label minimum and peak-ratio confidence.
+
+Shift convention (design.md): for a disparity ``d``, view ``(v, u)`` is compared with the centre view at
+``view[v, u](y - d (v - vc), x - d (u - uc))``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping
+
+import cv2
+import numpy as np
+from numba import njit, prange
+
+from ..errors import DecodeError
+from ..types import LightField
+
+log = logging.getLogger(__name__)
+
+Progress = Callable[[int, int], None] | None
+
+#: Number of angular sectors the views are split into; a half-plane is ``N_SECTORS // 2`` consecutive sectors.
+N_SECTORS = 8
+#: Luma weights (Rec. 601) used when a method works on one channel.
+LUMA = np.array([0.299, 0.587, 0.114], np.float32)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# views
+# ---------------------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Views:
+    """Matching-ready views of a light field.
+
+    Attributes
+    ----------
+    data : ndarray, shape (V, U, Y, X, C), float32
+        Views scaled so the centre view's 99.5th percentile is 1; linear light fields are display-encoded
+        (``x ** (1 / 2.2)``) so that the photometric noise is closer to uniform across brightness.
+    weight : ndarray, shape (V, U), float32
+        Per-view weight in [0, 1]; 0 = not used.  From ``lf.weight`` (median over the view, relative to the
+        centre view's), else 1.
+    centre : tuple of int
+        ``(vc, uc)``.
+    guide_image : ndarray (Y, X) float32 or None
+        Grey centre view before the local contrast normalisation (None: derived from ``data``).
+    """
+
+    data: np.ndarray
+    weight: np.ndarray
+    centre: tuple[int, int]
+    guide_image: np.ndarray | None = None
+
+    @property
+    def offsets(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(dv, du)``: (V, U) float64 arrays of ``v - vc`` and ``u - uc``."""
+        V, U = self.data.shape[:2]
+        dv, du = np.meshgrid(np.arange(V) - self.centre[0], np.arange(U) - self.centre[1], indexing="ij")
+        return dv.astype(np.float64), du.astype(np.float64)
+
+    def used(self) -> list[tuple[int, int]]:
+        """Views with a positive weight, the centre excluded, row-major."""
+        V, U = self.data.shape[:2]
+        return [(v, u) for v in range(V) for u in range(U) if (v, u) != self.centre and self.weight[v, u] > 0]
+
+    def centre_view(self) -> np.ndarray:
+        """(Y, X, C) float32."""
+        return self.data[self.centre]
+
+    def guide(self) -> np.ndarray:
+        """Grey centre view (Y, X) float32 in about [0, 1]: the guide of the edge-aware steps."""
+        if self.guide_image is not None:
+            return self.guide_image
+        c = self.centre_view()
+        return np.ascontiguousarray(c[..., 0] if c.shape[-1] == 1 else c @ LUMA)
+
+
+def view_pattern(V: int, U: int, pattern: str | None) -> np.ndarray:
+    """(V, U) bool mask of the views a pattern keeps: None = all, 'star' = the horizontal, vertical and
+    diagonal lines through the centre (the views of EPI methods)."""
+    if pattern is None:
+        return np.ones((V, U), bool)
+    if pattern != "star":
+        raise ValueError(f"pattern must be None or 'star', got {pattern!r}")
+    dv, du = np.meshgrid(np.arange(V) - V // 2, np.arange(U) - U // 2, indexing="ij")
+    return (dv == 0) | (du == 0) | (np.abs(dv) == np.abs(du))
+
+
+def prepare_views(lf: LightField, *, min_view_weight: float = 0.1, grey: bool = False,
+                  pattern: str | None = None, contrast_sigma: float = 0.0, contrast_eps: float = 0.01,
+                  contrast_weight: float | None = None) -> Views:
+    """Views of ``lf`` ready for matching (see :class:`Views`).
+
+    Parameters
+    ----------
+    lf : LightField
+        (V, U, Y, X, C) float32; NaN samples (no data) are set to 0 and do not count.
+    min_view_weight : float
+        Views whose weight (median of ``lf.weight`` over the view, relative to the centre view) is below this
+        are not used; the others are weighted by it.
+    grey : bool
+        Return one luma channel.
+    pattern : None or 'star'
+        Views to use (:func:`view_pattern`); the others get weight 0 and are not processed (left zero).
+    contrast_sigma, contrast_eps : float
+        When ``contrast_sigma > 0`` every view gets the same local contrast normalisation
+        ``(I - G*I) / (sqrt(G*(I - G*I)^2) + eps)`` (G a Gaussian of that sigma, px): texture in shadows
+        then weighs as much in the matching cost as texture in bright areas (as in a normalised
+        cross-correlation).  ``eps`` (in the [0, 1] intensity scale) keeps flat, noise-only areas small.
+    contrast_weight : float or None
+        None: the normalised views replace the intensities.  A number: they are stacked as extra channels,
+        scaled by it, beside the intensities, so the matching cost is ``|dI|^2 + w^2 |dLCN|^2``: the
+        normalised term dominates where the local contrast is below about ``w`` (faint texture, shadows)
+        and the intensities where it is higher (smooth, strong texture that the high-pass would discard).
+
+    Raises
+    ------
+    DecodeError
+        The light field has a single view, or its centre view is empty.
+    """
+    if not 0.0 <= min_view_weight < 1.0:
+        raise ValueError(f"min_view_weight must be in [0, 1), got {min_view_weight!r}")
+    V, U, Y, X, C = lf.shape
+    if V * U < 2:
+        raise DecodeError(f"depth needs at least 2 views, the light field has {V}x{U}; decode with more views")
+    vc, uc = lf.centre_index
+    weight = view_pattern(V, U, pattern).astype(np.float32)
+    if lf.weight is not None:
+        med = np.array([[np.median(lf.weight[v, u, ::2, ::2]) if weight[v, u] > 0 else 0.0 for u in range(U)]
+                        for v in range(V)], np.float32)
+        ref = med[vc, uc] if med[vc, uc] > 0 else float(med.max())
+        if not ref > 0:
+            raise DecodeError("every view has zero weight; nothing to match. Check the decode")
+        weight = np.clip(med / ref, 0.0, 1.0).astype(np.float32)
+        weight[weight < min_view_weight] = 0.0
+        log.debug("view weights: %d of %d views used", int((weight > 0).sum()), V * U)
+    weight[vc, uc] = 1.0
+    nc = 1 if (grey or C == 1) else C
+    out = np.zeros((V, U, Y, X, nc), np.float32)
+    centre = _clean(lf.data[vc, uc], grey)
+    scale = float(np.percentile(centre, 99.5))
+    if not scale > 0:
+        raise DecodeError("the centre view is empty (all zero or NaN); nothing to match. Check the decode")
+    gamma = lf.colour != "srgb"
+    for v in range(V):
+        for u in range(U):
+            if weight[v, u] > 0:
+                img = centre if (v, u) == (vc, uc) else _clean(lf.data[v, u], grey)
+                img = img * np.float32(1.0 / scale)
+                if gamma:
+                    img = np.power(np.clip(img, 0.0, None), np.float32(1.0 / 2.2))
+                out[v, u] = img.reshape(Y, X, nc)
+    guide = Views(out, weight, (vc, uc)).guide().copy()
+    if contrast_sigma > 0:
+        stacked = np.zeros((V, U, Y, X, 2 * nc), np.float32) if contrast_weight is not None else out
+        for v in range(V):
+            for u in range(U):
+                if weight[v, u] > 0:
+                    lcn = local_contrast(out[v, u], float(contrast_sigma), float(contrast_eps))
+                    if contrast_weight is None:
+                        out[v, u] = lcn
+                    else:
+                        stacked[v, u, :, :, :nc] = out[v, u]
+                        stacked[v, u, :, :, nc:] = np.float32(contrast_weight) * lcn
+        out = stacked
+    return Views(out, weight, (vc, uc), guide)
+
+
+def local_contrast(img: np.ndarray, sigma: float, eps: float) -> np.ndarray:
+    """``(I - G*I) / (sqrt(G*(I - G*I)^2) + eps)`` per channel; (Y, X, C) float32 in and out."""
+    low = cv2.GaussianBlur(img, (0, 0), sigma).reshape(img.shape)
+    hp = img - low
+    sd = np.sqrt(cv2.GaussianBlur(hp * hp, (0, 0), sigma)).reshape(img.shape)
+    return (hp / (sd + np.float32(eps))).astype(np.float32)
+
+
+def _clean(img: np.ndarray, grey: bool) -> np.ndarray:
+    """One view with NaN set to 0, optionally converted to luma; a new (Y, X, C) float32 array."""
+    img = np.nan_to_num(img, nan=0.0, posinf=0.0, neginf=0.0)
+    if grey and img.shape[-1] == 3:
+        img = cv2.transform(img, LUMA[None, :]).reshape(img.shape[:2] + (1,))
+    return img.astype(np.float32, copy=False)
+
+
+def sector_of(dv: float, du: float, n: int = N_SECTORS) -> int:
+    """Angular sector (0..n-1) of the view offset ``(dv, du)``: sector ``k`` covers angles
+    ``[-pi + k 2pi/n, -pi + (k + 1) 2pi/n)`` of ``atan2(dv, du)``."""
+    a = math.atan2(dv, du) + math.pi + 1e-9
+    return int(a // (2 * math.pi / n)) % n
+
+
+def shift_view(img: np.ndarray, d: float, dv: float, du: float, interpolation: int = cv2.INTER_LINEAR) -> np.ndarray:
+    """``out(y, x) = img(y - d dv, x - d du)``: one view brought onto the centre view for disparity ``d``."""
+    h, w = img.shape[:2]
+    m = np.array([[1.0, 0.0, -d * du], [0.0, 1.0, -d * dv]], np.float32)
+    return cv2.warpAffine(img, m, (w, h), flags=interpolation | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
+
+
+def remap_view(img: np.ndarray, disparity: np.ndarray, dv: float, du: float, grid: tuple[np.ndarray, np.ndarray],
+               interpolation: int = cv2.INTER_CUBIC) -> np.ndarray:
+    """Per-pixel version of :func:`shift_view`: ``out(y, x) = img(y - d(y,x) dv, x - d(y,x) du)``."""
+    yy, xx = grid
+    mx = xx - disparity * np.float32(du)
+    my = yy - disparity * np.float32(dv)
+    return cv2.remap(img, mx, my, interpolation, borderMode=cv2.BORDER_REPLICATE)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# disparity range
+# ---------------------------------------------------------------------------------------------------------------
+def _check_range(r: Any, name: str) -> tuple[float, float]:
+    try:
+        lo, hi = (float(r[0]), float(r[1]))
+    except (TypeError, ValueError, IndexError) as exc:
+        raise ValueError(f"{name} must be a pair (min, max) of numbers, got {r!r}") from exc
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise ValueError(f"{name} must be finite with min < max, got {r!r}")
+    return lo, hi
+
+
+def metadata_disparity_range(metadata: Mapping[str, Any]) -> tuple[float, float] | None:
+    """``metadata['disparity_range']``, or an HCI scene's ``[meta] disp_min / disp_max``; None if absent."""
+    r = metadata.get("disparity_range")
+    if r is not None:
+        return _check_range(r, "metadata['disparity_range']")
+    hci = (metadata.get("hci_parameters") or {}).get("meta") or {}
+    if "disp_min" in hci and "disp_max" in hci:
+        return _check_range((hci["disp_min"], hci["disp_max"]), "HCI disp_min/disp_max")
+    return None
+
+
+def estimate_disparity_range(views: Views, *, max_abs: float | None = None, n_labels: int = 48,
+                             margin: float = 0.15) -> tuple[float, float]:
+    """Disparity range from a coarse search on 4x down-sampled views.
+
+    Searches ``[-max_abs, max_abs]`` (default: a shift of at most a quarter of the image's smaller side at
+    the outermost view), takes the 2nd and 98th percentiles of the confident per-pixel minima and widens them
+    by ``margin`` of the span (at least 0.25 px).
+
+    Returns
+    -------
+    (float, float)
+    """
+    Y, X = views.data.shape[2:4]
+    dv, du = views.offsets
+    reach = float(max(np.abs(dv).max(), np.abs(du).max()))
+    if max_abs is None:
+        max_abs = 0.25 * min(Y, X) / reach
+    f = 4 if min(Y, X) >= 64 else 1
+    small = views.data[:, :, ::f, ::f] if f == 1 else _downsample(views.data, f)
+    sv = Views(small, views.weight, views.centre)
+    labels = np.linspace(-max_abs / f, max_abs / f, n_labels)
+    cost = half_plane_cost_volume(sv, labels, radius=2)
+    disp, conf = winner(cost, labels)
+    d = disp[conf > np.percentile(conf, 50)] * f
+    if d.size == 0:
+        d = disp.ravel() * f
+    lo, hi = np.percentile(d, [2, 98])
+    pad = max(0.25, margin * (hi - lo))
+    log.info("estimated disparity range [%.2f, %.2f]", lo - pad, hi + pad)
+    return float(lo - pad), float(hi + pad)
+
+
+def _downsample(data: np.ndarray, f: int) -> np.ndarray:
+    V, U, Y, X, C = data.shape
+    out = np.empty((V, U, Y // f, X // f, C), np.float32)
+    for v in range(V):
+        for u in range(U):
+            r = cv2.resize(data[v, u], (X // f, Y // f), interpolation=cv2.INTER_AREA)
+            out[v, u] = r.reshape(Y // f, X // f, C)
+    return out
+
+
+def disparity_range(lf: LightField, views: Views, requested: Any = None) -> tuple[tuple[float, float], str]:
+    """The search range: ``requested`` (``disparity_range=`` keyword), else the metadata, else estimated.
+
+    Returns
+    -------
+    ((lo, hi), source) with source in {'argument', 'metadata', 'estimated'}.
+    """
+    if requested is not None:
+        return _check_range(requested, "disparity_range"), "argument"
+    r = metadata_disparity_range(lf.metadata)
+    if r is not None:
+        return r, "metadata"
+    return estimate_disparity_range(views), "estimated"
+
+
+def make_labels(lo: float, hi: float, step: float, *, pad: float = 0.0) -> np.ndarray:
+    """Uniform labels covering ``[lo - pad, hi + pad]`` with spacing at most ``step``; float64."""
+    if not step > 0:
+        raise ValueError(f"label_step must be positive, got {step!r}")
+    a, b = lo - pad, hi + pad
+    n = max(3, int(math.ceil((b - a) / step)) + 1)
+    return np.linspace(a, b, n)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# occlusion-aware cost volume
+# ---------------------------------------------------------------------------------------------------------------
+def half_plane_groups(views: Views, n_sectors: int = N_SECTORS) -> tuple[list[list[tuple[int, int]]], np.ndarray]:
+    """Views per angular sector and the weight of each half-plane.
+
+    Returns
+    -------
+    sectors : list of n_sectors lists of (v, u)
+    half_weight : ndarray (n_sectors,) float64
+        Total view weight of half-plane ``h`` = sectors ``h .. h + n/2 - 1`` (mod n).
+    """
+    dv, du = views.offsets
+    sectors: list[list[tuple[int, int]]] = [[] for _ in range(n_sectors)]
+    for v, u in views.used():
+        sectors[sector_of(dv[v, u], du[v, u], n_sectors)].append((v, u))
+    sw = np.array([sum(float(views.weight[vu]) for vu in s) for s in sectors])
+    half = n_sectors // 2
+    hw = np.array([sum(sw[(h + i) % n_sectors] for i in range(half)) for h in range(n_sectors)])
+    return sectors, hw
+
+
+def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2, interpolation: int = cv2.INTER_LINEAR,
+                           base: np.ndarray | None = None, progress: Progress = None,
+                           n_sectors: int = N_SECTORS) -> np.ndarray:
+    """Occlusion-aware matching cost for every label.
+
+    For label ``d`` every used view is shifted onto the centre view (:func:`shift_view`), and the
+    weighted squared colour difference to the centre view is summed per angular sector.  A half-plane of
+    views (``n_sectors / 2`` consecutive sectors, Kang, Szeliski & Chai, CVPR 2001; the occluder-edge split
+    of the angular patch of Wang, Efros & Ramamoorthi, ICCV 2015) sees an occluded point in none of its views
+    when the occluder lies on the other side, so the cost is the minimum over the ``n_sectors`` half-planes of
+    the box-aggregated (``(2 radius + 1)^2``) mean squared difference::
+
+        C(p, d) = min_h  box_r[ sum_{(v,u) in h} w_vu |I_vu(p - d o_vu) - I_c(p)|^2 ] / sum_{h} w_vu
+
+    Parameters
+    ----------
+    views : Views
+    labels : ndarray (L,) float64
+        Disparities (px per view step).
+    radius : int
+        Box aggregation radius (0 = none).
+    interpolation : int
+        OpenCV interpolation flag of the shifts.
+    base : ndarray (Y, X) float32, optional
+        A disparity map: the labels are then offsets from it and every view is warped per pixel with
+        ``base + label`` (:func:`remap_view`), which follows slanted surfaces exactly.
+    progress : callable(done, total), optional
+        Called after every label.
+
+    Returns
+    -------
+    ndarray, shape (Y, X, L), float32
+        Labels last (the layout :func:`sgm` and :func:`winner` read).
+    """
+    sectors, hw = half_plane_groups(views, n_sectors)
+    if not np.all(hw > 0):
+        # too few views for half-planes (e.g. a 1 x N light field): fall back to the plain mean over views
+        n_sectors = 1
+        sectors = [[vu for s in sectors for vu in s]]
+        hw = np.array([sum(float(views.weight[vu]) for vu in sectors[0])])
+    dv, du = views.offsets
+    data = views.data
+    Y, X, C = data.shape[2:]
+    if C == 1:
+        data = data[..., 0]
+    centre = np.ascontiguousarray(data[views.centre])
+    L = len(labels)
+    out = np.empty((Y, X, L), np.float32)
+    ones = np.ones((1, C), np.float32)
+    acc = np.empty(centre.shape, np.float32)
+    half = max(1, n_sectors // 2)
+    ksize = (2 * radius + 1, 2 * radius + 1)
+    sqrt_w = {vu: math.sqrt(float(views.weight[vu])) for s in sectors for vu in s}
+    grid = None
+    if base is not None:
+        base = np.ascontiguousarray(base, np.float32)
+        if base.shape != (Y, X):
+            raise ValueError(f"base must have shape {(Y, X)}, got {base.shape}")
+        yy, xx = np.mgrid[0:Y, 0:X].astype(np.float32)
+        grid = (yy, xx)
+    for k, d in enumerate(labels):
+        sums = []
+        dmap = None if base is None else base + np.float32(d)
+        for s in sectors:
+            acc.fill(0.0)
+            for vu in s:
+                if dmap is None:
+                    warped = shift_view(data[vu], float(d), dv[vu], du[vu], interpolation)
+                else:
+                    warped = remap_view(data[vu], dmap, dv[vu], du[vu], grid, interpolation)
+                diff = cv2.subtract(warped, centre)
+                if sqrt_w[vu] != 1.0:
+                    diff *= np.float32(sqrt_w[vu])
+                cv2.accumulateSquare(diff, acc)
+            sums.append(cv2.transform(acc, ones).reshape(Y, X) if C > 1 else acc.copy())
+        best = None
+        for h in range(n_sectors):
+            hsum = sums[h].copy()
+            for i in range(1, half if n_sectors > 1 else 1):
+                hsum += sums[(h + i) % n_sectors]
+            hsum *= np.float32(1.0 / hw[h])
+            if radius > 0:
+                hsum = cv2.boxFilter(hsum, -1, ksize)
+            best = hsum if best is None else np.minimum(best, hsum, out=best)
+        out[:, :, k] = best
+        if progress is not None:
+            progress(k + 1, L)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# semi-global aggregation
+# ---------------------------------------------------------------------------------------------------------------
+@njit(cache=True, fastmath=True)
+def _sgm_line(cost, guide, out, ys, xs, n, p1, p2, sigma, prev, cur, first):
+    # cost, out: (Y, X, D) so that the labels of one pixel are contiguous
+    D = cost.shape[2]
+    y, x = ys[0], xs[0]
+    pm = np.float32(np.inf)
+    for d in range(D):
+        c = cost[y, x, d]
+        prev[d] = c
+        if first:
+            out[y, x, d] = c
+        else:
+            out[y, x, d] += c
+        if c < pm:
+            pm = c
+    for i in range(1, n):
+        y, x = ys[i], xs[i]
+        g = abs(guide[y, x] - guide[ys[i - 1], xs[i - 1]])
+        q2 = p2 / (1.0 + g / sigma)
+        if q2 < p1:
+            q2 = p1
+        jump = pm + q2
+        m = np.float32(np.inf)
+        for d in range(D):
+            best = prev[d]
+            if d > 0 and prev[d - 1] + p1 < best:
+                best = prev[d - 1] + p1
+            if d < D - 1 and prev[d + 1] + p1 < best:
+                best = prev[d + 1] + p1
+            if jump < best:
+                best = jump
+            c = cost[y, x, d] + best - pm
+            cur[d] = c
+            if c < m:
+                m = c
+        if first:
+            for d in range(D):
+                prev[d] = cur[d]
+                out[y, x, d] = cur[d]
+        else:
+            for d in range(D):
+                prev[d] = cur[d]
+                out[y, x, d] += cur[d]
+        pm = m
+
+
+@njit(parallel=True, cache=True)
+def _sgm_direction(cost, guide, out, dy, dx, p1, p2, sigma, first):
+    Y, X, D = cost.shape
+    # start pixels: those whose predecessor along (dy, dx) lies outside the image
+    starts = np.empty((2 * (Y + X), 2), np.int64)
+    ns = 0
+    for y in range(Y):
+        for x in range(X):
+            if y == 0 or y == Y - 1 or x == 0 or x == X - 1:
+                py = y - dy
+                px = x - dx
+                if py < 0 or py >= Y or px < 0 or px >= X:
+                    starts[ns, 0] = y
+                    starts[ns, 1] = x
+                    ns += 1
+    m = max(Y, X)
+    for s in prange(ns):
+        ys = np.empty(m, np.int64)
+        xs = np.empty(m, np.int64)
+        prev = np.empty(D, np.float32)
+        cur = np.empty(D, np.float32)
+        y = starts[s, 0]
+        x = starts[s, 1]
+        n = 0
+        while y >= 0 and y < Y and x >= 0 and x < X:
+            ys[n] = y
+            xs[n] = x
+            n += 1
+            y += dy
+            x += dx
+        _sgm_line(cost, guide, out, ys, xs, n, p1, p2, sigma, prev, cur, first)
+
+
+#: Path directions of :func:`sgm` (dy, dx).
+SGM_DIRECTIONS = ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (-1, -1), (1, -1), (-1, 1))
+
+
+def sgm(cost: np.ndarray, guide: np.ndarray, *, p1: float, p2: float, sigma: float, paths: int = 8,
+        progress: Progress = None) -> np.ndarray:
+    """Semi-global aggregation of a cost volume (Hirschmueller, TPAMI 2008, eq. 13-14).
+
+    Along each of ``paths`` directions r::
+
+        L_r(p, d) = C(p, d) + min(L_r(p-r, d), L_r(p-r, d+-1) + P1, min_k L_r(p-r, k) + P2(p)) - min_k L_r(p-r, k)
+
+    with the edge-adaptive ``P2(p) = max(P1, p2 / (1 + |g(p) - g(p-r)| / sigma))`` (``g`` the guide), and
+    ``S(p, d) = sum_r L_r(p, d)``.  Each pixel lies on exactly one line per direction, so the lines of a
+    direction run in parallel.
+
+    Parameters
+    ----------
+    cost : ndarray (Y, X, D) float32
+        Labels last.
+    guide : ndarray (Y, X) float32
+    p1, p2, sigma : float
+        Penalties in cost units and the guide step that halves P2.
+    paths : {4, 8}
+
+    Returns
+    -------
+    ndarray (Y, X, D) float32
+        The aggregated cost, labels last (the layout :func:`winner` reads).
+    """
+    if paths not in (4, 8):
+        raise ValueError(f"paths must be 4 or 8, got {paths!r}")
+    cost = np.ascontiguousarray(cost, np.float32)
+    guide = np.ascontiguousarray(guide, np.float32)
+    if guide.shape != cost.shape[:2]:
+        raise ValueError(f"guide must have shape {cost.shape[:2]}, got {guide.shape}")
+    out = np.empty_like(cost)
+    dirs = SGM_DIRECTIONS[:paths]
+    for i, (dy, dx) in enumerate(dirs):
+        _sgm_direction(cost, guide, out, dy, dx, np.float32(p1), np.float32(p2), np.float32(sigma), i == 0)
+        if progress is not None:
+            progress(i + 1, len(dirs))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# minima and confidence
+# ---------------------------------------------------------------------------------------------------------------
+@njit(parallel=True, cache=True)
+def _winner(cost, lo, step, exclude, disp, conf):
+    Y, X, D = cost.shape
+    for y in prange(Y):
+        for x in range(X):
+            k = 0
+            c1 = cost[y, x, 0]
+            for d in range(1, D):
+                if cost[y, x, d] < c1:
+                    c1 = cost[y, x, d]
+                    k = d
+            off = 0.0
+            if 0 < k < D - 1:
+                a = cost[y, x, k - 1]
+                b = cost[y, x, k + 1]
+                den = a - 2.0 * c1 + b
+                if den > 1e-12:
+                    off = 0.5 * (a - b) / den
+                    off = min(0.5, max(-0.5, off))
+            disp[y, x] = lo + (k + off) * step
+            c2 = np.inf
+            for d in range(D):
+                if abs(d - k) > exclude and cost[y, x, d] < c2:
+                    c2 = cost[y, x, d]
+            if c2 == np.inf or c2 <= 0.0:
+                conf[y, x] = 0.0
+            else:
+                conf[y, x] = min(1.0, max(0.0, (c2 - c1) / c2))
+
+
+def winner(cost_yxd: np.ndarray, labels: np.ndarray, *, exclude: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Winner-take-all with a parabolic sub-label minimum and peak-ratio confidence, in one pass.
+
+    Parameters
+    ----------
+    cost_yxd : ndarray (Y, X, L) float32
+        Non-negative cost, labels last (the output of :func:`sgm`).
+    labels : ndarray (L,) uniformly spaced
+
+    Returns
+    -------
+    disparity : (Y, X) float32
+        ``labels[k] + step (c[k-1] - c[k+1]) / (2 (c[k-1] - 2 c[k] + c[k+1]))``, offset within half a label.
+    confidence : (Y, X) float32
+        ``(c2 - c1) / c2`` with ``c1`` the minimum and ``c2`` the lowest cost more than ``exclude`` labels away
+        (a peak-ratio measure, Hu & Mordohai, TPAMI 2012), in [0, 1].
+    """
+    Y, X, L = cost_yxd.shape
+    step = (labels[-1] - labels[0]) / (L - 1)
+    disp = np.empty((Y, X), np.float32)
+    conf = np.empty((Y, X), np.float32)
+    _winner(np.ascontiguousarray(cost_yxd, np.float32), float(labels[0]), float(step), int(exclude), disp, conf)
+    return disp, conf
+
+
+def weighted_median(guide: np.ndarray, disparity: np.ndarray, radius: int, sigma: float = 0.1) -> np.ndarray:
+    """Edge-aware weighted median of the disparity (Ma et al., ICCV 2013 via ``cv2.ximgproc``), guided by the
+    grey centre view in [0, 1]; ``sigma`` in the guide's units."""
+    if radius <= 0:
+        return disparity
+    g8 = np.clip(np.round(guide * 255.0), 0, 255).astype(np.uint8)
+    return cv2.ximgproc.weightedMedianFilter(g8, np.ascontiguousarray(disparity, np.float32), int(radius),
+                                              float(sigma * 255.0))
+
+
+
+
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# the pipeline both methods run
+# ---------------------------------------------------------------------------------------------------------------
+#: Parameters of :func:`run_pipeline` (each method module supplies its own defaults for all of them).
+PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "median_radius", "refine_radius",
+                 "refine_range", "refine_samples", "grey", "pattern", "contrast_sigma", "contrast_eps", "contrast_weight",
+                 "min_view_weight", "disparity_range")
+
+
+def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]) -> dict[str, Any]:
+    """Merge keywords into the defaults; ValueError naming an unknown or invalid parameter."""
+    unknown = set(kw) - set(defaults)
+    if unknown:
+        raise ValueError(f"unknown parameter(s) {sorted(unknown)} for method {method!r}; valid: {sorted(defaults)}")
+    p = {**defaults, **kw}
+    for name in ("label_step", "p1", "p2", "edge_sigma", "refine_range", "contrast_eps"):
+        if not float(p[name]) > 0:
+            raise ValueError(f"{name} must be positive, got {p[name]!r}")
+    if not float(p["contrast_sigma"]) >= 0:
+        raise ValueError(f"contrast_sigma must be >= 0, got {p['contrast_sigma']!r}")
+    if p["contrast_weight"] is not None and not float(p["contrast_weight"]) > 0:
+        raise ValueError(f"contrast_weight must be positive or None, got {p['contrast_weight']!r}")
+    for name in ("radius", "median_radius", "refine_radius"):
+        if name == "refine_radius" and p[name] == "auto":
+            continue
+        if int(p[name]) < 0:
+            raise ValueError(f"{name} must be >= 0 (or 'auto' for refine_radius), got {p[name]!r}")
+    if int(p["refine_samples"]) < 3:
+        raise ValueError(f"refine_samples must be >= 3, got {p['refine_samples']!r}")
+    return p
+
+
+def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = None
+                 ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+    """Cost volume -> SGM -> winner -> weighted median -> per-pixel refinement (see
+    :mod:`plenodecode.depth.costvolume` for the method and its references).
+
+    Returns
+    -------
+    disparity (Y, X) float32, confidence (Y, X) float32, params (the parameters with the range used)
+    """
+    views = prepare_views(lf, min_view_weight=float(p["min_view_weight"]), grey=bool(p["grey"]),
+                          pattern=p["pattern"], contrast_sigma=float(p["contrast_sigma"]),
+                          contrast_eps=float(p["contrast_eps"]),
+                          contrast_weight=None if p["contrast_weight"] is None else float(p["contrast_weight"]))
+    (lo, hi), source = disparity_range(lf, views, p["disparity_range"])
+    step = float(p["label_step"])
+    labels = make_labels(lo, hi, step, pad=2 * step)
+    n_labels, n_paths = len(labels), int(p["paths"])
+    refine_radius = p["refine_radius"]
+    if refine_radius == "auto":
+        # the refinement window grows with the image: 13 x 13 on 512 px views, 7 x 7 below 300 px
+        refine_radius = int(np.clip(round(min(lf.shape[2:4]) / 85.0), 3, 6))
+    refine_radius = int(refine_radius)
+    n_refine = int(p["refine_samples"]) if refine_radius > 0 else 0
+    total = n_labels + n_paths + n_refine
+
+    def stage(offset: int) -> Progress:
+        if progress is None:
+            return None
+        return lambda done, _n: progress(offset + done, total)
+
+    log.info("cost volume: %d labels in [%.2f, %.2f] (%s), %d views", n_labels, labels[0], labels[-1], source,
+             len(views.used()) + 1)
+    cost = half_plane_cost_volume(views, labels, radius=int(p["radius"]), progress=stage(0))
+    sub = cost[::4, ::4]
+    span = float(np.median(sub.max(axis=-1) - sub.min(axis=-1)))
+    cost *= np.float32(1.0 / max(span, 1e-12))
+    guide = views.guide()
+    agg = sgm(cost, guide, p1=float(p["p1"]), p2=float(p["p2"]), sigma=float(p["edge_sigma"]), paths=n_paths,
+              progress=stage(n_labels))
+    del cost
+    disparity, confidence = winner(agg, labels)
+    del agg
+    disparity = weighted_median(guide, disparity, int(p["median_radius"]))
+    if n_refine:
+        half = float(p["refine_range"]) * step
+        deltas = np.linspace(-half, half, n_refine)
+        fine = half_plane_cost_volume(views, deltas, radius=refine_radius, interpolation=cv2.INTER_CUBIC,
+                                      base=disparity, progress=stage(n_labels + n_paths))
+        offset, _ = winner(fine, deltas)
+        disparity = disparity + offset
+    params = {**p, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
+              "disparity_range_source": source, "n_labels": n_labels, "views_used": len(views.used()) + 1}
+    return disparity.astype(np.float32), confidence, params
+
+
+__all__ = [
+    "Views", "prepare_views", "disparity_range", "estimate_disparity_range", "metadata_disparity_range",
+    "make_labels", "half_plane_cost_volume", "half_plane_groups", "sgm",
+    "weighted_median", "shift_view", "remap_view", "sector_of", "N_SECTORS", "view_pattern",
+    "winner",
+    "run_pipeline", "check_params", "PIPELINE_KEYS",
+]

@@ -1,0 +1,282 @@
+"""Metric depth from disparity.
+
+Both camera models give inverse depth linear in disparity::
+
+    1 / Z = 1 / Z_f + d / G
+
+``Z`` the distance along the optical axis (m), ``Z_f`` the distance of the plane in focus (disparity 0),
+``d`` the disparity in spatial samples per view step (HCI sign: positive = closer than the focus plane) and
+``G`` a camera constant (px m).
+
+HCI benchmark scenes (a 'shifted-sensor' camera array, ``parameters.cfg``)
+-------------------------------------------------------------------------
+Neighbouring cameras are ``B = baseline_mm / 1000`` apart; the focal length in pixels is
+``f_px = focal_length_mm / sensor_size_mm * max(image_resolution_x_px, image_resolution_y_px)``.  A point at
+depth ``Z`` moves ``B f_px / Z`` px between neighbouring views; the sensors are shifted so that the focus
+plane has disparity 0, so ``d = B f_px / Z - B f_px / Z_f`` and ``G = B f_px``.  The benchmark's
+``[extrinsics] offset`` is exactly ``B f_px / Z_f`` (20.898 px for every scene with f = 100 mm,
+35 mm sensor, 512 px, B = 0.1 m, Z_f = 7 m), which the tests check.
+
+Unfocused plenoptic camera (Ng et al. 2005; thin lens)
+------------------------------------------------------
+Main lens of focal length ``F`` and f-number ``N`` (aperture ``D = F / N``), the micro-lens array (MLA) at
+the image distance ``b`` of the focus plane (``1/F = 1/Z_f + 1/b``), lenslets f-number matched to the main
+lens.  One view step then samples the aperture ``Du = D * view_step_px / lens_pitch_px`` apart and one
+spatial sample is ``Dx = lens_pitch_m * spatial_step_px / lens_pitch_px`` on the MLA.  A point imaged at
+``b'`` (``1/F = 1/Z + 1/b'``) is seen from aperture positions ``a`` and ``a + Du`` at MLA positions
+``Du (1 - b / b')`` apart; the lenslets invert the aperture, so
+
+    d = K (1 - b / b'),   K = Du / Dx = D view_step_px / (lens_pitch_m spatial_step_px)
+
+(the ``K`` of :func:`plenodecode.render.refocus.slope_per_alpha_unit`, ``alpha = b' / b``).  Eliminating
+``b'`` gives ``1/Z = 1/Z_f + d / (K b)``, so ``G = K b``.
+
+``Z_f`` comes from ``focus_distance_m`` (keyword or ``lf.metadata``).  Lytro metadata has no focus
+distance but ``devices.lens.infinityLambda``: lambda counts refocus steps of one MLA-sensor gap ``g`` from
+the MLA towards the lens, so the film plane of infinity focus is ``lambda_inf g`` in front of the MLA:
+``b = F + lambda_inf g``.  **This unit of lambda is an assumption** (the Lytro format is undocumented; it
+gives plausible focus distances: 0.24 m for the F01 sample, 1.5 m for the Illum sample); a warning is
+logged when it is used, and an explicit ``focus_distance_m`` always wins.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..errors import MetadataError
+from ..types import LightField
+
+log = logging.getLogger(__name__)
+
+#: Keyword overrides of :func:`depth_constants` for HCI scenes.
+HCI_KEYS = ("baseline_mm", "focal_length_mm", "sensor_size_mm", "image_resolution_px", "focus_distance_m")
+#: Keyword overrides for plenoptic cameras.
+PLENOPTIC_KEYS = ("focal_length_m", "f_number", "lens_pitch_m", "spatial_step_px", "view_step_px",
+                  "focus_distance_m", "infinity_lambda", "mla_sensor_gap_m")
+
+
+def _positive(name: str, value: Any) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a positive number, got {value!r}") from exc
+    if not (v > 0 and math.isfinite(v)):
+        raise ValueError(f"{name} must be a positive number, got {value!r}")
+    return v
+
+
+def hci_constants(params: Mapping[str, Mapping[str, Any]], **overrides: float) -> tuple[float, float]:
+    """``(G, Z_f)`` of an HCI scene from its parsed ``parameters.cfg`` (see the module docstring).
+
+    Raises
+    ------
+    MetadataError
+        A needed value is neither in ``params`` nor among the overrides.
+    """
+    intr = params.get("intrinsics", {}) or {}
+    extr = params.get("extrinsics", {}) or {}
+    res = overrides.get("image_resolution_px")
+    if res is None and ("image_resolution_x_px" in intr or "image_resolution_y_px" in intr):
+        res = max(float(intr.get("image_resolution_x_px", 0)), float(intr.get("image_resolution_y_px", 0)))
+    found = {
+        "baseline_mm": overrides.get("baseline_mm", extr.get("baseline_mm")),
+        "focal_length_mm": overrides.get("focal_length_mm", intr.get("focal_length_mm")),
+        "sensor_size_mm": overrides.get("sensor_size_mm", intr.get("sensor_size_mm")),
+        "image_resolution_px": res,
+        "focus_distance_m": overrides.get("focus_distance_m", extr.get("focus_distance_m")),
+    }
+    for name, value in found.items():
+        if value is None:
+            raise MetadataError(f"metric depth of an HCI scene needs '{name}', which parameters.cfg does not have; "
+                                f"pass {name}=...")
+    v = {k: _positive(k, x) for k, x in found.items()}
+    f_px = v["focal_length_mm"] / v["sensor_size_mm"] * v["image_resolution_px"]
+    return v["baseline_mm"] / 1000.0 * f_px, v["focus_distance_m"]
+
+
+def _camera_constants(lf: LightField, overrides: Mapping[str, Any]) -> dict[str, float]:
+    """Focal length, f-number, lens pitch (m), spatial and view step (px) from the overrides or the metadata
+    (the constants of :func:`plenodecode.render.refocus.slope_per_alpha_unit`, read the same way)."""
+    meta = lf.metadata
+    camera = meta.get("camera") or {}
+    calib = meta.get("calibration") or {}
+    found = {
+        "focal_length_m": camera.get("focal_length_m"),
+        "f_number": camera.get("f_number"),
+        "lens_pitch_m": camera.get("lens_pitch_m"),
+        "spatial_step_px": meta.get("spatial_step_px") or calib.get("row_spacing"),
+        "view_step_px": meta.get("view_step_px"),
+    }
+    if found["lens_pitch_m"] is None and calib.get("pitch") and camera.get("pixel_pitch_m"):
+        found["lens_pitch_m"] = float(calib["pitch"]) * float(camera["pixel_pitch_m"])
+    found.update({k: v for k, v in overrides.items() if k in found and v is not None})
+    out = {}
+    for name, value in found.items():
+        if value is None:
+            raise MetadataError(f"metric depth needs the camera constant '{name}', which the light field's metadata "
+                                f"does not have; pass {name}=... (or decode the raw with its metadata)")
+        out[name] = _positive(name, value)
+    return out
+
+
+def plenoptic_constants(lf: LightField, **overrides: float) -> tuple[float, float]:
+    """``(G, Z_f)`` of a decoded plenoptic light field (see the module docstring).
+
+    Raises
+    ------
+    MetadataError
+        Naming the missing constant (focal length, f-number, lens pitch, spatial/view step, focus distance
+        or infinityLambda + MLA gap).
+    """
+    c = _camera_constants(lf, overrides)
+    k = (c["focal_length_m"] / c["f_number"]) * c["view_step_px"] / (c["lens_pitch_m"] * c["spatial_step_px"])
+    meta = lf.metadata
+    camera = meta.get("camera") or {}
+    f = c["focal_length_m"]
+    zf = overrides.get("focus_distance_m", meta.get("focus_distance_m"))
+    if zf is not None:
+        zf = _positive("focus_distance_m", zf)
+        if zf <= f:
+            raise ValueError(f"focus_distance_m ({zf} m) must exceed the focal length ({f} m)")
+        b = f * zf / (zf - f)
+        return k * b, zf
+    lam = overrides.get("infinity_lambda")
+    if lam is None:
+        lens = ((camera.get("extra") or {}).get("devices") or {}).get("lens") or {}
+        lam = lens.get("infinityLambda")
+    gap = overrides.get("mla_sensor_gap_m")
+    if gap is None:
+        gap = (meta.get("geometry") or {}).get("mla_sensor_gap_m")
+    if gap is None and camera.get("mla_offset_m") is not None and len(camera["mla_offset_m"]) > 2:
+        gap = camera["mla_offset_m"][2]
+    if lam is None or gap is None:
+        what = "no infinityLambda" if lam is None else "no MLA-sensor gap"
+        raise MetadataError(f"metric depth needs the focus distance: the light field's metadata has no "
+                            f"focus_distance_m and {what} to derive it; pass focus_distance_m=... (metres)")
+    lam = float(lam)
+    gap = _positive("mla_sensor_gap_m", gap)
+    b = f + lam * gap
+    if not b > f:
+        raise MetadataError(f"infinityLambda {lam} gives a film distance {b} m not beyond the focal length {f} m; "
+                            f"pass focus_distance_m=...")
+    zf = f * b / (b - f)
+    log.warning("focus distance %.3f m derived from infinityLambda=%g and the MLA gap (assumed lambda unit = one "
+                "MLA-sensor gap); pass focus_distance_m to override", zf, lam)
+    return k * b, zf
+
+
+def depth_constants(lf: LightField, **overrides: float) -> tuple[float, float, str]:
+    """``(G, Z_f, model)`` with model 'hci' (``lf.metadata['hci_parameters']``) or 'plenoptic'."""
+    hci = lf.metadata.get("hci_parameters")
+    if hci:
+        bad = set(overrides) - set(HCI_KEYS)
+        if bad:
+            raise ValueError(f"unknown override(s) {sorted(bad)} for an HCI scene; valid: {', '.join(HCI_KEYS)}")
+        g, zf = hci_constants(hci, **overrides)
+        return g, zf, "hci"
+    bad = set(overrides) - set(PLENOPTIC_KEYS)
+    if bad:
+        raise ValueError(f"unknown override(s) {sorted(bad)}; valid: {', '.join(PLENOPTIC_KEYS)}")
+    g, zf = plenoptic_constants(lf, **overrides)
+    return g, zf, "plenoptic"
+
+
+def disparity_to_depth(depth_map: Any, lf: LightField, **overrides: float) -> np.ndarray:
+    """Metric depth (m) along the optical axis from disparity: ``Z = 1 / (1 / Z_f + d / G)``.
+
+    Parameters
+    ----------
+    depth_map : DepthMap or ndarray (Y, X)
+        Disparity in px per view step (HCI sign convention).
+    lf : LightField
+        Supplies the camera geometry: ``metadata['hci_parameters']`` (HCI scenes) or the camera metadata
+        of a decoded plenoptic light field (see the module docstring for both derivations).
+    **overrides : float
+        Constants that win over the metadata: HCI ``baseline_mm, focal_length_mm, sensor_size_mm,
+        image_resolution_px, focus_distance_m``; plenoptic ``focal_length_m, f_number, lens_pitch_m,
+        spatial_step_px, view_step_px, focus_distance_m, infinity_lambda, mla_sensor_gap_m``.
+
+    Returns
+    -------
+    ndarray (Y, X) float32
+        Depth in metres; ``inf`` where the disparity lies at or beyond infinity (``d <= -G / Z_f``),
+        NaN where the disparity is NaN.
+
+    Raises
+    ------
+    MetadataError
+        A needed camera constant is missing (the message names it).
+    """
+    d = np.asarray(getattr(depth_map, "disparity", depth_map), np.float64)
+    if d.ndim != 2:
+        raise ValueError(f"depth_map must be a DepthMap or a 2-D disparity array, got shape {d.shape}")
+    g, zf, model = depth_constants(lf, **overrides)
+    inv = 1.0 / zf + d / g
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(inv > 0, 1.0 / inv, np.inf)
+    z = np.where(np.isnan(d), np.nan, z)
+    log.debug("disparity_to_depth (%s): G = %.6g px m, Z_f = %.4g m", model, g, zf)
+    return z.astype(np.float32)
+
+
+def focal_length_px(lf: LightField, **overrides: float) -> float:
+    """Focal length of the centre view in spatial samples, for back-projecting pixels to 3-D points.
+
+    HCI: ``f_px`` of the module docstring.  Plenoptic: the centre view is a pinhole at the main lens with the
+    MLA at ``b`` as its film, so ``f = b / Dx`` samples (``Dx`` the spatial sample spacing on the MLA).
+    Overrides as :func:`disparity_to_depth`.
+    """
+    g, zf, model = depth_constants(lf, **overrides)
+    if model == "hci":
+        hci = lf.metadata["hci_parameters"]
+        b_m = _positive("baseline_mm", overrides.get("baseline_mm", (hci.get("extrinsics") or {}).get("baseline_mm")))
+        return g / (b_m / 1000.0)
+    c = _camera_constants(lf, overrides)
+    meta = lf.metadata
+    calib = meta.get("calibration") or {}
+    camera = meta.get("camera") or {}
+    pitch_px = calib.get("pitch")
+    if pitch_px is None and camera.get("pixel_pitch_m"):
+        pitch_px = c["lens_pitch_m"] / float(camera["pixel_pitch_m"])
+    if pitch_px is None:
+        raise MetadataError("3-D points need the lenslet pitch in pixels (metadata['calibration']['pitch'] or "
+                            "camera pixel_pitch_m); decode with a calibration")
+    dx = c["lens_pitch_m"] * c["spatial_step_px"] / float(pitch_px)
+    f = c["focal_length_m"]
+    b = f * zf / (zf - f)
+    return b / dx
+
+
+def depth_to_points(depth: np.ndarray, lf: LightField, **overrides: float) -> np.ndarray:
+    """3-D points (m) of a depth map, camera frame: x right, y down, z forward (optical axis).
+
+    ``X = (x - cx) Z / f``, ``Y = (y - cy) Z / f`` with the principal point at the image centre and ``f`` from
+    :func:`focal_length_px`.
+
+    Returns
+    -------
+    ndarray (Y, X, 3) float32 (non-finite where the depth is).
+    """
+    z = np.asarray(depth, np.float64)
+    if z.ndim != 2:
+        raise ValueError(f"depth must be 2-D, got shape {z.shape}")
+    f = focal_length_px(lf, **overrides)
+    h, w = z.shape
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)
+    pts = np.stack([(xx - (w - 1) / 2.0) * z / f, (yy - (h - 1) / 2.0) * z / f, z], axis=-1)
+    return pts.astype(np.float32)
+
+
+def depth_to_disparity(depth: np.ndarray, lf: LightField, **overrides: float) -> np.ndarray:
+    """Inverse of :func:`disparity_to_depth`: ``d = G (1 / Z - 1 / Z_f)`` (px per view step), float32."""
+    z = np.asarray(depth, np.float64)
+    g, zf, _ = depth_constants(lf, **overrides)
+    with np.errstate(divide="ignore"):
+        return (g * (1.0 / z - 1.0 / zf)).astype(np.float32)
+
+
+__all__ = ["disparity_to_depth", "depth_to_disparity", "focal_length_px", "depth_to_points", "depth_constants", "hci_constants", "plenoptic_constants"]

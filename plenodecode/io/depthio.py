@@ -1,0 +1,233 @@
+"""Writing depth results: PFM (HCI toolkit), float EXR, colour-mapped PNG with a legend, coloured PLY.
+
+Every writer is atomic (temporary file in the same folder, then rename) and refuses to replace an existing
+file unless ``overwrite=True``.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .images import srgb_encode, write_image
+from .pfm import write_pfm
+
+log = logging.getLogger(__name__)
+
+
+def _destination(path: str | os.PathLike, overwrite: bool) -> Path:
+    p = Path(path)
+    if p.exists() and not overwrite:
+        raise FileExistsError(f"{p} exists; pass overwrite=True to replace it")
+    p.parent.mkdir(parents=True, exist_ok=True)
+    return p
+
+
+def _atomic(p: Path, write) -> Path:
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.stem}.", suffix=p.suffix, dir=p.parent)
+    os.close(fd)
+    try:
+        write(Path(tmp))
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, p)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return p
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# PLY
+# ---------------------------------------------------------------------------------------------------------------
+def write_ply(path: str | os.PathLike, points: np.ndarray, colours: np.ndarray | None = None, *,
+              overwrite: bool = False) -> Path:
+    """Write a point cloud as binary little-endian PLY (``x y z`` float32, ``red green blue`` uchar).
+
+    Parameters
+    ----------
+    points : ndarray (N, 3) float
+    colours : ndarray (N, 3) uint8, optional
+
+    Returns
+    -------
+    Path
+    """
+    pts = np.asarray(points, np.float32)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"points must have shape (N, 3), got {pts.shape}")
+    fields = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
+    if colours is not None:
+        col = np.asarray(colours)
+        if col.shape != pts.shape or col.dtype != np.uint8:
+            raise ValueError(f"colours must be uint8 of shape {pts.shape}, got {col.dtype} {col.shape}")
+        fields += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
+    rec = np.empty(len(pts), dtype=fields)
+    rec["x"], rec["y"], rec["z"] = pts[:, 0], pts[:, 1], pts[:, 2]
+    if colours is not None:
+        rec["red"], rec["green"], rec["blue"] = col[:, 0], col[:, 1], col[:, 2]
+    props = "".join(f"property {'float' if t == '<f4' else 'uchar'} {n}\n" for n, t in fields)
+    header = (f"ply\nformat binary_little_endian 1.0\ncomment written by plenodecode\n"
+              f"element vertex {len(pts)}\n{props}end_header\n").encode("ascii")
+    p = _destination(path, overwrite)
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as fh:
+            fh.write(header)
+            fh.write(rec.tobytes())
+
+    return _atomic(p, write)
+
+
+def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
+    """Read a PLY written by :func:`write_ply`: ``(points (N, 3) float32, colours (N, 3) uint8 or None)``."""
+    from ..errors import FormatError
+
+    data = Path(path).read_bytes()
+    end = data.find(b"end_header\n")
+    if not data.startswith(b"ply\n") or end < 0:
+        raise FormatError(f"{path}: not a PLY file (no 'ply' magic or no end_header)")
+    lines = data[:end].decode("ascii", "replace").splitlines()
+    if "format binary_little_endian 1.0" not in lines:
+        raise FormatError(f"{path}: only binary little-endian PLY is supported")
+    n = next((int(ln.split()[2]) for ln in lines if ln.startswith("element vertex")), None)
+    names = [ln.split()[2] for ln in lines if ln.startswith("property")]
+    if n is None or names[:3] != ["x", "y", "z"]:
+        raise FormatError(f"{path}: expected 'element vertex N' with x y z properties")
+    fields = [(nm, "<f4" if nm in "xyz" else "u1") for nm in names]
+    rec = np.frombuffer(data, dtype=fields, count=n, offset=end + len(b"end_header\n"))
+    pts = np.stack([rec["x"], rec["y"], rec["z"]], axis=1).astype(np.float32)
+    col = np.stack([rec["red"], rec["green"], rec["blue"]], axis=1) if "red" in names else None
+    return pts, col
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# colour-mapped PNG
+# ---------------------------------------------------------------------------------------------------------------
+def colour_map_figure(values: np.ndarray, *, label: str, cmap: str = "turbo", vmin: float | None = None,
+                      vmax: float | None = None, title: str | None = None):
+    """A matplotlib Figure (no pyplot state) of ``values`` with a colour bar naming ``label``.
+
+    The colour range defaults to the 1st-99th percentiles of the finite values.
+    """
+    from matplotlib.figure import Figure
+
+    v = np.asarray(values, np.float64)
+    fin = v[np.isfinite(v)]
+    if vmin is None or vmax is None:
+        lo, hi = (np.percentile(fin, [1, 99]) if fin.size else (0.0, 1.0))
+        vmin = lo if vmin is None else vmin
+        vmax = hi if vmax is None else vmax
+    if not vmax > vmin:
+        vmax = vmin + 1e-6
+    h, w = v.shape
+    scale = 6.0 / max(h, w)
+    fig = Figure(figsize=(w * scale + 1.6, h * scale + (0.5 if title else 0.2)), dpi=max(100, int(max(h, w) / 6)))
+    ax = fig.add_axes([0.02, 0.04, 0.78, 0.9 if title else 0.92])
+    im = ax.imshow(np.ma.masked_invalid(v), cmap=cmap, vmin=vmin, vmax=vmax, interpolation="nearest")
+    ax.set_axis_off()
+    if title:
+        ax.set_title(title, fontsize=9)
+    cax = fig.add_axes([0.84, 0.1, 0.04, 0.8])
+    cb = fig.colorbar(im, cax=cax)
+    cb.set_label(label)
+    return fig
+
+
+def write_colour_map_png(path: str | os.PathLike, values: np.ndarray, *, label: str, cmap: str = "turbo",
+                         vmin: float | None = None, vmax: float | None = None, title: str | None = None,
+                         overwrite: bool = False) -> Path:
+    """Write ``values`` (Y, X) as a colour-mapped PNG with a legend (see :func:`colour_map_figure`)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    p = _destination(path, overwrite)
+    fig = colour_map_figure(values, label=label, cmap=cmap, vmin=vmin, vmax=vmax, title=title)
+    FigureCanvasAgg(fig)
+
+    def write(tmp: Path) -> None:
+        fig.savefig(tmp, format="png")
+
+    return _atomic(p, write)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# everything the depth command writes
+# ---------------------------------------------------------------------------------------------------------------
+def depth_output_paths(pfm_path: str | os.PathLike, *, ply: str | os.PathLike | None = None) -> dict[str, Path]:
+    """The files :func:`write_depth_outputs` writes for ``-o X.pfm``: pfm, exr (``X.exr``), png
+    (``X.png``) and ply when asked."""
+    p = Path(pfm_path)
+    if p.suffix.lower() != ".pfm":
+        raise ValueError(f"the depth output must end in .pfm, got {p.name!r}")
+    out = {"pfm": p, "exr": p.with_suffix(".exr"), "png": p.with_suffix(".png")}
+    if ply is not None:
+        out["ply"] = Path(ply)
+    return out
+
+
+def display_colours(image: np.ndarray, colour_state: str) -> np.ndarray:
+    """(Y, X, C) view -> (Y, X, 3) uint8 display colours (sRGB-encoded unless already 'srgb')."""
+    img = np.nan_to_num(np.asarray(image, np.float32), nan=0.0)
+    if img.shape[-1] == 1:
+        img = np.repeat(img, 3, axis=-1)
+    if colour_state != "srgb":
+        img = srgb_encode(np.clip(img, 0.0, 1.0))
+    return np.clip(np.rint(img * 255.0), 0, 255).astype(np.uint8)
+
+
+def write_depth_outputs(pfm_path: str | os.PathLike, values: np.ndarray, *, label: str,
+                        points: np.ndarray | None = None, colours: np.ndarray | None = None,
+                        ply: str | os.PathLike | None = None, title: str | None = None,
+                        overwrite: bool = False) -> list[Path]:
+    """Write a disparity or depth map as PFM + 32-bit EXR + colour-mapped PNG (+ PLY point cloud).
+
+    Parameters
+    ----------
+    pfm_path : path-like
+        ``X.pfm``; the EXR and PNG are ``X.exr`` and ``X.png`` beside it.
+    values : ndarray (Y, X) float32
+        What the files hold (disparity in px per view step, or depth in m).
+    label : str
+        Legend of the PNG's colour bar (e.g. 'disparity (px / view)').
+    points, colours : ndarray (Y, X, 3), optional
+        3-D points (m) and uint8 colours for the PLY; non-finite points are skipped.
+    ply : path-like, optional
+        Where to write the point cloud (needs ``points``).
+
+    Returns
+    -------
+    list of Path
+        The files written.  Nothing is written when any output exists and ``overwrite`` is False.
+    """
+    paths = depth_output_paths(pfm_path, ply=ply)
+    if not overwrite:
+        clash = [q for q in paths.values() if q.exists()]
+        if clash:
+            raise FileExistsError(f"{clash[0]} exists; pass overwrite=True to replace it")
+    v = np.asarray(values, np.float32)
+    if v.ndim != 2:
+        raise ValueError(f"values must be 2-D, got shape {v.shape}")
+    if ply is not None and points is None:
+        raise ValueError("ply needs points (3-D coordinates of every pixel)")
+    written: list[Path] = []
+    paths["pfm"].parent.mkdir(parents=True, exist_ok=True)
+    written.append(write_pfm(paths["pfm"], v, overwrite=overwrite))
+    written.append(write_image(paths["exr"], v, bit_depth=32, overwrite=overwrite))
+    written.append(write_colour_map_png(paths["png"], v, label=label, title=title, overwrite=overwrite))
+    if ply is not None:
+        pts = np.asarray(points, np.float32).reshape(-1, 3)
+        keep = np.isfinite(pts).all(axis=1)
+        col = None if colours is None else np.asarray(colours, np.uint8).reshape(-1, 3)[keep]
+        written.append(write_ply(paths["ply"], pts[keep], col, overwrite=overwrite))
+        log.info("PLY: %d of %d points", int(keep.sum()), len(keep))
+    return written
+
+
+__all__ = ["write_ply", "read_ply", "write_colour_map_png", "colour_map_figure", "write_depth_outputs",
+           "depth_output_paths", "display_colours"]
