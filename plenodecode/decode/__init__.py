@@ -32,6 +32,7 @@ from __future__ import annotations
 import logging
 import os
 import threading
+import time
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from typing import Callable
 
@@ -154,6 +155,24 @@ def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray
     DecodeError
         White or dark frame of the wrong size or with NaNs.
     """
+    return decode_timed(raw, grid, white=white, dark=dark, demosaic=demosaic, colour=colour, n_views=n_views,
+                        hot_pixels=hot_pixels, resample=resample, floor=floor, workers=workers,
+                        progress=progress, timings=None)
+
+
+def decode_timed(raw: RawCapture, grid: LensletGrid, *, timings: dict[str, float] | None, **kw) -> LightField:
+    """:func:`decode` that also adds each stage's thread CPU seconds (summed over bands) to ``timings``.
+
+    For benchmarks: keys 'levels', 'hot pixels', 'labels', 'white', 'demosaic', 'slice', 'hex->rect',
+    plus 'total cpu' and 'wall'.  ``timings=None`` times nothing.
+    """
+    return _decode(raw, grid, timings=timings, **kw)
+
+
+def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosaic: str = DEFAULT_DEMOSAIC,
+            colour: str = "linear-srgb", n_views=None, hot_pixels: bool = True, resample: str = "cubic",
+            floor: float = DEFAULT_FLOOR, workers=None, progress=None, timings=None) -> LightField:
+    t_wall, t_cpu = time.perf_counter(), time.process_time()
     if not isinstance(raw, RawCapture):
         raise ValueError(f"raw must be a RawCapture, got {type(raw).__name__}")
     if not isinstance(grid, LensletGrid):
@@ -209,8 +228,18 @@ def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray
     black = np.asarray(raw.black)
     level = np.asarray(raw.white)
 
+    lock = threading.Lock()
+
+    def tick(name: str, t0: float) -> float:
+        t1 = time.thread_time()
+        if timings is not None:
+            with lock:
+                timings[name] = timings.get(name, 0.0) + (t1 - t0)
+        return t1
+
     def run_band(band) -> int:
         r0, r1 = band.r0, band.r1
+        t = time.thread_time()
         if r1 <= r0:                     # lens rows entirely off the sensor
             data[:, :, band.i0:band.i1] = 0.0
             weight[:, :, band.i0:band.i1] = 0.0
@@ -219,12 +248,15 @@ def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray
         buf = scratch.get
         dark_b = None if dark_p is None else dark_p[0][r0:r1]
         x = normalise(raw.mosaic[r0:r1], black, level, dark=dark_b, out=buf("x", shape, np.float32))
+        t = tick("levels", t)
         n_hot = 0
         if hot_pixels:
             x, n_hot = repair_hot_pixels(x, out=buf("x_fixed", shape, np.float32), flags=buf("hot", shape, np.bool_))
+        t = tick("hot pixels", t)
         ext = centres[band.e0:band.e1] - np.array([r0, 0.0])
         labels, dist = lens_labels(ext, shape, reach, out=(buf("labels", shape, np.int32),
                                                            buf("dist", shape, np.float32)))
+        t = tick("labels", t)
         rel = buf("rel", shape, np.float32)
         if white_p is not None:
             arr, wb, ww = white_p
@@ -241,19 +273,23 @@ def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray
             np.subtract(np.float32(grid.radius + 0.5), dist, out=rel)
             np.clip(rel, 0.0, 1.0, out=rel)
             x[rel < floor] = np.nan
+        t = tick("white", t)
         interior = buf("interior", shape, np.bool_)
         np.less(dist, np.float32(inner_r - 3.0), out=interior)     # 5x5 window inside the own cell
         interior[:2], interior[-2:], interior[:, :2], interior[:, -2:] = False, False, False, False
         img = _demosaic(x, cfa, method=demosaic, labels=labels, interior=interior,
                         out=buf("rgb", (*shape, nch), np.float32))
+        t = tick("demosaic", t)
         own = centres[band.i0:band.i1] - np.array([r0, 0.0])
         nr = band.i1 - band.i0
         samples, sw = sample_lenses(img, rel, labels, own, offsets, first_label=(band.i0 - band.e0) * cols,
                                     label_cols=cols, matrix=matrix, safe_radius=inner_r,
                                     out=(buf("samples", (nv, nv, nr, cols, nch), np.float32),
                                          buf("sample_w", (nv, nv, nr, cols), np.float32)))
+        t = tick("slice", t)
         hex_to_rect(samples, sw, grid, first_row=band.i0, method=resample,
                     out=data[:, :, band.i0:band.i1], out_weight=weight[:, :, band.i0:band.i1])
+        tick("hex->rect", t)
         return n_hot
 
     # bands write disjoint output rows; the numba kernels and OpenCV release the GIL
@@ -273,6 +309,9 @@ def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray
                     progress(k + 1, len(bands))
     if n_hot:
         log.info("repaired %d hot pixels", n_hot)
+    if timings is not None:
+        timings["total cpu"] = timings.get("total cpu", 0.0) + time.process_time() - t_cpu
+        timings["wall"] = timings.get("wall", 0.0) + time.perf_counter() - t_wall
 
     s = grid.decoded_sampling()
     cam = raw.metadata
@@ -306,4 +345,4 @@ def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray
     return LightField(data=data, weight=weight, colour=colour_state, metadata=metadata)
 
 
-__all__ = ["decode", "DEMOSAIC_METHODS", "RESAMPLE_METHODS", "DEFAULT_DEMOSAIC"]
+__all__ = ["decode", "decode_timed", "DEMOSAIC_METHODS", "RESAMPLE_METHODS", "DEFAULT_DEMOSAIC"]

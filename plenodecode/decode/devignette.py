@@ -88,7 +88,16 @@ def _hot(x, threshold, relative, flags):  # pragma: no cover - numba
     h, w = x.shape
     n = 0
     for y in range(h):
+        inner_row = y >= 2 and y < h - 2
         for xx in range(w):
+            if inner_row and xx >= 2 and xx < w - 2:      # all 8 neighbours exist
+                m = max(max(max(x[y - 2, xx - 2], x[y - 2, xx]), max(x[y - 2, xx + 2], x[y, xx - 2])),
+                        max(max(x[y, xx + 2], x[y + 2, xx - 2]), max(x[y + 2, xx], x[y + 2, xx + 2])))
+                hot = x[y, xx] > m + max(threshold, relative * m)
+                flags[y, xx] = hot
+                if hot:
+                    n += 1
+                continue
             m = -np.inf
             for t in range(9):
                 if t == 4:

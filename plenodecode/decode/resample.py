@@ -104,16 +104,33 @@ def _resample_rows(samples, sweight, parity, idx, wts, contig, lidx, lwts, out, 
                 wrow = sweight[v, u, i]
                 orow = out[v, u, i]
                 owrow = out_w[v, u, i]
-                empty = True
+                n_pos = 0
                 for j in range(nc):
                     if wrow[j] > 0.0:
-                        empty = False
-                        break
-                if empty:                      # a view outside every lenslet disk on this row
+                        n_pos += 1
+                if n_pos == 0:                 # a view outside every lenslet disk on this row
                     for x in range(nx):
                         owrow[x] = zero
                         for c in range(nch):
                             orow[x, c] = zero
+                    continue
+                if n_pos == nc and nch == 3:   # every lens has a sample: the plain kernel everywhere
+                    for x in range(nx):
+                        a0 = zero
+                        a1 = zero
+                        a2 = zero
+                        aw = zero
+                        for t in range(nt):
+                            j = idx[p, x, t]
+                            wt = wts[p, x, t]
+                            a0 += wt * srow[j, 0]
+                            a1 += wt * srow[j, 1]
+                            a2 += wt * srow[j, 2]
+                            aw += wt * wrow[j]
+                        orow[x, 0] = a0
+                        orow[x, 1] = a1
+                        orow[x, 2] = a2
+                        owrow[x] = min(np.float32(1.0), max(zero, aw))
                     continue
                 for x in range(nx):
                     j0 = idx[p, x, 0]

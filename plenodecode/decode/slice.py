@@ -205,6 +205,30 @@ def _sample(image, rel, labels, centres, first_label, nc_label, offsets, inner, 
                     wrel = zero
                     # near the lens centre and away from the image border every tap is this lens's own
                     fast = interior and inner[v, u]
+                    if fast and nch == 3:
+                        gx = np.float32(1.0) - fx
+                        gy = np.float32(1.0) - fy
+                        w00 = gy * gx
+                        w01 = gy * fx
+                        w10 = fy * gx
+                        w11 = fy * fx
+                        q00 = image[y0, x0, 0]
+                        q01 = image[y0, x0 + 1, 0]
+                        q10 = image[y0 + 1, x0, 0]
+                        q11 = image[y0 + 1, x0 + 1, 0]
+                        if q00 == q00 and q01 == q01 and q10 == q10 and q11 == q11:
+                            r = w00 * q00 + w01 * q01 + w10 * q10 + w11 * q11
+                            g = (w00 * image[y0, x0, 1] + w01 * image[y0, x0 + 1, 1]
+                                 + w10 * image[y0 + 1, x0, 1] + w11 * image[y0 + 1, x0 + 1, 1])
+                            b = (w00 * image[y0, x0, 2] + w01 * image[y0, x0 + 1, 2]
+                                 + w10 * image[y0 + 1, x0, 2] + w11 * image[y0 + 1, x0 + 1, 2])
+                            wrel = (w00 * rel[y0, x0] + w01 * rel[y0, x0 + 1]
+                                    + w10 * rel[y0 + 1, x0] + w11 * rel[y0 + 1, x0 + 1])
+                            out[v, u, i, j, 0] = m00 * r + m01 * g + m02 * b
+                            out[v, u, i, j, 1] = m10 * r + m11 * g + m12 * b
+                            out[v, u, i, j, 2] = m20 * r + m21 * g + m22 * b
+                            out_w[v, u, i, j] = min(np.float32(1.0), max(zero, wrel))
+                            continue
                     for t in range(4):
                         dy = t >> 1
                         dx = t & 1
