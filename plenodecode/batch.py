@@ -16,8 +16,8 @@ Layout of ``out_dir``::
     out_dir/summary.json      every result of the last run
     out_dir/index.html        thumbnails of every output and the error of every failure
 
-All-or-nothing per raw: a task writes into a hidden staging folder ``out_dir/.<name>.<random>.partial``
-and renames it to ``out_dir/<name>`` only when every product and the ``.done.json`` marker are
+All-or-nothing per raw: a task writes into a hidden staging folder ``out_dir/.<name>.<random>.tmp``
+(:func:`plenodecode.io.atomic.atomic_output`) and renames it to ``out_dir/<name>`` only when every product and the ``.done.json`` marker are
 written, so a killed run leaves no output under its final name (stale staging folders are removed by
 the next run).  Two batches must not write into the same ``out_dir`` at the same time.
 
@@ -37,12 +37,9 @@ import json
 import logging
 import multiprocessing
 import os
-import shutil
 import socket
-import tempfile
 import time
 import traceback
-import uuid
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import asdict, dataclass
@@ -50,6 +47,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
 from .errors import CalibrationError, PlenodecodeError
+from .io.atomic import OLD_MARK, TEMP_MARK, atomic_output, discard, is_temporary, write_text_atomic
 
 log = logging.getLogger(__name__)
 
@@ -67,6 +65,7 @@ BATCH_OUTPUTS = ("lightfield", "views", "centre", "refocus", "depth")
 LIGHTFIELD_NAMES = {"zarr": "lightfield.zarr", "views": "lightfield_views", "mat": "lightfield.mat",
                     "npy": "lightfield.npy", "eslf": "lightfield.eslf.png"}
 DONE_MARKER = ".done.json"
+#: Suffix of the staging folders of earlier versions (still removed as leftovers).
 STAGING_SUFFIX = ".partial"
 THUMB_DIR = "thumbs"
 SUMMARY_JSON = "summary.json"
@@ -405,28 +404,6 @@ def _skip_result(src: Path, target: Path, key: str, t0: float) -> TaskResult | N
                       seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb())
 
 
-def _staging_folder(out: Path, name: str) -> Path:
-    """A new hidden folder ``out/.<name>.<random>.partial`` (permissions from the umask, unlike mkdtemp's 0700)."""
-    while True:
-        p = out / f".{name}.{uuid.uuid4().hex[:12]}{STAGING_SUFFIX}"
-        try:
-            p.mkdir()
-            return p
-        except FileExistsError:  # pragma: no cover - 48 random bits
-            continue
-
-
-def _commit_folder(staging: Path, target: Path) -> None:
-    """Move a finished staging folder to ``target``, replacing an older one."""
-    if target.exists() or target.is_symlink():
-        trash = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
-        os.replace(target, trash / target.name)
-        os.replace(staging, target)
-        shutil.rmtree(trash, ignore_errors=True)
-    else:
-        os.replace(staging, target)
-
-
 def _set_threads(threads: int | None) -> None:
     if threads is None:
         return
@@ -468,7 +445,6 @@ def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: Ba
     src = Path(path)
     out = Path(out_dir)
     target = out / (name or src.stem)
-    staging: Path | None = None
     try:
         key = task_key(src, options)
         if not overwrite:
@@ -482,15 +458,14 @@ def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: Ba
         from .io import read_raw
 
         raw = read_raw(src)
-        staging = _staging_folder(out, target.name)
-        products = _write_products(raw, staging, options, threads=threads)
-        rel_out = [str(p.relative_to(staging)) for p, _ in products]
-        rel_thumb = [None if t is None else str(t.relative_to(staging)) for _, t in products]
-        marker = {"key": key, "source": str(src.resolve()), "outputs": rel_out, "thumbnails": rel_thumb,
-                  "options": options.as_key_dict()}
-        (staging / DONE_MARKER).write_text(json.dumps(marker, indent=1), encoding="utf-8")
-        _commit_folder(staging, target)
-        staging = None
+        # the folder is staged under a temporary name and replaces ``target`` (checked above) only when complete
+        with atomic_output(target, overwrite=True, folder=True) as staging:
+            products = _write_products(raw, staging, options, threads=threads)
+            rel_out = [str(p.relative_to(staging)) for p, _ in products]
+            rel_thumb = [None if t is None else str(t.relative_to(staging)) for _, t in products]
+            marker = {"key": key, "source": str(src.resolve()), "outputs": rel_out, "thumbnails": rel_thumb,
+                      "options": options.as_key_dict()}
+            (staging / DONE_MARKER).write_text(json.dumps(marker, indent=1), encoding="utf-8")
         return TaskResult(str(src), "done", tuple(str(target / o) for o in rel_out),
                           tuple(None if t is None else str(target / t) for t in rel_thumb),
                           seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb())
@@ -502,9 +477,6 @@ def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: Ba
         log.error("unexpected error on %s:\n%s", src, traceback.format_exc())
         return TaskResult(str(src), "failed", error=f"internal error: {_one_line(exc)}",
                           seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb())
-    finally:
-        if staging is not None:
-            shutil.rmtree(staging, ignore_errors=True)
 
 
 # ---------------------------------------------------------------------------- products
@@ -609,11 +581,11 @@ def _clean_stale(out: Path) -> None:
     for p in out.iterdir():
         if not p.name.startswith("."):
             continue
-        if p.is_dir() and (p.name.endswith(STAGING_SUFFIX) or p.name.endswith(".old")):
+        if p.is_dir() and not p.is_symlink() and (is_temporary(p) or p.name.endswith((STAGING_SUFFIX, OLD_MARK))):
             log.info("removing %s left by an interrupted run", p)
-            shutil.rmtree(p, ignore_errors=True)
-        elif p.is_file() and p.name.endswith(".tmp") and p.name[1:].startswith(SUMMARY_FILES):
-            p.unlink(missing_ok=True)
+            discard(p)
+        elif p.is_file() and p.name.endswith(TEMP_MARK) and p.name[1:].startswith(SUMMARY_FILES):
+            discard(p)
 
 
 def run_batch(inputs: Sequence[str | os.PathLike], out_dir: str | os.PathLike, options: BatchOptions | None = None,
@@ -769,20 +741,6 @@ def _run_dask(tasks: list[tuple[Path, str]], out: Path, options: BatchOptions, s
 
 
 # ------------------------------------------------------------------------------ summary
-def _atomic_write_text(path: Path, text: str, *, overwrite: bool = True) -> Path:
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} exists; pass overwrite=True to replace it")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
-
-
 def check_summary_files(out_dir: str | os.PathLike) -> None:
     """Raise FileExistsError when ``summary.json`` or ``index.html`` in ``out_dir`` was not written by a batch.
 
@@ -840,7 +798,7 @@ def write_summary(summary: BatchSummary, out_dir: str | os.PathLike, *, overwrit
     out.mkdir(parents=True, exist_ok=True)
     if not overwrite:
         check_summary_files(out)
-    js = _atomic_write_text(out / SUMMARY_JSON, json.dumps(summary.to_dict(), indent=1))
+    js = write_text_atomic(out / SUMMARY_JSON, json.dumps(summary.to_dict(), indent=1), overwrite=True)
     html = write_batch_index(summary, out / INDEX_HTML, overwrite=True)
     return js, html
 

@@ -8,39 +8,15 @@ from __future__ import annotations
 
 import logging
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from .atomic import atomic_output, check_destination, write_bytes_atomic
 from .images import srgb_encode, write_image
 from .pfm import write_pfm
 
 log = logging.getLogger(__name__)
-
-
-def _destination(path: str | os.PathLike, overwrite: bool) -> Path:
-    p = Path(path)
-    if p.exists() and not overwrite:
-        raise FileExistsError(f"{p} exists; pass overwrite=True to replace it")
-    p.parent.mkdir(parents=True, exist_ok=True)
-    return p
-
-
-def _atomic(p: Path, write) -> Path:
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.stem}.", suffix=p.suffix, dir=p.parent)
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return p
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -75,14 +51,7 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, colours: np.ndarray |
     props = "".join(f"property {'float' if t == '<f4' else 'uchar'} {n}\n" for n, t in fields)
     header = (f"ply\nformat binary_little_endian 1.0\ncomment written by plenodecode\n"
               f"element vertex {len(pts)}\n{props}end_header\n").encode("ascii")
-    p = _destination(path, overwrite)
-
-    def write(tmp: Path) -> None:
-        with open(tmp, "wb") as fh:
-            fh.write(header)
-            fh.write(rec.tobytes())
-
-    return _atomic(p, write)
+    return write_bytes_atomic(path, [header, rec.tobytes()], overwrite=overwrite)
 
 
 def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
@@ -146,14 +115,12 @@ def write_colour_map_png(path: str | os.PathLike, values: np.ndarray, *, label: 
     """Write ``values`` (Y, X) as a colour-mapped PNG with a legend (see :func:`colour_map_figure`)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    p = _destination(path, overwrite)
+    p = check_destination(path, overwrite)            # refuse before drawing
     fig = colour_map_figure(values, label=label, cmap=cmap, vmin=vmin, vmax=vmax, title=title)
     FigureCanvasAgg(fig)
-
-    def write(tmp: Path) -> None:
+    with atomic_output(p, overwrite=overwrite, suffix=".png") as tmp:
         fig.savefig(tmp, format="png")
-
-    return _atomic(p, write)
+    return p
 
 
 # ---------------------------------------------------------------------------------------------------------------

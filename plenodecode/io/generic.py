@@ -26,6 +26,7 @@ import numpy as np
 
 from ..errors import FormatError, MetadataError
 from ..types import CFA_PATTERNS, CameraMetadata, RawCapture
+from .atomic import atomic_outputs, refuse_existing
 from .images import read_image
 
 log = logging.getLogger(__name__)
@@ -463,19 +464,11 @@ def write_mosaic(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = 
         raise ValueError(f"path must end in one of {MOSAIC_WRITE_EXTENSIONS}, got {p.name!r}")
     side = p.with_suffix(".json")
     stale = p.with_name(p.name + ".json")  # would shadow X.json when reading back
-    for q in (p, side, stale):
-        if q.exists() and not overwrite:
-            raise FileExistsError(f"{q} exists; pass overwrite=True to replace it")
-    p.parent.mkdir(parents=True, exist_ok=True)
+    refuse_existing([stale], overwrite)
     text = json.dumps(sidecar_document(raw), indent=1)
-    tmp = side.with_name(f".{side.name}.tmp{os.getpid()}")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        write_image(p, raw.mosaic, bit_depth=16, overwrite=overwrite, attributes=_FAST_PNG)
-        os.replace(tmp, side)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    with atomic_outputs([p, side], overwrite=overwrite, keep_suffix=True) as (tmp, tmp_side):
+        tmp_side.write_text(text, encoding="utf-8")
+        write_image(tmp, raw.mosaic, bit_depth=16, overwrite=True, attributes=_FAST_PNG)
     if stale.exists():
         stale.unlink()
     return p

@@ -14,7 +14,8 @@ Conventions
 * ``encode_srgb=True`` applies the sRGB transfer function (IEC 61966-2-1, through
   ``colour.cctf_encoding(x, function='sRGB')``) before quantising.  Display encoding happens only
   here, at export; the library keeps light fields linear.
-* Writes are atomic: a temporary file in the destination folder, then :func:`os.replace`.
+* Writes are atomic (:func:`plenodecode.io.atomic.atomic_output`): a temporary file in the
+  destination folder, then a rename.
   An existing file is never replaced without ``overwrite=True`` (:class:`FileExistsError`).
 """
 
@@ -22,7 +23,6 @@ from __future__ import annotations
 
 import logging
 import os
-import tempfile
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -30,6 +30,7 @@ import numpy as np
 
 from ..errors import FormatError
 from . import pfm
+from .atomic import atomic_output
 
 log = logging.getLogger(__name__)
 
@@ -54,24 +55,6 @@ def _oiio():
     import OpenImageIO as oiio  # imported lazily: importing plenodecode stays light
 
     return oiio
-
-
-def _check_destination(path: str | os.PathLike, overwrite: bool) -> Path:
-    p = Path(path)
-    if p.exists() and not overwrite:
-        raise FileExistsError(f"{p} exists; pass overwrite=True to replace it")
-    p.parent.mkdir(parents=True, exist_ok=True)
-    return p
-
-
-def _temp_sibling(p: Path) -> Path:
-    """A fresh, unique temporary file next to ``p`` with the same extension."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.stem}.", suffix=p.suffix, dir=p.parent)
-    os.close(fd)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; outputs get the usual permissions
-    return Path(tmp)
 
 
 def to_unit_float(image: np.ndarray) -> np.ndarray:
@@ -201,7 +184,6 @@ def write_image(path: str | os.PathLike, image: np.ndarray, *, bit_depth: int, o
     if ext == ".pfm":
         return pfm.write_pfm(p, data, overwrite=overwrite)
 
-    p = _check_destination(p, overwrite)
     oiio = _oiio()
     fmt = {8: "uint8", 16: "half" if ext == ".exr" else "uint16", 32: "float"}[bit_depth]
     spec = oiio.ImageSpec(a.shape[1], a.shape[0], channels, fmt)
@@ -213,8 +195,7 @@ def write_image(path: str | os.PathLike, image: np.ndarray, *, bit_depth: int, o
     spec.attribute("oiio:UnassociatedAlpha", 1)
     for key, value in (attributes or {}).items():
         spec.attribute(key, value)
-    tmp = _temp_sibling(p)
-    try:
+    with atomic_output(p, overwrite=overwrite, suffix=p.suffix) as tmp:
         out = oiio.ImageOutput.create(str(p))
         if out is None:
             raise FormatError(f"{p}: OpenImageIO has no writer for {ext} ({oiio.geterror()})")
@@ -226,10 +207,6 @@ def write_image(path: str | os.PathLike, image: np.ndarray, *, bit_depth: int, o
         out.close()
         if not ok:
             raise FormatError(f"{p}: writing failed: {err}")
-        os.replace(tmp, p)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     log.debug("wrote %s (%s, %d bit)", p, a.shape, bit_depth)
     return p
 
@@ -323,9 +300,7 @@ def write_animation(path: str | os.PathLike, frames: np.ndarray, *, fps: float, 
     if f.ndim != 4 or f.shape[-1] != 3 or f.shape[0] < 1:
         raise ValueError(f"frames must have shape (N, H, W, 3), got {np.shape(frames)}")
     data = quantise(f, 8, encode_srgb=encode_srgb)
-    p = _check_destination(p, overwrite)
-    tmp = _temp_sibling(p)
-    try:
+    with atomic_output(p, overwrite=overwrite, suffix=p.suffix) as tmp:
         if ext == ".gif":
             _write_gif(p, tmp, data, fps, loop)
         else:
@@ -334,10 +309,6 @@ def write_animation(path: str | os.PathLike, frames: np.ndarray, *, fps: float, 
             images = [Image.fromarray(np.ascontiguousarray(frame), "RGB") for frame in data]
             images[0].save(tmp, format="WEBP", save_all=True, append_images=images[1:],
                            duration=int(round(1000.0 / fps)), loop=0 if loop else 1, lossless=True)
-        os.replace(tmp, p)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return p
 
 

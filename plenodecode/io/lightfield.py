@@ -36,8 +36,6 @@ import logging
 import math
 import os
 import re
-import shutil
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -46,6 +44,7 @@ import numpy as np
 
 from ..errors import FormatError
 from ..types import LightField
+from .atomic import atomic_output, atomic_outputs, refuse_existing
 from .generic import json_safe
 from .images import quantise, read_image, srgb_encode, to_unit_float, write_image
 
@@ -102,32 +101,6 @@ def _check_view(view: Any, shape: tuple[int, ...]) -> tuple[int, int]:
     if not (0 <= v < shape[0] and 0 <= u < shape[1]):
         raise ValueError(f"view {view!r} is outside the {shape[0]}x{shape[1]} views")
     return v, u
-
-
-def _tmp_path(dest: Path, *, folder: bool) -> Path:
-    if folder:
-        return Path(tempfile.mkdtemp(prefix=f".{dest.name}.", suffix=".tmp", dir=dest.parent))
-    fd, name = tempfile.mkstemp(prefix=f".{dest.stem}.", suffix=dest.suffix, dir=dest.parent)
-    os.close(fd)
-    return Path(name)
-
-
-def _commit(tmp: Path, dest: Path) -> None:
-    """Move a finished temporary file or folder into place (replacing ``dest`` if it exists)."""
-    if dest.is_dir() and not dest.is_symlink():
-        trash = Path(tempfile.mkdtemp(prefix=f".{dest.name}.", suffix=".old", dir=dest.parent))
-        os.replace(dest, trash / dest.name)
-        os.replace(tmp, dest)
-        shutil.rmtree(trash, ignore_errors=True)
-    else:
-        os.replace(tmp, dest)
-
-
-def _discard(tmp: Path) -> None:
-    if tmp.is_dir():
-        shutil.rmtree(tmp, ignore_errors=True)
-    elif tmp.exists():
-        tmp.unlink()
 
 
 # ----------------------------------------------------------------------------- zarr
@@ -319,23 +292,21 @@ def _npy_side(path: Path) -> tuple[Path, Path]:
     return stem.with_name(stem.name + ".weight.npy"), path.with_suffix(".json")
 
 
-def _save_npy(lf: LightField, path: Path, *, tmp_dir: Path, **_: Any) -> list[tuple[Path, Path]]:
+def _npy_files(lf: LightField, path: Path) -> list[Path]:
     wpath, jpath = _npy_side(path)
-    out = []
-    tmp = tmp_dir / path.name
-    with open(tmp, "wb") as fh:
+    return [path, wpath, jpath] if lf.weight is not None else [path, jpath]
+
+
+def _save_npy(lf: LightField, path: Path, *, tmps: Mapping[Path, Path], **_: Any) -> None:
+    """Write the files of :func:`_npy_files` to their temporaries ``tmps[destination]``."""
+    wpath, jpath = _npy_side(path)
+    with open(tmps[path], "wb") as fh:
         np.save(fh, np.asarray(lf.data, np.float32))
-    out.append((tmp, path))
     if lf.weight is not None:
-        tw = tmp_dir / wpath.name
-        with open(tw, "wb") as fh:
+        with open(tmps[wpath], "wb") as fh:
             np.save(fh, np.asarray(lf.weight, np.float32))
-        out.append((tw, wpath))
-    tj = tmp_dir / jpath.name
-    tj.write_text(json.dumps({**_attrs(lf), "weight": wpath.name if lf.weight is not None else None}, indent=1),
-                  encoding="utf-8")
-    out.append((tj, jpath))
-    return out
+    tmps[jpath].write_text(json.dumps({**_attrs(lf), "weight": wpath.name if lf.weight is not None else None},
+                                      indent=1), encoding="utf-8")
 
 
 def _load_npy(path: Path, *, view: tuple[int, int] | None = None) -> LightField | np.ndarray:
@@ -389,7 +360,12 @@ def lightfield_from_eslf(eslf: np.ndarray, views: tuple[int, int]) -> np.ndarray
     return np.ascontiguousarray(img.reshape(H // V, V, W // U, U, img.shape[2]).transpose(1, 3, 0, 2, 4))
 
 
-def _save_eslf(lf: LightField, path: Path, *, bit_depth: int, tmp_dir: Path, **_: Any) -> list[tuple[Path, Path]]:
+def _eslf_files(lf: LightField, path: Path) -> list[Path]:
+    return [path, path.with_suffix(".json")]
+
+
+def _save_eslf(lf: LightField, path: Path, *, bit_depth: int, tmps: Mapping[Path, Path], **_: Any) -> None:
+    """Write the files of :func:`_eslf_files` to their temporaries ``tmps[destination]``."""
     V, U, Y, X, C = lf.shape
     nch = C + (lf.weight is not None)
     dtype = {8: np.uint8, 16: np.uint16, 32: np.float32}[bit_depth]
@@ -397,13 +373,10 @@ def _save_eslf(lf: LightField, path: Path, *, bit_depth: int, tmp_dir: Path, **_
     tiles[..., :C] = quantise(lf.data, bit_depth).transpose(2, 0, 3, 1, 4)
     if lf.weight is not None:
         tiles[..., C] = quantise(lf.weight, bit_depth).transpose(2, 0, 3, 1)
-    tmp = tmp_dir / path.name
-    write_image(tmp, tiles.reshape(Y * V, X * U, nch), bit_depth=bit_depth)
-    side = path.with_suffix(".json")
-    tj = tmp_dir / side.name
-    tj.write_text(json.dumps({**_attrs(lf), "format": "plenodecode.eslf", "V": V, "U": U, "channels": C,
-                              "alpha_is_weight": lf.weight is not None}, indent=1), encoding="utf-8")
-    return [(tmp, path), (tj, side)]
+    write_image(tmps[path], tiles.reshape(Y * V, X * U, nch), bit_depth=bit_depth, overwrite=True)
+    tmps[path.with_suffix(".json")].write_text(
+        json.dumps({**_attrs(lf), "format": "plenodecode.eslf", "V": V, "U": U, "channels": C,
+                    "alpha_is_weight": lf.weight is not None}, indent=1), encoding="utf-8")
 
 
 def _load_eslf(path: Path, *, view: tuple[int, int] | None = None) -> LightField | np.ndarray:
@@ -522,35 +495,20 @@ def save_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | No
         outputs += list(_npy_side(p))
     elif name == "eslf":
         outputs.append(p.with_suffix(".json"))
-    for q in outputs:
-        if q.exists() and not overwrite:
-            raise FileExistsError(f"{q} exists; pass overwrite=True to replace it")
-    p.parent.mkdir(parents=True, exist_ok=True)
+    refuse_existing(outputs, overwrite)
     if name in _FOLDER_FORMATS:
-        tmp = _tmp_path(p, folder=True)
-        try:
+        with atomic_output(p, overwrite=overwrite, folder=True) as tmp:
             fmt.save(lf, tmp, bit_depth=bit_depth, progress=progress, image_ext=image_ext)
-            _commit(tmp, p)
-        finally:
-            _discard(tmp)
     elif name == "mat":
-        tmp = _tmp_path(p, folder=False)
-        try:
+        with atomic_output(p, overwrite=overwrite, suffix=p.suffix) as tmp:
             fmt.save(lf, tmp, bit_depth=bit_depth)
-            _commit(tmp, p)
-        finally:
-            _discard(tmp)
         _tick(progress, 1, 1)
     else:
-        tmp_dir = _tmp_path(p, folder=True)
-        try:
-            pairs = fmt.save(lf, p, bit_depth=bit_depth, tmp_dir=tmp_dir)
-            for src, dst in pairs:
-                _commit(src, dst)
-            if name == "npy" and lf.weight is None and _npy_side(p)[0].exists():
-                _npy_side(p)[0].unlink()          # a stale weight from an overwritten light field
-        finally:
-            _discard(tmp_dir)
+        files = (_npy_files if name == "npy" else _eslf_files)(lf, p)
+        with atomic_outputs(files, overwrite=overwrite, keep_suffix=True) as tmps:
+            fmt.save(lf, p, bit_depth=bit_depth, tmps=dict(zip(files, tmps)))
+        if name == "npy" and lf.weight is None and _npy_side(p)[0].exists():
+            _npy_side(p)[0].unlink()          # a stale weight from an overwritten light field
         _tick(progress, 1, 1)
     log.info("saved %s light field %s to %s", name, lf.shape, p)
     return p

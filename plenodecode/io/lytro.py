@@ -22,7 +22,6 @@ import math
 import mmap
 import os
 import re
-import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
@@ -32,6 +31,7 @@ import numpy as np
 from ..errors import FormatError, MetadataError, PlenodecodeError
 from ..types import CFA_PATTERNS, CameraMetadata, RawCapture
 from . import packing
+from .atomic import atomic_outputs, refuse_existing, write_bytes_atomic
 
 log = logging.getLogger(__name__)
 
@@ -524,7 +524,7 @@ def _sniff(buf: memoryview) -> str | None:
 def _describe_contents(toc: Mapping[str, Any], index: Mapping[str, Section], data: Any,
                        meta: Mapping[str, Any] | None) -> list[ContentItem]:
     items: list[ContentItem] = []
-    used_names: set[str] = set()
+    used_names: set[str] = {"toc.json"}  # extract_contents writes the TOC under that name
     seen: set[str] = set()
     counters: dict[str, int] = {}
 
@@ -966,35 +966,6 @@ def read_raw_pair(path: str | os.PathLike) -> RawCapture:
 # ---------------------------------------------------------------------------------------------
 # writers
 # ---------------------------------------------------------------------------------------------
-def _temp_name(path: Path) -> Path:
-    return path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
-
-
-def _atomic_write(path: Path, chunks: Iterable[bytes | memoryview]) -> None:
-    """Write ``chunks`` to a temporary file beside ``path`` and rename it into place."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _temp_name(path)
-    try:
-        with open(tmp, "xb") as fh:
-            for c in chunks:
-                fh.write(c)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            tmp.unlink()
-        except FileNotFoundError:
-            pass
-        raise
-
-
-def _refuse_existing(paths: Iterable[Path], overwrite: bool) -> None:
-    if overwrite:
-        return
-    for p in paths:
-        if p.exists():
-            raise FileExistsError(f"{p} exists; pass overwrite=True to replace it")
-
-
 def _section_bytes(kind: str, payload: bytes) -> tuple[bytes, str]:
     """Header + name field for a section; returns (header, 'sha1-...')."""
     sha = "sha1-" + hashlib.sha1(payload).hexdigest()
@@ -1026,7 +997,7 @@ def write_container(path: str | os.PathLike, toc: Mapping[str, Any], payloads: S
     Path
     """
     p = Path(path)
-    _refuse_existing([p], overwrite)
+    refuse_existing([p], overwrite)
     lfm = json.dumps(toc, indent="\t").encode("utf-8")
     order = [("LFM", lfm)] + [("LFC", bytes(x)) for x in payloads]
     if not lfm_first:
@@ -1040,8 +1011,7 @@ def write_container(path: str | os.PathLike, toc: Mapping[str, Any], payloads: S
             yield payload
             yield b"\x00" * ((-len(payload)) % 16)
 
-    _atomic_write(p, chunks())
-    return p
+    return write_bytes_atomic(p, chunks(), overwrite=overwrite)
 
 
 def _level_dict(levels: np.ndarray, names: list[list[str]]) -> dict[str, int | float]:
@@ -1171,7 +1141,7 @@ def write_lfr(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = Fal
         ``path`` exists and ``overwrite`` is False.
     """
     p = Path(path)
-    _refuse_existing([p], overwrite)
+    refuse_existing([p], overwrite)
     meta, private = lytro_metadata(raw, schema="illum", bits=10)
     image = packing.pack_10bit(raw.mosaic)
     meta_b = json.dumps(meta, indent="\t").encode("utf-8")
@@ -1200,7 +1170,7 @@ def write_lfp(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = Fal
         ``path`` exists and ``overwrite`` is False.
     """
     p = Path(path)
-    _refuse_existing([p], overwrite)
+    refuse_existing([p], overwrite)
     meta, private = lytro_metadata(raw, schema="rawdetails", bits=12)
     image = packing.pack_12bit(raw.mosaic)
     meta_b = json.dumps(meta, indent="\t").encode("utf-8")
@@ -1235,7 +1205,7 @@ def write_raw_pair(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool 
     """
     p = Path(path)
     side = p.with_suffix(".txt" if p.suffix.islower() and p.suffix else ".TXT")
-    _refuse_existing([p, side], overwrite)
+    refuse_existing([p, side], overwrite)
     f01 = raw.metadata.model == "F01"
     bits = 12 if f01 else 10
     meta, private = lytro_metadata(raw, schema="rawdetails", bits=bits)
@@ -1256,14 +1226,9 @@ def write_raw_pair(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool 
         }
     }
     text = json.dumps(doc, indent="\t").replace("\n", "\r\n").encode("utf-8")
-    existed = p.exists()
-    _atomic_write(p, [data])
-    try:
-        _atomic_write(side, [text])
-    except BaseException:
-        if not existed:
-            p.unlink(missing_ok=True)
-        raise
+    with atomic_outputs([p, side], overwrite=overwrite) as (tmp, tmp_side):
+        tmp.write_bytes(data)
+        tmp_side.write_bytes(text)
     return p, side
 
 
@@ -1310,24 +1275,11 @@ def extract_contents(path: str | os.PathLike, out_dir: str | os.PathLike, *,
             plan.append((target, arr))
         else:
             plan.append((target, buf))
-    _refuse_existing([t for t, _ in plan], overwrite)
-    written = []
-    for target, obj in plan:
-        if isinstance(obj, np.ndarray):
-            _atomic_write_npy(target, obj)
-        else:
-            _atomic_write(target, [obj])
-        written.append(target)
-    return written
-
-
-def _atomic_write_npy(path: Path, arr: np.ndarray) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _temp_name(path)
-    try:
-        with open(tmp, "xb") as fh:
-            np.save(fh, arr, allow_pickle=False)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    with atomic_outputs([t for t, _ in plan], overwrite=overwrite) as tmps:
+        for tmp, (_, obj) in zip(tmps, plan):
+            with open(tmp, "wb") as fh:
+                if isinstance(obj, np.ndarray):
+                    np.save(fh, obj, allow_pickle=False)
+                else:
+                    fh.write(obj)
+    return [t for t, _ in plan]

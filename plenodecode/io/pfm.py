@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError
+from .atomic import write_bytes_atomic
 
 
 def read_pfm(path: str | os.PathLike) -> np.ndarray:
@@ -46,18 +47,17 @@ def read_pfm(path: str | os.PathLike) -> np.ndarray:
 
 
 def write_pfm(path: str | os.PathLike, image: np.ndarray, *, overwrite: bool = False) -> Path:
-    """Write a (H, W) or (H, W, 3) array as little-endian PFM (rows bottom-up), atomically."""
+    """Write a (H, W) or (H, W, 3) array as little-endian PFM (rows bottom-up), atomically.
+
+    Raises
+    ------
+    FileExistsError
+        ``path`` exists and ``overwrite`` is False.
+    """
     p = Path(path)
     img = np.asarray(image, np.float32)
     if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] != 3):
         raise ValueError(f"image must have shape (H, W) or (H, W, 3), got {img.shape}")
-    if p.exists() and not overwrite:
-        raise FileExistsError(f"{p} exists; pass overwrite=True to replace it")
     kind = b"Pf" if img.ndim == 2 else b"PF"
     header = kind + b"\n" + f"{img.shape[1]} {img.shape[0]}\n-1.0\n".encode()
-    tmp = p.with_name(f".{p.name}.tmp{os.getpid()}")
-    with open(tmp, "wb") as fh:
-        fh.write(header)
-        fh.write(np.ascontiguousarray(img[::-1]).astype("<f4").tobytes())
-    os.replace(tmp, p)
-    return p
+    return write_bytes_atomic(p, [header, np.ascontiguousarray(img[::-1], "<f4").tobytes()], overwrite=overwrite)

@@ -38,6 +38,7 @@ import numpy as np
 from ..errors import FormatError, MetadataError
 from ..types import CameraMetadata, LensletGrid, RawCapture
 from .generic import _FAST_PNG, find_sidecar, json_safe, read_sidecar, sidecar_document
+from .atomic import atomic_outputs, refuse_existing
 from .images import read_image, write_image
 
 log = logging.getLogger(__name__)
@@ -622,23 +623,12 @@ def write_raytrix(path: str | os.PathLike, raw: RawCapture, grid: LensletGrid, *
     if tuple(grid.sensor_shape) != tuple(raw.shape):
         raise ValueError(f"grid.sensor_shape {grid.sensor_shape} differs from the raw's shape {raw.shape}")
     xml, side, stale = p.with_suffix(".xml"), p.with_suffix(".json"), p.with_name(p.name + ".json")
-    for q in (p, xml, side, stale):
-        if q.exists() and not overwrite:
-            raise FileExistsError(f"{q} exists; pass overwrite=True to replace it")
+    refuse_existing([stale], overwrite)
     cal = raycalib_from_grid(grid)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    tmps = [q.with_name(f".{q.name}.tmp{os.getpid()}") for q in (xml, side)]
-    try:
-        tmps[0].write_text(cal.to_xml(), encoding="utf-8")
-        doc = sidecar_document(raw)
-        tmps[1].write_text(json.dumps(doc, indent=1), encoding="utf-8")
-        write_image(p, raw.mosaic, bit_depth=16, overwrite=overwrite, attributes=_FAST_PNG)
-        os.replace(tmps[0], xml)
-        os.replace(tmps[1], side)
-    finally:
-        for t in tmps:
-            if t.exists():
-                t.unlink()
+    with atomic_outputs([p, xml, side], overwrite=overwrite, keep_suffix=True) as (tmp, tmp_xml, tmp_side):
+        tmp_xml.write_text(cal.to_xml(), encoding="utf-8")
+        tmp_side.write_text(json.dumps(sidecar_document(raw), indent=1), encoding="utf-8")
+        write_image(tmp, raw.mosaic, bit_depth=16, overwrite=True, attributes=_FAST_PNG)
     if stale.exists():
         stale.unlink()
     return p

@@ -35,7 +35,6 @@ import json
 import logging
 import math
 import os
-import uuid
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -44,6 +43,7 @@ import numpy as np
 
 from ..errors import FormatError
 from ..types import CameraMetadata, LensletGrid, LightField, RawCapture, cfa_channel_map
+from .atomic import atomic_output, refuse_existing, write_text_atomic
 
 log = logging.getLogger(__name__)
 
@@ -730,18 +730,6 @@ def _raw_names(p: Preset, name: str) -> dict[str, str]:
             "white_json": f"{name}_white.json"}
 
 
-def _atomic_bytes(path: Path, write: Callable[[Any], None]) -> None:
-    """Write through ``write(fh)`` to a unique temporary name beside ``path``, then rename."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
-    try:
-        with open(tmp, "xb") as fh:
-            write(fh)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
 def truth_document(sim: Simulation, files: Mapping[str, str] | None = None) -> dict[str, Any]:
     """The JSON ground-truth document of a simulation (see :func:`write_simulation`)."""
     smp = sim.grid.decoded_sampling()
@@ -783,10 +771,7 @@ def write_simulation(sim: Simulation, out_dir: str | os.PathLike, *, name: str =
     out = Path(out_dir)
     p = sim.preset
     paths = {k: out / v for k, v in simulation_files(p, name).items()}
-    if not overwrite:
-        for q in paths.values():
-            if q.exists():
-                raise FileExistsError(f"{q} exists; pass overwrite=True to replace it")
+    refuse_existing(paths.values(), overwrite)
     out.mkdir(parents=True, exist_ok=True)
     if p.model == "ILLUM" or p.model == "F01":
         from . import lytro
@@ -813,10 +798,12 @@ def write_simulation(sim: Simulation, out_dir: str | os.PathLike, *, name: str =
         lf = sim.ground_truth_lightfield()
         arrays["lf_data"] = lf.data
         arrays["lf_weight"] = lf.weight
-    _atomic_bytes(paths["truth_npz"], lambda fh: np.savez_compressed(fh, **arrays))
+    with atomic_output(paths["truth_npz"], overwrite=overwrite) as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **arrays)
     doc = truth_document(sim, {k: v.name for k, v in paths.items()})
     doc["npz_arrays"] = sorted(arrays)
-    _atomic_bytes(paths["truth_json"], lambda fh: fh.write(json.dumps(doc, indent=1).encode("utf-8")))
+    write_text_atomic(paths["truth_json"], json.dumps(doc, indent=1), overwrite=overwrite)
     log.info("wrote synthetic %s capture to %s", p.name, out)
     return paths
 

@@ -94,7 +94,7 @@ def write_batch_index(summary: Any, path: str | os.PathLike, *, overwrite: bool 
     FileExistsError
         ``path`` exists and ``overwrite`` is False.
     """
-    from .html import write_html
+    from ..io.atomic import write_text_atomic
 
     p = Path(path)
-    return write_html(p, render_batch_index(summary, p.parent), overwrite=overwrite)
+    return write_text_atomic(p, render_batch_index(summary, p.parent), overwrite=overwrite)

@@ -1,0 +1,305 @@
+"""Atomic outputs: every file or folder plenodecode writes goes to a temporary sibling and is renamed.
+
+House rule 5 (docs/design.md): a failed run leaves no half-written output and nothing is
+replaced without ``overwrite=True``.  This module is the one implementation of it.
+
+Names
+-----
+Temporary outputs are hidden siblings of the destination, ``.<name>.<12 hex>.tmp`` (plus
+``suffix`` when a writer picks its format from the extension, e.g. ``.<name>.<hex>.tmp.png`` for
+OpenImageIO).  A folder that is replaced is first moved into ``.<name>.<12 hex>.old`` and deleted
+after the rename.  :func:`is_temporary` recognises both, so a later run can remove what a killed
+one left behind.
+
+Permissions
+-----------
+Files are created with mode ``0o666`` and folders with ``0o777``, minus the process umask, like
+any file a program opens (``tempfile.mkstemp``/``mkdtemp`` would give 0600 / 0700).
+
+Atomicity
+---------
+A single output is committed by one :func:`os.replace` (same folder, so same file system).  A
+folder that replaces an existing folder takes two renames (old one aside, new one in); if the
+second fails the old folder is put back.  :func:`atomic_outputs` commits several outputs one after
+another once all are written: an error while writing leaves none of them; an error during the
+renames removes the outputs it had already created (ones that replaced an older file cannot be
+restored).  Data are not ``fsync``-ed: the guarantee covers crashes of the process, not of the
+machine.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import re
+import shutil
+import uuid
+from pathlib import Path
+from typing import Iterable, Iterator, Sequence
+
+log = logging.getLogger(__name__)
+
+#: Marker in the names of temporary outputs, and of replaced folders waiting for deletion.
+TEMP_MARK = ".tmp"
+OLD_MARK = ".old"
+_TOKEN_HEX = 12
+#: Longest part of the destination's name kept in a temporary name (NAME_MAX is 255 bytes).
+_NAME_KEEP = 160
+_LEFTOVER = re.compile(r"^\..*\.[0-9a-f]{%d}(?:\.tmp(?:\.[^.]*)?|\.old)$" % _TOKEN_HEX)
+
+
+def check_destination(path: str | os.PathLike, overwrite: bool) -> Path:
+    """Refuse an existing output unless ``overwrite``; create the parent folder.
+
+    Parameters
+    ----------
+    path : path-like
+        The output file or folder.
+    overwrite : bool
+        Allow replacing an existing ``path``.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    FileExistsError
+        ``path`` exists (or is a dangling symlink) and ``overwrite`` is False.
+    """
+    p = Path(path)
+    _refuse_existing(p, overwrite)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    return p
+
+
+def _refuse_existing(p: Path, overwrite: bool) -> None:
+    if not overwrite and os.path.lexists(p):
+        raise FileExistsError(f"{p} exists; pass overwrite=True to replace it")
+
+
+def refuse_existing(paths: Iterable[str | os.PathLike], overwrite: bool) -> None:
+    """Raise :class:`FileExistsError` for the first of ``paths`` that exists, unless ``overwrite``.
+
+    For writers that check all their outputs before doing any work; creates nothing.
+    """
+    for p in paths:
+        _refuse_existing(Path(p), overwrite)
+
+
+def is_temporary(path: str | os.PathLike) -> bool:
+    """True for the name of a temporary output or a replaced folder that this module creates."""
+    return bool(_LEFTOVER.match(Path(path).name))
+
+
+def temporary_sibling(path: str | os.PathLike, *, folder: bool = False, suffix: str | None = None) -> Path:
+    """Create (and return) a new, empty, uniquely named file or folder beside ``path``.
+
+    Parameters
+    ----------
+    path : path-like
+        The destination; its parent folder must exist.
+    folder : bool
+        Create a folder instead of a file.
+    suffix : str, optional
+        Appended to the name, e.g. ``'.png'`` for writers that choose the format by extension.
+
+    Returns
+    -------
+    Path
+        ``<parent>/.<name>.<12 hex>.tmp<suffix>``, mode ``0o666`` (file) or ``0o777`` (folder)
+        minus the umask.
+    """
+    return _reserve(Path(path), TEMP_MARK + (suffix or ""), folder)
+
+
+def _reserve(p: Path, tail: str, folder: bool) -> Path:
+    if "/" in tail or os.sep in tail:
+        raise ValueError(f"suffix must be a file extension such as '.png', got {tail[len(TEMP_MARK):]!r}")
+    while True:
+        tmp = p.with_name(f".{p.name[:_NAME_KEEP]}.{uuid.uuid4().hex[:_TOKEN_HEX]}{tail}")
+        try:
+            if folder:
+                os.mkdir(tmp, 0o777)
+            else:
+                os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666))
+            return tmp
+        except FileExistsError:  # pragma: no cover - 48 random bits
+            continue
+
+
+def discard(path: str | os.PathLike) -> None:
+    """Remove a temporary file or folder if it is there (never follows a symlink)."""
+    p = Path(path)
+    if p.is_dir() and not p.is_symlink():
+        shutil.rmtree(p, ignore_errors=True)
+    else:
+        try:
+            p.unlink()
+        except FileNotFoundError:
+            pass
+
+
+def commit(tmp: str | os.PathLike, dest: str | os.PathLike) -> None:
+    """Rename a finished temporary output to ``dest``, replacing whatever is there.
+
+    A file replaces a file (or a symlink) in one :func:`os.replace`.  When ``dest`` is a real
+    folder, or ``tmp`` is a folder and ``dest`` exists, the old ``dest`` is moved into a hidden
+    ``.old`` folder first and deleted after the rename; if the rename fails it is put back.
+    """
+    t, d = Path(tmp), Path(dest)
+    if os.path.lexists(d) and (t.is_dir() or (d.is_dir() and not d.is_symlink())):
+        aside = _reserve(d, OLD_MARK, folder=True)
+        os.replace(d, aside / d.name)
+        try:
+            os.replace(t, d)
+        except BaseException:
+            os.replace(aside / d.name, d)
+            raise
+        finally:
+            shutil.rmtree(aside, ignore_errors=True)
+    else:
+        os.replace(t, d)
+    log.debug("committed %s", d)
+
+
+@contextlib.contextmanager
+def atomic_output(path: str | os.PathLike, *, overwrite: bool = False, folder: bool = False,
+                  suffix: str | None = None) -> Iterator[Path]:
+    """Context manager: write to the yielded temporary path; it becomes ``path`` on normal exit.
+
+    Parameters
+    ----------
+    path : path-like
+        The output file or folder (its parent folder is created).
+    overwrite : bool
+        Replace an existing ``path`` (a folder is replaced whole).  Checked on entry and again
+        before the rename.
+    folder : bool
+        Yield an empty temporary folder instead of an empty file.
+    suffix : str, optional
+        Extension the temporary name ends with (``'.png'``, ``'.exr'``: writers such as
+        OpenImageIO pick the format from it).  Default: ``.tmp``.
+
+    Yields
+    ------
+    Path
+        The temporary sibling (already created, empty).  On an exception inside the block, or
+        if the rename fails, it is removed and the exception propagates; ``path`` is untouched.
+
+    Raises
+    ------
+    FileExistsError
+        ``path`` exists and ``overwrite`` is False.
+
+    Examples
+    --------
+    >>> with atomic_output(out / "view.png", suffix=".png") as tmp:   # doctest: +SKIP
+    ...     write_png(tmp, image)
+    """
+    p = check_destination(path, overwrite)
+    tmp = temporary_sibling(p, folder=folder, suffix=suffix)
+    try:
+        yield tmp
+        _refuse_existing(p, overwrite)
+        commit(tmp, p)
+    except BaseException:
+        discard(tmp)
+        raise
+
+
+@contextlib.contextmanager
+def atomic_outputs(paths: Sequence[str | os.PathLike], *, overwrite: bool = False,
+                   keep_suffix: bool = False) -> Iterator[list[Path]]:
+    """Context manager for outputs that belong together (an image and its sidecar, ...).
+
+    Every destination is checked before anything is created; the temporaries are renamed in the
+    order given, only after the block finished without an exception.
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        Output files, all different.
+    overwrite : bool
+        Replace existing files.
+    keep_suffix : bool
+        Each temporary name ends with its destination's extension (for writers that pick the
+        format from it).
+
+    Yields
+    ------
+    list of Path
+        One empty temporary file per destination, in the same order.
+
+    Raises
+    ------
+    FileExistsError
+        One of ``paths`` exists and ``overwrite`` is False (nothing is created).
+    """
+    ps = [Path(p) for p in paths]
+    if len({os.path.abspath(p) for p in ps}) != len(ps):
+        raise ValueError(f"paths must all be different, got {[str(p) for p in ps]}")
+    refuse_existing(ps, overwrite)
+    for p in ps:
+        check_destination(p, True)
+    tmps: list[Path] = []
+    created: list[Path] = []
+    try:
+        for p in ps:
+            tmps.append(temporary_sibling(p, suffix=p.suffix if keep_suffix else None))
+        yield list(tmps)
+        refuse_existing(ps, overwrite)
+        for t, p in zip(tmps, ps):
+            existed = os.path.lexists(p)
+            commit(t, p)
+            if not existed:
+                created.append(p)
+    except BaseException:
+        for t in tmps:
+            discard(t)
+        for p in created:  # a rename failed half-way: do not leave an incomplete set behind
+            discard(p)
+        raise
+
+
+def write_bytes_atomic(path: str | os.PathLike, data: bytes | bytearray | memoryview | Iterable[bytes | memoryview],
+                       *, overwrite: bool = False) -> Path:
+    """Write ``data`` (a bytes-like object, or an iterable of them written in order) atomically.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    FileExistsError
+        ``path`` exists and ``overwrite`` is False.
+    """
+    with atomic_output(path, overwrite=overwrite) as tmp:
+        with open(tmp, "wb") as fh:
+            if isinstance(data, (bytes, bytearray, memoryview)):
+                fh.write(data)
+            else:
+                for chunk in data:
+                    fh.write(chunk)
+    return Path(path)
+
+
+def write_text_atomic(path: str | os.PathLike, text: str, *, overwrite: bool = False,
+                      encoding: str = "utf-8") -> Path:
+    """Write ``text`` atomically (``encoding`` default UTF-8, newlines unchanged).
+
+    Raises
+    ------
+    FileExistsError
+        ``path`` exists and ``overwrite`` is False.
+    """
+    with atomic_output(path, overwrite=overwrite) as tmp:
+        with open(tmp, "w", encoding=encoding, newline="") as fh:
+            fh.write(text)
+    return Path(path)
+
+
+__all__ = ["check_destination", "refuse_existing", "atomic_output", "atomic_outputs", "write_bytes_atomic", "write_text_atomic",
+           "temporary_sibling", "commit", "discard", "is_temporary", "TEMP_MARK", "OLD_MARK"]
