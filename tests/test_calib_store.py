@@ -106,3 +106,47 @@ def test_build_with_fit_and_errors(whites, tmp_path):
     (tmp_path / "bad" / "index.json").write_text('{"format": "other"}')
     with pytest.raises(CalibrationError, match="not a plenodecode calibration index"):
         store.load_index(tmp_path / "bad")
+
+
+def test_calibration_for_returns_the_grid_and_its_white(whites, tmp_path, monkeypatch):
+    src, truths = whites
+    db = tmp_path / "calib"
+    store.build_database(src, db, fit=False)
+    raw = RawCapture(np.zeros(SHAPE, np.uint16), "BGGR", 168.0, 4095.0,
+                     CameraMetadata(serial="A000000001", zoom_step=480, focus_step=0))
+    import plenodecode.calib as calib_pkg
+    calls = []
+    real = calib_pkg.calibrate
+
+    def counting(*a, **k):
+        calls.append(a)
+        return real(*a, **k)
+    monkeypatch.setattr(calib_pkg, "calibrate", counting)
+    grid, white = store.calibration_for(raw, db)
+    assert len(calls) == 1                                       # fitted on first use ...
+    assert grid.info["source"].endswith("MOD_0001.RAW")
+    # ... the white is the very file the grid was fitted on (zoom 500, focus 10), read back bit-exactly
+    from plenodecode.io import read_raw
+    expected = read_raw(src / "A" / "MOD_0001.RAW")
+    assert isinstance(white, RawCapture) and white.path.endswith("MOD_0001.RAW")
+    np.testing.assert_array_equal(white.mosaic, expected.mosaic)
+    assert white.metadata.zoom_step == 500 and white.metadata.focus_step == 10
+    # grid_for shares the cache (no second fit) and gives the same grid
+    g2 = store.grid_for(raw, db)
+    g3, _ = store.calibration_for(raw, db)
+    assert len(calls) == 1
+    np.testing.assert_allclose(g2.centres(), grid.centres())
+    np.testing.assert_allclose(g3.centres(), grid.centres())
+    from scipy.spatial import cKDTree
+    truth = truths["MOD_0001.RAW"]
+    t = truth.centres()
+    R = truth.radius
+    full = (t[:, 0] - R >= 0) & (t[:, 0] + R <= SHAPE[0] - 1) & (t[:, 1] - R >= 0) & (t[:, 1] + R <= SHAPE[1] - 1)
+    d, _ = cKDTree(grid.centres()).query(t[full])
+    assert np.sqrt(np.mean(d ** 2)) < 0.05
+    # a white image that disappeared from disk: a one-line CalibrationError naming it
+    (src / "A" / "MOD_0001.RAW").unlink()
+    with pytest.raises(CalibrationError, match="MOD_0001.RAW.*missing"):
+        store.calibration_for(raw, db)
+    with pytest.raises(CalibrationError, match="no white image of camera"):
+        store.calibration_for(replace(raw, metadata=CameraMetadata(serial="Z9")), db)

@@ -7,9 +7,10 @@
 
 :func:`calibrate` runs :mod:`.centroids` (Bayer collapse, devignetting, lattice vectors from the
 autocorrelation, sub-pixel disk centres) and :mod:`.grid` (robust lattice fit, grid extent,
-per-lens refinement).  :func:`calibrate_from_scene` (:mod:`.selfcal`) needs no white image;
-:func:`calibrate_raytrix` uses a Raytrix ``RayCalibData``; :mod:`.store` is the white-image
-database.
+per-lens refinement).  :func:`calibrate_from_scene` (:mod:`.selfcal`) needs no white image: it
+fits circles to the disk rims, which the scene cannot move; :func:`calibrate_raytrix` uses a
+Raytrix ``RayCalibData``; :mod:`.store` is the white-image database (:func:`.store.calibration_for`
+gives a raw's grid and the white image it came from).
 """
 
 from __future__ import annotations
@@ -137,22 +138,54 @@ def calibrate_image(img: np.ndarray, sensor_shape: tuple[int, int], *, scale: fl
     est = estimate if estimate is not None else _c.estimate_lattice_vectors(img, pitch_hint=hint, lattice=lattice)
     tick(1)
     contrast_img = _c.devignette(img, est.pitch)
-    peaks, contrast = _c.detect_peaks(contrast_img, est.pitch, min_contrast=min_contrast)
+    peaks, contrast, smoothed = _c._detect(contrast_img, est.pitch, min_contrast=min_contrast)
     tick(2)
-    cen, ok = _c.refine_peaks(contrast_img, peaks, est.pitch, method=method)
-    cen, contrast = cen[ok], contrast[ok]
+    cen, ok = _c.refine_peaks(contrast_img, peaks, est.pitch, method=method, smoothed=smoothed)
     tick(3)
-    pts = cen * scale + shift
+    meta = dict(info or {})
+    meta.update({"method": method, "n_peaks": int(len(peaks)), "lattice_requested": lattice})
+    grid = grid_from_points(cen[ok], est, sensor_shape, scale=scale, shift=shift, refine=refine,
+                            refine_window=refine_window, info=meta)
+    tick(5)
+    return grid
+
+
+def grid_from_points(points: np.ndarray, est: _c.LatticeEstimate, sensor_shape: tuple[int, int], *,
+                     scale: float = 1.0, shift: float = 0.0, refine: bool = True, refine_window: int = 5,
+                     info: dict[str, Any] | None = None) -> LensletGrid:
+    """Robust lattice fit of measured disk centres and the grid covering the sensor.
+
+    Parameters
+    ----------
+    points : ndarray (N, 2) float64
+        Measured centres in image pixels; sensor position = ``scale * p + shift``.
+    est : LatticeEstimate
+        Lattice vectors in image pixels (:func:`~plenodecode.calib.centroids.estimate_lattice_vectors`).
+    sensor_shape : (H, W)
+    scale, shift : float
+        2 and 0.5 for a 2x2-binned image, else 1 and 0.
+    refine, refine_window : see :func:`calibrate_image`.
+    info : dict, optional
+        Provenance stored in ``grid.info``.
+
+    Returns
+    -------
+    LensletGrid
+
+    Raises
+    ------
+    CalibrationError
+        Fewer than ~5 % of the lenses on the fitted lattice, or an RMS residual above a quarter pitch.
+    """
+    pts = np.asarray(points, np.float64) * scale + shift
     H, W = sensor_shape
     pitch_s = est.pitch * scale
     # a lens within ~one pitch of the border misses neighbours inside the estimator's window
     edge = 1.0 * pitch_s
     away = (pts[:, 0] > edge) & (pts[:, 1] > edge) & (pts[:, 0] < H - 1 - edge) & (pts[:, 1] < W - 1 - edge)
     fit = _g.fit_lattice(pts, est.v1 * scale, est.v2 * scale, est.lattice, fit_mask=away)
-    tick(4)
     meta = dict(info or {})
-    meta.update({"method": method, "autocorrelation_score": est.score,
-                 "n_peaks": int(len(peaks)), "lattice_requested": lattice})
+    meta.update({"autocorrelation_score": est.score})
     grid = _g.grid_from_fit(fit, pts, (H, W), measured_mask=away, refine=refine, refine_window=refine_window,
                             info=meta)
     n_on = grid.info["n_lenses"]
@@ -163,9 +196,7 @@ def calibrate_image(img: np.ndarray, sensor_shape: tuple[int, int], *, scale: fl
     if fit.rms > 0.25 * fit.pitch:
         raise CalibrationError(f"the lattice fit is poor (RMS residual {fit.rms:.2f} px at pitch {fit.pitch:.2f} px); "
                                "expected a regular lenslet pattern")
-    grid = grid.replace(info={**grid.info, "fraction_fit": float(frac)})
-    tick(5)
-    return grid
+    return grid.replace(info={**grid.info, "fraction_fit": float(frac)})
 
 
 def _camera_info(raw: RawCapture) -> dict[str, Any]:
@@ -281,5 +312,5 @@ def __getattr__(name: str) -> Any:  # lazy: selfcal / raytrix / store pull in mo
     raise AttributeError(f"module 'plenodecode.calib' has no attribute {name!r}")
 
 
-__all__ = ["calibrate", "calibrate_image", "calibrate_from_scene", "calibrate_raytrix", "check_not_dark",
-           "scene_likeness", "LATTICES"]
+__all__ = ["calibrate", "calibrate_image", "grid_from_points", "calibrate_from_scene", "calibrate_raytrix",
+           "check_not_dark", "scene_likeness", "LATTICES"]

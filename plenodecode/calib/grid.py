@@ -207,26 +207,61 @@ def index_points(points: np.ndarray, v1: np.ndarray, v2: np.ndarray, *, seed: np
     k0 = int(np.argmin(np.sum((pts - seed) ** 2, axis=1)))
     o, b1, b2 = pts[k0].copy(), np.asarray(v1, np.float64), np.asarray(v2, np.float64)
     pitch = float(np.hypot(*b1))
-    span = float(np.max(np.hypot(*(pts - pts[k0]).T)))
+    dist = np.hypot(pts[:, 0] - pts[k0, 0], pts[:, 1] - pts[k0, 1])
+    span = float(dist.max())
     radius = 6.0 * pitch
     while True:
-        sel = np.hypot(*(pts - pts[k0]).T) <= radius
-        B = np.stack([b2, b1], axis=1)  # columns: v2 (n), v1 (m)
-        f = np.linalg.solve(B, (pts[sel] - o).T).T
-        r = np.round(f)
-        good = np.max(np.abs(f - r), axis=1) < tolerance
-        if good.sum() >= 6:
-            A = np.column_stack([np.ones(good.sum()), r[good, 0], r[good, 1]])
-            sol, *_ = np.linalg.lstsq(A, pts[sel][good], rcond=None)
+        inv = np.linalg.inv(np.stack([b2, b1], axis=1))  # columns: v2 (n), v1 (m)
+        ata, atp, n_good = _affine_normal_equations(pts, dist, radius, o, inv, tolerance)
+        if n_good >= 6:
+            sol = np.linalg.lstsq(ata, atp, rcond=None)[0]  # least squares P = o + n v2 + m v1 (good points)
             o, b2, b1 = sol[0], sol[1], sol[2]
         if radius >= span:
             break
         radius *= 2.0
-    B = np.stack([b2, b1], axis=1)
-    f = np.linalg.solve(B, (pts - o).T).T
+    f = _lattice_coords(pts, o, b1, b2)
     r = np.round(f)
-    ok = np.max(np.abs(f - r), axis=1) < tolerance
+    ok = np.maximum(np.abs(f[:, 0] - r[:, 0]), np.abs(f[:, 1] - r[:, 1])) < tolerance
     return r.astype(np.int64), ok, np.stack([o, b1, b2])
+
+
+@numba.njit(cache=True)
+def _affine_normal_equations(pts, dist, radius, o, inv, tol):  # pragma: no cover - compiled
+    """Normal equations of the affine lattice fit over the points within ``radius`` whose
+    fractional lattice coordinates ``inv @ (p - o)`` are within ``tol`` of integers ``(n, m)``:
+    ``A^T A`` (3, 3) and ``A^T P`` (3, 2) with rows ``A = [1, n, m]``, and the number of points."""
+    ata = np.zeros((3, 3))
+    atp = np.zeros((3, 2))
+    count = 0
+    for k in range(pts.shape[0]):
+        if dist[k] > radius:
+            continue
+        dr = pts[k, 0] - o[0]
+        dc = pts[k, 1] - o[1]
+        fn = inv[0, 0] * dr + inv[0, 1] * dc
+        fm = inv[1, 0] * dr + inv[1, 1] * dc
+        n = np.round(fn)
+        m = np.round(fm)
+        if abs(fn - n) >= tol or abs(fm - m) >= tol:
+            continue
+        a = (1.0, n, m)
+        for i in range(3):
+            for j in range(3):
+                ata[i, j] += a[i] * a[j]
+            atp[i, 0] += a[i] * pts[k, 0]
+            atp[i, 1] += a[i] * pts[k, 1]
+        count += 1
+    return ata, atp, count
+
+
+def _lattice_coords(pts: np.ndarray, o: np.ndarray, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
+    """Fractional ``(n, m)`` of points in the affine lattice ``o + m b1 + n b2``, shape (N, 2)."""
+    inv = np.linalg.inv(np.stack([b2, b1], axis=1))  # columns: v2 (n), v1 (m)
+    dr, dc = pts[:, 0] - o[0], pts[:, 1] - o[1]
+    out = np.empty((len(pts), 2))
+    out[:, 0] = inv[0, 0] * dr + inv[0, 1] * dc
+    out[:, 1] = inv[1, 0] * dr + inv[1, 1] * dc
+    return out
 
 
 def _dedupe(nm: np.ndarray, ok: np.ndarray, dist: np.ndarray) -> np.ndarray:
@@ -234,13 +269,31 @@ def _dedupe(nm: np.ndarray, ok: np.ndarray, dist: np.ndarray) -> np.ndarray:
     idx = np.nonzero(ok)[0]
     if len(idx) == 0:
         return ok
-    key = nm[idx, 0] * 1_000_003 + nm[idx, 1]
+    n, m = nm[idx, 0], nm[idx, 1]
+    n0, m0 = int(n.min()), int(m.min())
+    rows, cols = int(n.max()) - n0 + 1, int(m.max()) - m0 + 1
+    out = np.zeros_like(ok)
+    if rows * cols <= 8 * len(idx) + 1024:  # dense index table: one pass
+        out[_nearest_per_cell((n - n0) * cols + (m - m0), dist[idx], idx, rows * cols)] = True
+        return out
+    key = n * 1_000_003 + m
     order = np.lexsort((dist[idx], key))
     first = np.ones(len(order), bool)
     first[1:] = key[order][1:] != key[order][:-1]
-    out = np.zeros_like(ok)
     out[idx[order[first]]] = True
     return out
+
+
+@numba.njit(cache=True)
+def _nearest_per_cell(cell, dist, idx, n_cells):  # pragma: no cover - compiled
+    """For each occupied cell, the ``idx`` of its entry with the smallest ``dist`` (first on ties)."""
+    best = np.full(n_cells, -1, np.int64)
+    for k in range(len(cell)):
+        c = cell[k]
+        if best[c] < 0 or dist[k] < dist[best[c]]:
+            best[c] = k
+    keep = best[best >= 0]
+    return idx[np.sort(keep)]
 
 
 def fit_lattice(points: np.ndarray, v1: np.ndarray, v2: np.ndarray, lattice: str, *,

@@ -1,14 +1,28 @@
 """Calibration without a white image: from a scene raw, and Raytrix grids from RayCalibData.
 
-Self-calibration (:func:`calibrate_from_scene`) uses the same chain as a white image but
-relies on the local structure of the micro-images: the scene brightness is divided out by the
-local-linear mean over 1.5 pitches (:func:`~plenodecode.calib.centroids.devignette`), so every
-lit micro-image becomes a bright disk between dark borders whatever the scene's brightness;
-the zero-sum difference-of-Gaussians peak of each disk is its centre.  Disks in black parts of
-the scene give no peak, and disks whose content is lopsided (an edge inside the micro-image)
-give displaced peaks; the robust lattice fit (:mod:`.grid`) rejects both, and the lattice then
-places every lens, found or not.  Per-lens refinement is off by default here because scene
-content biases individual centres coherently over neighbouring lenses.
+Self-calibration (:func:`calibrate_from_scene`) cannot trust the brightness inside a
+micro-image: it is the scene, and neighbouring lenses see nearly the same part of it, so any
+estimator that weighs intensities (a matched filter, a centroid) is pulled the same way over
+whole regions -- a coherent bias the lattice fit cannot average out.  What the scene cannot
+move is the disk's *rim*, the edge between the lit disk and the dark gap around it.  The
+default method ``'rim'`` therefore
+
+1. divides the scene brightness out at the lens scale and takes the image gradient
+   (:func:`~plenodecode.calib.centroids.rim_gradients`);
+2. finds every disk with a fixed-radius Hough transform of the gradients
+   (:func:`~plenodecode.calib.centroids.rim_votes`, Kimme, Ballard & Sklansky 1975): rim pixels vote at one
+   radius along their gradient, edges of the scene scatter their votes;
+3. fits, per disk, a circle of known radius to the lit part of its rim by weighted least squares
+   on pixel positions (:func:`~plenodecode.calib.centroids.refine_rims`), which centres a
+   half-lit disk as well as a fully lit one;
+4. chooses the rim radius as the one that minimises the robust scatter of these centres about
+   the fitted lattice: a wrong radius shifts every partly lit disk towards or away from its lit
+   side, which shows up as scatter (measured on the synthetic cameras: the minimum lies within
+   0.01 pitch of the true radius);
+5. fits the lattice to the centres robustly (:mod:`.grid`).
+
+The methods of :data:`~plenodecode.calib.centroids.CENTROID_METHODS` (intensity peaks, as for a
+white image) remain available by name.
 
 Raytrix (:func:`calibrate_raytrix`): the grid of a ``RayCalibData`` XML is used as given (with
 its lens types); ``refine=True`` re-fits origin, rotation, pitch and row spacing to the disks
@@ -17,11 +31,14 @@ found in the image, keeping every lens's index and type.
 
 from __future__ import annotations
 
+import functools
 import logging
+import math
 import os
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+import cv2
 import numpy as np
 
 from ..errors import CalibrationError, FormatError, MetadataError
@@ -62,8 +79,107 @@ def _scene_image(raw: RawCapture | np.ndarray | str | os.PathLike) -> tuple[np.n
     return _c.flatten_image(arr), {"source": None}, None
 
 
+#: Rim radii tried by the 'rim' method, in units of the pitch (then refined by a parabola).
+RIM_FRACTIONS = tuple(float(f) for f in np.round(np.arange(0.36, 0.5201, 0.02), 4))
+#: Initial rim radius of the Hough transform, in units of the pitch.
+RIM_START_FRACTION = 0.44
+#: Disks used to choose the rim radius (the ones nearest the image centre).
+RIM_SEARCH_DISKS = 2000
+#: Golden-section steps refining the rim radius (interval 0.04 pitch -> 0.04 * 0.618^n).
+RIM_GOLDEN_STEPS = 6
+
+
+def _hough_starts(gy: np.ndarray, gx: np.ndarray, pitch: float) -> np.ndarray:
+    """One start per disk: maxima of the lightly smoothed Hough accumulator, parabolic sub-pixel."""
+    acc = cv2.GaussianBlur(_c.rim_votes(gy, gx, RIM_START_FRACTION * pitch), (0, 0), 0.7)
+    half = max(1, int(math.floor(0.4 * pitch)))
+    rr, cc = np.nonzero(_c._window_maxima(acc, half, int(math.ceil(0.5 * pitch))))
+    contrast = _c._window_contrast(acc, rr, cc, half)
+    if len(contrast) == 0:
+        return np.zeros((0, 2))
+    keep = contrast > 0.2 * float(np.percentile(contrast, 90))
+    peaks = np.stack([rr[keep], cc[keep]], axis=1)
+    start, ok = _c._refine_parabolic(acc, peaks, pitch, acc)
+    return start[ok]
+
+
+def _rim_points(img: np.ndarray, est: _c.LatticeEstimate, *, min_contrast: float,
+                tick: Callable[[int], None]) -> tuple[np.ndarray, dict[str, Any]]:
+    """Disk centres of a scene by the 'rim' method (module docstring, steps 1-4)."""
+    gy, gx = _c.rim_gradients(img, est.pitch)
+    start = _hough_starts(gy, gx, est.pitch)
+    tick(2)
+    if len(start) < 6:
+        raise CalibrationError(f"only {len(start)} lenslet disks found in the scene; expected hundreds: "
+                               "is this a raw of a plenoptic camera?")
+    centre = np.array(img.shape, np.float64) / 2
+    order = np.argsort(np.hypot(*(start - centre).T))
+    subset = start[order[:RIM_SEARCH_DISKS]]
+
+    warm = {"start": subset}
+
+    def scatter(frac: float) -> float:
+        # warm start: centres barely move between nearby radii
+        pts, ok = _c.refine_rims(gy, gx, warm["start"], frac * est.pitch)
+        warm["start"] = np.where(ok[:, None], pts, subset)
+        try:
+            return float(_g.fit_lattice(pts[ok], est.v1, est.v2, est.lattice).sigma)
+        except CalibrationError:
+            return math.inf
+    fracs = list(RIM_FRACTIONS)
+    sig = [scatter(f) for f in fracs]
+    k = int(np.argmin(sig))
+    if not math.isfinite(sig[k]):
+        raise CalibrationError("no rim radius gives disk centres on a lattice; expected lit lenslet disks "
+                               "separated by dark gaps (use method='dog' for other images)")
+    # golden-section search between the neighbours of the best trial radius (the scatter is V-shaped
+    # about its minimum, so a parabola through the coarse trials would miss it)
+    step = fracs[1] - fracs[0]
+    lo, hi = fracs[k] - step, fracs[k] + step
+    g = (math.sqrt(5) - 1) / 2
+    a, b = hi - g * (hi - lo), lo + g * (hi - lo)
+    sa, sb = scatter(a), scatter(b)
+    for _ in range(RIM_GOLDEN_STEPS):
+        if sa <= sb:
+            hi, b, sb = b, a, sa
+            a = hi - g * (hi - lo)
+            sa = scatter(a)
+        else:
+            lo, a, sa = a, b, sb
+            b = lo + g * (hi - lo)
+            sb = scatter(b)
+    best, best_sig = min([(fracs[k], sig[k]), (a, sa), (b, sb)], key=lambda t: t[1])
+    tick(3)
+    radius = best * est.pitch
+    pts, ok = _c.refine_rims(gy, gx, start, radius)
+    log.debug("rim radius %.3f px (%.4f pitch), centre scatter %.3f px; %d of %d disks fitted", radius, best,
+              best_sig, ok.sum(), len(ok))
+    info = {"rim_radius_px": float(radius), "rim_scatter_px": float(best_sig), "n_peaks": int(len(start)),
+            "rim_radius_scan": {f"{f:.2f}": (None if not math.isfinite(v) else round(v, 4))
+                                for f, v in zip(fracs, sig)}}
+    return pts[ok], info
+
+
+def _peak_points(img: np.ndarray, est: _c.LatticeEstimate, *, method: str, min_contrast: float,
+                 tick: Callable[[int], None]) -> tuple[np.ndarray, dict[str, Any]]:
+    """Disk centres of a scene as intensity peaks (the white-image estimators)."""
+    contrast_img = _c.devignette(img, est.pitch)
+    peaks, _, smoothed = _c._detect(contrast_img, est.pitch, min_contrast=min_contrast)
+    tick(2)
+    cen, ok = _c.refine_peaks(contrast_img, peaks, est.pitch, method=method, smoothed=smoothed)
+    tick(3)
+    return cen[ok], {"n_peaks": int(len(peaks))}
+
+
+#: Self-calibration methods: name -> function(img, est, *, min_contrast, tick) -> (centres (N, 2), info).
+SELFCAL_METHODS: dict[str, Callable[..., tuple[np.ndarray, dict[str, Any]]]] = {
+    "rim": _rim_points,
+    **{name: functools.partial(_peak_points, method=name) for name in _c.CENTROID_METHODS},
+}
+
+
 def calibrate_from_scene(raw: RawCapture | np.ndarray | str | os.PathLike, *, lattice: str = "auto",
-                         pitch_hint: float | None = None, method: str = "dog", refine: bool = False,
+                         pitch_hint: float | None = None, method: str = "rim", refine: bool = False,
                          min_contrast: float = 0.1, progress: Progress = None) -> LensletGrid:
     """Fit the lenslet grid from a scene raw, without a white image (self-calibration).
 
@@ -76,32 +192,52 @@ def calibrate_from_scene(raw: RawCapture | np.ndarray | str | os.PathLike, *, la
     pitch_hint : float, optional
         Expected pitch in px (default from metadata when available).
     method : str
-        Sub-pixel estimator (:data:`~plenodecode.calib.centroids.CENTROID_METHODS`).
+        A key of :data:`SELFCAL_METHODS`: 'rim' (default; circles fitted to the disk rims, see
+        the module docstring) or an intensity-peak estimator ('dog', 'parabolic').
     refine : bool
         Keep per-lens deviations (off by default: scene content biases single lenses).
     min_contrast : float
-        Relative disk contrast below which a peak is ignored (dark scene parts).
+        Intensity-peak methods: relative disk contrast below which a peak is ignored.
     progress : callable(done, total), optional
 
     Returns
     -------
     LensletGrid
-        ``info['self_calibrated']`` is True.
+        ``info['self_calibrated']`` is True; the 'rim' method adds ``rim_radius_px`` and the
+        centre scatter of each radius tried (``rim_radius_scan``).
 
     Raises
     ------
     CalibrationError
         No lattice found (a black frame, or an image without lenslet structure).
+    ValueError
+        Unknown ``method`` or ``lattice``.
     """
-    from . import calibrate_image
+    from . import LATTICES, grid_from_points
+
+    fn = SELFCAL_METHODS.get(method)
+    if fn is None:
+        raise ValueError(f"method must be one of {sorted(SELFCAL_METHODS)}, got {method!r}")
+    if lattice not in LATTICES:
+        raise ValueError(f"lattice must be one of {LATTICES}, got {lattice!r}")
+    total = 4
+
+    def tick(k: int) -> None:
+        if progress is not None:
+            progress(k, total)
 
     img, info, hint = _scene_image(raw)
     if float(np.percentile(img[::7, ::7], 99.9)) <= 0.0:
         raise CalibrationError("the scene is black: no lenslet disk is lit, so the grid cannot be found; "
                                "use a white image or a brighter exposure")
-    info["self_calibrated"] = True
-    grid = calibrate_image(img, img.shape, lattice=lattice, pitch_hint=pitch_hint or hint, method=method,
-                           refine=refine, min_contrast=min_contrast, info=info, progress=progress)
+    hint = pitch_hint or hint
+    est = _c.estimate_lattice_vectors(img, pitch_hint=hint, lattice=lattice)
+    tick(1)
+    pts, extra = fn(img, est, min_contrast=min_contrast, tick=tick)
+    info.update(extra)
+    info.update({"self_calibrated": True, "method": method, "lattice_requested": lattice})
+    grid = grid_from_points(pts, est, img.shape, refine=refine, info=info)
+    tick(4)
     return grid
 
 
@@ -308,4 +444,5 @@ def calibrate_raytrix(raw: RawCapture, cal: Any = None, *, refine: bool = False,
     return grid
 
 
-__all__ = ["calibrate_from_scene", "calibrate_raytrix", "refine_grid", "IMAGE_EXTENSIONS"]
+__all__ = ["calibrate_from_scene", "calibrate_raytrix", "refine_grid", "IMAGE_EXTENSIONS", "SELFCAL_METHODS",
+           "RIM_FRACTIONS"]

@@ -5,6 +5,9 @@ Layout of a database folder (default ``calib/``, relative to the working directo
     calib/index.json                       the index (below)
     calib/<serial>/<stem>.grid.json        fitted grid of each white image (cached on first use)
 
+:func:`calibration_for` gives a raw's grid together with the white image it was fitted on (for
+devignetting); :func:`grid_for` gives the grid only.
+
 ``index.json``::
 
     {"format": "plenodecode.calibration-db", "version": 1,
@@ -216,8 +219,7 @@ def build_database(folder: str | os.PathLike, db_dir: str | os.PathLike = DEFAUL
 
 def _fit_entry(entry: WhiteEntry, db: Path, **calibrate_kw: Any) -> WhiteEntry:
     from . import calibrate
-    white = Path(os.path.normpath(db / entry.file)) if not os.path.isabs(entry.file) else Path(entry.file)
-    grid = calibrate(white, **calibrate_kw)
+    grid = calibrate(_white_path(entry, db), **calibrate_kw)
     rel = _grid_relpath(entry)
     info = {**grid.info, "source": entry.file, "database": str(db)}
     _atomic_write_text(db / rel, grid.replace(info=info).to_json())
@@ -268,6 +270,31 @@ def select_white(db_dir: str | os.PathLike, metadata: CameraMetadata | RawCaptur
     return min(cands, key=lambda e: (dist(e.focus_step, md.focus_step), e.file))
 
 
+def _white_path(entry: WhiteEntry, db: Path) -> Path:
+    """Path of an entry's white image (stored relative to the database folder, or absolute)."""
+    return Path(entry.file) if os.path.isabs(entry.file) else Path(os.path.normpath(db / entry.file))
+
+
+def _cached_grid(raw: RawCapture, db: Path, **calibrate_kw: Any) -> tuple[WhiteEntry, LensletGrid]:
+    """The entry :func:`select_white` picks for ``raw`` and its grid (fitted and cached on first use)."""
+    entry = select_white(db, raw)
+    if entry.grid is None or not (db / entry.grid).is_file():
+        entries = load_index(db)
+        entry = _fit_entry(entry, db, **calibrate_kw)
+        save_index(db, [entry if e.file == entry.file else e for e in entries])
+    try:
+        grid = LensletGrid.from_json((db / entry.grid).read_text(encoding="utf-8"))  # type: ignore[operator]
+    except OSError as exc:
+        raise CalibrationError(f"{db / str(entry.grid)}: cannot read the cached grid ({exc}); rebuild the "
+                               "database") from exc
+    if tuple(grid.sensor_shape) != tuple(raw.shape):
+        raise CalibrationError(f"the white image {entry.file} is {grid.sensor_shape[1]}x{grid.sensor_shape[0]} "
+                               f"but the raw is {raw.shape[1]}x{raw.shape[0]}; the database entry belongs to "
+                               "another sensor")
+    log.info("grid for %s: white %s (zoom %s, focus %s)", raw.path, entry.file, entry.zoom_step, entry.focus_step)
+    return entry, grid
+
+
 def grid_for(raw: RawCapture, db_dir: str | os.PathLike = DEFAULT_DB, **calibrate_kw: Any) -> LensletGrid:
     """The lenslet grid for a raw from the database: nearest white image, fitted once, then cached.
 
@@ -288,23 +315,52 @@ def grid_for(raw: RawCapture, db_dir: str | os.PathLike = DEFAULT_DB, **calibrat
     CalibrationError
         No matching camera (see :func:`select_white`), or a cached grid for another sensor size.
     """
+    return _cached_grid(raw, Path(db_dir), **calibrate_kw)[1]
+
+
+def calibration_for(raw: RawCapture, db_dir: str | os.PathLike = DEFAULT_DB,
+                    **calibrate_kw: Any) -> tuple[LensletGrid, RawCapture]:
+    """The grid for a raw (as :func:`grid_for`) and the white image it was fitted on, read back.
+
+    Decoders devignette with that white, so grid and flat field always come from the same
+    database entry (same serial, nearest zoom step, then nearest focus step).
+
+    Parameters
+    ----------
+    raw : RawCapture
+    db_dir : path
+        Database folder (default ``calib``).
+    **calibrate_kw
+        Passed to :func:`plenodecode.calib.calibrate` when the grid is not cached yet.
+
+    Returns
+    -------
+    grid : LensletGrid
+    white : RawCapture
+        The selected white image (mosaic (H, W) uint16, same size as ``raw``).
+
+    Raises
+    ------
+    CalibrationError
+        No matching camera, a cached grid or a white image of another sensor size, or the
+        white image file is missing.
+    FormatError
+        The white image file cannot be parsed.
+    """
+    from ..io import read_raw
+
     db = Path(db_dir)
-    entry = select_white(db, raw)
-    if entry.grid is None or not (db / entry.grid).is_file():
-        entries = load_index(db)
-        entry = _fit_entry(entry, db, **calibrate_kw)
-        save_index(db, [entry if e.file == entry.file else e for e in entries])
-    try:
-        grid = LensletGrid.from_json((db / entry.grid).read_text(encoding="utf-8"))  # type: ignore[operator]
-    except OSError as exc:
-        raise CalibrationError(f"{db / str(entry.grid)}: cannot read the cached grid ({exc}); rebuild the "
-                               "database") from exc
-    if tuple(grid.sensor_shape) != tuple(raw.shape):
-        raise CalibrationError(f"the white image {entry.file} is {grid.sensor_shape[1]}x{grid.sensor_shape[0]} "
-                               f"but the raw is {raw.shape[1]}x{raw.shape[0]}; the database entry belongs to "
-                               "another sensor")
-    log.info("grid for %s: white %s (zoom %s, focus %s)", raw.path, entry.file, entry.zoom_step, entry.focus_step)
-    return grid
+    entry, grid = _cached_grid(raw, db, **calibrate_kw)
+    path = _white_path(entry, db)
+    if not path.is_file():
+        raise CalibrationError(f"{path}: the white image of database entry {entry.file} is missing; restore it or "
+                               f"rebuild the database {db}")
+    white = read_raw(path)
+    if white.shape != raw.shape:
+        raise CalibrationError(f"the white image {entry.file} is {white.shape[1]}x{white.shape[0]} but the raw is "
+                               f"{raw.shape[1]}x{raw.shape[0]}; rebuild the database {db}")
+    return grid, white
 
 
-__all__ = ["DEFAULT_DB", "WhiteEntry", "build_database", "select_white", "grid_for", "load_index", "save_index"]
+__all__ = ["DEFAULT_DB", "WhiteEntry", "build_database", "select_white", "grid_for", "calibration_for", "load_index",
+           "save_index"]

@@ -76,10 +76,10 @@ def _overlay_figure(grid: LensletGrid, m: dict[str, Any]) -> Any:
     fig, axes = plt.subplots(1, 5, figsize=(17, 3.8))
     gc = m["grid_centres"]
     cen = m["centres"]
-    vmax = float(np.percentile(img, 99.5)) or 1.0
     for ax, (name, r, c) in zip(axes, spots):
         r0, r1 = max(0, r - half), min(h, r + half + 1)
         c0, c1 = max(0, c - half), min(w, c + half + 1)
+        vmax = float(np.percentile(img[r0:r1, c0:c1], 99.5)) or 1.0  # per panel: vignetted corners stay visible
         ax.imshow(img[r0:r1, c0:c1], cmap="gray", vmin=0, vmax=vmax, extent=(c0 - 0.5, c1 - 0.5, r1 - 0.5, r0 - 0.5),
                   interpolation="nearest")
         sel = (gc[:, 0] >= r0) & (gc[:, 0] < r1) & (gc[:, 1] >= c0) & (gc[:, 1] < c1)
@@ -181,8 +181,8 @@ def calibration_warnings(grid: LensletGrid, m: dict[str, Any]) -> list[str]:
         mag = np.hypot(*m["residuals"][a].T)
         high = mag > HIGH_RESIDUAL_PX
         if high.mean() > 0.01:
-            out.append(f"{int(high.sum())} lenses ({high.mean():.1%}) are more than {HIGH_RESIDUAL_PX} px from the grid; "
-                       "check the residual map for distortion or a wrong white image")
+            out.append(f"{int(high.sum())} lenses ({high.mean():.1%}) are more than {HIGH_RESIDUAL_PX} px from the "
+                       "grid; check the residual map for distortion or a wrong white image")
         rms = float(np.sqrt(np.mean(mag ** 2)))
         if rms > 0.1:
             out.append(f"RMS residual {rms:.3f} px is high for a white image (expected < 0.1 px)")
@@ -240,8 +240,9 @@ def write_calibration_report(grid: LensletGrid, white: Any, path: str | os.PathL
         ("refined lenses", str(int(np.isfinite(grid.refined[..., 0]).sum())) if grid.refined is not None else "0"),
         ("disks detected (report)", f"{int(a.sum())} ({int(m['found'][m['full']].sum())} of "
                                     f"{int(m['full'].sum())} fully visible lenses)"),
-        ("residual RMS / 95th pct (report)", f"{float(np.sqrt(np.mean(mag ** 2))) if len(mag) else float('nan'):.4f} / "
-                                             f"{float(np.percentile(mag, 95)) if len(mag) else float('nan'):.4f} px"),
+        ("residual RMS / 95th pct (report)",
+         f"{float(np.sqrt(np.mean(mag ** 2))) if len(mag) else float('nan'):.4f} / "
+         f"{float(np.percentile(mag, 95)) if len(mag) else float('nan'):.4f} px"),
     ]
     for key in ("camera_model", "serial", "zoom_step", "focus_step", "source", "n_whites", "method", "binning"):
         if inf.get(key) is not None:
@@ -257,7 +258,7 @@ def write_calibration_report(grid: LensletGrid, white: Any, path: str | os.PathL
         H.section("Residuals", H.figure_html(_residual_figure(grid, m), "detected minus grid centre, every lens")),
         H.section("Vignetting", H.figure_html(_vignetting_figure(m), "mean normalised white level against radius")),
     ]
-    src = inf.get("source") or (raws[0].path if raws else "")
+    src = inf.get("source") or (raws[0].path if raws else None) or "(given in memory)"
     doc = H.page(title or "plenodecode calibration report", parts, subtitle=f"white image: {src}")
     out = H.write_html(p, doc, overwrite=overwrite)
     log.info("calibration report written to %s", out)
