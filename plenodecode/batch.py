@@ -46,7 +46,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
-from .errors import CalibrationError, PlenodecodeError
+from .errors import PlenodecodeError
 from .io.atomic import OLD_MARK, TEMP_MARK, atomic_output, discard, is_temporary, write_text_atomic
 
 log = logging.getLogger(__name__)
@@ -331,43 +331,6 @@ def task_key(path: str | os.PathLike, options: BatchOptions) -> str:
     return h.hexdigest()
 
 
-# ------------------------------------------------------------------------- calibration
-def calibration_for(raw: Any, db_dir: str | os.PathLike) -> tuple[Any, Any]:
-    """The lenslet grid and the white image of ``raw``'s camera from the calibration database.
-
-    Glue over :mod:`plenodecode.calib.store`: :func:`~plenodecode.calib.store.grid_for` gives the
-    grid (fitted once, then cached by the store) and the entry that
-    :func:`~plenodecode.calib.store.select_white` picks (same serial, nearest zoom, then focus step)
-    names the white image, read here for devignetting.
-
-    Parameters
-    ----------
-    raw : RawCapture
-    db_dir : path-like
-        Database folder.
-
-    Returns
-    -------
-    (LensletGrid, RawCapture)
-
-    Raises
-    ------
-    CalibrationError
-        No database, no white image of this camera, or one of another sensor size.
-    """
-    from .calib import store
-    from .io import read_raw
-
-    db = Path(db_dir)
-    grid = store.grid_for(raw, db)
-    entry = store.select_white(db, raw)
-    white = read_raw(db / entry.file)
-    if white.shape != raw.shape:
-        raise CalibrationError(f"the white image {entry.file} is {white.shape[1]}x{white.shape[0]} but the raw is "
-                               f"{raw.shape[1]}x{raw.shape[0]}; rebuild the database {db}")
-    return grid, white
-
-
 # ------------------------------------------------------------------------------- tasks
 def _worker_id() -> str:
     return f"{socket.gethostname()}:{os.getpid()}"
@@ -533,6 +496,8 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     from .decode import decode
     from .io.images import write_image
     from .io.lightfield import save_lightfield
+
+    from .calib.store import calibration_for
 
     grid, white = calibration_for(raw, options.db_dir)
     lf = decode(raw, grid, white=white, workers=threads)
@@ -804,4 +769,4 @@ def write_summary(summary: BatchSummary, out_dir: str | os.PathLike, *, overwrit
 
 
 __all__ = ["BATCH_OUTPUTS", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
-           "task_key", "calibration_for", "process_raw", "run_batch", "write_summary", "check_summary_files"]
+           "task_key", "process_raw", "run_batch", "write_summary", "check_summary_files"]

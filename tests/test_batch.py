@@ -155,7 +155,7 @@ def test_local_run_decodes_good_raws_and_reports_bad_ones(data, local_run):
 
 def test_products_match_a_direct_decode(data, local_run):
     """The batch writes what decode + refocus give for that raw with the database's calibration."""
-    from plenodecode.batch import calibration_for
+    from plenodecode.calib.store import calibration_for
     from plenodecode.decode import decode
     from plenodecode.io import read_raw
     from plenodecode.io.images import read_image
@@ -185,7 +185,7 @@ def test_batch_uses_the_right_calibration(data, local_run):
 
     Decoded with the white the centre view is ~34 dB from the true one; without it ~21 dB.
     """
-    from plenodecode.batch import calibration_for
+    from plenodecode.calib.store import calibration_for
     from plenodecode.io import read_raw
     from plenodecode.io.synthetic import load_truth
 
