@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import json
 from dataclasses import replace
 
@@ -96,7 +98,7 @@ def test_build_with_fit_and_errors(whites, tmp_path):
     entries = store.build_database(src / "B", db)                 # fits now
     assert len(entries) == 1 and entries[0].grid is not None
     assert (db / entries[0].grid).is_file()
-    with pytest.raises(CalibrationError, match="no MOD_NNNN.RAW"):
+    with pytest.raises(CalibrationError, match="no white images found"):
         store.build_database(db, tmp_path / "db3")               # a folder without white images
     with pytest.raises(CalibrationError, match="not a folder"):
         store.build_database(tmp_path / "nope", tmp_path / "db3")
@@ -150,3 +152,23 @@ def test_calibration_for_returns_the_grid_and_its_white(whites, tmp_path, monkey
         store.calibration_for(raw, db)
     with pytest.raises(CalibrationError, match="no white image of camera"):
         store.calibration_for(replace(raw, metadata=CameraMetadata(serial="Z9")), db)
+
+
+def test_database_indexes_white_mosaics_marked_in_their_sidecar(tmp_path):
+    """A microscope-style white (16-bit mosaic + sidecar with is_white_image) is indexed and selected;
+    a mosaic not marked as white is not."""
+    from dataclasses import replace
+
+    from plenodecode.calib.store import build_database, calibration_for
+    from plenodecode.io.generic import write_mosaic
+    from plenodecode.io.synthetic import simulate_white
+
+    white, truth = simulate_white("square", seed=5, shape=(300, 320))
+    assert white.metadata.is_white_image
+    src = tmp_path / "whites"
+    write_mosaic(src / "flat.png", white)
+    write_mosaic(src / "scene.png", replace(white, metadata=replace(white.metadata, is_white_image=False)))
+    entries = build_database(src, tmp_path / "db")
+    assert [Path(e.file).name for e in entries] == ["flat.png"]
+    grid, w = calibration_for(white, tmp_path / "db")
+    assert w.shape == white.shape and abs(grid.pitch - truth.pitch) < 1e-3

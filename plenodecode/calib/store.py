@@ -137,9 +137,26 @@ def save_index(db_dir: str | os.PathLike, entries: list[WhiteEntry]) -> Path:
     return p
 
 
+#: image mosaics whose JSON sidecar marks them as white images are indexed too (microscopes, generic cameras)
+MOSAIC_SUFFIXES = (".png", ".tif", ".tiff", ".exr")
+
+
+def _is_white_mosaic(p: Path) -> bool:
+    from ..errors import PlenodecodeError
+    from ..io.generic import find_sidecar, read_sidecar
+
+    if p.suffix.lower() not in MOSAIC_SUFFIXES or find_sidecar(p) is None:
+        return False
+    try:
+        return bool(read_sidecar(find_sidecar(p))["metadata"].is_white_image)
+    except PlenodecodeError:
+        return False
+
+
 def _find_whites(folder: Path) -> list[Path]:
-    found = [p for p in folder.rglob("*") if p.is_file() and p.name.upper().startswith("MOD_")
-             and p.suffix.upper() == ".RAW"]
+    """Lytro ``MOD_NNNN.RAW`` white images, and mosaics whose sidecar says ``is_white_image``."""
+    found = [p for p in folder.rglob("*") if p.is_file() and (
+        (p.name.upper().startswith("MOD_") and p.suffix.upper() == ".RAW") or _is_white_mosaic(p))]
     return sorted(found)
 
 
@@ -177,6 +194,7 @@ def build_database(folder: str | os.PathLike, db_dir: str | os.PathLike = DEFAUL
     CalibrationError
         No white image found in ``folder``.
     """
+    from ..io.generic import read_generic
     from ..io.lytro import read_raw_pair_metadata
 
     src, db = Path(folder), Path(db_dir)
@@ -184,8 +202,8 @@ def build_database(folder: str | os.PathLike, db_dir: str | os.PathLike = DEFAUL
         raise CalibrationError(f"{src}: not a folder; pass the folder holding the MOD_NNNN.RAW/.TXT white images")
     paths = _find_whites(src)
     if not paths:
-        raise CalibrationError(f"{src}: no MOD_NNNN.RAW white images found; expected the camera's calibration "
-                               "files (MOD_0000.RAW + MOD_0000.TXT ...)")
+        raise CalibrationError(f"{src}: no white images found; expected the camera's calibration files "
+                               "(MOD_0000.RAW + MOD_0000.TXT ...) or mosaics whose JSON sidecar sets is_white_image")
     db.mkdir(parents=True, exist_ok=True)
     try:
         existing = {e.file: e for e in load_index(db)}
@@ -195,8 +213,12 @@ def build_database(folder: str | os.PathLike, db_dir: str | os.PathLike = DEFAUL
     total = len(paths)
     for k, p in enumerate(paths):
         try:
-            cam, *_rest = read_raw_pair_metadata(p)
-            w, h = _rest[3], _rest[4]
+            if p.suffix.lower() in MOSAIC_SUFFIXES:
+                white = read_generic(p)
+                cam, (h, w) = white.metadata, white.shape
+            else:
+                cam, *_rest = read_raw_pair_metadata(p)
+                w, h = _rest[3], _rest[4]
         except FormatError as exc:
             log.warning("skipping %s: %s", p, exc)
             continue
