@@ -27,7 +27,7 @@ system-deps:
 # The main job on the bundled sample raws: decode (calibration from calib/), refocus, depth, index page.
 demo: $(STAMP)
 	$(VENV)/bin/plenodecode info sample_raws/illum-mini/scene.lfr
-	$(VENV)/bin/plenodecode batch sample_raws/illum-mini sample_raws/f01-mini -o demo_out \
+	$(VENV)/bin/plenodecode batch sample_raws -o demo_out \
 	    --outputs lightfield,centre,refocus,depth --database calib
 	$(VENV)/bin/plenodecode sample_raws/illum-mini/scene.lfr --refocus 1.02 -o demo_out/illum-mini_refocus_alpha1.02.png --overwrite
 	$(VENV)/bin/plenodecode refocus demo_out/illum-mini__scene/lightfield.zarr --focal-stack -1:1:9 -o demo_out/focal_stack --overwrite
