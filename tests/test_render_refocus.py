@@ -8,6 +8,7 @@ import pytest
 import scipy.ndimage as ndi
 
 from plenodecode.errors import MetadataError
+import plenodecode.render.shiftsum as shiftsum
 from plenodecode.render import REFOCUS_METHODS, focal_stack, refocus, sharpest_slope, shift_sum
 from plenodecode.render.focalstack import gradient_energy
 from plenodecode.render.fourier import FourierRefocuser, cached_refocuser
@@ -73,24 +74,29 @@ def psnr(a, b, border=0):
     return 10 * np.log10(1.0 / err)
 
 
-def reference_shift_sum(lf, s, order=1):
-    """Direct weight-normalised shift-and-add with scipy.ndimage.shift (linear, edge values outside)."""
+def reference_shift_sum(lf, s, order=1, mask=None):
+    """Direct weight-normalised shift-and-add with scipy.ndimage.shift (linear, edge values outside), views
+    weighted by ``mask`` (V, U)."""
     nv, nu, ny, nx, nc = lf.shape
     vc, uc = lf.centre_index
     num = np.zeros((ny, nx, nc))
     den = np.zeros((ny, nx))
     for v in range(nv):
         for u in range(nu):
+            m = 1.0 if mask is None else float(mask[v, u])
+            if m == 0:
+                continue
             sh = (s * (v - vc), s * (u - uc))
             w = np.ones((ny, nx)) if lf.weight is None else lf.weight[v, u].astype(np.float64)
-            den += ndi.shift(w, sh, order=order, mode="nearest")
+            den += m * ndi.shift(w, sh, order=order, mode="nearest")
             for c in range(nc):
-                num[..., c] += ndi.shift(lf.data[v, u, ..., c] * w, sh, order=order, mode="nearest")
+                num[..., c] += m * ndi.shift(lf.data[v, u, ..., c] * w, sh, order=order, mode="nearest")
     return num / den[..., None]
 
 
-def keys_reference(lf, s):
-    """Shift-sum with Keys' cubic (a = -0.5), separable, edge values outside: an independent implementation."""
+def keys_reference(lf, s, mask=None):
+    """Weight-normalised shift-sum with Keys' cubic (a = -0.5), separable, edge values outside, views weighted by
+    ``mask`` (V, U): an independent implementation."""
     nv, nu, ny, nx, nc = lf.shape
     vc, uc = lf.centre_index
 
@@ -114,12 +120,19 @@ def keys_reference(lf, s):
         return out
 
     # the taps of one output pixel are the integers within 2 of its source position
-    acc = np.zeros((ny, nx, nc))
+    num = np.zeros((ny, nx, nc))
+    den = np.zeros((ny, nx, 1))
     for v in range(nv):
         for u in range(nu):
-            img = shift_axis(lf.data[v, u].astype(np.float64), s * (u - uc), 1)
-            acc += shift_axis(img, s * (v - vc), 0)
-    return acc / (nv * nu)
+            m = 1.0 if mask is None else float(mask[v, u])
+            if m == 0:
+                continue
+            w = np.ones((ny, nx, 1)) if lf.weight is None else lf.weight[v, u, ..., None].astype(np.float64)
+            img = shift_axis(np.concatenate([lf.data[v, u] * w, w], axis=-1), s * (u - uc), 1)
+            img = shift_axis(img, s * (v - vc), 0)
+            num += m * img[..., :nc]
+            den += m * img[..., nc:]
+    return num / den
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -175,6 +188,70 @@ def test_many_slopes_in_one_pass_equal_one_at_a_time():
     stack = shift_sum(lf, slopes)
     for i, s in enumerate(slopes):
         np.testing.assert_array_equal(stack[i], shift_sum(lf, s)[0])
+
+
+@pytest.mark.parametrize("interp", ["linear", "cubic"])
+@pytest.mark.parametrize("weighted", [False, True])
+@pytest.mark.parametrize("slopes", [[-2.3, -0.45, 0.0, 0.8, 3.1], [-0.3, 0.2, 0.25]])
+def test_tiles_and_slope_groups_do_not_change_the_photographs(monkeypatch, interp, weighted, slopes):
+    """Tiny tiles (partial ones at the borders, shifts reaching across several tiles; with small slopes, inner
+    tiles read the light field in place) and groups of 2 slopes give the reference photographs, and exactly the
+    same numbers as one tile."""
+    rng = np.random.default_rng(5)
+    data = rng.random((5, 7, 33, 38, 3), dtype=np.float32)
+    w = rng.random((5, 7, 33, 38), dtype=np.float32) + 0.1 if weighted else None
+    lf = LightField(data, w)
+    whole = shift_sum(lf, slopes, interp=interp)
+    monkeypatch.setattr(shiftsum, "_ROWS", 5)
+    monkeypatch.setattr(shiftsum, "_COLS", 7)
+    monkeypatch.setattr(shiftsum, "_EDGE_COLS", 3)
+    monkeypatch.setattr(shiftsum, "_ACC_BYTES", 2 * 4 * 5 * 12 * 4)   # two slopes per group
+    tiled = shift_sum(lf, slopes, interp=interp)
+    np.testing.assert_array_equal(tiled, whole)
+    for i, s in enumerate(slopes):
+        ref = reference_shift_sum(lf, s) if interp == "linear" else keys_reference(lf, s)
+        np.testing.assert_allclose(tiled[i], ref, atol=2e-6)
+
+
+@pytest.mark.parametrize("interp", ["linear", "cubic"])
+def test_aperture_masks_with_empty_view_columns(interp):
+    """Views are processed in pairs per view column: odd counts, empty columns and fractional weights."""
+    data = np.random.default_rng(6).random((5, 6, 17, 19, 3), dtype=np.float32)
+    lf = LightField(data)
+    mask = np.ones((5, 6), np.float32)
+    mask[:, 1] = 0                        # an empty view column
+    mask[1:4, 4] = 0                      # a column with 2 views
+    mask[0, 0] = 0                        # a column with 4 views
+    mask[2, 5] = 0.5                      # a fractional weight
+    for s in (-1.3, 0.6):
+        out = shift_sum(lf, s, aperture=mask, interp=interp)[0]
+        ref = reference_shift_sum(lf, s, mask=mask) if interp == "linear" else keys_reference(lf, s, mask=mask)
+        np.testing.assert_allclose(out, ref, atol=2e-6)
+
+
+def test_default_bicubic_keeps_the_focus_accurate():
+    """The default (Keys bicubic) shift-sum finds the disparity of both planes of the analytic scenes within
+    0.01 px/view (measured <= 0.0072); bilinear interpolation is off by up to 0.13 on the same regions."""
+    bg = (slice(4, 14), slice(6, 40))
+    fg = (slice(24, 40), slice(54, 74))
+    for d_bg, d_fg in [(-0.6, 0.8), (0.13, 1.37)]:
+        lf, _ = two_planes(d_bg=d_bg, d_fg=d_fg)
+        assert abs(sharpest_slope(lf, region=bg) - d_bg) < 0.01
+        assert abs(sharpest_slope(lf, region=fg) - d_fg) < 0.01
+
+
+def test_render_modules_do_not_shadow_the_refocus_function():
+    import importlib
+    import types
+
+    import plenodecode.render as render
+
+    assert isinstance(render.refocus, types.FunctionType)
+    for name in ("refocusing", "shiftsum", "fourier", "alpha", "focalstack", "perspective"):
+        assert isinstance(importlib.import_module(f"plenodecode.render.{name}"), types.ModuleType)
+    assert importlib.import_module("plenodecode.render.refocusing").refocus is render.refocus
+    with pytest.raises(ModuleNotFoundError):
+        importlib.import_module("plenodecode.render.refocus")
 
 
 def test_upsampling_samples_the_photograph_between_pixels():

@@ -3,17 +3,22 @@
 Conventions (design.md): a light field is ``(V, U, Y, X, C)`` float32; a refocus slope ``s`` is in spatial
 samples per view step and a surface of disparity ``d`` is sharp at ``s = d``; ``alpha`` is Ng's relative film
 depth (1 = focus as captured), converted by :func:`alpha_to_slope` (derivation in
-:mod:`plenodecode.render.refocus`).
+:mod:`plenodecode.render.alpha`).
+
+Modules: ``refocusing`` (:func:`refocus` and the method registry), ``shiftsum``, ``fourier``, ``alpha``,
+``focalstack``, ``perspective``; ``plenodecode.render.refocus`` is the function.
 """
 
 from __future__ import annotations
 
+from ._common import aperture_mask
+from .alpha import REFOCUS_CONSTANTS, alpha_to_slope, refocus_constants, slope_per_alpha_unit, slope_to_alpha
 from .focalstack import (all_in_focus, default_slopes, depth_from_focus, focal_stack, focus_curve, focus_measure,
                          refocus_per_pixel, sharpest_slope)
 from .fourier import FourierRefocuser
 from .perspective import parallax_path, perspective, render_parallax
-from .refocus import (REFOCUS_CONSTANTS, REFOCUS_METHODS, alpha_to_slope, aperture_mask, refocus, refocus_constants,
-                      shift_sum, slope_per_alpha_unit, slope_to_alpha)
+from .refocusing import REFOCUS_METHODS, refocus
+from .shiftsum import shift_sum
 
 __all__ = [
     "refocus", "focal_stack", "all_in_focus", "perspective", "parallax_path", "render_parallax",

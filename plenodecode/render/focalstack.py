@@ -16,7 +16,8 @@ import cv2
 import numpy as np
 
 from ..types import LightField
-from .refocus import aperture_mask, check_lightfield, get_method
+from ._common import aperture_mask, check_lightfield
+from .refocusing import get_method
 
 log = logging.getLogger(__name__)
 
@@ -47,13 +48,12 @@ def focal_stack(lf: LightField, slopes: np.ndarray | list[float], *, method: str
     slopes : array_like (S,)
         Spatial samples per view step.
     method : str
-        A key of :data:`plenodecode.render.refocus.REFOCUS_METHODS`.  'shift-sum' computes a quarter of the
-        slices (at least 8, at most ~512 MB) per pass over the light field; 'fourier-slice' reuses one cached
-        4D transform.
+        A key of :data:`plenodecode.render.REFOCUS_METHODS`.  'shift-sum' computes every slice in one pass
+        over the light field; 'fourier-slice' reuses one cached 4D transform.
     aperture, upsample, **kw
-        As :func:`plenodecode.render.refocus.refocus`.
+        As :func:`plenodecode.render.refocus`.
     progress : callable(done, total), optional
-        Called with the number of slices done.
+        Called as the work advances (a few steps per pass; per view and per slice for 'fourier-slice').
 
     Returns
     -------
@@ -64,18 +64,7 @@ def focal_stack(lf: LightField, slopes: np.ndarray | list[float], *, method: str
     if s.size == 0 or not np.all(np.isfinite(s)):
         raise ValueError(f"slopes must be a non-empty sequence of finite numbers, got {slopes}")
     fn = get_method(method)
-    if method != "shift-sum":
-        return fn(lf, s, aperture=aperture, upsample=upsample, progress=progress, **kw)
-    _, _, ny, nx, nc = lf.shape
-    per_slice = 2 * ny * nx * nc * 4 * upsample * upsample
-    # slices per pass over the light field: ~4 passes (progress), at least 8 slices, at most ~512 MB of buffers
-    chunk = int(max(1, min(len(s), max(8, -(-len(s) // 4)), (512 << 20) // per_slice)))
-    out = np.empty((len(s), upsample * ny, upsample * nx, nc), np.float32)
-    for i0 in range(0, len(s), chunk):
-        out[i0:i0 + chunk] = fn(lf, s[i0:i0 + chunk], aperture=aperture, upsample=upsample, **kw)
-        if progress is not None:
-            progress(min(len(s), i0 + chunk), len(s))
-    return out
+    return fn(lf, s, aperture=aperture, upsample=upsample, progress=progress, **kw)
 
 
 def _grey(img: np.ndarray) -> np.ndarray:

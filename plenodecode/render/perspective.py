@@ -14,7 +14,7 @@ from typing import Callable
 import numpy as np
 
 from ..types import LightField
-from .refocus import _tap_weights, check_lightfield
+from ._common import check_lightfield, tap_weights
 
 #: Angular interpolation kernels of :func:`perspective`.
 PERSPECTIVE_INTERPOLATIONS = ("linear", "cubic")
@@ -22,7 +22,7 @@ PERSPECTIVE_INTERPOLATIONS = ("linear", "cubic")
 
 def _axis_taps(p: float, n: int, interp: str) -> list[tuple[int, float]]:
     """(index, weight) pairs interpolating position ``p`` on ``n`` samples (indices clamped)."""
-    base, w = _tap_weights(np.array([p], np.float64), interp)
+    base, w = tap_weights(np.array([p], np.float64), interp)
     taps: dict[int, float] = {}
     for k in range(w.shape[1]):
         if w[0, k] != 0.0:

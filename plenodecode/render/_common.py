@@ -1,0 +1,92 @@
+"""Helpers shared by the rendering modules: argument checks, synthetic apertures, interpolation taps."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..types import LightField
+
+#: Interpolation kernels of the shift-sum and of perspective views: name -> number of taps.
+INTERPOLATIONS = {"linear": 2, "cubic": 4}
+
+
+def aperture_mask(shape: tuple[int, int], aperture: float | np.ndarray = 1.0) -> np.ndarray:
+    """Per-view weights of a synthetic aperture.
+
+    Parameters
+    ----------
+    shape : (V, U)
+        Angular size of the light field.
+    aperture : float or ndarray (V, U)
+        A float ``r`` in (0, 1] keeps the views inside a circle of radius ``r`` times the distance from the
+        centre view to the corner view (normalised per axis, so 1 = all views, ``1/sqrt(2)`` = the inscribed disk);
+        or a boolean / non-negative float mask over the views.
+
+    Returns
+    -------
+    ndarray, shape (V, U), float32
+        Weight of each view (0 = unused).
+    """
+    nv, nu = shape
+    if isinstance(aperture, (bool, np.bool_)) or (np.ndim(aperture) == 0 and not isinstance(aperture, np.ndarray)):
+        if isinstance(aperture, (bool, np.bool_)):
+            raise ValueError(f"aperture must be a radius in (0, 1] or a (V, U) mask, got {aperture!r}")
+        r = float(aperture)
+        if not (0 < r <= 1):
+            raise ValueError(f"aperture radius must be in (0, 1], got {r}")
+        vc, uc = nv // 2, nu // 2
+        dv = (np.arange(nv) - vc) / max(vc, nv - 1 - vc, 1)
+        du = (np.arange(nu) - uc) / max(uc, nu - 1 - uc, 1)
+        rho = np.hypot(dv[:, None], du[None, :]) / math.sqrt(2.0)
+        return (rho <= r + 1e-9).astype(np.float32)
+    m = np.asarray(aperture)
+    if m.shape != (nv, nu):
+        raise ValueError(f"aperture mask must have shape (V, U) = {(nv, nu)}, got {m.shape}")
+    m = m.astype(np.float32)
+    if not np.all(np.isfinite(m)) or np.any(m < 0) or not np.any(m > 0):
+        raise ValueError("aperture mask must be finite, non-negative and select at least one view")
+    return m
+
+
+def check_lightfield(lf: Any) -> LightField:
+    """Raise ValueError unless ``lf`` is a :class:`LightField`."""
+    if not isinstance(lf, LightField):
+        raise ValueError(f"lf must be a plenodecode LightField, got {type(lf).__name__}")
+    return lf
+
+
+def tap_weights(t: np.ndarray, interp: str) -> tuple[np.ndarray, np.ndarray]:
+    """Taps sampling a row at ``x + t`` for every ``x``.
+
+    Parameters
+    ----------
+    t : ndarray (...,) float64
+        Sub-pixel offsets.
+    interp : 'linear' or 'cubic'
+        Linear, or Keys' cubic convolution (a = -0.5; Keys 1981), exact at integer offsets.
+
+    Returns
+    -------
+    base : ndarray (...,) int64
+        Offset of the first tap: tap ``k`` reads ``x + base + k``.
+    weights : ndarray (..., T) float32
+    """
+    i = np.floor(t)
+    f = t - i
+    if interp == "linear":
+        return i.astype(np.int64), np.stack([1.0 - f, f], -1).astype(np.float32)
+    if interp == "cubic":
+        a = -0.5
+
+        def near(x):  # |x| <= 1
+            return (a + 2) * x**3 - (a + 3) * x**2 + 1
+
+        def far(x):  # 1 < |x| < 2
+            return a * x**3 - 5 * a * x**2 + 8 * a * x - 4 * a
+
+        w = np.stack([far(1 + f), near(f), near(1 - f), far(2 - f)], -1)
+        return (i - 1).astype(np.int64), w.astype(np.float32)
+    raise ValueError(f"interp must be one of {', '.join(INTERPOLATIONS)}, got {interp!r}")

@@ -1,0 +1,86 @@
+"""Refocusing a light field: the method registry and :func:`refocus` (by slope or by Ng's alpha).
+
+Methods: 'shift-sum' (:mod:`plenodecode.render.shiftsum`, direct, bicubic by default) and 'fourier-slice'
+(:mod:`plenodecode.render.fourier`, Ng 2005).  The alpha <-> slope conversion is in
+:mod:`plenodecode.render.alpha`.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import numpy as np
+
+from ..types import LightField
+from ._common import check_lightfield
+from .alpha import alpha_to_slope, split_constants
+from .shiftsum import shift_sum
+
+
+def _fourier_slice(lf: LightField, slopes: float | np.ndarray, **kw: Any) -> np.ndarray:
+    """Registry entry of 'fourier-slice' (imports :mod:`plenodecode.render.fourier` on first use)."""
+    from .fourier import fourier_slice
+
+    return fourier_slice(lf, slopes, **kw)
+
+
+#: Refocusing methods: name -> ``fn(lf, slopes, *, aperture, upsample, progress, **kw) -> (S, Y', X', C)``.
+REFOCUS_METHODS: dict[str, Callable[..., np.ndarray]] = {
+    "shift-sum": shift_sum,
+    "fourier-slice": _fourier_slice,
+}
+
+
+def get_method(method: str) -> Callable[..., np.ndarray]:
+    """The function of a refocus method; ValueError listing the valid names otherwise."""
+    try:
+        return REFOCUS_METHODS[method]
+    except (KeyError, TypeError):
+        raise ValueError(f"method must be one of {', '.join(REFOCUS_METHODS)}, got {method!r}") from None
+
+
+def refocus(lf: LightField, *, slope: float | None = None, alpha: float | None = None, method: str = "shift-sum",
+            aperture: float | np.ndarray = 1.0, upsample: int = 1,
+            progress: Callable[[int, int], None] | None = None, **kw: Any) -> np.ndarray:
+    """Refocus a light field at a slope or at Ng's relative film depth alpha.
+
+    Parameters
+    ----------
+    lf : LightField
+        ``data`` (V, U, Y, X, C) float32; the photograph is weight-normalised when ``lf.weight`` is set.
+    slope : float, optional
+        Spatial samples per view step (design.md); a surface of disparity ``d`` is sharp at ``slope = d``.
+    alpha : float, optional
+        Relative film depth (Ng 2005); converted by :func:`alpha_to_slope` with the camera constants of ``lf``
+        (keywords ``focal_length_m``, ``f_number``, ``lens_pitch_m``, ``spatial_step_px``, ``view_step_px``
+        override them).  Exactly one of ``slope`` and ``alpha``.
+    method : str
+        A key of :data:`REFOCUS_METHODS`: 'shift-sum' (direct, bicubic by default) or 'fourier-slice' (Ng 2005;
+        the first call computes and caches a 4D transform, several seconds for a full-size light field, after
+        which each photograph is cheap: worth it for many photographs of one light field).
+    aperture : float or ndarray (V, U)
+        Synthetic aperture: a radius in (0, 1] (1 = all views) or a mask over the views (:func:`aperture_mask`).
+    upsample : int
+        Spatial upsampling factor.
+    progress : callable(done, total), optional
+    **kw
+        Refocus constants, then method options (shift-sum: ``interp``; fourier-slice: ``oversample``,
+        ``kernel_width``, ``pad``).
+
+    Returns
+    -------
+    ndarray, shape (upsample Y, upsample X, C), float32
+    """
+    check_lightfield(lf)
+    if (slope is None) == (alpha is None):
+        raise ValueError("pass exactly one of slope and alpha")
+    const, opts = split_constants(kw)
+    if alpha is not None:
+        slope = alpha_to_slope(float(alpha), lf, **const)
+    elif const:
+        raise ValueError(f"camera constants {sorted(const)} only apply with alpha")
+    fn = get_method(method)
+    return fn(lf, float(slope), aperture=aperture, upsample=upsample, progress=progress, **opts)[0]
+
+
+__all__ = ["REFOCUS_METHODS", "get_method", "refocus"]
