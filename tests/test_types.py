@@ -74,3 +74,15 @@ def test_light_field_validates_shape_and_dtype():
         LightField(np.zeros((3, 3, 4, 4, 3)))
     lf = LightField(np.zeros((3, 5, 4, 4, 3), np.float32))
     assert lf.centre_index == (1, 2)
+
+
+def test_public_api_names_are_callables_even_after_subpackage_imports():
+    """``plenodecode.decode`` is both a subpackage and the public function: it must stay callable."""
+    import importlib
+
+    import plenodecode as pd
+
+    importlib.import_module("plenodecode.decode")
+    for name in ("read_raw", "simulate", "calibrate", "decode", "refocus", "focal_stack", "all_in_focus",
+                 "perspective", "estimate_depth", "disparity_to_depth", "save_lightfield", "load_lightfield"):
+        assert callable(getattr(pd, name)), name

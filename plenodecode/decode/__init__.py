@@ -31,8 +31,10 @@ from __future__ import annotations
 
 import logging
 import os
+import sys
 import threading
 import time
+import types
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from typing import Callable
 
@@ -346,3 +348,18 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
 
 
 __all__ = ["decode", "decode_timed", "DEMOSAIC_METHODS", "RESAMPLE_METHODS", "DEFAULT_DEMOSAIC"]
+
+
+class _CallableModule(types.ModuleType):
+    """This subpackage, callable as :func:`decode`.
+
+    Importing ``plenodecode.decode`` binds the subpackage to the attribute ``decode`` of
+    ``plenodecode``, where the public function of the same name lives; making the module
+    callable keeps ``plenodecode.decode(raw, grid, ...)`` working either way.
+    """
+
+    def __call__(self, raw: RawCapture, grid: LensletGrid, **options) -> LightField:
+        return decode(raw, grid, **options)
+
+
+sys.modules[__name__].__class__ = _CallableModule
