@@ -26,12 +26,13 @@ from __future__ import annotations
 import json
 import logging
 import os
-import uuid
 from dataclasses import dataclass
 from pathlib import Path
+
 from typing import Any, Callable, Mapping
 
 from ..errors import CalibrationError, FormatError
+from ..io.atomic import write_text_atomic
 from ..types import CameraMetadata, LensletGrid, RawCapture
 
 log = logging.getLogger(__name__)
@@ -84,16 +85,7 @@ class WhiteEntry:
 
 # -- files ------------------------------------------------------------------------------------
 def _atomic_write_text(path: Path, text: str, *, overwrite: bool = True) -> None:
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} exists; pass overwrite=True to replace it")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    write_text_atomic(path, text, overwrite=overwrite)
 
 
 def _rel(path: Path, db: Path) -> str:

@@ -106,34 +106,59 @@ def load_input(path: str | os.PathLike, *, white_dir: str | os.PathLike | None =
 
 def _decode_raw(p: Path, *, white_dir, calibration, white, progress) -> LightField:
     from ..decode import decode
+    from ..io import read_raw
+
+    raw = read_raw(p)
+    grid, white_cap = resolve_calibration(raw, calibration=calibration, white=white, white_dir=white_dir)
+    log.info("decoding %s", p)
+    return decode(raw, grid, white=white_cap, progress=progress)
+
+
+def resolve_calibration(raw, *, calibration=None, white=None, white_dir=None):
+    """The lenslet grid and white image for ``raw`` from the shared command options.
+
+    ``--calibration grid.json`` gives the grid (``--white`` then only devignettes); ``--white`` alone is
+    calibrated on the spot; otherwise the database (``--white-dir``, default ``./calib``) picks the white of
+    the raw's camera and its cached grid.
+
+    Returns
+    -------
+    (LensletGrid, RawCapture or None)
+
+    Raises
+    ------
+    CalibrationError
+        Nothing usable; the message says which option to pass.
+    """
     from ..errors import CalibrationError
     from ..io import read_raw
     from ..types import LensletGrid
 
-    raw = read_raw(p)
     white_cap = read_raw(white) if white is not None else None
     if calibration is not None:
         try:
-            grid = LensletGrid.from_json(Path(calibration).read_text(encoding="utf-8"))
+            text = Path(calibration).read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
             raise CalibrationError(f"{calibration}: cannot read the lenslet grid ({exc}); pass a grid written by "
                                    "'plenodecode calibrate'") from exc
-    elif white_cap is not None:
+        return LensletGrid.from_json(text), white_cap
+    if white_cap is not None:
         from ..calib import calibrate
 
-        grid = calibrate(white_cap)
-    else:
-        from ..calib import store
+        return calibrate(white_cap), white_cap
+    from ..calib import store
 
-        db = Path(white_dir) if white_dir is not None else Path(store.DEFAULT_DB)
-        if not (db / store.INDEX_NAME).is_file():
-            raise CalibrationError(
-                f"no calibration for {p.name} (camera {raw.metadata.model or '?'} {raw.metadata.serial or '?'}): "
-                f"no calibration database in {db}; pass --white-dir DATABASE, --calibration grid.json or "
-                "--white WHITE_IMAGE")
-        grid, white_cap = store.calibration_for(raw, db)
-    log.info("decoding %s", p)
-    return decode(raw, grid, white=white_cap, progress=progress)
+    db = Path(white_dir) if white_dir is not None else Path(store.DEFAULT_DB)
+    name = Path(raw.path).name if raw.path else "this raw"
+    if not (db / store.INDEX_NAME).is_file():
+        raise CalibrationError(
+            f"no calibration for {name} (camera {raw.metadata.model or '?'} {raw.metadata.serial or '?'}): "
+            f"no calibration database in {db}; pass --white-dir DATABASE, --calibration grid.json or "
+            "--white WHITE_IMAGE")
+    try:
+        return store.calibration_for(raw, db)
+    except CalibrationError as exc:
+        raise CalibrationError(f"{exc}; or pass --calibration grid.json or --white WHITE_IMAGE") from exc
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -166,22 +191,14 @@ def save_image(path: Path, image, *, lf: LightField, bit_depth: int, overwrite: 
 
 
 def write_json(path: Path, doc, *, overwrite: bool) -> Path:
-    """Write a small JSON document atomically (temporary file in the same folder, then rename)."""
+    """Write a small JSON document atomically (see :mod:`plenodecode.io.atomic`)."""
     import json
-    import tempfile
+
+    from ..io.atomic import write_text_atomic
 
     if path.exists() and not overwrite:
         raise click.UsageError(f"{path} exists; pass --overwrite to replace it")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            json.dump(doc, fh, indent=1)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return write_text_atomic(path, json.dumps(doc, indent=1), overwrite=overwrite)
 
 
 def prepare_folder(folder: Path, names: list[str], overwrite: bool) -> None:

@@ -3,24 +3,17 @@
 from __future__ import annotations
 
 import os
-import uuid
 from pathlib import Path
 
 import click
 
+from ..io.atomic import write_text_atomic
 from .common import check_output, overwrite_option, progress_bar
 
 
 def _write_text(path: Path, text: str) -> None:
-    """Atomic write (temporary name in the same folder, then rename)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    """Atomic write; the command has already checked ``--overwrite``."""
+    write_text_atomic(path, text, overwrite=True)
 
 
 @click.command("calibrate")

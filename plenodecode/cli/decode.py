@@ -10,45 +10,10 @@ import click
 from ..decode.colour import DECODE_COLOURS
 from ..decode.demosaic import DEMOSAIC_METHODS
 from ..io.lightfield import LIGHTFIELD_FORMATS
+from ._load import resolve_calibration
 from .common import bit_depth_option, check_output, output_option, overwrite_option, progress_bar
 
 log = logging.getLogger(__name__)
-
-
-def _resolve_calibration(raw, calibration: Path | None, white: Path | None, white_dir: Path | None):
-    """(grid, white RawCapture or None) from the options; CalibrationError with what to pass."""
-    from ..errors import CalibrationError
-    from ..io import read_raw
-    from ..types import LensletGrid
-
-    white_raw = read_raw(white) if white is not None else None
-    if calibration is not None:
-        try:
-            text = calibration.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise CalibrationError(f"{calibration}: cannot read the grid file ({exc}); pass a grid written by "
-                                   "'plenodecode calibrate'") from exc
-        return LensletGrid.from_json(text), white_raw
-    if white_raw is not None:
-        from ..calib import calibrate
-
-        return calibrate(white_raw), white_raw
-    from ..calib import store
-
-    db = white_dir if white_dir is not None else Path(store.DEFAULT_DB)
-    if not (db / store.INDEX_NAME).is_file():
-        serial = raw.metadata.serial or "unknown serial"
-        raise CalibrationError(
-            f"no calibration for this raw (camera {raw.metadata.model or '?'} {serial}): "
-            f"{'no database at ' + str(db) if white_dir is not None else 'no calibration database in ./calib'}; "
-            "pass --calibration grid.json, --white WHITE_IMAGE or --white-dir DATABASE")
-    try:
-        grid = store.grid_for(raw, db)
-        entry = store.select_white(db, raw)
-    except CalibrationError as exc:
-        raise CalibrationError(f"{exc}; or pass --calibration grid.json or --white WHITE_IMAGE") from exc
-    wpath = Path(entry.file) if Path(entry.file).is_absolute() else db / entry.file
-    return grid, read_raw(wpath)
 
 
 @click.command("decode")
@@ -102,7 +67,7 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
     except ValueError as exc:
         raise click.UsageError(f"{exc} (use --format)") from exc
     raw = read_raw(raw_path)
-    grid, white_raw = _resolve_calibration(raw, calibration, white, white_dir)
+    grid, white_raw = resolve_calibration(raw, calibration=calibration, white=white, white_dir=white_dir)
     dark_raw = read_raw(dark) if dark is not None else None
     lf = decode(raw, grid, white=white_raw, dark=dark_raw, demosaic=demosaic, colour=colour, n_views=n_views,
                 hot_pixels=not no_hot_pixels, progress=progress_bar("decoding", ctx))

@@ -13,9 +13,10 @@ import base64
 import html as _html
 import io
 import os
-import uuid
 from pathlib import Path
 from typing import Any, Iterable, Sequence
+
+from ..io.atomic import write_text_atomic
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:24px auto;max-width:1200px;
@@ -85,25 +86,14 @@ def page(title: str, parts: Sequence[str], *, subtitle: str = "") -> str:
 
 
 def write_html(path: str | os.PathLike, text: str, *, overwrite: bool = False) -> Path:
-    """Write an HTML document atomically (temporary name in the same folder, then rename).
+    """Write an HTML document atomically (see :mod:`plenodecode.io.atomic`).
 
     Raises
     ------
     FileExistsError
         ``path`` exists and ``overwrite`` is False.
     """
-    p = Path(path)
-    if p.exists() and not overwrite:
-        raise FileExistsError(f"{p} exists; pass overwrite=True to replace it")
-    p.parent.mkdir(parents=True, exist_ok=True)
-    tmp = p.with_name(f".{p.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, p)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    return p
+    return write_text_atomic(path, text, overwrite=overwrite)
 
 
 __all__ = ["escape", "figure_png", "figure_html", "table_html", "notes_html", "section", "page", "write_html"]
