@@ -28,7 +28,7 @@ spatial sample is ``Dx = lens_pitch_m * spatial_step_px / lens_pitch_px`` on the
 
     d = K (1 - b / b'),   K = Du / Dx = D view_step_px / (lens_pitch_m spatial_step_px)
 
-(the ``K`` of :func:`plenodecode.render.refocus.slope_per_alpha_unit`, ``alpha = b' / b``).  Eliminating
+(the ``K`` of :func:`plenodecode.render.alpha.slope_per_alpha_unit`, ``alpha = b' / b``).  Eliminating
 ``b'`` gives ``1/Z = 1/Z_f + d / (K b)``, so ``G = K b``.
 
 ``Z_f`` comes from ``focus_distance_m`` (keyword or ``lf.metadata``).  Lytro metadata has no focus
@@ -100,7 +100,7 @@ def hci_constants(params: Mapping[str, Mapping[str, Any]], **overrides: float) -
 
 def _camera_constants(lf: LightField, overrides: Mapping[str, Any]) -> dict[str, float]:
     """Focal length, f-number, lens pitch (m), spatial and view step (px) from the overrides or the metadata
-    (the constants of :func:`plenodecode.render.refocus.slope_per_alpha_unit`, read the same way)."""
+    (the constants of :func:`plenodecode.render.alpha.slope_per_alpha_unit`, read the same way)."""
     meta = lf.metadata
     camera = meta.get("camera") or {}
     calib = meta.get("calibration") or {}
