@@ -13,7 +13,7 @@ from plenodecode.cli.main import cli
 from plenodecode.io.lytro import write_raw_pair
 from plenodecode.io.synthetic import simulate, simulate_white
 from plenodecode.report.calibration import vignetting_profile, write_calibration_report
-from plenodecode.types import LensletGrid, RawCapture
+from plenodecode.types import LensletGrid
 
 SHAPE = (260, 320)
 

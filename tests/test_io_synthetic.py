@@ -221,7 +221,7 @@ def test_bad_arguments_raise_value_error():
 
 
 # ---------------------------------------------------------------------------------------- scene
-from plenodecode.io._scene import SUPPORT_EDGE, Plane, Scene, box_radiance, default_scene  # noqa: E402
+from plenodecode.io._scene import SUPPORT_EDGE, Plane, Scene, box_radiance  # noqa: E402
 
 
 def _reference_radiance(tex, y, x, oa, ob, ch, space="camera"):
@@ -478,7 +478,7 @@ def test_focused_micro_images_are_inverted_reduced_views_of_the_virtual_image():
     # raw / white is the box-averaged radiance of the VI point c_k - v * o
     p = dataclasses.replace(syn.PRESETS["raytrix"], type_focus=(4.0, 4.0, 4.0))
     sim = syn.simulate(p, noise=False, shape=(280, 350), scene=[Plane(4.0, texture_seed=5)])
-    grid, texel = sim.grid, p.texel_px
+    grid = sim.grid
     assert np.all(sim.truth["blur_sigma"] == 0)
     np.testing.assert_allclose(sim.truth["virtual_depth"], 4.0)
     np.testing.assert_allclose(sim.disparity, grid.pitch / 4.0, rtol=1e-6)

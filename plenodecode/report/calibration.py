@@ -16,6 +16,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ..io.atomic import check_destination
 from ..types import LensletGrid, RawCapture
 from . import html as H
 
@@ -216,9 +217,7 @@ def write_calibration_report(grid: LensletGrid, white: Any, path: str | os.PathL
     FileExistsError
         ``path`` exists and ``overwrite`` is False.
     """
-    p = Path(path)
-    if p.exists() and not overwrite:
-        raise FileExistsError(f"{p} exists; pass overwrite=True to replace it")
+    p = check_destination(path, overwrite)
     from ..calib import _as_raws
 
     raws = _as_raws(white)
