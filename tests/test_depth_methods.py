@@ -75,8 +75,9 @@ def test_sign_convention_of_a_single_plane(method, tol, d):
 def test_occluding_square(planes, method, max_bp07, max_mse):
     lf, gt = planes
     dm = estimate_depth(lf, method=method)
-    # measured: costvolume 2.8 % (MSE x100 5.9), fast 1.7 % (3.6): the errors are a 1-px band of the
-    # square's outline that takes the background disparity (an error of 1.6 px there dominates the MSE)
+    # measured: costvolume 3.2 % (MSE x100 7.0), fast 2.5 % (5.5): the errors are a 1-px band of the
+    # square's outline (an error of 1.6 px there dominates the MSE); the colour-guided edge median cannot
+    # see this edge (both planes carry the same random colour texture), which costs ~0.5 % against no edge fix
     assert badpix(dm, gt, border=6) < max_bp07
     assert mse100(dm, gt, border=6) < max_mse
     assert isinstance(dm, DepthMap) and dm.disparity.dtype == np.float32 and dm.method == method
@@ -109,13 +110,13 @@ def test_generated_illum_scene(simulation):
     gt = sim.disparity
     for method, bound in (("costvolume", 13.0), ("fast", 13.0)):
         dm = estimate_depth(lf, method=method)
-        # measured: costvolume 8.3 %, fast 8.0 % (87 x 125 px, errors on the occlusion outlines)
+        # measured: costvolume 7.4 %, fast 6.2 % (87 x 125 px, errors on the occlusion outlines)
         assert badpix(dm, gt, border=5) < bound, method
         assert mse100(dm, gt, border=5) < 4.0, method
     # confidence ranks the errors: the confident half is more accurate than the rest
     err = np.abs(dm.disparity - gt)
     hi = dm.confidence >= np.median(dm.confidence)
-    assert err[hi].mean() < 0.4 * err[~hi].mean()            # measured ratio 0.11
+    assert err[hi].mean() < 0.4 * err[~hi].mean()            # measured ratio 0.10
 
 
 def test_decoded_raw_with_dark_border_views(simulation):
@@ -126,7 +127,7 @@ def test_decoded_raw_with_dark_border_views(simulation):
     lf = decode(sim.raw, sim.grid, white=sim.white)
     dm = estimate_depth(lf, method="costvolume", disparity_range=sim.disparity_range)
     assert dm.params["views_used"] < lf.shape[0] * lf.shape[1]
-    assert badpix(dm, sim.disparity, border=5) < 16.0          # measured 11.9 %
+    assert badpix(dm, sim.disparity, border=5) < 16.0          # measured 12.6 %
 
 
 def test_low_weight_views_are_down_weighted():
@@ -153,7 +154,7 @@ def test_disparity_range_is_estimated_without_metadata():
     lo, hi = dm.params["disparity_range"]
     assert dm.params["disparity_range_source"] == "estimated"
     assert lo <= -0.9 and hi >= 1.1 and hi - lo < 6.0
-    # as good as with the true range (measured 8.5 % in both cases)
+    # as good as with the true range (measured 6.95 % and 6.99 %)
     assert badpix(dm, gt, border=6) < badpix(given, gt, border=6) + 4.0
 
 
@@ -189,6 +190,6 @@ def test_antinous_crop_real_data():
     lf = scene.lightfield.replace(data=np.ascontiguousarray(scene.lightfield.data[crop]))
     gt = scene.disparity[96:288, 160:352]
     dm = estimate_depth(lf, method="costvolume")
-    # head and hair of the statue against the wall (the hardest part of the scene): measured 9.8 %
-    # BadPix0.07, MSE x100 12.6 (the fast method: 9.8 %, 15.9)
+    # head and hair of the statue against the wall (the hardest part of the scene): measured 8.5 %
+    # BadPix0.07, MSE x100 6.9 (the fast method: 7.8 %, 7.4)
     assert badpix(dm, gt) < 14.0 and mse100(dm, gt) < 18.0

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import logging
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping
 
@@ -329,7 +331,7 @@ def half_plane_groups(views: Views, n_sectors: int = N_SECTORS) -> tuple[list[li
 
 def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2, interpolation: int = cv2.INTER_LINEAR,
                            base: np.ndarray | None = None, progress: Progress = None,
-                           n_sectors: int = N_SECTORS) -> np.ndarray:
+                           n_sectors: int = N_SECTORS, threads: int | None = None) -> np.ndarray:
     """Occlusion-aware matching cost for every label.
 
     For label ``d`` every used view is shifted onto the centre view (:func:`shift_view`), and the
@@ -355,12 +357,16 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
         ``base + label`` (:func:`remap_view`), which follows slanted surfaces exactly.
     progress : callable(done, total), optional
         Called after every label.
+    threads : int, optional
+        Labels computed concurrently (OpenCV releases the GIL); default: the number of CPU cores, at most 4.
 
     Returns
     -------
     ndarray, shape (Y, X, L), float32
         Labels last (the layout :func:`sgm` and :func:`winner` read).
     """
+    if threads is None:
+        threads = min(4, os.cpu_count() or 1)
     sectors, hw = half_plane_groups(views, n_sectors)
     if not np.all(hw > 0):
         # too few views for half-planes (e.g. a 1 x N light field): fall back to the plain mean over views
@@ -376,7 +382,6 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
     L = len(labels)
     out = np.empty((Y, X, L), np.float32)
     ones = np.ones((1, C), np.float32)
-    acc = np.empty(centre.shape, np.float32)
     half = max(1, n_sectors // 2)
     ksize = (2 * radius + 1, 2 * radius + 1)
     sqrt_w = {vu: math.sqrt(float(views.weight[vu])) for s in sectors for vu in s}
@@ -387,7 +392,11 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
             raise ValueError(f"base must have shape {(Y, X)}, got {base.shape}")
         yy, xx = np.mgrid[0:Y, 0:X].astype(np.float32)
         grid = (yy, xx)
-    for k, d in enumerate(labels):
+    def one_label(k: int) -> None:
+        # one label's cost into out[:, :, k]; own buffers, so labels can run on several threads (OpenCV
+        # releases the GIL)
+        d = labels[k]
+        acc = np.empty(centre.shape, np.float32)
         sums = []
         dmap = None if base is None else base + np.float32(d)
         for s in sectors:
@@ -412,8 +421,18 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
                 hsum = cv2.boxFilter(hsum, -1, ksize)
             best = hsum if best is None else np.minimum(best, hsum, out=best)
         out[:, :, k] = best
-        if progress is not None:
-            progress(k + 1, L)
+
+    workers = min(max(1, int(threads)), L)
+    if workers == 1:
+        for k in range(L):
+            one_label(k)
+            if progress is not None:
+                progress(k + 1, L)
+    else:
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            for i, _ in enumerate(pool.map(one_label, range(L))):
+                if progress is not None:
+                    progress(i + 1, L)
     return out
 
 
@@ -612,8 +631,76 @@ def weighted_median(guide: np.ndarray, disparity: np.ndarray, radius: int, sigma
                                               float(sigma * 255.0))
 
 
+def colour_guide(lf: LightField) -> np.ndarray:
+    """The centre view as the guide of the edge snapping: (Y, X, 3) or (Y, X, 1) uint8, scaled so its 99.5th
+    percentile is 255, display-encoded (``x ** (1 / 2.2)``) when linear."""
+    c = _clean(lf.data[lf.centre_index], False)
+    scale = float(np.percentile(c, 99.5))
+    c = c * np.float32(1.0 / max(scale, 1e-12))
+    if lf.colour != "srgb":
+        c = np.power(np.clip(c, 0.0, None), np.float32(1.0 / 2.2))
+    return np.ascontiguousarray(np.clip(np.round(c * 255.0), 0, 255).astype(np.uint8))
 
 
+def _edge_band(disparity: np.ndarray, radius: int, jump: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(near, far, band): local max and min of the disparity over a (2 radius + 1)^2 window, and the pixels
+    where they differ by more than ``jump`` (within ``radius`` of a depth discontinuity)."""
+    k = np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
+    near = cv2.dilate(disparity, k)
+    far = cv2.erode(disparity, k)
+    return near, far, (near - far) > np.float32(jump)
+
+
+def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, *, radius: int = 4,
+                        jump: float = 0.5, ratio: float = 1.5, median_radius: int = 7) -> np.ndarray:
+    """Remove the foreground fattening at depth discontinuities.
+
+    Two steps, both restricted to the band within ``radius`` px of a disparity jump larger than ``jump``
+    (:func:`_edge_band`):
+
+    1. **Visibility check.**  A pixel on the near side of a jump (``d > (near + far) / 2``) claims to lie on
+       the occluder, and nothing occludes an occluder: every view must then see it, so its cost over *all*
+       views (:func:`half_plane_cost_volume` with one sector, views warped per pixel by ``d``) must be small.
+       A background pixel fattened by the occluder is seen by all views only on its own surface: its
+       half-plane cost at the far disparity ``far`` (the views on the un-occluded side) is lower.  Pixels with
+       ``C_all(d) > ratio * C_half(far)`` take ``far`` (the occlusion reasoning of Kang, Szeliski & Chai,
+       CVPR 2001 and Wang, Efros & Ramamoorthi, ICCV 2015, used as a left-right style consistency test).
+    2. **Edge snapping.**  A weighted median of the disparity guided by the centre view in colour
+       (Ma et al., ICCV 2013; ``cv2.ximgproc.weightedMedianFilter``, radius ``median_radius``) replaces the
+       band, so the remaining depth edge follows the colour edge.
+
+    Parameters
+    ----------
+    views : Views
+        The matching views (the ones the cost volume used).
+    disparity : ndarray (Y, X) float32
+    guide : ndarray (Y, X, 3) or (Y, X, 1) uint8
+        :func:`colour_guide`.
+
+    Returns
+    -------
+    ndarray (Y, X) float32, a new array.
+    """
+    d = np.ascontiguousarray(disparity, np.float32)
+    near, far, band = _edge_band(d, radius, jump)
+    if not band.any():
+        return d.copy()
+    zero = np.zeros(1)
+    c_all = half_plane_cost_volume(views, zero, radius=1, base=d, n_sectors=1)[..., 0]
+    c_far = half_plane_cost_volume(views, zero, radius=1, base=far)[..., 0]
+    switch = band & (d > 0.5 * (near + far)) & (c_all > np.float32(ratio) * c_far)
+    d = np.where(switch, far, d).astype(np.float32)
+    log.debug("occlusion edges: %.2f %% of pixels in the band, %.2f %% moved to the far side",
+              100.0 * band.mean(), 100.0 * switch.mean())
+    if median_radius > 0:
+        _, _, band = _edge_band(d, radius, jump)
+        g = guide if guide.ndim == 2 or guide.shape[-1] in (1, 3) else guide[..., :3]
+        # with a colour guide OpenCV clusters the colours from random seeds (the thread's cv::RNG): seed it so
+        # the same input gives the same map
+        cv2.setRNGSeed(0)
+        wm = cv2.ximgproc.weightedMedianFilter(np.ascontiguousarray(g), d, int(median_radius), 25.5)
+        d = np.where(band, wm, d).astype(np.float32)
+    return d
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -621,8 +708,10 @@ def weighted_median(guide: np.ndarray, disparity: np.ndarray, radius: int, sigma
 # ---------------------------------------------------------------------------------------------------------------
 #: Parameters of :func:`run_pipeline` (each method module supplies its own defaults for all of them).
 PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "median_radius", "refine_radius",
-                 "refine_range", "refine_samples", "grey", "pattern", "contrast_sigma", "contrast_eps", "contrast_weight",
-                 "min_view_weight", "disparity_range")
+                 "refine_range", "refine_samples", "grey", "pattern", "contrast_sigma", "contrast_eps",
+                 "contrast_weight",
+                 "min_view_weight", "disparity_range", "edge_radius", "edge_jump", "edge_ratio",
+                 "edge_median_radius")
 
 
 def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]) -> dict[str, Any]:
@@ -638,7 +727,10 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
         raise ValueError(f"contrast_sigma must be >= 0, got {p['contrast_sigma']!r}")
     if p["contrast_weight"] is not None and not float(p["contrast_weight"]) > 0:
         raise ValueError(f"contrast_weight must be positive or None, got {p['contrast_weight']!r}")
-    for name in ("radius", "median_radius", "refine_radius"):
+    if not float(p["edge_jump"]) > 0 or not float(p["edge_ratio"]) > 0:
+        raise ValueError(f"edge_jump and edge_ratio must be positive, got edge_jump={p['edge_jump']!r}, "
+                         f"edge_ratio={p['edge_ratio']!r}")
+    for name in ("radius", "median_radius", "refine_radius", "edge_radius", "edge_median_radius"):
         if name == "refine_radius" and p[name] == "auto":
             continue
         if int(p[name]) < 0:
@@ -698,6 +790,10 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
                                       base=disparity, progress=stage(n_labels + n_paths))
         offset, _ = winner(fine, deltas)
         disparity = disparity + offset
+    if int(p["edge_radius"]) > 0:
+        disparity = fix_occlusion_edges(views, disparity, colour_guide(lf), radius=int(p["edge_radius"]),
+                                        jump=float(p["edge_jump"]), ratio=float(p["edge_ratio"]),
+                                        median_radius=int(p["edge_median_radius"]))
     params = {**p, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
               "disparity_range_source": source, "n_labels": n_labels, "views_used": len(views.used()) + 1}
     return disparity.astype(np.float32), confidence, params
@@ -707,6 +803,6 @@ __all__ = [
     "Views", "prepare_views", "disparity_range", "estimate_disparity_range", "metadata_disparity_range",
     "make_labels", "half_plane_cost_volume", "half_plane_groups", "sgm",
     "weighted_median", "shift_view", "remap_view", "sector_of", "N_SECTORS", "view_pattern",
-    "winner",
+    "winner", "colour_guide", "fix_occlusion_edges",
     "run_pipeline", "check_params", "PIPELINE_KEYS",
 ]

@@ -4,9 +4,9 @@ Pipeline (each step is a pure function of :mod:`plenodecode.depth._core`):
 
 0. **Matching images**: the grey views, plus the same views after a local contrast normalisation
    ``(I - G*I) / (sqrt(G*(I - G*I)^2) + eps)`` (Gaussian ``G`` of 1.5 px) stacked as a second channel with
-   weight 0.05.  Faint texture in shadows and on pale surfaces then counts in the cost as much as strong
+   weight 0.07.  Faint texture in shadows and on pale surfaces then counts in the cost as much as strong
    texture (the normalisation of a normalised cross-correlation), while smooth, high-contrast texture keeps
-   its low frequencies in the intensity channel.  On hci-antinous this takes BadPix0.07 from 16 % to 5.9 %.
+   its low frequencies in the intensity channel.  On hci-antinous this takes BadPix0.07 from 16 % to about 5 %.
 1. **Cost volume** over uniformly spaced disparity labels: every used view is shifted onto the centre view
    and its weighted squared colour difference summed per angular sector; the cost of a pixel is the minimum
    over half-planes of views of the box-aggregated mean difference, so a point occluded in the views on one
@@ -21,6 +21,11 @@ Pipeline (each step is a pure function of :mod:`plenodecode.depth._core`):
    ``+-refine_range`` labels around the estimate, every view warped per pixel by ``d(y, x) + offset``
    (bicubic), so slanted surfaces match exactly (SGM's label penalties favour fronto-parallel steps); its
    parabolic minimum is added to the estimate.
+6. **Occlusion edges** (:func:`plenodecode.depth._core.fix_occlusion_edges`): within 4 px of a disparity
+   jump, a pixel on the near side whose cost over *all* views (an occluder is seen by every view) exceeds
+   1.5 x the far disparity's half-plane cost moves to the far side; then a weighted median guided by the
+   colour centre view snaps the depth edge to the colour edge.  On hci-antinous this removes most of the
+   foreground fattening around the statue (MSE x 100 11.4 -> 6.2).
 
 Confidence is the peak ratio of the aggregated cost (1 - best / second-best distinct minimum).
 """
@@ -41,7 +46,7 @@ log = logging.getLogger(__name__)
 DEFAULTS: dict[str, Any] = {
     "label_step": 0.1,        # px per view step between labels
     "radius": 1,              # box aggregation radius of the matching cost
-    "p1": 0.2,                # SGM small-step penalty, in units of the median per-pixel cost span
+    "p1": 0.1,                # SGM small-step penalty, in units of the median per-pixel cost span
     "p2": 3.0,                # SGM jump penalty (same units), lowered at image edges
     "edge_sigma": 0.02,       # guide step (grey centre view in [0, 1]) that halves P2
     "paths": 8,
@@ -53,9 +58,13 @@ DEFAULTS: dict[str, Any] = {
     "pattern": None,          # all views
     "contrast_sigma": 1.5,    # local contrast normalisation of the views (Gaussian sigma, px; 0 = off)
     "contrast_eps": 0.005,
-    "contrast_weight": 0.05,  # normalised views stacked beside the intensities with this weight (None: replace)
+    "contrast_weight": 0.07,  # normalised views stacked beside the intensities with this weight (None: replace)
     "min_view_weight": 0.1,
     "disparity_range": None,
+    "edge_radius": 4,         # occlusion-edge fix (_core.fix_occlusion_edges) within this many px of a jump; 0 = off
+    "edge_jump": 0.5,         # disparity jump (px per view step) that makes a depth edge
+    "edge_ratio": 1.5,        # near-side pixels whose all-view cost exceeds this x the far half-plane cost move back
+    "edge_median_radius": 5,  # colour-guided weighted median over the edge band (0 = off)
 }
 
 

@@ -11,7 +11,11 @@ method then run with coarser labels and fewer aggregation paths:
 2. semi-global aggregation along 4 paths with an edge-adaptive jump penalty (Hirschmueller, TPAMI 2008);
 3. parabolic sub-label minimum, peak-ratio confidence, weighted-median clean-up guided by the centre view;
 4. the per-pixel refinement of :mod:`plenodecode.depth.costvolume` (a narrow cost volume of offsets around
-   the estimate, views warped per pixel) over the star views.
+   the estimate, views warped per pixel) over the star views;
+5. the occlusion-edge fix of :mod:`plenodecode.depth.costvolume` (visibility check + colour-guided weighted
+   median in the band around depth edges).
+
+The cost volume's labels run on two threads (OpenCV releases the GIL).
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ log = logging.getLogger(__name__)
 
 #: Default parameters (keywords of :func:`estimate`).
 DEFAULTS: dict[str, Any] = {
-    "label_step": 0.2,
+    "label_step": 0.25,
     "radius": 1,
     "p1": 0.2,
     "p2": 3.0,
@@ -37,7 +41,7 @@ DEFAULTS: dict[str, Any] = {
     "median_radius": 3,
     "refine_radius": "auto",  # per-pixel refinement over the star views (see costvolume); 0 = off
     "refine_range": 1.0,
-    "refine_samples": 9,
+    "refine_samples": 5,
     "grey": True,             # match one luma channel
     "pattern": "star",        # the views on the 4 lines through the centre
     "contrast_sigma": 1.5,    # local contrast normalisation of the views (Gaussian sigma, px; 0 = off)
@@ -45,6 +49,10 @@ DEFAULTS: dict[str, Any] = {
     "contrast_weight": 0.05,  # normalised views stacked beside the intensities with this weight (None: replace)
     "min_view_weight": 0.1,
     "disparity_range": None,
+    "edge_radius": 4,         # occlusion-edge fix (_core.fix_occlusion_edges) within this many px of a jump; 0 = off
+    "edge_jump": 0.5,         # disparity jump (px per view step) that makes a depth edge
+    "edge_ratio": 1.5,        # near-side pixels whose all-view cost exceeds this x the far half-plane cost move back
+    "edge_median_radius": 5,  # colour-guided weighted median over the edge band (0 = off)
 }
 
 
