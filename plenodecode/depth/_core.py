@@ -651,6 +651,15 @@ def _edge_band(disparity: np.ndarray, radius: int, jump: float) -> tuple[np.ndar
     return near, far, (near - far) > np.float32(jump)
 
 
+#: Occlusion-edge pass parameters of :func:`run_pipeline`, the same for every method.
+EDGE_DEFAULTS: dict[str, Any] = {
+    "edge_radius": 4,         # fix_occlusion_edges within this many px of a jump; 0 = off
+    "edge_jump": 0.5,         # disparity jump (px per view step) that makes a depth edge
+    "edge_ratio": 1.5,        # near-side pixels whose all-view cost exceeds this x the far half-plane cost move back
+    "edge_median_radius": 5,  # colour-guided weighted median over the edge band (0 = off)
+}
+
+
 def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, *, radius: int = 4,
                         jump: float = 0.5, ratio: float = 1.5, median_radius: int = 7) -> np.ndarray:
     """Remove the foreground fattening at depth discontinuities.
@@ -709,9 +718,7 @@ def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, 
 #: Parameters of :func:`run_pipeline` (each method module supplies its own defaults for all of them).
 PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "median_radius", "refine_radius",
                  "refine_range", "refine_samples", "grey", "pattern", "contrast_sigma", "contrast_eps",
-                 "contrast_weight",
-                 "min_view_weight", "disparity_range", "edge_radius", "edge_jump", "edge_ratio",
-                 "edge_median_radius")
+                 "contrast_weight", "min_view_weight", "disparity_range", *EDGE_DEFAULTS)
 
 
 def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]) -> dict[str, Any]:
@@ -803,6 +810,6 @@ __all__ = [
     "Views", "prepare_views", "disparity_range", "estimate_disparity_range", "metadata_disparity_range",
     "make_labels", "half_plane_cost_volume", "half_plane_groups", "sgm",
     "weighted_median", "shift_view", "remap_view", "sector_of", "N_SECTORS", "view_pattern",
-    "winner", "colour_guide", "fix_occlusion_edges",
+    "winner", "colour_guide", "fix_occlusion_edges", "EDGE_DEFAULTS",
     "run_pipeline", "check_params", "PIPELINE_KEYS",
 ]

@@ -15,7 +15,7 @@ method then run with coarser labels and fewer aggregation paths:
 5. the occlusion-edge fix of :mod:`plenodecode.depth.costvolume` (visibility check + colour-guided weighted
    median in the band around depth edges).
 
-The cost volume's labels run on two threads (OpenCV releases the GIL).
+The cost volume's labels run on all cores, up to 4 threads (OpenCV releases the GIL).
 """
 
 from __future__ import annotations
@@ -49,10 +49,7 @@ DEFAULTS: dict[str, Any] = {
     "contrast_weight": 0.05,  # normalised views stacked beside the intensities with this weight (None: replace)
     "min_view_weight": 0.1,
     "disparity_range": None,
-    "edge_radius": 4,         # occlusion-edge fix (_core.fix_occlusion_edges) within this many px of a jump; 0 = off
-    "edge_jump": 0.5,         # disparity jump (px per view step) that makes a depth edge
-    "edge_ratio": 1.5,        # near-side pixels whose all-view cost exceeds this x the far half-plane cost move back
-    "edge_median_radius": 5,  # colour-guided weighted median over the edge band (0 = off)
+    **_core.EDGE_DEFAULTS,
 }
 
 
