@@ -20,8 +20,9 @@ def planes_lightfield(n=7, size=64, d_back=-0.6, d_front=1.0, square=(20, 44, 18
     """Views of a textured background plane and a textured square in front of it (exact occlusion).
 
     View (v, u) at pixel (y, x) sees the front square where (y + d_front dv, x + d_front du) lies inside
-    ``square`` (centre-view coordinates), else the background at (y + d_back dv, x + d_back du): the HCI
-    convention view[v, u](y - d dv, x - d du) = centre(y, x).
+    ``square`` (centre-view coordinates ``(y0, y1, x0, x1)``, or a list of them whose union is the occluder),
+    else the background at (y + d_back dv, x + d_back du): the HCI convention
+    view[v, u](y - d dv, x - d du) = centre(y, x).
     """
     rng = np.random.default_rng(seed)
     pad = 16
@@ -29,13 +30,17 @@ def planes_lightfield(n=7, size=64, d_back=-0.6, d_front=1.0, square=(20, 44, 18
     tf = [_texture(rng, (size + 2 * pad, size + 2 * pad)) for _ in range(channels)]
     c = n // 2
     yy, xx = np.mgrid[0:size, 0:size].astype(np.float64)
-    y0, y1, x0, x1 = square
+    rects = [square] if np.ndim(square) == 1 else list(square)
+
+    def inside(y, x):
+        return np.any([(y >= y0) & (y < y1) & (x >= x0) & (x < x1) for y0, y1, x0, x1 in rects], axis=0)
+
     data = np.empty((n, n, size, size, channels), np.float32)
     for v in range(n):
         for u in range(n):
             dv, du = v - c, u - c
             fy, fx = yy + d_front * dv, xx + d_front * du
-            front = (fy >= y0) & (fy < y1) & (fx >= x0) & (fx < x1)
+            front = inside(fy, fx)
             by, bx = yy + d_back * dv, xx + d_back * du
             for ch in range(channels):
                 b = ndimage.map_coordinates(tb[ch], [by + pad, bx + pad], order=3, mode="nearest")
@@ -43,8 +48,7 @@ def planes_lightfield(n=7, size=64, d_back=-0.6, d_front=1.0, square=(20, 44, 18
                 data[v, u, :, :, ch] = np.where(front, f, b)
     if noise:
         data += rng.normal(0, noise, data.shape).astype(np.float32)
-    gt = np.full((size, size), d_back, np.float32)
-    gt[y0:y1, x0:x1] = d_front
+    gt = np.where(inside(yy, xx), d_front, d_back).astype(np.float32)
     return LightField(data, None, "srgb", {"disparity_range": [-1.2, 1.5]}), gt
 
 
