@@ -74,3 +74,29 @@ def test_info_errors_are_one_line(tmp_path):
 def test_info_help_has_an_example():
     res = CliRunner().invoke(cli, ["info", "--help"])
     assert res.exit_code == 0 and "Example" in res.output and "plenodecode info" in res.output
+
+
+def test_info_on_metadata_files_alone(tmp_path):
+    """The .TXT / .json metadata of a headerless raw describes that raw; a JSON that is not Lytro metadata
+    gets a one-line error."""
+    _, side = write_raw_pair(tmp_path / "MOD_0000.RAW", _raw("B01", white=True))
+    res = run(side)
+    assert res.exit_code == 0, res.output
+    assert "Lytro metadata for a headerless raw (MOD_0000.RAW is beside it)" in res.output
+    assert "kind     metadata of a white image" in res.output and "raw      32 x 24, 10 bit (little), GRBG" in res.output
+    (tmp_path / "MOD_0000.RAW").unlink()
+    assert "no MOD_0000.RAW beside it" in run(side).output
+    other = tmp_path / "settings.json"
+    other.write_text('{"a": 1}')
+    res = CliRunner().invoke(cli, ["info", str(other)])
+    assert res.exit_code == 1 and res.output.strip().count("\n") == 0 and "not Lytro frame metadata" in res.output
+
+
+def test_info_on_the_real_metadata_files():
+    res = run(shared_path("lytro-containers", "lenslet_whiteimage.TXT"),
+              shared_path("lytro-containers", "IMG_0001__frame.json"))
+    assert res.exit_code == 0, res.output
+    white, frame = res.output.split("\n\n")
+    assert "camera   B01 (Lytro, Inc.)" in white and "serial   B5143909630" in white
+    assert "metadata of a white image" in white and "7728 x 5368, 10 bit (little), GRBG, black 64, white 1023" in white
+    assert "camera   F01" in frame and "metadata of a raw" in frame and "3280 x 3280, 12 bit (big), BGGR" in frame

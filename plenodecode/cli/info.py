@@ -100,6 +100,31 @@ def _describe_raw_pair(path: Path) -> list[str]:
     return lines
 
 
+def _describe_sidecar(path: Path) -> list[str]:
+    """A Lytro JSON metadata file on its own (``MOD_NNNN.TXT``, ``*__frame.json``): what the raw it
+    describes is, and whether that raw is beside it."""
+    from ..errors import MetadataError
+    from ..io import lytro
+
+    doc = lytro._read_sidecar(path)
+    try:
+        if not isinstance(doc, Mapping):
+            raise MetadataError(f"expected a JSON object, found {type(doc).__name__}")
+        cam, cfa, black, white, w, h, bits, endian = lytro.metadata_from_lytro(doc, None, path)
+    except MetadataError as exc:
+        raise FormatError(f"{path}: JSON, but not Lytro frame metadata ({exc}); info describes raws, containers "
+                          "and the .TXT/.json metadata of Lytro raws") from None
+    raws = [path.with_suffix(ext) for ext in (".RAW", ".raw")]
+    raw = next((r for r in raws if r.is_file()), None)
+    lines = [f"{path}: Lytro metadata for a headerless raw "
+             f"({raw.name + ' is beside it' if raw else 'no ' + path.stem + '.RAW beside it'})"]
+    lines += _camera_lines(cam.model, cam.make, cam.serial)
+    lines.append(f"  kind     {'metadata of a white image' if cam.is_white_image else 'metadata of a raw'}")
+    lines.append(f"  raw      {w} x {h}, {bits} bit ({endian}), {cfa}, black {_levels(black)}, white {_levels(white)}")
+    lines += _lens_lines(cam)
+    return lines
+
+
 def _describe_other(path: Path) -> list[str]:
     try:
         from ..io import read_raw
@@ -132,6 +157,8 @@ def describe(path: Path) -> list[str]:
         return _describe_container(path)
     if path.suffix.lower() == ".raw" and lytro.find_sidecar(path) is not None:
         return _describe_raw_pair(path)
+    if path.suffix.lower() in (".txt", ".json"):
+        return _describe_sidecar(path)
     return _describe_other(path)
 
 
@@ -141,7 +168,7 @@ def info(files: tuple[Path, ...]) -> None:
     """Describe raws and containers: camera, serial, kind, image sizes, sections.
 
     Works on Lytro .lfp/.LFP/.lfr containers (raw or processed), MOD_NNNN.RAW + .TXT
-    white images, and any raw plenodecode reads.
+    white images (or their .TXT/.json metadata alone), and any raw plenodecode reads.
 
     \b
     Example:
