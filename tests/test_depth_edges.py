@@ -35,9 +35,9 @@ def test_visibility_check_alone_and_a_correct_map(scene):
     front = gt > 0
     fat = np.where(ndimage.binary_dilation(front, iterations=2), 1.0, -0.6).astype(np.float32)
     only_check = _core.fix_occlusion_edges(views, fat, _core.colour_guide(lf), median_radius=0)
-    # measured 212 -> 60 wrong pixels
+    # measured 212 -> 59 wrong pixels
     assert np.count_nonzero(np.abs(only_check - gt) > 0.5) < 0.33 * np.count_nonzero(np.abs(fat - gt) > 0.5)
-    # the true map is kept: the occluder passes the all-view test (measured 3 px changed)
+    # the true map is kept: the occluder passes the all-view test (measured 5 px changed)
     same = _core.fix_occlusion_edges(views, gt, _core.colour_guide(lf), median_radius=0)
     assert np.count_nonzero(np.abs(same - gt) > 0.5) <= 8
     flat = np.full_like(gt, 0.3)                                        # no edge: returned unchanged

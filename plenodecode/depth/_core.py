@@ -310,23 +310,21 @@ def make_labels(lo: float, hi: float, step: float, *, pad: float = 0.0) -> np.nd
 # ---------------------------------------------------------------------------------------------------------------
 # occlusion-aware cost volume
 # ---------------------------------------------------------------------------------------------------------------
-def half_plane_groups(views: Views, n_sectors: int = N_SECTORS, span: int | None = None
-                      ) -> tuple[list[list[tuple[int, int]]], np.ndarray]:
+def half_plane_groups(views: Views, n_sectors: int, span: int) -> tuple[list[list[tuple[int, int]]], np.ndarray]:
     """Views per angular sector and the weight of each group of ``span`` consecutive sectors.
 
     Returns
     -------
     sectors : list of n_sectors lists of (v, u)
     group_weight : ndarray (n_sectors,) float64
-        Total view weight of group ``h`` = sectors ``h .. h + span - 1`` (mod n); ``span`` defaults to
-        ``n_sectors // 2`` (half-planes).
+        Total view weight of group ``h`` = sectors ``h .. h + span - 1`` (mod n); ``span = n_sectors // 2``
+        makes half-planes.
     """
     dv, du = views.offsets
     sectors: list[list[tuple[int, int]]] = [[] for _ in range(n_sectors)]
     for v, u in views.used():
         sectors[sector_of(dv[v, u], du[v, u], n_sectors)].append((v, u))
     sw = np.array([sum(float(views.weight[vu]) for vu in s) for s in sectors])
-    span = max(1, n_sectors // 2) if span is None else int(span)
     hw = np.array([sum(sw[(h + i) % n_sectors] for i in range(span)) for h in range(n_sectors)])
     return sectors, hw
 
@@ -379,7 +377,7 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
         raise ValueError(f"span must be in [1, n_sectors={n_sectors}], got {span!r}")
     sectors, hw = half_plane_groups(views, n_sectors, span)
     if not np.all(hw > 0):
-        # too few views for half-planes (e.g. a 1 x N light field): fall back to the plain mean over views
+        # too few views for every group (e.g. a 1 x N light field): fall back to the plain mean over views
         n_sectors = span = 1
         sectors = [[vu for s in sectors for vu in s]]
         hw = np.array([sum(float(views.weight[vu]) for vu in sectors[0])])
@@ -682,9 +680,10 @@ def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, 
        views (:func:`half_plane_cost_volume` with one sector, views warped per pixel by ``d``) must be small.
        A background pixel fattened by the occluder is seen by all views only on its own surface: its cost at
        the far disparity ``far`` over the views on the un-occluded side is lower.  Those views are the best
-       wedge of ``wedge`` of the 8 angular sectors (2: a 90 degree wedge; a half-plane's views nearly parallel
-       to the edge still look past a curved or slanted occluder, and on hci-antinous and the generated
-       scenes the 90 degree wedge is right more often than the half-plane).  Pixels with
+       wedge of ``wedge`` of the 8 angular sectors (2: a 90 degree wedge).  A half-plane would do beside a
+       straight edge, but in a concave pocket of the occluder's outline (between chin and neck on
+       hci-antinous) the background is hidden from views on two sides and every half-plane still looks past
+       the occluder.  Pixels with
        ``C_all(d) > ratio * C_wedge(far)`` take ``far`` (the occlusion reasoning of Kang, Szeliski & Chai,
        CVPR 2001 and Wang, Efros & Ramamoorthi, ICCV 2015, used as a left-right style consistency test).
     2. **Edge snapping.**  A weighted median of the disparity guided by the centre view in colour
