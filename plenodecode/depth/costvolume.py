@@ -7,6 +7,8 @@ Pipeline (each step is a pure function of :mod:`plenodecode.depth._core`):
    weight 0.07.  Faint texture in shadows and on pale surfaces then counts in the cost as much as strong
    texture (the normalisation of a normalised cross-correlation), while smooth, high-contrast texture keeps
    its low frequencies in the intensity channel.  On hci-antinous this takes BadPix0.07 from 16 % to about 5 %.
+   ``eps`` is at least 3 x the views' noise (:func:`plenodecode.depth._core.noise_sigma`), so that noise in
+   flat areas is not normalised into texture: on a decoded illum-mini raw BadPix0.07 12.4 -> 11.2 %.
 1. **Cost volume** over uniformly spaced disparity labels: every used view is shifted onto the centre view
    and its weighted squared colour difference summed per angular sector; the cost of a pixel is the minimum
    over half-planes of views of the box-aggregated mean difference, so a point occluded in the views on one
@@ -58,7 +60,8 @@ DEFAULTS: dict[str, Any] = {
     "grey": True,             # match one luma channel (as accurate as colour here, 3x faster)
     "pattern": None,          # all views
     "contrast_sigma": 1.5,    # local contrast normalisation of the views (Gaussian sigma, px; 0 = off)
-    "contrast_eps": 0.005,
+    "contrast_eps": 0.005,    # floor of the normalisation's eps
+    "contrast_noise": 3.0,    # eps = max(contrast_eps, this x the views' noise sigma); 0 = contrast_eps as given
     "contrast_weight": 0.07,  # normalised views stacked beside the intensities with this weight (None: replace)
     "min_view_weight": 0.1,
     "disparity_range": None,
