@@ -87,17 +87,22 @@ def _lens_lines(cam) -> list[str]:
     return [f"  lens     {', '.join(parts)}"] if parts else []
 
 
+def _raw_metadata_lines(title: str, metadata: tuple, kind: str) -> list[str]:
+    """Title, camera, serial, kind, raw layout and lens of a headerless Lytro raw, from the tuple
+    :func:`plenodecode.io.lytro.metadata_from_lytro` returns."""
+    cam, cfa, black, white, w, h, bits, endian = metadata
+    lines = [title, *_camera_lines(cam.model, cam.make, cam.serial), f"  kind     {kind}",
+             f"  raw      {w} x {h}, {bits} bit ({endian}), {cfa}, black {_levels(black)}, white {_levels(white)}"]
+    return lines + _lens_lines(cam)
+
+
 def _describe_raw_pair(path: Path) -> list[str]:
     from ..io import lytro
 
-    cam, cfa, black, white, w, h, bits, endian = lytro.read_raw_pair_metadata(path)
+    metadata = lytro.read_raw_pair_metadata(path)
     side = lytro.find_sidecar(path)
-    lines = [f"{path}: headerless Lytro raw with metadata {side.name if side else '?'}"]
-    lines += _camera_lines(cam.model, cam.make, cam.serial)
-    lines.append(f"  kind     {'raw, white image' if cam.is_white_image else 'raw'}")
-    lines.append(f"  raw      {w} x {h}, {bits} bit ({endian}), {cfa}, black {_levels(black)}, white {_levels(white)}")
-    lines += _lens_lines(cam)
-    return lines
+    return _raw_metadata_lines(f"{path}: headerless Lytro raw with metadata {side.name if side else '?'}",
+                               metadata, "raw, white image" if metadata[0].is_white_image else "raw")
 
 
 def _describe_sidecar(path: Path) -> list[str]:
@@ -110,19 +115,14 @@ def _describe_sidecar(path: Path) -> list[str]:
     try:
         if not isinstance(doc, Mapping):
             raise MetadataError(f"expected a JSON object, found {type(doc).__name__}")
-        cam, cfa, black, white, w, h, bits, endian = lytro.metadata_from_lytro(doc, None, path)
+        metadata = lytro.metadata_from_lytro(doc, None, path)
     except MetadataError as exc:
         raise FormatError(f"{path}: JSON, but not Lytro frame metadata ({exc}); info describes raws, containers "
                           "and the .TXT/.json metadata of Lytro raws") from None
-    raws = [path.with_suffix(ext) for ext in (".RAW", ".raw")]
-    raw = next((r for r in raws if r.is_file()), None)
-    lines = [f"{path}: Lytro metadata for a headerless raw "
-             f"({raw.name + ' is beside it' if raw else 'no ' + path.stem + '.RAW beside it'})"]
-    lines += _camera_lines(cam.model, cam.make, cam.serial)
-    lines.append(f"  kind     {'metadata of a white image' if cam.is_white_image else 'metadata of a raw'}")
-    lines.append(f"  raw      {w} x {h}, {bits} bit ({endian}), {cfa}, black {_levels(black)}, white {_levels(white)}")
-    lines += _lens_lines(cam)
-    return lines
+    raw = next((r for r in (path.with_suffix(".RAW"), path.with_suffix(".raw")) if r.is_file()), None)
+    beside = f"{raw.name} is beside it" if raw else f"no {path.stem}.RAW beside it"
+    return _raw_metadata_lines(f"{path}: Lytro metadata for a headerless raw ({beside})", metadata,
+                               "metadata of a white image" if metadata[0].is_white_image else "metadata of a raw")
 
 
 def _describe_other(path: Path) -> list[str]:
