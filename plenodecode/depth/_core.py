@@ -714,6 +714,16 @@ EDGE_DEFAULTS: dict[str, Any] = {
 }
 
 
+#: Matching-view parameters of :func:`run_pipeline` that both methods share (see :func:`prepare_views`).
+VIEW_DEFAULTS: dict[str, Any] = {
+    "contrast_sigma": 1.5,    # local contrast normalisation of the views (Gaussian sigma, px; 0 = off)
+    "contrast_eps": 0.005,    # floor of the normalisation's eps
+    "contrast_noise": 3.0,    # eps = max(contrast_eps, this x the views' noise sigma); 0 = contrast_eps as given
+    "min_view_weight": 0.1,   # views with a lower decoder weight (relative to the centre view) are dropped
+    "disparity_range": None,  # (lo, hi) px per view step; None = the metadata's, else estimated
+}
+
+
 def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, *, radius: int = 4,
                         jump: float = 0.5, ratio: float = 1.5, wedge: int = 2, median_radius: int = 5) -> np.ndarray:
     """Remove the foreground fattening at depth discontinuities.
@@ -883,6 +893,6 @@ __all__ = [
     "Views", "prepare_views", "disparity_range", "estimate_disparity_range", "metadata_disparity_range",
     "make_labels", "half_plane_cost_volume", "half_plane_groups", "sgm", "add_contrast", "noise_sigma",
     "weighted_median", "shift_view", "remap_view", "sector_of", "N_SECTORS", "view_pattern",
-    "winner", "colour_guide", "fix_occlusion_edges", "EDGE_DEFAULTS",
+    "winner", "colour_guide", "fix_occlusion_edges", "EDGE_DEFAULTS", "VIEW_DEFAULTS",
     "run_pipeline", "check_params", "PIPELINE_KEYS",
 ]

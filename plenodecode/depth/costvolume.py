@@ -59,12 +59,8 @@ DEFAULTS: dict[str, Any] = {
     "refine_samples": 9,
     "grey": True,             # match one luma channel (as accurate as colour here, 3x faster)
     "pattern": None,          # all views
-    "contrast_sigma": 1.5,    # local contrast normalisation of the views (Gaussian sigma, px; 0 = off)
-    "contrast_eps": 0.005,    # floor of the normalisation's eps
-    "contrast_noise": 3.0,    # eps = max(contrast_eps, this x the views' noise sigma); 0 = contrast_eps as given
     "contrast_weight": 0.07,  # normalised views stacked beside the intensities with this weight (None: replace)
-    "min_view_weight": 0.1,
-    "disparity_range": None,
+    **_core.VIEW_DEFAULTS,
     **_core.EDGE_DEFAULTS,
 }
 
