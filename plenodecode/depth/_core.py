@@ -329,8 +329,10 @@ def _downsample(data: np.ndarray, f: int) -> np.ndarray:
     return out
 
 
-def disparity_range(lf: LightField, views: Views, requested: Any = None) -> tuple[tuple[float, float], str]:
-    """The search range: ``requested`` (``disparity_range=`` keyword), else the metadata, else estimated.
+def disparity_range(lf: LightField, views: Callable[[], Views], requested: Any = None
+                    ) -> tuple[tuple[float, float], str]:
+    """The search range: ``requested`` (``disparity_range=`` keyword), else the metadata, else estimated
+    from the matching views ``views()`` builds (called only then).
 
     Returns
     -------
@@ -341,7 +343,7 @@ def disparity_range(lf: LightField, views: Views, requested: Any = None) -> tupl
     r = metadata_disparity_range(lf.metadata)
     if r is not None:
         return r, "metadata"
-    return estimate_disparity_range(views), "estimated"
+    return estimate_disparity_range(views()), "estimated"
 
 
 def make_labels(lo: float, hi: float, step: float, *, pad: float = 0.0) -> np.ndarray:
@@ -829,19 +831,24 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     """
     plain = prepare_views(lf, min_view_weight=float(p["min_view_weight"]), grey=bool(p["grey"]),
                           pattern=p["pattern"])
-    sigma, eps = float(p["contrast_sigma"]), float(p["contrast_eps"])
+    sigma, floor, k = float(p["contrast_sigma"]), float(p["contrast_eps"]), float(p["contrast_noise"])
     weight = None if p["contrast_weight"] is None else float(p["contrast_weight"])
-    views = add_contrast(plain, sigma, eps, weight) if sigma > 0 else plain
-    (lo, hi), source = disparity_range(lf, views, p["disparity_range"])
-    noise = 0.0
-    if sigma > 0 and float(p["contrast_noise"]) > 0:
+    built: dict[float, Views] = {}
+
+    def matching_views(eps: float) -> Views:
+        if eps not in built:
+            built[eps] = add_contrast(plain, sigma, eps, weight) if sigma > 0 else plain
+        return built[eps]
+
+    (lo, hi), source = disparity_range(lf, lambda: matching_views(floor), p["disparity_range"])
+    noise, eps = 0.0, floor
+    if sigma > 0 and k > 0:
         # the normalisation's floor above the noise, so that noise in flat areas is not matched as texture
         noise = noise_sigma(plain, lo, hi)
-        if float(p["contrast_noise"]) * noise > eps:
-            eps = float(p["contrast_noise"]) * noise
-            views = add_contrast(plain, sigma, eps, weight)
+        eps = max(floor, k * noise)
         log.info("view noise sigma %.4f: contrast eps %.4f", noise, eps)
-    del plain
+    views = matching_views(eps)
+    del plain, built
     step = float(p["label_step"])
     labels = make_labels(lo, hi, step, pad=2 * step)
     n_labels, n_paths = len(labels), int(p["paths"])
