@@ -706,6 +706,169 @@ def _edge_band(disparity: np.ndarray, radius: int, jump: float) -> tuple[np.ndar
     return near, far, (near - far) > np.float32(jump)
 
 
+@njit(cache=True, nogil=True)
+def _splat_max(disparity, dv, du, out):
+    # z-buffer of one view: every centre pixel p lands at p - d(p) (dv, du) in the view; the four pixels around
+    # that point keep the largest (nearest) disparity landing on them
+    Y, X = disparity.shape
+    for y in range(Y):
+        for x in range(X):
+            d = disparity[y, x]
+            ty = y - d * dv
+            tx = x - d * du
+            fy = int(math.floor(ty))
+            fx = int(math.floor(tx))
+            for qy in range(fy, fy + 2):
+                if 0 <= qy < Y:
+                    for qx in range(fx, fx + 2):
+                        if 0 <= qx < X and d > out[qy, qx]:
+                            out[qy, qx] = d
+
+
+def nearest_surface(disparity: np.ndarray, dv: float, du: float) -> np.ndarray:
+    """Z-buffer of the view at offset ``(dv, du)``: (Y, X) float32, the largest disparity of the centre-view
+    pixels ``p`` whose image ``p - d(p) (dv, du)`` falls within one pixel, ``-inf`` where none does."""
+    out = np.full(disparity.shape, -np.inf, np.float32)
+    _splat_max(np.ascontiguousarray(disparity, np.float32), float(dv), float(du), out)
+    return out
+
+
+def _side_fill(disparity: np.ndarray, mask: np.ndarray, sigma: float) -> np.ndarray:
+    """Normalised convolution of the disparity over ``mask``: each pixel's Gaussian-weighted mean of the
+    masked pixels (its own value where no masked pixel is near)."""
+    m = mask.astype(np.float32)
+    num = cv2.GaussianBlur(disparity * m, (0, 0), sigma)
+    den = cv2.GaussianBlur(m, (0, 0), sigma)
+    return np.where(den > 1e-3, num / np.maximum(den, 1e-6), disparity).astype(np.float32)
+
+
+def _as_map(values: np.ndarray, ys: np.ndarray, xs: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    out = np.zeros(shape, bool)
+    out[ys, xs] = values
+    return out
+
+
+def visibility_relabel(intensities: Views, disparity: np.ndarray, *, radius: int = 4, jump: float = 0.5,
+                       ratio: float = 1.5, search: float = 0.2, min_visible: float = 0.25) -> np.ndarray:
+    """Move edge pixels to the side of a depth edge their own colour matches in the views that see it.
+
+    Within ``radius`` px of a jump (:func:`_edge_band`) each pixel has two hypotheses, the disparity of the
+    near side and of the far side around it (Gaussian-weighted means of the pixels on each side,
+    ``sigma = radius / 2``).  Its per-pixel cost (no box: a box beside an edge mixes both surfaces) is
+
+        C(p, h) = min_{|e| <= search}  sum_{t in vis(p, h + e)} w_t |I_t(p - (h + e) o_t) - I_c(p)|^2
+                                        / sum_{t in vis(p, h + e)} w_t
+
+    over the intensities (the local contrast normalisation mixes both surfaces near an edge), bicubic.
+    A near hypothesis is seen by every view.  A far one is hidden in view ``t`` when a z-buffer of the
+    current map (:func:`nearest_surface`) has a surface nearer by more than ``jump / 2`` at its image: the
+    occlusion reasoning of Kang, Szeliski & Chai (CVPR 2001) with the occluders taken from the map itself
+    rather than from a fixed split of the views.  Fewer than ``min_visible`` of the view weight: no far
+    hypothesis.  A pixel moves to the other side when that side's cost is ``ratio`` times lower.
+
+    This places the thin rims the box costs cannot: the 1-3 px band of an occluder's silhouette that has
+    the background's colour (on hci-antinous the dark outline of the statue, MSE x 100 4.7 -> 2.6).
+
+    Parameters
+    ----------
+    intensities : Views
+        Views without contrast channels (:func:`prepare_views` with ``contrast_sigma=0``).
+    disparity : ndarray (Y, X) float32
+
+    Returns
+    -------
+    ndarray (Y, X) float32, a new array.
+    """
+    d = np.ascontiguousarray(disparity, np.float32)
+    near, far, band = _edge_band(d, radius, jump)
+    is_near = d > 0.5 * (near + far)
+    sigma = max(radius / 2.0, 1.0)
+    h_near = _side_fill(d, band & is_near, sigma)
+    h_far = _side_fill(d, band & ~is_near, sigma)
+    band &= (h_near - h_far) > np.float32(jump)
+    ys, xs = np.nonzero(band)
+    out = d.copy()
+    if len(ys) == 0:
+        return out
+    n = len(ys)
+    # the band's pixels as a (rows, 1024) image for cv2.remap (whose maps must be under 32767 wide)
+    cols = min(n, 1024)
+    rows = -(-n // cols)
+
+    def as_image(a: np.ndarray) -> np.ndarray:
+        flat = np.zeros((rows * cols,) + a.shape[1:], a.dtype)
+        flat[:n] = a
+        return flat.reshape((rows, cols) + a.shape[1:])
+
+    px, py = as_image(xs.astype(np.float32)), as_image(ys.astype(np.float32))
+    hyp = {"near": as_image(h_near[ys, xs]), "far": as_image(h_far[ys, xs])}
+    centre = as_image(intensities.data[intensities.centre][ys, xs])                # (rows, cols, C)
+    offsets = np.linspace(-search, search, 5).astype(np.float32)
+    dv_all, du_all = intensities.offsets
+    used = intensities.used()
+    threads = max(1, min(4, os.cpu_count() or 1))
+    total = np.float32(sum(float(intensities.weight[vu]) for vu in used))
+    margin = np.float32(0.5 * jump)
+
+    def best_cost(h0: np.ndarray, current: np.ndarray | None) -> np.ndarray:
+        # min over the offsets of the visible views' mean squared difference; current: the map the z-buffers
+        # come from (None: every view sees the hypothesis).  The views are split into 4 parts, each with its
+        # own sums, run on threads (the z-buffer kernel and OpenCV release the GIL); the fixed split keeps the
+        # sums the same on any number of cores.
+        with ThreadPoolExecutor(max_workers=threads) as pool:
+            parts = list(pool.map(lambda i: view_sums(h0, current, used[i::4]), range(4)))
+        cost = sum(p[0] for p in parts)
+        seen = sum(p[1] for p in parts)
+        c = np.where(seen >= min_visible * total, cost / np.maximum(seen, 1e-12), np.inf)
+        return c.min(axis=0).reshape(-1)[:n]
+
+    def view_sums(h0: np.ndarray, current: np.ndarray | None, views: list[tuple[int, int]]
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        cost = np.zeros((len(offsets), rows, cols), np.float32)
+        seen = np.zeros((len(offsets), rows, cols), np.float32)
+        for vu in views:
+            w = np.float32(intensities.weight[vu])
+            dv, du = np.float32(dv_all[vu]), np.float32(du_all[vu])
+            zbuf = None if current is None else nearest_surface(current, dv, du)
+            for k, e in enumerate(offsets):
+                h = h0 + e
+                mx, my = px - h * du, py - h * dv
+                sample = cv2.remap(intensities.data[vu], mx, my, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
+                diff = np.square(sample.reshape(centre.shape) - centre).sum(axis=-1)
+                if zbuf is None:
+                    visible = w
+                else:
+                    z = cv2.remap(zbuf, mx, my, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE)
+                    visible = (z <= h + margin).astype(np.float32) * w
+                cost[k] += visible * diff
+                seen[k] += visible
+        return cost, seen
+
+    near_cost = best_cost(hyp["near"], None)
+    near_value, far_value = hyp["near"].reshape(-1)[:n], hyp["far"].reshape(-1)[:n]
+    side = is_near[ys, xs]
+    r = np.float32(ratio)
+    ring = np.ones((3, 3), np.uint8)
+    # one pixel layer per round: a pixel may join a side only next to it, and the next layer is judged with
+    # the z-buffers of the map that includes this one (a far point beside an eroded occluder looks visible
+    # in views where the occluder's cut-off rim hides it)
+    for _ in range(max(1, radius)):
+        far_cost = best_cost(hyp["far"], out)
+        near_map = _as_map(side, ys, xs, d.shape)
+        next_to_near = cv2.dilate(near_map.astype(np.uint8), ring).astype(bool)[ys, xs]
+        next_to_far = cv2.dilate((band & ~near_map).astype(np.uint8), ring).astype(bool)[ys, xs]
+        to_far = side & (far_cost * r < near_cost) & next_to_far
+        to_near = ~side & (near_cost * r < far_cost) & next_to_near
+        if not (to_far.any() or to_near.any()):
+            break
+        out[ys[to_far], xs[to_far]] = far_value[to_far]
+        out[ys[to_near], xs[to_near]] = near_value[to_near]
+        side = (side & ~to_far) | to_near
+        log.debug("visibility relabel: %d band pixels, %d to the far side, %d to the near side", n,
+                  int(to_far.sum()), int(to_near.sum()))
+    return out
+
+
 #: Occlusion-edge pass parameters of :func:`run_pipeline`, the same for every method.
 EDGE_DEFAULTS: dict[str, Any] = {
     "edge_radius": 4,         # fix_occlusion_edges within this many px of a jump; 0 = off
@@ -713,6 +876,7 @@ EDGE_DEFAULTS: dict[str, Any] = {
     "edge_ratio": 1.5,        # near-side pixels whose all-view cost exceeds this x the far wedge cost move back
     "edge_wedge": 2,          # the far cost's views: the best wedge of this many of the 8 sectors (2 = 90 deg)
     "edge_median_radius": 5,  # colour-guided weighted median over the edge band (0 = off)
+    "edge_visibility": True,  # then every band pixel takes the side its own colour matches (visibility_relabel)
 }
 
 
@@ -727,10 +891,11 @@ VIEW_DEFAULTS: dict[str, Any] = {
 
 
 def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, *, radius: int = 4,
-                        jump: float = 0.5, ratio: float = 1.5, wedge: int = 2, median_radius: int = 5) -> np.ndarray:
+                        jump: float = 0.5, ratio: float = 1.5, wedge: int = 2, median_radius: int = 5,
+                        intensities: Views | None = None) -> np.ndarray:
     """Remove the foreground fattening at depth discontinuities.
 
-    Two steps, both restricted to the band within ``radius`` px of a disparity jump larger than ``jump``
+    Three steps, all restricted to the band within ``radius`` px of a disparity jump larger than ``jump``
     (:func:`_edge_band`):
 
     1. **Visibility check.**  A pixel on the near side of a jump (``d > (near + far) / 2``) claims to lie on
@@ -747,6 +912,10 @@ def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, 
     2. **Edge snapping.**  A weighted median of the disparity guided by the centre view in colour
        (Ma et al., ICCV 2013; ``cv2.ximgproc.weightedMedianFilter``, radius ``median_radius``) replaces the
        band, so the remaining depth edge follows the colour edge.
+    3. **Per-pixel visibility** (:func:`visibility_relabel`, when ``intensities`` are given): every band pixel
+       takes the side whose disparity its own colour matches ``ratio`` times better in the views that see
+       it.  The median of step 2 puts the edge at the strongest colour edge, which cuts off an occluder's
+       silhouette rim when the rim is as dark as the background.
 
     Parameters
     ----------
@@ -755,6 +924,8 @@ def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, 
     disparity : ndarray (Y, X) float32
     guide : ndarray (Y, X, 3) or (Y, X, 1) uint8
         :func:`colour_guide`.
+    intensities : Views, optional
+        The views without contrast channels, for step 3 (None: step 3 is skipped).
 
     Returns
     -------
@@ -779,6 +950,8 @@ def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, 
         cv2.setRNGSeed(0)
         wm = cv2.ximgproc.weightedMedianFilter(np.ascontiguousarray(g), d, int(median_radius), 25.5)
         d = np.where(band, wm, d).astype(np.float32)
+    if intensities is not None:
+        d = visibility_relabel(intensities, d, radius=radius, jump=jump, ratio=ratio)
     return d
 
 
@@ -848,7 +1021,7 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
         eps = max(floor, k * noise)
         log.info("view noise sigma %.4f: contrast eps %.4f", noise, eps)
     views = matching_views(eps)
-    del plain, built
+    del built
     step = float(p["label_step"])
     labels = make_labels(lo, hi, step, pad=2 * step)
     n_labels, n_paths = len(labels), int(p["paths"])
@@ -889,7 +1062,8 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
         disparity = fix_occlusion_edges(views, disparity, colour_guide(lf), radius=int(p["edge_radius"]),
                                         jump=float(p["edge_jump"]), ratio=float(p["edge_ratio"]),
                                         wedge=int(p["edge_wedge"]),
-                                        median_radius=int(p["edge_median_radius"]))
+                                        median_radius=int(p["edge_median_radius"]),
+                                        intensities=plain if p["edge_visibility"] else None)
     params = {**p, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
               "noise_sigma": noise, "contrast_eps_used": eps,
               "disparity_range_source": source, "n_labels": n_labels, "views_used": len(views.used()) + 1}
@@ -900,6 +1074,7 @@ __all__ = [
     "Views", "prepare_views", "disparity_range", "estimate_disparity_range", "metadata_disparity_range",
     "make_labels", "half_plane_cost_volume", "half_plane_groups", "sgm", "add_contrast", "noise_sigma",
     "weighted_median", "shift_view", "remap_view", "sector_of", "N_SECTORS", "view_pattern",
-    "winner", "colour_guide", "fix_occlusion_edges", "EDGE_DEFAULTS", "VIEW_DEFAULTS",
+    "winner", "colour_guide", "fix_occlusion_edges", "visibility_relabel", "nearest_surface", "EDGE_DEFAULTS",
+    "VIEW_DEFAULTS",
     "run_pipeline", "check_params", "PIPELINE_KEYS",
 ]

@@ -29,6 +29,10 @@ Pipeline (each step is a pure function of :mod:`plenodecode.depth._core`):
    weighted median guided by the colour centre view snaps the depth edge to the colour edge.  On hci-antinous
    this removes most of the foreground fattening around the statue (MSE x 100 11.9 -> 4.7; with half-planes
    instead of wedges 6.2, as the background in concave pockets of the outline is hidden on two sides).
+   Last, every band pixel takes the side its own colour matches 1.5 x better over the views that see it,
+   one pixel layer per round (:func:`plenodecode.depth._core.visibility_relabel`; visibility from z-buffers of
+   the map): this puts back the statue's dark silhouette rim that the median gave to the equally dark
+   background (MSE x 100 4.7 -> 2.6).
 
 Confidence is the peak ratio of the aggregated cost (1 - best / second-best distinct minimum).
 """

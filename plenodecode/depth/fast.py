@@ -12,8 +12,8 @@ method then run with coarser labels and fewer aggregation paths:
 3. parabolic sub-label minimum, peak-ratio confidence, weighted-median clean-up guided by the centre view;
 4. the per-pixel refinement of :mod:`plenodecode.depth.costvolume` (a narrow cost volume of offsets around
    the estimate, views warped per pixel) over the star views;
-5. the occlusion-edge fix of :mod:`plenodecode.depth.costvolume` (visibility check + colour-guided weighted
-   median in the band around depth edges).
+5. the occlusion-edge fix of :mod:`plenodecode.depth.costvolume` (visibility check, colour-guided weighted
+   median and per-pixel visibility relabel in the band around depth edges).
 
 The cost volume's labels run on all cores, up to 4 threads (OpenCV releases the GIL).
 """
