@@ -764,10 +764,12 @@ def visibility_relabel(intensities: Views, disparity: np.ndarray, *, radius: int
     current map (:func:`nearest_surface`) has a surface nearer by more than ``jump / 2`` at its image: the
     occlusion reasoning of Kang, Szeliski & Chai (CVPR 2001) with the occluders taken from the map itself
     rather than from a fixed split of the views.  Fewer than ``min_visible`` of the view weight: no far
-    hypothesis.  A pixel moves to the other side when that side's cost is ``ratio`` times lower.
+    hypothesis.  A pixel moves to the other side when that side's cost is ``ratio`` times lower and it
+    touches that side, one pixel layer per round, up to ``radius`` rounds; a 3 x 3 median over the band
+    then removes isolated decisions.
 
     This places the thin rims the box costs cannot: the 1-3 px band of an occluder's silhouette that has
-    the background's colour (on hci-antinous the dark outline of the statue, MSE x 100 4.7 -> 2.6).
+    the background's colour (on hci-antinous the dark outline of the statue, MSE x 100 4.7 -> 2.3).
 
     Parameters
     ----------
@@ -866,6 +868,9 @@ def visibility_relabel(intensities: Views, disparity: np.ndarray, *, radius: int
         side = (side & ~to_far) | to_near
         log.debug("visibility relabel: %d band pixels, %d to the far side, %d to the near side", n,
                   int(to_far.sum()), int(to_near.sum()))
+    # where both sides match about equally (one flat colour on both) the per-pixel decisions are speckled: a
+    # 3 x 3 median over the band removes isolated ones (hci-antinous MSE x 100 2.55 -> 2.30)
+    out[ys, xs] = cv2.medianBlur(out, 3)[ys, xs]
     return out
 
 

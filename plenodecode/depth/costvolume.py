@@ -32,7 +32,7 @@ Pipeline (each step is a pure function of :mod:`plenodecode.depth._core`):
    Last, every band pixel takes the side its own colour matches 1.5 x better over the views that see it,
    one pixel layer per round (:func:`plenodecode.depth._core.visibility_relabel`; visibility from z-buffers of
    the map): this puts back the statue's dark silhouette rim that the median gave to the equally dark
-   background (MSE x 100 4.7 -> 2.6).
+   background; a 3 x 3 median over the band then removes isolated decisions (MSE x 100 4.7 -> 2.3).
 
 Confidence is the peak ratio of the aggregated cost (1 - best / second-best distinct minimum).
 """
