@@ -993,6 +993,8 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
             continue
         if int(p[name]) < 0:
             raise ValueError(f"{name} must be >= 0 (or 'auto' for refine_radius), got {p[name]!r}")
+    if not isinstance(p["edge_visibility"], (bool, np.bool_)):
+        raise ValueError(f"edge_visibility must be True or False, got {p['edge_visibility']!r}")
     if int(p["refine_samples"]) < 3:
         raise ValueError(f"refine_samples must be >= 3, got {p['refine_samples']!r}")
     return p
