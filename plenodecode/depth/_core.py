@@ -742,12 +742,6 @@ def _side_fill(disparity: np.ndarray, mask: np.ndarray, sigma: float) -> np.ndar
     return np.where(den > 1e-3, num / np.maximum(den, 1e-6), disparity).astype(np.float32)
 
 
-def _as_map(values: np.ndarray, ys: np.ndarray, xs: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    out = np.zeros(shape, bool)
-    out[ys, xs] = values
-    return out
-
-
 def visibility_relabel(intensities: Views, disparity: np.ndarray, *, radius: int = 4, jump: float = 0.5,
                        ratio: float = 1.5, search: float = 0.2, min_visible: float = 0.25) -> np.ndarray:
     """Move edge pixels to the side of a depth edge their own colour matches in the views that see it.
@@ -856,7 +850,8 @@ def visibility_relabel(intensities: Views, disparity: np.ndarray, *, radius: int
     # in views where the occluder's cut-off rim hides it)
     for _ in range(max(1, radius)):
         far_cost = best_cost(hyp["far"], out)
-        near_map = _as_map(side, ys, xs, d.shape)
+        near_map = np.zeros(d.shape, bool)
+        near_map[ys, xs] = side
         next_to_near = cv2.dilate(near_map.astype(np.uint8), ring).astype(bool)[ys, xs]
         next_to_far = cv2.dilate((band & ~near_map).astype(np.uint8), ring).astype(bool)[ys, xs]
         to_far = side & (far_cost * r < near_cost) & next_to_far
