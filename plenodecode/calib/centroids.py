@@ -273,48 +273,42 @@ def _blur_1d_moments(n: int, sigma: float) -> tuple[np.ndarray, np.ndarray, np.n
     return conv[0], conv[1], conv[2], t
 
 
+@numba.njit(cache=True, fastmath=True, inline="always")
+def _geometric_moments(r1, ry, ryy, ty, c1, cx, cxx, tx):  # pragma: no cover - compiled
+    """``(g1, m0y, m0x, myy, mxx, mxy)``: the Gaussian moments ``G * 1, G * (y' - y), G * (x' - x), ...`` of
+    one pixel from the separable 1-D blurs of its row (``r1, ry, ryy, ty``) and column (``c1, cx, cxx, tx``)."""
+    ay = ry - ty * r1
+    ayy = ryy - 2 * ty * ry + ty * ty * r1
+    ax = cx - tx * c1
+    axx = cxx - 2 * tx * cx + tx * tx * c1
+    return r1 * c1, ay * c1, r1 * ax, ayy * c1, r1 * axx, ay * ax
+
+
 @numba.njit(cache=True, parallel=True, fastmath=True)
 def _local_linear_level(r1, ry, ryy, ty, c1, cx, cxx, tx, s0, sy, sx):  # pragma: no cover - compiled
     """``beta0`` of the 3x3 normal equations of :func:`local_mean` per pixel (Cramer's rule).
 
-    The geometric moments are separable: ``G * 1 = r1 c1``, ``G * (y' - y) = (ry - ty r1) c1``, ...
-    ``s0, sy, sx`` are the Gaussian blurs of ``I``, ``I t_y`` and ``I t_x``.
+    The geometric moments are separable (:func:`_geometric_moments`); ``s0, sy, sx`` are the Gaussian
+    blurs of ``I``, ``I t_y`` and ``I t_x``.  A first pass finds the determinants, so that a determinant
+    tiny against the largest (a degenerate fit) falls back to the plain mean.
     """
     hs, ws = s0.shape
     det = np.empty((hs, ws))
     row_max = np.zeros(hs)
     for i in numba.prange(hs):
-        ay = ry[i] - ty[i] * r1[i]
-        ayy = ryy[i] - 2 * ty[i] * ry[i] + ty[i] * ty[i] * r1[i]
         for j in range(ws):
-            ax = cx[j] - tx[j] * c1[j]
-            axx = cxx[j] - 2 * tx[j] * cx[j] + tx[j] * tx[j] * c1[j]
-            g1 = r1[i] * c1[j]
-            m0y = ay * c1[j]
-            m0x = r1[i] * ax
-            myy = ayy * c1[j]
-            mxx = r1[i] * axx
-            mxy = ay * ax
+            g1, m0y, m0x, myy, mxx, mxy = _geometric_moments(r1[i], ry[i], ryy[i], ty[i], c1[j], cx[j], cxx[j], tx[j])
             d = g1 * (myy * mxx - mxy * mxy) + m0y * (m0x * mxy - m0y * mxx) + m0x * (m0y * mxy - m0x * myy)
             det[i, j] = d
             row_max[i] = max(row_max[i], abs(d))
     tiny = 1e-9 * row_max.max()
     out = np.empty((hs, ws), np.float32)
     for i in numba.prange(hs):
-        ay = ry[i] - ty[i] * r1[i]
-        ayy = ryy[i] - 2 * ty[i] * ry[i] + ty[i] * ty[i] * r1[i]
         for j in range(ws):
-            ax = cx[j] - tx[j] * c1[j]
-            axx = cxx[j] - 2 * tx[j] * cx[j] + tx[j] * tx[j] * c1[j]
-            g1 = r1[i] * c1[j]
+            g1, m0y, m0x, myy, mxx, mxy = _geometric_moments(r1[i], ry[i], ryy[i], ty[i], c1[j], cx[j], cxx[j], tx[j])
             v0 = np.float64(s0[i, j])
             d = det[i, j]
             if abs(d) > tiny:
-                m0y = ay * c1[j]
-                m0x = r1[i] * ax
-                myy = ayy * c1[j]
-                mxx = r1[i] * axx
-                mxy = ay * ax
                 by = sy[i, j] - ty[i] * v0
                 bx = sx[i, j] - tx[j] * v0
                 out[i, j] = ((myy * mxx - mxy * mxy) * v0 + (m0x * mxy - m0y * mxx) * by
