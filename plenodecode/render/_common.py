@@ -58,6 +58,14 @@ def check_lightfield(lf: Any) -> LightField:
     return lf
 
 
+def check_slopes(slopes: Any) -> np.ndarray:
+    """Refocus slopes as a (S,) float64 array; ValueError unless non-empty and finite."""
+    s = np.atleast_1d(np.asarray(slopes, np.float64)).ravel()
+    if s.size == 0 or not np.all(np.isfinite(s)):
+        raise ValueError(f"slopes must be a non-empty sequence of finite numbers, got {slopes}")
+    return s
+
+
 def tap_weights(t: np.ndarray, interp: str) -> tuple[np.ndarray, np.ndarray]:
     """Taps sampling a row at ``x + t`` for every ``x``.
 

@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from ..types import LightField
-from ._common import aperture_mask, check_lightfield
+from ._common import aperture_mask, check_lightfield, check_slopes
 from .refocusing import get_method
 
 log = logging.getLogger(__name__)
@@ -60,9 +60,7 @@ def focal_stack(lf: LightField, slopes: np.ndarray | list[float], *, method: str
     ndarray, shape (S, upsample Y, upsample X, C), float32
     """
     check_lightfield(lf)
-    s = np.atleast_1d(np.asarray(slopes, np.float64)).ravel()
-    if s.size == 0 or not np.all(np.isfinite(s)):
-        raise ValueError(f"slopes must be a non-empty sequence of finite numbers, got {slopes}")
+    s = check_slopes(slopes)
     fn = get_method(method)
     return fn(lf, s, aperture=aperture, upsample=upsample, progress=progress, **kw)
 

@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..types import LightField
-from ._common import INTERPOLATIONS, aperture_mask, check_lightfield, tap_weights
+from ._common import INTERPOLATIONS, aperture_mask, check_lightfield, check_slopes, tap_weights
 
 log = logging.getLogger(__name__)
 
@@ -457,9 +457,7 @@ def shift_sum(lf: LightField, slopes: float | np.ndarray, *, aperture: float | n
     ndarray, shape (S, k Y, k X, C), float32
     """
     check_lightfield(lf)
-    s = np.atleast_1d(np.asarray(slopes, np.float64)).ravel()
-    if s.size == 0 or not np.all(np.isfinite(s)):
-        raise ValueError(f"slopes must be a non-empty sequence of finite numbers, got {slopes}")
+    s = check_slopes(slopes)
     k = int(upsample)
     if k < 1 or k != upsample:
         raise ValueError(f"upsample must be a positive integer, got {upsample}")
