@@ -125,14 +125,7 @@ def _fix_hot(img, threshold):  # pragma: no cover - compiled
                 jl, jr = max(j - 1, 0), min(j + 1, w - 1)
                 nb[0], nb[1], nb[2], nb[3] = up[jl], up[j], up[jr], mid[jl]
                 nb[4], nb[5], nb[6], nb[7] = mid[jr], dn[jl], dn[j], dn[jr]
-                for a in range(1, 8):  # insertion sort of 8 values
-                    v = nb[a]
-                    b = a - 1
-                    while b >= 0 and nb[b] > v:
-                        nb[b + 1] = nb[b]
-                        b -= 1
-                    nb[b + 1] = v
-                out[i, j] = np.float32(0.5) * (nb[3] + nb[4])  # median of the 8 neighbours
+                out[i, j] = np.float32(np.median(nb))  # median of the 8 neighbours
                 bad_rows[i] += 1
     return out, bad_rows.sum()
 

@@ -138,25 +138,13 @@ def _repair(x, flags, out):  # pragma: no cover - numba
                 if vals[k] > top:
                     top = vals[k]
                 k += 1
-            # median of the lit neighbours (at least half the brightest), insertion sort
+            # median of the lit neighbours (at least half the brightest)
             m = 0
             for i in range(k):
                 if vals[i] >= 0.5 * top:
                     vals[m] = vals[i]
                     m += 1
-            for i in range(1, m):
-                v = vals[i]
-                j = i - 1
-                while j >= 0 and vals[j] > v:
-                    vals[j + 1] = vals[j]
-                    j -= 1
-                vals[j + 1] = v
-            if m == 0:
-                out[y, xx] = 0.0
-            elif m % 2 == 1:
-                out[y, xx] = vals[m // 2]
-            else:
-                out[y, xx] = 0.5 * (vals[m // 2 - 1] + vals[m // 2])
+            out[y, xx] = np.median(vals[:m]) if m > 0 else 0.0
 
 
 def find_hot_pixels(mosaic: np.ndarray, *, threshold: float = 0.1, relative: float = 0.5) -> np.ndarray:
