@@ -24,6 +24,18 @@ def check_output(path: Path, overwrite: bool) -> None:
         raise click.UsageError(f"{path} exists; pass --overwrite to replace it")
 
 
+def lightfield_output_format(output: Path, fmt: str | None, overwrite: bool) -> str:
+    """The light-field format to write ``output`` in: ``fmt``, else detected from its name (usage errors for an
+    existing output without ``--overwrite`` and for a name that says no format)."""
+    from ..io.lightfield import detect_format
+
+    check_output(output, overwrite)
+    try:
+        return fmt or detect_format(output)
+    except ValueError as exc:
+        raise click.UsageError(f"{exc} (use --format)") from exc
+
+
 def progress_bar(label: str, ctx: click.Context | None = None) -> Callable[[int, int], None]:
     """A ``callback(done, total)`` that draws a click progress bar on stderr (silent with -q)."""
     ctx = ctx or click.get_current_context(silent=True)

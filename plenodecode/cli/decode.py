@@ -11,7 +11,7 @@ from ..decode.colour import DECODE_COLOURS
 from ..decode.demosaic import DEMOSAIC_METHODS
 from ..io.lightfield import LIGHTFIELD_FORMATS
 from ._load import resolve_calibration
-from .common import bit_depth_option, check_output, output_option, overwrite_option, progress_bar
+from .common import bit_depth_option, lightfield_output_format, output_option, overwrite_option, progress_bar
 
 log = logging.getLogger(__name__)
 
@@ -55,17 +55,13 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
     """
     from ..decode import decode
     from ..io import read_raw
-    from ..io.lightfield import detect_format, save_lightfield
+    from ..io.lightfield import save_lightfield
 
     if white_dir is not None and (calibration is not None or white is not None):
         raise click.UsageError("--white-dir cannot be combined with --calibration or --white")
     if n_views is not None and (n_views < 1 or n_views % 2 == 0):
         raise click.BadParameter("must be a positive odd number", param_hint="--views")
-    check_output(output, overwrite)
-    try:
-        name = fmt or detect_format(output)
-    except ValueError as exc:
-        raise click.UsageError(f"{exc} (use --format)") from exc
+    name = lightfield_output_format(output, fmt, overwrite)
     raw = read_raw(raw_path)
     grid, white_raw = resolve_calibration(raw, calibration=calibration, white=white, white_dir=white_dir)
     dark_raw = read_raw(dark) if dark is not None else None

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from ..io.lightfield import LIGHTFIELD_FORMATS
-from .common import bit_depth_option, check_output, output_option, overwrite_option, progress_bar
+from .common import bit_depth_option, lightfield_output_format, output_option, overwrite_option, progress_bar
 
 
 @click.command("export")
@@ -38,13 +38,9 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
       plenodecode export photo.zarr -o photo.mat
       plenodecode export photo.zarr -o views/ --format views --bit-depth 8 --srgb
     """
-    from ..io.lightfield import detect_format, load_lightfield, save_lightfield
+    from ..io.lightfield import load_lightfield, save_lightfield
 
-    check_output(output, overwrite)
-    try:
-        name = fmt or detect_format(output)
-    except ValueError as exc:
-        raise click.UsageError(f"{exc} (use --format)") from exc
+    name = lightfield_output_format(output, fmt, overwrite)
     lf = load_lightfield(lf_in)
     try:
         out = save_lightfield(lf, output, format=name, bit_depth=int(bit_depth), overwrite=overwrite,
