@@ -43,7 +43,22 @@ def whites(tmp_path):
     return src, truths
 
 
-def test_build_select_and_cache(whites, tmp_path, monkeypatch):
+@pytest.fixture
+def calls(monkeypatch):
+    """The argument tuples of every plenodecode.calib.calibrate call the test makes (it still calibrates)."""
+    import plenodecode.calib as calib_pkg
+
+    made = []
+    real = calib_pkg.calibrate
+
+    def counting(*a, **k):
+        made.append(a)
+        return real(*a, **k)
+    monkeypatch.setattr(calib_pkg, "calibrate", counting)
+    return made
+
+
+def test_build_select_and_cache(whites, tmp_path, calls):
     src, truths = whites
     db = tmp_path / "calib"
     entries = store.build_database(src, db, fit=False)
@@ -66,14 +81,6 @@ def test_build_select_and_cache(whites, tmp_path, monkeypatch):
     # grid_for fits on first use and then reads the cache
     raw = RawCapture(np.zeros(SHAPE, np.uint16), "BGGR", 168.0, 4095.0,
                      md("A000000001", 500, 290))
-    calls = []
-    import plenodecode.calib as calib_pkg
-    real = calib_pkg.calibrate
-
-    def counting(*a, **k):
-        calls.append(a)
-        return real(*a, **k)
-    monkeypatch.setattr(calib_pkg, "calibrate", counting)
     g1 = store.grid_for(raw, db)
     g2 = store.grid_for(raw, db)
     assert len(calls) == 1
@@ -110,20 +117,12 @@ def test_build_with_fit_and_errors(whites, tmp_path):
         store.load_index(tmp_path / "bad")
 
 
-def test_calibration_for_returns_the_grid_and_its_white(whites, tmp_path, monkeypatch):
+def test_calibration_for_returns_the_grid_and_its_white(whites, tmp_path, calls):
     src, truths = whites
     db = tmp_path / "calib"
     store.build_database(src, db, fit=False)
     raw = RawCapture(np.zeros(SHAPE, np.uint16), "BGGR", 168.0, 4095.0,
                      CameraMetadata(serial="A000000001", zoom_step=480, focus_step=0))
-    import plenodecode.calib as calib_pkg
-    calls = []
-    real = calib_pkg.calibrate
-
-    def counting(*a, **k):
-        calls.append(a)
-        return real(*a, **k)
-    monkeypatch.setattr(calib_pkg, "calibrate", counting)
     grid, white = store.calibration_for(raw, db)
     assert len(calls) == 1                                       # fitted on first use ...
     assert grid.info["source"].endswith("MOD_0001.RAW")
