@@ -1023,7 +1023,9 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
         eps = max(floor, k * noise)
         log.info("view noise sigma %.4f: contrast eps %.4f", noise, eps)
     views = matching_views(eps)
-    del built
+    # the intensity-only views stay alive for the edge pass's relabel only when it runs
+    intensities = plain if p["edge_visibility"] and int(p["edge_radius"]) > 0 else None
+    del plain, built
     step = float(p["label_step"])
     labels = make_labels(lo, hi, step, pad=2 * step)
     n_labels, n_paths = len(labels), int(p["paths"])
@@ -1065,7 +1067,7 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
                                         jump=float(p["edge_jump"]), ratio=float(p["edge_ratio"]),
                                         wedge=int(p["edge_wedge"]),
                                         median_radius=int(p["edge_median_radius"]),
-                                        intensities=plain if p["edge_visibility"] else None)
+                                        intensities=intensities)
     params = {**p, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
               "noise_sigma": noise, "contrast_eps_used": eps,
               "disparity_range_source": source, "n_labels": n_labels, "views_used": len(views.used()) + 1}
