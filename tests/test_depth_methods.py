@@ -176,6 +176,8 @@ def test_registry_and_argument_errors(planes):
         estimate_depth(lf, method="fast", disparity_range=(1.0, -1.0))
     with pytest.raises(ValueError, match="edge_visibility"):
         estimate_depth(lf, method="costvolume", edge_visibility="no")
+    with pytest.raises(ValueError, match="edge_coverage"):
+        estimate_depth(lf, method="fast", edge_coverage=1)
     one = LightField(lf.data[:1, :1].copy(), None, "srgb", {})
     from plenodecode.errors import DecodeError
 

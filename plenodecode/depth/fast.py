@@ -13,7 +13,7 @@ method then run with coarser labels and fewer aggregation paths:
 4. the per-pixel refinement of :mod:`plenodecode.depth.costvolume` (a narrow cost volume of offsets around
    the estimate, views warped per pixel) over the star views;
 5. the occlusion-edge fix of :mod:`plenodecode.depth.costvolume` (visibility check, colour-guided weighted
-   median and per-pixel visibility relabel in the band around depth edges).
+   median, per-pixel visibility and coverage relabels in the band around depth edges).
 
 The cost volume's labels run on all cores, up to 4 threads (OpenCV releases the GIL).
 """
