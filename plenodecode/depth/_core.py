@@ -83,8 +83,12 @@ class Views:
         """Grey centre view (Y, X) float32 in about [0, 1]: the guide of the edge-aware steps."""
         if self.guide_image is not None:
             return self.guide_image
-        c = self.centre_view()
-        return np.ascontiguousarray(c[..., 0] if c.shape[-1] == 1 else c @ LUMA)
+        return luma(self.centre_view())
+
+
+def luma(img: np.ndarray) -> np.ndarray:
+    """(Y, X) float32 luma of a (Y, X, 1) or (Y, X, 3) view."""
+    return np.ascontiguousarray(img[..., 0] if img.shape[-1] == 1 else img @ LUMA)
 
 
 def view_pattern(V: int, U: int, pattern: str | None) -> np.ndarray:
@@ -940,13 +944,10 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
     if len(ys) == 0:
         return out
 
-    def luma(img: np.ndarray) -> np.ndarray:
-        return np.ascontiguousarray(img[..., 0] if img.shape[-1] == 1 else img @ LUMA[: img.shape[-1]])
-
     rows, cols = _pixel_image_shape(len(ys))
     px, py = (_as_pixel_image(a.astype(np.float32), rows, cols) for a in (xs, ys))
     hn, hf = (_as_pixel_image(h[ys, xs], rows, cols) for h in (h_near, h_far))
-    centre = luma(intensities.data[intensities.centre])
+    centre = intensities.guide()
     # a background point is seen unoccluded where no pixel within 2 px (the bicubic support) is nearer
     nearest_around = cv2.dilate(d, np.ones((5, 5), np.uint8))
     visible_below = hf + np.float32(0.5 * jump)
@@ -1217,7 +1218,7 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
 
 
 __all__ = [
-    "Views", "prepare_views", "disparity_range", "estimate_disparity_range", "metadata_disparity_range",
+    "Views", "luma", "prepare_views", "disparity_range", "estimate_disparity_range", "metadata_disparity_range",
     "make_labels", "half_plane_cost_volume", "half_plane_groups", "sgm", "add_contrast", "noise_sigma",
     "weighted_median", "shift_view", "remap_view", "sector_of", "N_SECTORS", "view_pattern",
     "winner", "colour_guide", "fix_occlusion_edges", "visibility_relabel", "coverage_relabel",
