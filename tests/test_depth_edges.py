@@ -206,7 +206,8 @@ def disc_lightfield(n=7, size=64, radius=20.3, centre=(31.6, 32.4), d_front=1.0,
 
 def test_coverage_relabel_gives_mixed_pixels_to_the_surface_at_their_centre():
     """Maps that give the disc every pixel it touches, or only the pixels it covers whole, are both moved to
-    the pixel-centre outline; a correct map stays; a flat background (no slope to measure) changes nothing."""
+    the pixel-centre outline; a correct map stays, but for pixels covered by exactly half (their centre is
+    on the outline: either side is right); a flat background (no slope to measure) changes nothing."""
     lf, gt, cover = disc_lightfield()
     plain = _core.prepare_views(lf, grey=True)
     touched = np.where(cover > 0, 1.0, -1.5).astype(np.float32)
@@ -214,21 +215,50 @@ def test_coverage_relabel_gives_mixed_pixels_to_the_surface_at_their_centre():
     for wrong_map in (touched, covered):
         before = np.count_nonzero(np.abs(wrong_map - gt) > 0.5)        # 74 and 54 px
         kept = wrong_map.copy()
-        after = np.count_nonzero(np.abs(_core.coverage_relabel(plain, wrong_map) - gt) > 0.5)   # 7 and 2
+        after = np.count_nonzero(np.abs(_core.coverage_relabel(plain, wrong_map) - gt) > 0.5)   # 6 and 4
         assert before > 50 and after < 0.2 * before, (before, after)
         np.testing.assert_array_equal(wrong_map, kept)                  # input not modified
-    np.testing.assert_array_equal(_core.coverage_relabel(plain, gt), gt)
+    moved = _core.coverage_relabel(plain, gt) != gt                     # 2 px, both covered by 8/16 samples
+    assert moved.sum() <= 3 and np.all(np.abs(cover[moved] - 0.5) < 0.07), cover[moved]
     flat_lf, _, _ = disc_lightfield(flat_back=True)
     flat = _core.prepare_views(flat_lf, grey=True)
     np.testing.assert_array_equal(_core.coverage_relabel(flat, touched), touched)
 
 
+def test_views_give_the_light_back_for_the_mixing_models():
+    """Views of a linear light field are display-encoded for matching; ``Views.linear`` undoes that (up to the
+    views' common scale), as the coverage models need; stored sRGB values are used as they are."""
+    rng = np.random.default_rng(0)
+    data = rng.uniform(0.05, 1.0, (3, 3, 6, 7, 3)).astype(np.float32)
+    for colour, gamma in (("linear-srgb", 2.2), ("srgb", 1.0)):
+        views = _core.prepare_views(LightField(data, None, colour, {}))
+        assert views.encoding_gamma == gamma
+        ratio = views.linear((0, 2)) / data[0, 2]
+        np.testing.assert_allclose(ratio, ratio.flat[0], rtol=1e-4)
+
+
+def test_colour_mixing_is_the_coverage_of_a_flat_two_colour_edge():
+    """Across a vertical edge at x = 10.3 between two flat colours, box-filtered, each pixel's position between
+    its neighbours one pixel either side is the fraction the right side covers; equal neighbours give NaN."""
+    back, front = np.array([0.2, 0.5, 0.1]), np.array([0.7, 0.3, 0.6])
+    x = np.arange(24, dtype=np.float64)
+    cover = np.clip(x + 0.5 - 10.3, 0.0, 1.0)                            # of the right side (front)
+    row = back + cover[:, None] * (front - back)
+    image = np.repeat(row[None], 8, axis=0).astype(np.float32)          # (8, 24, 3)
+    xs = np.array([9, 10, 11, 3])
+    ys = np.full(4, 4)
+    normal = np.tile([0.0, 1.0], (4, 1))                                 # (y, x): towards the front
+    m = _core.colour_mixing(image, ys, xs, normal)
+    np.testing.assert_allclose(m[:3], [0.0, 0.2, 1.0], atol=1e-5)
+    assert np.isnan(m[3])                                                # flat: no estimate
+
+
 @pytest.mark.parametrize("method", ["costvolume", "fast"])
 def test_methods_put_the_outline_at_the_pixel_centres(method):
     """End to end on the box-filtered disc: photo-consistency gives the disc the pixels it covers by about
-    15 % or more (measured 57 and 58 wrong pixels); the coverage relabel leaves 11 and 12."""
+    15 % or more (measured 57 and 58 wrong pixels); the coverage relabel leaves 6 and 9."""
     from plenodecode.depth import estimate_depth
     lf, gt, _ = disc_lightfield(seed=1)
     wrong = {v: np.count_nonzero(np.abs(estimate_depth(lf, method=method, edge_coverage=v).disparity - gt) > 0.5)
              for v in (False, True)}
-    assert wrong[False] > 40 and wrong[True] < 0.5 * wrong[False], wrong
+    assert wrong[False] > 40 and wrong[True] < 0.25 * wrong[False], wrong

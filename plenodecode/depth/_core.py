@@ -56,12 +56,15 @@ class Views:
         ``(vc, uc)``.
     guide_image : ndarray (Y, X) float32 or None
         Grey centre view before the local contrast normalisation (None: derived from ``data``).
+    encoding_gamma : float
+        2.2 where ``data`` is display-encoded (``data ** 2.2`` is proportional to the light), else 1.
     """
 
     data: np.ndarray
     weight: np.ndarray
     centre: tuple[int, int]
     guide_image: np.ndarray | None = None
+    encoding_gamma: float = 1.0
 
     @property
     def offsets(self) -> tuple[np.ndarray, np.ndarray]:
@@ -84,6 +87,14 @@ class Views:
         if self.guide_image is not None:
             return self.guide_image
         return luma(self.centre_view())
+
+    def linear(self, vu: tuple[int, int]) -> np.ndarray:
+        """View ``vu`` in light proportional to the scene's (the display encoding undone): (Y, X, C) float32,
+        the space where a pixel cut by an edge is the coverage-weighted mean of the two surfaces."""
+        img = self.data[vu]
+        if self.encoding_gamma == 1.0:
+            return img
+        return np.power(np.clip(img, 0.0, None), np.float32(self.encoding_gamma))
 
 
 def luma(img: np.ndarray) -> np.ndarray:
@@ -166,7 +177,7 @@ def prepare_views(lf: LightField, *, min_view_weight: float = 0.1, grey: bool = 
                 if gamma:
                     img = np.power(np.clip(img, 0.0, None), np.float32(1.0 / 2.2))
                 out[v, u] = img.reshape(Y, X, nc)
-    plain = Views(out, weight, (vc, uc), Views(out, weight, (vc, uc)).guide().copy())
+    plain = Views(out, weight, (vc, uc), Views(out, weight, (vc, uc)).guide().copy(), 2.2 if gamma else 1.0)
     return add_contrast(plain, contrast_sigma, contrast_eps, contrast_weight) if contrast_sigma > 0 else plain
 
 
@@ -893,8 +904,35 @@ def visibility_relabel(intensities: Views, disparity: np.ndarray, *, radius: int
     return out
 
 
+def colour_mixing(image: np.ndarray, ys: np.ndarray, xs: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Where each pixel's colour lies between its two neighbours across an edge: (n,) float64
+
+        m = (I(p) - I(p - n)) . (I(p + n) - I(p - n)) / |I(p + n) - I(p - n)|^2
+
+    with ``n`` the unit ``normal`` (n, 2) as (y, x), ``I`` the (Y, X, C) ``image`` (bilinear).  On an edge
+    between two flat colours ``m`` is the fraction of pixel ``p`` the ``+n`` side covers; NaN where the two
+    neighbours have the same colour."""
+    img = np.ascontiguousarray(image, np.float32)
+    img = img if img.ndim == 3 else img[..., None]
+    rows, cols = _pixel_image_shape(len(ys))
+
+    def at(sign: float) -> np.ndarray:
+        mx = _as_pixel_image((xs + sign * normal[:, 1]).astype(np.float32), rows, cols)
+        my = _as_pixel_image((ys + sign * normal[:, 0]).astype(np.float32), rows, cols)
+        sample = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return sample.reshape(rows * cols, -1)[:len(ys)].astype(np.float64)
+
+    back, front = at(-1.0), at(1.0)
+    own = img[ys, xs].astype(np.float64)
+    step = front - back
+    contrast = np.einsum("nc,nc->n", step, step)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(contrast > 1e-12, np.einsum("nc,nc->n", own - back, step) / contrast, np.nan)
+
+
 def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int = 4, jump: float = 0.5,
-                     significance: float = 2.0, min_views: int = 6) -> np.ndarray:
+                     significance: float = 2.0, agreed_significance: float = 0.5, min_views: int = 6
+                     ) -> np.ndarray:
     """Give each pixel on a depth edge to the surface that covers most of it, measured by the background's
     motion through it.
 
@@ -915,8 +953,15 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
     hci-antinous, without them, most of the changed pixels were wrong).  Where ``a`` lies on the other side
     of 1/2 than the map by more than ``significance`` standard errors, the pixel takes the other side's
     hypothesis: the pixel-centre convention of a ground truth (a mixed pixel belongs to the surface at its
-    centre).  Only pixels next to the other side are tested, once; pixels with fewer than ``min_views``
-    such views or a background without texture keep their side.
+    centre).  A second, independent estimate of the same fraction comes from the centre view alone: where
+    the pixel's colour lies between its neighbours one pixel outward and inward along the edge normal
+    (:func:`colour_mixing`; the normal is the gradient of the near side's indicator smoothed with
+    ``sigma = 1``).  Where the two agree on the other side, ``agreed_significance`` standard errors
+    suffice (a box-filtered disc: MSE x 100 1.68 -> 0.93; hci-antinous 2.07 -> 2.06).  Only pixels next
+    to the other side are tested, once; pixels with fewer than ``min_views`` such views or a background
+    without texture keep their side.  Both models mix light, so a linear light field's views are taken
+    with their display encoding undone (:meth:`Views.linear`; generated illum-mini MSE x 100 0.65 -> 0.39);
+    stored sRGB values are used as stored (decoding them made hci-antinous worse).
 
     Photo-consistency alone cannot do this: with a smooth background a mixed pixel matches the occluder's
     disparity almost as well as a fully covered one, so the relabel before it (:func:`visibility_relabel`)
@@ -925,9 +970,12 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
     Parameters
     ----------
     intensities : Views
-        Views without contrast channels; colour views are reduced to luma.
+        Views without contrast channels; the regression reduces colour views to luma.
     disparity : ndarray (Y, X) float32
     radius, jump : the band and hypotheses of :func:`_band_hypotheses`.
+    significance, agreed_significance : float
+        Standard errors of the regression's ``a - 1/2`` needed to move a pixel, alone and with the centre
+        view's colour mixing agreeing.
 
     Returns
     -------
@@ -947,7 +995,8 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
     rows, cols = _pixel_image_shape(len(ys))
     px, py = (_as_pixel_image(a.astype(np.float32), rows, cols) for a in (xs, ys))
     hn, hf = (_as_pixel_image(h[ys, xs], rows, cols) for h in (h_near, h_far))
-    centre = intensities.guide()
+    # the model mixes light: the display encoding of linear light fields' views is undone
+    centre = luma(intensities.linear(intensities.centre))
     # a background point is seen unoccluded where no pixel within 2 px (the bicubic support) is nearer
     nearest_around = cv2.dilate(d, np.ones((5, 5), np.uint8))
     visible_below = hf + np.float32(0.5 * jump)
@@ -961,7 +1010,7 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
     count = np.zeros((rows, cols), np.int32)
     for vu in intensities.used():
         dv, du = np.float32(dv_all[vu]), np.float32(du_all[vu])
-        follow = cv2.remap(luma(intensities.data[vu]), px - hn * du, py - hn * dv, cv2.INTER_CUBIC,
+        follow = cv2.remap(luma(intensities.linear(vu)), px - hn * du, py - hn * dv, cv2.INTER_CUBIC,
                            borderMode=cv2.BORDER_REPLICATE)
         bx, by = px + (hf - hn) * du, py + (hf - hn) * dv
         back = cv2.remap(centre, bx, by, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
@@ -988,10 +1037,17 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
     x_spread = 1.0 / np.maximum(inverse[:, 1, 1], 1e-30)              # sum w (x - its fit on 1, dv, du)^2
     stderr = np.sqrt(residual / x_spread)
     covered = 1.0 - coef[:, 1]
+    # the centre view's own estimate: the normal points into the near side
+    indicator = cv2.GaussianBlur(is_near.astype(np.float32), (0, 0), 1.0)
+    normal = np.stack([g[ys, xs] for g in np.gradient(indicator)], axis=1).astype(np.float64)
+    normal /= np.maximum(np.hypot(normal[:, 0], normal[:, 1]), 1e-12)[:, None]
+    mixed = colour_mixing(intensities.linear(intensities.centre), ys, xs, normal)
+    agree = ((mixed > 0.5) & (covered > 0.5)) | ((mixed < 0.5) & (covered < 0.5))
     # a background that varies over the views by less than one 8-bit grey level (beyond a linear trend) is
     # flat: no slope
     textured = x_spread / sw > (1.0 / 255.0) ** 2
-    tested = (count >= min_views) & textured & (np.abs(covered - 0.5) > significance * stderr)
+    needed = np.where(agree, agreed_significance, significance)
+    tested = (count >= min_views) & textured & (np.abs(covered - 0.5) > needed * stderr)
     side = is_near[ys, xs]
     to_near, to_far = tested & ~side & (covered > 0.5), tested & side & (covered < 0.5)
     out[ys[to_near], xs[to_near]] = h_near[ys[to_near], xs[to_near]]
@@ -1052,7 +1108,8 @@ def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, 
        silhouette rim when the rim is as dark as the background.
     4. **Coverage** (:func:`coverage_relabel`, when ``intensities`` are given and ``coverage``): a pixel on
        the edge goes to the surface that covers more than half of it, measured by how much of the
-       background's motion across the views shows through it.
+       background's motion across the views shows through it and by where its colour lies between its
+       neighbours across the edge.
 
     Parameters
     ----------
@@ -1221,7 +1278,7 @@ __all__ = [
     "Views", "luma", "prepare_views", "disparity_range", "estimate_disparity_range", "metadata_disparity_range",
     "make_labels", "half_plane_cost_volume", "half_plane_groups", "sgm", "add_contrast", "noise_sigma",
     "weighted_median", "shift_view", "remap_view", "sector_of", "N_SECTORS", "view_pattern",
-    "winner", "colour_guide", "fix_occlusion_edges", "visibility_relabel", "coverage_relabel",
+    "winner", "colour_guide", "fix_occlusion_edges", "visibility_relabel", "coverage_relabel", "colour_mixing",
     "nearest_surface", "EDGE_DEFAULTS",
     "VIEW_DEFAULTS",
     "run_pipeline", "check_params", "PIPELINE_KEYS",
