@@ -173,11 +173,8 @@ def prepare_views(lf: LightField, *, min_view_weight: float = 0.1, grey: bool = 
         for u in range(U):
             if weight[v, u] > 0:
                 img = centre if (v, u) == (vc, uc) else _clean(lf.data[v, u], grey)
-                img = img * np.float32(1.0 / scale)
-                if gamma:
-                    img = np.power(np.clip(img, 0.0, None), np.float32(1.0 / 2.2))
-                out[v, u] = img.reshape(Y, X, nc)
-    plain = Views(out, weight, (vc, uc), Views(out, weight, (vc, uc)).guide().copy(), 2.2 if gamma else 1.0)
+                out[v, u] = _display_encode(img, scale, gamma).reshape(Y, X, nc)
+    plain = Views(out, weight, (vc, uc), luma(out[vc, uc]).copy(), 2.2 if gamma else 1.0)
     return add_contrast(plain, contrast_sigma, contrast_eps, contrast_weight) if contrast_sigma > 0 else plain
 
 
@@ -245,6 +242,17 @@ def local_contrast(img: np.ndarray, sigma: float, eps: float) -> np.ndarray:
     hp = img - low
     sd = np.sqrt(cv2.GaussianBlur(hp * hp, (0, 0), sigma)).reshape(img.shape)
     return (hp / (sd + np.float32(eps))).astype(np.float32)
+
+
+def _threads() -> int:
+    """Threads for the depth kernels that release the GIL: the CPU cores, at most 4."""
+    return max(1, min(4, os.cpu_count() or 1))
+
+
+def _display_encode(img: np.ndarray, scale: float, linear: bool) -> np.ndarray:
+    """``img / scale``, then ``x ** (1 / 2.2)`` when the light field is linear (float32)."""
+    img = img * np.float32(1.0 / scale)
+    return np.power(np.clip(img, 0.0, None), np.float32(1.0 / 2.2)) if linear else img
 
 
 def _clean(img: np.ndarray, grey: bool) -> np.ndarray:
@@ -434,7 +442,7 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
         Labels last (the layout :func:`sgm` and :func:`winner` read).
     """
     if threads is None:
-        threads = min(4, os.cpu_count() or 1)
+        threads = _threads()
     span = max(1, n_sectors // 2) if span is None else int(span)
     if not 1 <= span <= n_sectors:
         raise ValueError(f"span must be in [1, n_sectors={n_sectors}], got {span!r}")
@@ -705,10 +713,7 @@ def colour_guide(lf: LightField) -> np.ndarray:
     """The centre view as the guide of the edge snapping: (Y, X, 3) or (Y, X, 1) uint8, scaled so its 99.5th
     percentile is 255, display-encoded (``x ** (1 / 2.2)``) when linear."""
     c = _clean(lf.data[lf.centre_index], False)
-    scale = float(np.percentile(c, 99.5))
-    c = c * np.float32(1.0 / max(scale, 1e-12))
-    if lf.colour != "srgb":
-        c = np.power(np.clip(c, 0.0, None), np.float32(1.0 / 2.2))
+    c = _display_encode(c, max(float(np.percentile(c, 99.5)), 1e-12), lf.colour != "srgb")
     return np.ascontiguousarray(np.clip(np.round(c * 255.0), 0, 255).astype(np.uint8))
 
 
@@ -837,7 +842,7 @@ def visibility_relabel(intensities: Views, disparity: np.ndarray, *, radius: int
     offsets = np.linspace(-search, search, 5).astype(np.float32)
     dv_all, du_all = intensities.offsets
     used = intensities.used()
-    threads = max(1, min(4, os.cpu_count() or 1))
+    threads = _threads()
     total = np.float32(sum(float(intensities.weight[vu]) for vu in used))
     margin = np.float32(0.5 * jump)
 
@@ -995,8 +1000,9 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
     rows, cols = _pixel_image_shape(len(ys))
     px, py = (_as_pixel_image(a.astype(np.float32), rows, cols) for a in (xs, ys))
     hn, hf = (_as_pixel_image(h[ys, xs], rows, cols) for h in (h_near, h_far))
-    # the model mixes light: the display encoding of linear light fields' views is undone
-    centre = luma(intensities.linear(intensities.centre))
+    # the models mix light: the display encoding of linear light fields' views is undone
+    centre_light = intensities.linear(intensities.centre)
+    centre = luma(centre_light)
     # a background point is seen unoccluded where no pixel within 2 px (the bicubic support) is nearer
     nearest_around = cv2.dilate(d, np.ones((5, 5), np.uint8))
     visible_below = hf + np.float32(0.5 * jump)
@@ -1041,7 +1047,7 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
     indicator = cv2.GaussianBlur(is_near.astype(np.float32), (0, 0), 1.0)
     normal = np.stack([g[ys, xs] for g in np.gradient(indicator)], axis=1).astype(np.float64)
     normal /= np.maximum(np.hypot(normal[:, 0], normal[:, 1]), 1e-12)[:, None]
-    mixed = colour_mixing(intensities.linear(intensities.centre), ys, xs, normal)
+    mixed = colour_mixing(centre_light, ys, xs, normal)
     agree = ((mixed > 0.5) & (covered > 0.5)) | ((mixed < 0.5) & (covered < 0.5))
     # a background that varies over the views by less than one 8-bit grey level (beyond a linear trend) is
     # flat: no slope
@@ -1085,7 +1091,7 @@ def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, 
                         ) -> np.ndarray:
     """Remove the foreground fattening at depth discontinuities.
 
-    Three steps, all restricted to the band within ``radius`` px of a disparity jump larger than ``jump``
+    Four steps, all restricted to the band within ``radius`` px of a disparity jump larger than ``jump``
     (:func:`_edge_band`):
 
     1. **Visibility check.**  A pixel on the near side of a jump (``d > (near + far) / 2``) claims to lie on
