@@ -207,7 +207,8 @@ def disc_lightfield(n=7, size=64, radius=20.3, centre=(31.6, 32.4), d_front=1.0,
 def test_coverage_relabel_gives_mixed_pixels_to_the_surface_at_their_centre():
     """Maps that give the disc every pixel it touches, or only the pixels it covers whole, are both moved to
     the pixel-centre outline; a correct map stays, but for pixels covered by exactly half (their centre is
-    on the outline: either side is right); a flat background (no slope to measure) changes nothing."""
+    on the outline: either side is right).  Over a flat background (no slope to measure) the centre view's
+    clean two-colour edge does most of it."""
     lf, gt, cover = disc_lightfield()
     plain = _core.prepare_views(lf, grey=True)
     touched = np.where(cover > 0, 1.0, -1.5).astype(np.float32)
@@ -222,7 +223,10 @@ def test_coverage_relabel_gives_mixed_pixels_to_the_surface_at_their_centre():
     assert moved.sum() <= 3 and np.all(np.abs(cover[moved] - 0.5) < 0.07), cover[moved]
     flat_lf, _, _ = disc_lightfield(flat_back=True)
     flat = _core.prepare_views(flat_lf, grey=True)
-    np.testing.assert_array_equal(_core.coverage_relabel(flat, touched), touched)
+    for wrong_map in (touched, covered):
+        before = np.count_nonzero(np.abs(wrong_map - gt) > 0.5)
+        after = np.count_nonzero(np.abs(_core.coverage_relabel(flat, wrong_map) - gt) > 0.5)   # 14 and 9
+        assert after < 0.25 * before, (before, after)
 
 
 def test_views_give_the_light_back_for_the_mixing_models():
@@ -237,9 +241,11 @@ def test_views_give_the_light_back_for_the_mixing_models():
         np.testing.assert_allclose(ratio, ratio.flat[0], rtol=1e-4)
 
 
-def test_colour_mixing_is_the_coverage_of_a_flat_two_colour_edge():
+def test_two_colour_edge_gives_the_coverage_and_the_flatness_of_the_sides():
     """Across a vertical edge at x = 10.3 between two flat colours, box-filtered, each pixel's position between
-    its neighbours one pixel either side is the fraction the right side covers; equal neighbours give NaN."""
+    its neighbours one pixel either side is the fraction the right side covers; the flatness is 0 where both
+    neighbours and the pixels beyond them are pure, and measures the mixed pixel otherwise; equal
+    neighbours give NaN."""
     back, front = np.array([0.2, 0.5, 0.1]), np.array([0.7, 0.3, 0.6])
     x = np.arange(24, dtype=np.float64)
     cover = np.clip(x + 0.5 - 10.3, 0.0, 1.0)                            # of the right side (front)
@@ -248,15 +254,17 @@ def test_colour_mixing_is_the_coverage_of_a_flat_two_colour_edge():
     xs = np.array([9, 10, 11, 3])
     ys = np.full(4, 4)
     normal = np.tile([0.0, 1.0], (4, 1))                                 # (y, x): towards the front
-    m = _core.colour_mixing(image, ys, xs, normal)
+    m, flatness = _core.two_colour_edge(image, ys, xs, normal)
     np.testing.assert_allclose(m[:3], [0.0, 0.2, 1.0], atol=1e-5)
-    assert np.isnan(m[3])                                                # flat: no estimate
+    # x = 9: |I(11) - I(10)| / |I(10) - I(8)| = 0.8 / 0.2; x = 11: |I(9) - I(10)| / |I(12) - I(10)| = 0.2 / 0.8
+    np.testing.assert_allclose(flatness[:3], [4.0, 0.0, 0.25], atol=1e-5)
+    assert np.isnan(m[3]) and np.isnan(flatness[3])                     # flat: no estimate
 
 
 @pytest.mark.parametrize("method", ["costvolume", "fast"])
 def test_methods_put_the_outline_at_the_pixel_centres(method):
     """End to end on the box-filtered disc: photo-consistency gives the disc the pixels it covers by about
-    15 % or more (measured 57 and 58 wrong pixels); the coverage relabel leaves 6 and 9."""
+    15 % or more (measured 57 and 58 wrong pixels); the coverage relabel leaves 6 and 7."""
     from plenodecode.depth import estimate_depth
     lf, gt, _ = disc_lightfield(seed=1)
     wrong = {v: np.count_nonzero(np.abs(estimate_depth(lf, method=method, edge_coverage=v).disparity - gt) > 0.5)
