@@ -261,6 +261,15 @@ def test_two_colour_edge_gives_the_coverage_and_the_flatness_of_the_sides():
     assert np.isnan(m[3]) and np.isnan(flatness[3])                     # flat: no estimate
 
 
+def test_only_a_mix_backs_the_coverage_estimate():
+    """The colour mixing agrees with a coverage estimate on the same side of 1/2 only when it is a mix: a
+    pixel darker than both its neighbours (mixing < 0) or brighter (> 1), or without contrast, does not."""
+    mixed = np.array([0.2, 0.8, 0.2, -0.4, 1.3, np.nan, 0.7])
+    covered = np.array([0.1, 0.9, 0.9, 0.1, 0.9, 0.1, 0.3])
+    np.testing.assert_array_equal(_core.mixing_agrees(mixed, covered),
+                                  [True, True, False, False, False, False, False])
+
+
 @pytest.mark.parametrize("method", ["costvolume", "fast"])
 def test_methods_put_the_outline_at_the_pixel_centres(method):
     """End to end on the box-filtered disc: photo-consistency gives the disc the pixels it covers by about
