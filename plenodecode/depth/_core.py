@@ -981,9 +981,9 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
     ``sigma = 1``).  Where the two agree on the other side, ``agreed_significance`` standard errors
     suffice (a box-filtered disc: MSE x 100 1.68 -> 0.93; hci-antinous 2.07 -> 2.06); a colour outside
     the range between its neighbours' (mixing outside (0, 1): the dark band of a shaded silhouette) is no
-    mix and does not agree (hci-antinous 2.03 -> 1.90).  Where the regression
-    cannot decide (too few views, a background without texture, not significant), a clean two-colour edge
-    in the centre view still can: both sides flat a pixel further out (flatness below ``flat_edge``) and the
+    mix and does not agree (hci-antinous 2.03 -> 1.90).  Where the regression cannot decide (fewer than
+    ``min_views`` views, a background without texture, not significant), a clean two-colour edge in the
+    centre view still can: both sides flat a pixel further out (flatness below ``flat_edge``) and the
     mixing more than ``mixing_margin`` from 1/2 (the regression needs a background that moves; this needs
     two surfaces of different colour; a shaded rim the colour of the background fails it, where the
     mixing was wrong on most hci-antinous pixels.  A disc over a flat background: 74 -> 14 wrong pixels;
