@@ -981,14 +981,16 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
     ``sigma = 1``).  Where the two agree on the other side, ``agreed_significance`` standard errors
     suffice (a box-filtered disc: MSE x 100 1.68 -> 0.93; hci-antinous 2.07 -> 2.06); a colour outside
     the range between its neighbours' (mixing outside (0, 1): the dark band of a shaded silhouette) is no
-    mix and does not agree (hci-antinous 2.03 -> 1.90).  Where the regression cannot decide (fewer than
-    ``min_views`` views, a background without texture, not significant), a clean two-colour edge in the
-    centre view still can: both sides flat a pixel further out (flatness below ``flat_edge``) and the
-    mixing more than ``mixing_margin`` from 1/2 (the regression needs a background that moves; this needs
-    two surfaces of different colour; a shaded rim the colour of the background fails it, where the
-    mixing was wrong on most hci-antinous pixels.  A disc over a flat background: 74 -> 14 wrong pixels;
-    hci-antinous MSE x 100 2.06 -> 2.03, another generated disc 0.56 -> 0.32).  Only pixels next to the
-    other side are tested, once; the others keep their side.  Both models mix light, so a linear light
+    mix and does not agree (:func:`mixing_agrees`; hci-antinous 2.03 -> 1.90).
+
+    Where the regression cannot decide (fewer than ``min_views`` views, a background without texture, not
+    significant), a clean two-colour edge in the centre view decides alone: both sides flat a pixel further
+    out (flatness below ``flat_edge``) and the mixing more than ``mixing_margin`` from 1/2.  The regression
+    needs a background that moves; this needs two surfaces of different colour, and the flatness keeps out
+    the shaded rims the colour of the background, where the mixing was wrong on most hci-antinous pixels
+    (a disc over a flat background: 74 -> 14 wrong pixels; hci-antinous MSE x 100 2.06 -> 2.03, another
+    generated disc 0.56 -> 0.32).  Only pixels next to the other side are tested, once; the others keep
+    their side.  Both models mix light, so a linear light
     field's views are taken with their display encoding undone (:meth:`Views.linear`; generated
     illum-mini MSE x 100 0.65 -> 0.39); stored sRGB values are used as stored (decoding them made
     hci-antinous worse).
@@ -1082,10 +1084,10 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
     needed = np.where(agree, agreed_significance, significance)
     tested = (count >= min_views) & textured & (np.abs(covered - 0.5) > needed * stderr)
     clean_edge = ~tested & (flatness < flat_edge) & (np.abs(mixed - 0.5) > mixing_margin)
-    covered = np.where(clean_edge, mixed, covered)
-    tested |= clean_edge
+    decided = tested | clean_edge
+    estimate = np.where(clean_edge, mixed, covered)
     side = is_near[ys, xs]
-    to_near, to_far = tested & ~side & (covered > 0.5), tested & side & (covered < 0.5)
+    to_near, to_far = decided & ~side & (estimate > 0.5), decided & side & (estimate < 0.5)
     out[ys[to_near], xs[to_near]] = h_near[ys[to_near], xs[to_near]]
     out[ys[to_far], xs[to_far]] = h_far[ys[to_far], xs[to_far]]
     log.debug("coverage relabel: %d edge pixels, %d to the near side, %d to the far side", len(ys),
@@ -1132,9 +1134,9 @@ def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, 
        wedge of ``wedge`` of the 8 angular sectors (2: a 90 degree wedge).  A half-plane would do beside a
        straight edge, but in a concave pocket of the occluder's outline (between chin and neck on
        hci-antinous) the background is hidden from views on two sides and every half-plane still looks past
-       the occluder.  Pixels with
-       ``C_all(d) > ratio * C_wedge(far)`` take ``far`` (the occlusion reasoning of Kang, Szeliski & Chai,
-       CVPR 2001 and Wang, Efros & Ramamoorthi, ICCV 2015, used as a left-right style consistency test).
+       the occluder.  Pixels with ``C_all(d) > ratio * C_wedge(far)`` take ``far`` (the occlusion reasoning
+       of Kang, Szeliski & Chai, CVPR 2001 and Wang, Efros & Ramamoorthi, ICCV 2015, used as a left-right
+       style consistency test).
     2. **Edge snapping.**  A weighted median of the disparity guided by the centre view in colour
        (Ma et al., ICCV 2013; ``cv2.ximgproc.weightedMedianFilter``, radius ``median_radius``) replaces the
        band, so the remaining depth edge follows the colour edge.
