@@ -1140,10 +1140,10 @@ def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, 
     2. **Edge snapping.**  A weighted median of the disparity guided by the centre view in colour
        (Ma et al., ICCV 2013; ``cv2.ximgproc.weightedMedianFilter``, radius ``median_radius``) replaces the
        band, so the remaining depth edge follows the colour edge.
-    3. **Per-pixel visibility** (:func:`visibility_relabel`, when ``intensities`` are given): every band pixel
-       takes the side whose disparity its own colour matches ``ratio`` times better in the views that see
-       it.  The median of step 2 puts the edge at the strongest colour edge, which cuts off an occluder's
-       silhouette rim when the rim is as dark as the background.
+    3. **Per-pixel visibility** (:func:`visibility_relabel`, when ``intensities`` are given and ``visibility``):
+       every band pixel takes the side whose disparity its own colour matches ``ratio`` times better in the
+       views that see it.  The median of step 2 puts the edge at the strongest colour edge, which cuts off an
+       occluder's silhouette rim when the rim is as dark as the background.
     4. **Coverage** (:func:`coverage_relabel`, when ``intensities`` are given and ``coverage``): a pixel on
        the edge goes to the surface that covers more than half of it, measured by how much of the
        background's motion across the views shows through it and by where its colour lies between its
@@ -1317,8 +1317,6 @@ __all__ = [
     "make_labels", "half_plane_cost_volume", "half_plane_groups", "sgm", "add_contrast", "noise_sigma",
     "weighted_median", "shift_view", "remap_view", "sector_of", "N_SECTORS", "view_pattern",
     "winner", "colour_guide", "fix_occlusion_edges", "visibility_relabel", "coverage_relabel", "two_colour_edge",
-    "mixing_agrees",
-    "nearest_surface", "EDGE_DEFAULTS",
-    "VIEW_DEFAULTS",
+    "mixing_agrees", "nearest_surface", "EDGE_DEFAULTS", "VIEW_DEFAULTS",
     "run_pipeline", "check_params", "PIPELINE_KEYS",
 ]
