@@ -1,4 +1,4 @@
-"""Benchmark of :func:`plenodecode.decode.decode` on a full-size Illum raw (7728 x 5368).
+"""Benchmark of :func:`plenodecode.decoding.decode` on a full-size Illum raw (7728 x 5368).
 
 The raw and white come from the synthetic generator and are cached in ``bench/_cache/``.
 The baseline is a straightforward decoder run in the same process: demosaic the whole
@@ -87,7 +87,7 @@ def naive_decode(raw, white, grid, n_views: int | None = None) -> np.ndarray:
 
 
 def run() -> list[Figure]:
-    from plenodecode.decode import decode, decode_timed
+    from plenodecode.decoding import decode, decode_timed
 
     raw, white, grid = _illum_inputs()
     decode(raw, grid, white=white, n_views=3)            # compile / load the numba kernels

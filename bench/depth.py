@@ -40,7 +40,7 @@ def _scenes():
         out.append(("hci-antinous", s.lightfield, s.disparity, 15))
     else:
         print(f"# {ANTINOUS} not found: HCI rows skipped", file=sys.stderr)
-    from plenodecode.decode import decode
+    from plenodecode.decoding import decode
     from plenodecode.io.synthetic import simulate
 
     sim = simulate("illum-mini", seed=1)

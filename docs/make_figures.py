@@ -56,8 +56,8 @@ def main() -> None:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     from plenodecode.calib import calibrate
     from plenodecode.calib.selfcal import calibrate_from_scene
-    from plenodecode.decode import decode
-    from plenodecode.decode.focused import render_total_focus
+    from plenodecode.decoding import decode
+    from plenodecode.decoding.focused import render_total_focus
     from plenodecode.io import read_raw
     from plenodecode.io.images import read_image, write_image
     from plenodecode.io.raytrix import grid_from_raycalib, parse_raycalib, read_raytrix_rgb

@@ -24,7 +24,7 @@ _LAZY = {
     "read_raw": "plenodecode.io",
     "simulate": "plenodecode.io.synthetic",
     "calibrate": "plenodecode.calib",
-    "decode": "plenodecode.decode",
+    "decode": "plenodecode.decoding",
     "refocus": "plenodecode.render",
     "focal_stack": "plenodecode.render",
     "all_in_focus": "plenodecode.render",

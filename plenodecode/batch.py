@@ -493,7 +493,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     """
     import numpy as np
 
-    from .decode import decode
+    from .decoding import decode
     from .io.images import write_image
     from .io.lightfield import save_lightfield
 

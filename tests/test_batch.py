@@ -156,7 +156,7 @@ def test_local_run_decodes_good_raws_and_reports_bad_ones(data, local_run):
 def test_products_match_a_direct_decode(data, local_run):
     """The batch writes what decode + refocus give for that raw with the database's calibration."""
     from plenodecode.calib.store import calibration_for
-    from plenodecode.decode import decode
+    from plenodecode.decoding import decode
     from plenodecode.io import read_raw
     from plenodecode.io.images import read_image
     from plenodecode.io.lightfield import load_lightfield
@@ -424,7 +424,7 @@ def test_foreign_summary_files_are_not_replaced(data, tmp_path):
 
 def test_index_renders_in_a_browser(local_run, tmp_path):
     """Headless Chromium shows the index without console errors; the screenshot has the thumbnails."""
-    from conftest import browser_screenshot
+    from tests.conftest import browser_screenshot
 
     from plenodecode.io.images import read_image
 

@@ -77,12 +77,15 @@ def test_light_field_validates_shape_and_dtype():
 
 
 def test_public_api_names_are_callables_even_after_subpackage_imports():
-    """``plenodecode.decode`` is both a subpackage and the public function: it must stay callable."""
+    """Importing a subpackage never replaces a public function of the same name (no module is named like one)."""
     import importlib
+    import types
 
     import plenodecode as pd
 
-    importlib.import_module("plenodecode.decode")
+    for sub in ("io", "calib", "decoding", "render", "depth"):
+        importlib.import_module(f"plenodecode.{sub}")
     for name in ("read_raw", "simulate", "calibrate", "decode", "refocus", "focal_stack", "all_in_focus",
                  "perspective", "estimate_depth", "disparity_to_depth", "save_lightfield", "load_lightfield"):
         assert callable(getattr(pd, name)), name
+        assert not isinstance(getattr(pd, name), types.ModuleType), name

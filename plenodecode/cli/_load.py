@@ -105,7 +105,7 @@ def load_input(path: str | os.PathLike, *, white_dir: str | os.PathLike | None =
 
 
 def _decode_raw(p: Path, *, white_dir, calibration, white, progress) -> LightField:
-    from ..decode import decode
+    from ..decoding import decode
     from ..io import read_raw
 
     raw = read_raw(p)

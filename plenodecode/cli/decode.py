@@ -7,8 +7,8 @@ from pathlib import Path
 
 import click
 
-from ..decode.colour import DECODE_COLOURS
-from ..decode.demosaic import DEMOSAIC_METHODS
+from ..decoding.colour import DECODE_COLOURS
+from ..decoding.demosaic import DEMOSAIC_METHODS
 from ..io.lightfield import LIGHTFIELD_FORMATS
 from ._load import resolve_calibration
 from .common import bit_depth_option, lightfield_output_format, output_option, overwrite_option, progress_bar
@@ -53,7 +53,7 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
       plenodecode decode scene.lfr -g grid.json -w MOD_0000.RAW -o views/ --format views --bit-depth 8
       plenodecode decode lf.png -w white.png --dark dark.tif -o lf.mat
     """
-    from ..decode import decode
+    from ..decoding import decode
     from ..io import read_raw
     from ..io.lightfield import save_lightfield
 

@@ -5,7 +5,7 @@ samples per view step and a surface of disparity ``d`` is sharp at ``s = d``; ``
 depth (1 = focus as captured), converted by :func:`alpha_to_slope` (derivation in
 :mod:`plenodecode.render.alpha`).
 
-Modules: ``refocusing`` (:func:`refocus` and the method registry), ``shiftsum``, ``fourier``, ``alpha``,
+Modules: ``refocus_methods`` (:func:`refocus` and the method registry), ``shiftsum``, ``fourier``, ``alpha``,
 ``focalstack``, ``perspective``; ``plenodecode.render.refocus`` is the function.
 """
 
@@ -17,7 +17,7 @@ from .focalstack import (all_in_focus, default_slopes, depth_from_focus, focal_s
                          refocus_per_pixel, sharpest_slope)
 from .fourier import FourierRefocuser
 from .perspective import parallax_path, perspective, render_parallax
-from .refocusing import REFOCUS_METHODS, refocus
+from .refocus_methods import REFOCUS_METHODS, refocus
 from .shiftsum import shift_sum
 
 __all__ = [

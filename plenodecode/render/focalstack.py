@@ -17,7 +17,7 @@ import numpy as np
 
 from ..types import LightField
 from ._common import aperture_mask, check_lightfield, check_slopes
-from .refocusing import get_method
+from .refocus_methods import get_method
 
 log = logging.getLogger(__name__)
 

@@ -1,0 +1,129 @@
+"""Camera RGB -> linear sRGB.
+
+The camera pipeline of Lytro metadata (formats.md sections 2-4, LFToolbox ``LFColourCorrect``)::
+
+    srgb_linear = CCM @ diag(gains) @ camera_rgb
+
+with ``gains = (r, (gr + gb) / 2, b)`` from ``CameraMetadata.wb_gains`` and ``CCM`` the camera's
+``ccm`` (rows sum to 1, so a white-balanced neutral stays neutral).  No clipping and no display
+encoding: the result stays linear and may exceed 1 in highlights; encoding is export's job.
+Matrix application uses colour-science (``colour.algebra.vecmul``).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Mapping
+
+import numpy as np
+
+from ..types import CameraMetadata, LightField
+
+log = logging.getLogger(__name__)
+
+#: colour states :func:`plenodecode.decoding.decode` can produce
+DECODE_COLOURS = ("linear-srgb", "camera")
+
+
+def white_balance_gains(metadata: CameraMetadata) -> np.ndarray | None:
+    """White-balance gains ``(r, g, b)``; ``g = mean(gr, gb)`` when both greens are given.
+
+    Returns
+    -------
+    ndarray, shape (3,), float64, or None when the metadata has none.
+    """
+    g: Mapping[str, float] | None = metadata.wb_gains
+    if not g:
+        return None
+    try:
+        if "g" in g:
+            green = float(g["g"])
+        else:
+            greens = [float(g[k]) for k in ("gr", "gb") if k in g]
+            green = float(np.mean(greens)) if greens else 1.0
+        gains = np.array([float(g["r"]), green, float(g["b"])])
+    except (KeyError, TypeError, ValueError):
+        return None
+    if not np.all(np.isfinite(gains)) or np.any(gains <= 0):
+        return None
+    return gains
+
+
+def colour_matrix(metadata: CameraMetadata) -> np.ndarray | None:
+    """The 3x3 matrix ``CCM @ diag(gains)`` taking camera RGB to linear sRGB.
+
+    Missing gains count as 1 (LFToolbox does the same for Illum); a missing or malformed CCM gives None.
+
+    Returns
+    -------
+    ndarray, shape (3, 3), float64, or None
+    """
+    if metadata.ccm is None:
+        return None
+    ccm = np.asarray(metadata.ccm, np.float64)
+    if ccm.shape != (3, 3) or not np.all(np.isfinite(ccm)):
+        return None
+    gains = white_balance_gains(metadata)
+    if gains is None:
+        log.info("no white-balance gains in the metadata; using 1, 1, 1")
+        gains = np.ones(3)
+    return ccm @ np.diag(gains)
+
+
+def apply_matrix(data: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """Apply a 3x3 matrix to the last axis of ``data`` (colour-science ``vecmul``), view by view.
+
+    Parameters
+    ----------
+    data : ndarray, shape (..., 3), float32
+    matrix : ndarray, shape (3, 3)
+
+    Returns
+    -------
+    ndarray, same shape, float32 (a new array; float64 temporaries are one leading slice at a time)
+    """
+    import colour
+
+    if data.shape[-1] != 3:
+        raise ValueError(f"data must have 3 channels in its last axis, got shape {data.shape}")
+    out = np.empty(data.shape, np.float32)
+    m = np.asarray(matrix, np.float64)
+    flat_in = data.reshape(-1, *data.shape[-3:]) if data.ndim > 3 else data[None]
+    flat_out = out.reshape(flat_in.shape)
+    for k in range(flat_in.shape[0]):
+        flat_out[k] = colour.algebra.vecmul(m, flat_in[k])
+    return out
+
+
+def to_linear_srgb(lf: LightField, metadata: CameraMetadata | None = None) -> LightField:
+    """Convert a camera-RGB light field to linear sRGB.
+
+    Parameters
+    ----------
+    lf : LightField
+        ``colour == 'camera'``, C = 3.
+    metadata : CameraMetadata, optional
+        Source of gains and CCM; default: ``lf.metadata['camera']``.
+
+    Returns
+    -------
+    LightField with ``colour == 'linear-srgb'``.
+    """
+    from ..errors import MetadataError
+
+    if lf.colour != "camera":
+        raise ValueError(f"lf must be in camera colour, got {lf.colour!r}")
+    if lf.data.shape[-1] != 3:
+        raise ValueError("lf must have 3 channels")
+    if metadata is None:
+        metadata = CameraMetadata.from_dict(lf.metadata.get("camera") or {})
+    m = colour_matrix(metadata)
+    if m is None:
+        raise MetadataError("expected a colour matrix (ccm) in the camera metadata, found none; "
+                            "keep the light field in camera colour or pass metadata with a ccm")
+    meta = dict(lf.metadata)
+    meta["colour_matrix"] = m.tolist()
+    return lf.replace(data=apply_matrix(lf.data, m), colour="linear-srgb", metadata=meta)
+
+
+__all__ = ["DECODE_COLOURS", "white_balance_gains", "colour_matrix", "apply_matrix", "to_linear_srgb"]

@@ -1,0 +1,132 @@
+"""``plenodecode decode`` on files written to a temporary folder."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from plenodecode.cli.main import cli
+
+from plenodecode.io import synthetic
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    from plenodecode.io.generic import write_mosaic
+
+    d = tmp_path_factory.mktemp("decode_cli")
+    sim = synthetic.simulate("f01", shape=(240, 260), seed=1)
+    raw = write_mosaic(d / "scene.png", sim.raw)
+    white = write_mosaic(d / "white.png", sim.white)
+    grid = d / "grid.json"
+    grid.write_text(sim.grid.to_json(), encoding="utf-8")
+    return sim, raw, white, grid
+
+
+def run(args, cwd=None):
+    runner = CliRunner()
+    if cwd is None:
+        return runner.invoke(cli, args, catch_exceptions=False)
+    old = os.getcwd()
+    os.chdir(cwd)
+    try:
+        return runner.invoke(cli, args, catch_exceptions=False)
+    finally:
+        os.chdir(old)
+
+
+def test_decode_with_grid_and_white_writes_what_decode_returns(files, tmp_path):
+    from plenodecode.decoding import decode
+    from plenodecode.io.lightfield import load_lightfield
+
+    sim, raw, white, grid = files
+    out = tmp_path / "lf.npy"
+    res = run(["-q", "decode", str(raw), "-g", str(grid), "-w", str(white), "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    lf = load_lightfield(out)
+    ref = decode(sim.raw, sim.grid, white=sim.white)
+    assert lf.shape == ref.shape == (9, 9, *ref.shape[2:])
+    np.testing.assert_allclose(lf.data, ref.data, atol=1e-6)
+    assert lf.colour == "linear-srgb"
+
+
+def test_decode_options_views_demosaic_format(files, tmp_path):
+    from plenodecode.io.lightfield import load_lightfield
+
+    sim, raw, white, grid = files
+    out = tmp_path / "lf.zarr"
+    res = run(["-q", "decode", str(raw), "-g", str(grid), "-w", str(white), "-o", str(out), "--views", "5",
+               "--demosaic", "bilinear", "--colour", "camera"])
+    assert res.exit_code == 0, res.output
+    lf = load_lightfield(out)
+    assert lf.shape[:2] == (5, 5) and lf.colour == "camera"
+    assert lf.metadata["demosaic"] == "bilinear"
+    bad = run(["decode", str(raw), "-g", str(grid), "-o", str(tmp_path / "x.npy"), "--demosaic", "menon"])
+    assert bad.exit_code == 2 and "malvar" in bad.output
+    even = run(["decode", str(raw), "-g", str(grid), "-o", str(tmp_path / "x.npy"), "--views", "4"])
+    assert even.exit_code == 2
+
+
+def test_white_alone_calibrates_on_the_fly(files, tmp_path):
+    sim, raw, white, grid = files
+    out = tmp_path / "lf.npy"
+    res = run(["-q", "decode", str(raw), "-w", str(white), "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    assert out.is_file()
+
+
+def test_existing_output_is_not_overwritten(files, tmp_path):
+    sim, raw, white, grid = files
+    out = tmp_path / "lf.npy"
+    out.write_bytes(b"keep me")
+    res = run(["decode", str(raw), "-g", str(grid), "-o", str(out)])
+    assert res.exit_code == 2 and "--overwrite" in res.output
+    assert out.read_bytes() == b"keep me"
+    res = run(["-q", "decode", str(raw), "-g", str(grid), "-w", str(white), "-o", str(out), "--overwrite"])
+    assert res.exit_code == 0, res.output
+    assert out.read_bytes() != b"keep me"
+
+
+def test_raw_without_calibration_exits_1_saying_what_to_pass(files, tmp_path):
+    sim, raw, white, grid = files
+    res = CliRunner().invoke(cli, ["decode", str(raw), "-o", str(tmp_path / "lf.npy")])
+    if (os.path.isdir("calib")):                       # run from a checkout with a database: use an empty cwd
+        res = run(["decode", str(raw), "-o", str(tmp_path / "lf.npy")], cwd=tmp_path)
+    assert res.exit_code == 1
+    assert "--calibration" in res.output and "--white" in res.output
+    assert not (tmp_path / "lf.npy").exists()
+
+
+def test_wrong_sensor_grid_exits_1_without_output(files, tmp_path):
+    sim, raw, white, grid = files
+    other = tmp_path / "other.json"
+    other.write_text(sim.grid.replace(sensor_shape=(100, 100)).to_json(), encoding="utf-8")
+    out = tmp_path / "lf.npy"
+    res = run(["decode", str(raw), "-g", str(other), "-o", str(out)])
+    assert res.exit_code == 1 and "100x100" in res.output
+    assert not out.exists()
+
+
+def test_white_dir_database_picks_the_white_by_serial(files, tmp_path):
+    from plenodecode.calib import store
+    from plenodecode.io.lightfield import load_lightfield
+    from plenodecode.io.lytro import write_lfp, write_raw_pair
+
+    sim, *_ = files
+    (tmp_path / "whites").mkdir()
+    write_raw_pair(tmp_path / "whites" / "MOD_0000.RAW", sim.white)
+    scene = write_lfp(tmp_path / "scene.lfp", sim.raw)
+    store.build_database(tmp_path / "whites", tmp_path / "db")
+    out = tmp_path / "out.npy"
+    res = run(["decode", str(scene), "--white-dir", str(tmp_path / "db"), "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "9x9 views" in res.output
+    lf = load_lightfield(out)
+    assert lf.metadata["devignetted"] is True
+    assert lf.metadata["camera"]["serial"] == sim.raw.metadata.serial
+    mixed = run(["decode", str(scene), "--white-dir", str(tmp_path / "db"), "-g", str(files[3]), "-o", str(out)])
+    assert "cannot be combined" in mixed.output
+    assert mixed.exit_code == 2

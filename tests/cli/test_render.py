@@ -1,0 +1,179 @@
+"""The rendering commands: render (the card's one-liner), refocus, views, parallax, and input loading."""
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from plenodecode.cli._load import METHOD_NAMES, load_input
+from plenodecode.cli.main import cli
+from plenodecode.io.images import read_image, write_image
+from plenodecode.render import REFOCUS_METHODS, alpha_to_slope, perspective, refocus
+from plenodecode.types import CameraMetadata, LightField
+
+CAMERA = CameraMetadata(focal_length_m=0.0301, f_number=2.0, lens_pitch_m=2e-5, pixel_pitch_m=1.4e-6)
+
+
+def small_lf(colour="srgb", camera=True, seed=0):
+    rng = np.random.default_rng(seed)
+    data = rng.random((5, 5, 14, 18, 3), dtype=np.float32)
+    meta = {"spatial_step_px": 12.37, "view_step_px": 1.0}
+    if camera:
+        meta["camera"] = CAMERA.to_dict()
+    return LightField(data, None, colour, meta)
+
+
+def save_npy(tmp_path, lf, name="lf.npy"):
+    from plenodecode.io.lightfield import save_lightfield
+
+    return save_lightfield(lf, tmp_path / name)
+
+
+def run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def test_method_choices_match_the_registry():
+    assert set(METHOD_NAMES) == set(REFOCUS_METHODS)
+
+
+def test_load_input_reads_saved_light_fields_and_hci_folders(tmp_path):
+    lf = small_lf()
+    back = load_input(save_npy(tmp_path, lf))
+    np.testing.assert_array_equal(back.data, lf.data)
+    hci = tmp_path / "scene"
+    hci.mkdir()
+    for i in range(9):
+        write_image(hci / f"input_Cam{i:03d}.png", lf.data[i // 3, i % 3], bit_depth=8)
+    got = load_input(hci)
+    assert got.shape == (3, 3, 14, 18, 3) and got.colour == "srgb"
+    np.testing.assert_allclose(got.data[1, 2], lf.data[1, 2], atol=0.5 / 255 + 1e-6)
+
+
+def test_card_one_liner_refocus_by_alpha(tmp_path):
+    lf = small_lf()
+    src = save_npy(tmp_path, lf)
+    out = tmp_path / "out.png"
+    res = run(src, "--refocus", 1.01, "-o", out)
+    assert res.exit_code == 0, res.output
+    img = read_image(out)
+    assert img.dtype == np.uint16 and img.shape == (14, 18, 3)       # default --bit-depth 16
+    expect = refocus(lf, slope=alpha_to_slope(1.01, lf))             # 'srgb' colour: written as is
+    np.testing.assert_allclose(img / 65535.0, np.clip(expect, 0, 1), atol=0.5 / 65535 + 1e-6)
+
+
+def test_refocus_slope_exr_is_exact_and_linear_data_is_not_encoded_at_32_bit(tmp_path):
+    lf = small_lf(colour="linear-srgb")
+    src = save_npy(tmp_path, lf)
+    out = tmp_path / "p.exr"
+    res = run("refocus", src, "--slope", 0.7, "--method", "fourier-slice", "--bit-depth", 32, "-o", out)
+    assert res.exit_code == 0, res.output
+    np.testing.assert_allclose(read_image(out), refocus(lf, slope=0.7, method="fourier-slice"), atol=1e-6)
+
+
+def test_linear_light_fields_are_display_encoded_in_png(tmp_path):
+    lf = small_lf(colour="linear-srgb")
+    src = save_npy(tmp_path, lf)
+    out = tmp_path / "p.png"
+    assert run("refocus", src, "--slope", 0.0, "-o", out).exit_code == 0
+    lin = np.clip(lf.data.mean((0, 1)), 0, 1)
+    srgb = np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * lin ** (1 / 2.4) - 0.055)
+    np.testing.assert_allclose(read_image(out) / 65535.0, srgb, atol=1e-4)
+
+
+def test_focal_stack_writes_slices_all_in_focus_and_json(tmp_path):
+    src = save_npy(tmp_path, small_lf())
+    out = tmp_path / "stack"
+    res = run("refocus", src, "--focal-stack", "-1:1:3", "-o", out, "--bit-depth", 8)
+    assert res.exit_code == 0, res.output
+    doc = json.loads((out / "focal_stack.json").read_text())
+    assert doc["slopes"] == [-1.0, 0.0, 1.0] and len(doc["alphas"]) == 3
+    for name in doc["files"] + [doc["all_in_focus"]]:
+        assert read_image(out / name).dtype == np.uint8
+    # alpha units
+    res = run("refocus", src, "--focal-stack", "0.99:1.01:2", "--stack-units", "alpha", "-o", tmp_path / "s2")
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "s2" / "focal_stack.json").read_text())
+    np.testing.assert_allclose(doc["alphas"], [0.99, 1.01], rtol=1e-9)
+    # refuses to overwrite
+    res = run("refocus", src, "--focal-stack", "-1:1:3", "-o", out)
+    assert res.exit_code == 2 and "--overwrite" in res.output
+    assert run("refocus", src, "--focal-stack", "-1:1", "-o", tmp_path / "s3").exit_code == 2
+
+
+def test_alpha_without_camera_metadata_exits_1_with_one_line(tmp_path):
+    src = save_npy(tmp_path, small_lf(camera=False))
+    res = run("refocus", src, "--alpha", 1.01, "-o", tmp_path / "x.png")
+    assert res.exit_code == 1
+    assert "focal_length_m" in res.output and len(res.output.strip().splitlines()) == 1
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_existing_output_is_kept_without_overwrite(tmp_path):
+    src = save_npy(tmp_path, small_lf())
+    out = tmp_path / "out.png"
+    out.write_bytes(b"keep")
+    res = run(src, "--slope", 0.2, "-o", out)
+    assert res.exit_code == 2 and out.read_bytes() == b"keep"
+    assert run(src, "--slope", 0.2, "-o", out, "--overwrite").exit_code == 0
+    assert out.read_bytes() != b"keep"
+
+
+def test_usage_errors(tmp_path):
+    src = save_npy(tmp_path, small_lf())
+    assert run("refocus", src, "-o", tmp_path / "a.png").exit_code == 2                     # nothing asked
+    assert run("refocus", src, "--slope", 1, "--alpha", 1, "-o", tmp_path / "a.png").exit_code == 2
+    assert run(src, "-o", tmp_path / "a.png").exit_code == 2                                # neither form
+    assert run("refocus", src, "--slope", 0, "--aperture", 0, "-o", tmp_path / "a.png").exit_code == 2
+
+
+def test_views_all_and_fractional(tmp_path):
+    lf = small_lf()
+    src = save_npy(tmp_path, lf)
+    res = run("views", src, "-o", tmp_path / "views", "--bit-depth", 16)
+    assert res.exit_code == 0, res.output
+    files = sorted((tmp_path / "views").glob("view_*.png"))
+    assert len(files) == 25
+    np.testing.assert_allclose(read_image(tmp_path / "views" / "view_03_01.png") / 65535.0, lf.data[3, 1],
+                               atol=0.5 / 65535 + 1e-6)
+    out = tmp_path / "p.exr"
+    res = run("views", src, "--view", 1.5, 2.25, "-o", out, "--bit-depth", 32)
+    assert res.exit_code == 0, res.output
+    np.testing.assert_allclose(read_image(out), perspective(lf, 1.5, 2.25), atol=1e-6)
+    assert run("views", src, "--view", 9, 0, "-o", tmp_path / "q.png").exit_code == 2
+
+
+def test_parallax_writes_animation_and_numbered_frames(tmp_path):
+    src = save_npy(tmp_path, small_lf())
+    out = tmp_path / "wobble.gif"
+    res = run("parallax", src, "-o", out, "--frames", 6, "--radius", 1.5, "--bit-depth", 8)
+    assert res.exit_code == 0, res.output
+    assert out.stat().st_size > 0 and out.read_bytes()[:3] == b"GIF"
+    frames = sorted((tmp_path / "wobble_frames").glob("frame_*.png"))
+    assert len(frames) == 6
+    assert run("parallax", src, "-o", tmp_path / "w.mp4").exit_code == 2
+    assert run("parallax", src, "-o", tmp_path / "w.gif", "--radius", 5).exit_code == 2
+
+
+def test_raw_is_decoded_then_refocused(tmp_path):
+    """The card's form on a generated Illum raw: decode with a calibration (grid JSON, or the white image)."""
+    from plenodecode.io import synthetic
+    sim = synthetic.simulate("illum-mini", seed=1, shape=(400, 560), noise=False)
+    files = synthetic.write_simulation(sim, tmp_path / "cam", lightfield=False)
+    grid = tmp_path / "grid.json"
+    grid.write_text(sim.grid.to_json())
+    out = tmp_path / "photo.png"
+    res = run(files["raw"], "--refocus", 1.0, "-o", out, "--calibration", grid)
+    assert res.exit_code == 0, res.output
+    lf = load_input(files["raw"], calibration=grid)
+    assert lf.shape[:2] == (15, 15)
+    img = read_image(out)
+    assert img.shape == (*lf.shape[2:4], 3) and img.std() > 1000          # a real picture, not flat
+    # calibrated on the spot from the white image, which also devignets
+    res = run("refocus", files["raw"], "--slope", 0.3, "-o", tmp_path / "w.png", "--white", files["white"])
+    assert res.exit_code == 0, res.output
+    # no calibration at all: one line naming what to pass, exit 1
+    (tmp_path / "empty").mkdir()
+    res = run(files["raw"], "--refocus", 1.0, "-o", tmp_path / "x.png", "--white-dir", tmp_path / "empty")
+    assert res.exit_code == 1 and "--calibration" in res.output and not (tmp_path / "x.png").exists()

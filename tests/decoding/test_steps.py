@@ -1,0 +1,271 @@
+"""Unit tests of the decoding steps on small hand-made inputs with exact answers."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from plenodecode.decoding import devignette as dv
+from plenodecode.decoding.demosaic import DEMOSAIC_METHODS, demosaic
+from plenodecode.decoding.resample import hex_to_rect, output_shape, row_taps
+from plenodecode.decoding.slice import lens_labels, plan_bands, safe_radius, sample_lenses, view_offsets
+from plenodecode.types import LensletGrid, cfa_channel_map
+
+
+def hex_grid(h=120, w=160, pitch=10.0, rotation=0.0, origin=(5.3, 4.7)) -> LensletGrid:
+    rs = pitch * math.sqrt(3) / 2
+    rows = int((h - origin[0]) // rs) + 1
+    cols = int((w - origin[1] - pitch / 2) // pitch) + 1
+    return LensletGrid("hex", pitch, rs, rotation, origin, (rows, cols), 0.5, (h, w), 0.46 * pitch)
+
+
+# -- levels, hot pixels, devignetting ---------------------------------------------------------
+def test_normalise_per_cfa_position_and_dark():
+    black = np.array([[10.0, 20.0], [30.0, 40.0]])
+    white = np.array([[110.0, 220.0], [330.0, 440.0]])
+    m = np.tile((black + 0.5 * (white - black)).astype(np.uint16), (3, 4))
+    out = dv.normalise(m, black, white)
+    np.testing.assert_allclose(out, 0.5, atol=1e-6)
+    dark = np.full(m.shape, 5.0)
+    out2 = dv.normalise(m, black, white, dark=dark)
+    np.testing.assert_allclose(out2, (m - 5.0) / np.tile(white - black, (3, 4)), rtol=1e-6)
+
+
+def test_hot_pixels_found_and_repaired_without_touching_structure():
+    rng = np.random.default_rng(0)
+    yy, xx = np.mgrid[0:64, 0:80]
+    # lenslet-like structure: bright disks on a dark background, smooth inside
+    img = (0.6 + 0.2 * np.sin(xx / 7.0)) * ((((yy % 10) - 4.5) ** 2 + ((xx % 10) - 4.5) ** 2) < 16)
+    img = img.astype(np.float32) + rng.normal(0, 0.005, img.shape).astype(np.float32)
+    hot = img.copy()
+    # inside the disks, where the decoder reads (gap pixels are masked out by the white anyway)
+    cand = np.argwhere(img > 0.3)
+    picked: list = []
+    for k in rng.permutation(len(cand)):              # 30 pixels, no two within 2 px
+        if all(np.abs(cand[k] - q).max() > 2 for q in picked):
+            picked.append(cand[k])
+        if len(picked) == 30:
+            break
+    ys, xs = np.array(picked).T
+    hot[ys, xs] += 0.8
+    found = dv.find_hot_pixels(hot)
+    assert found[ys, xs].all()
+    assert found.sum() == len(set(zip(ys.tolist(), xs.tolist())))
+    fixed, n = dv.repair_hot_pixels(hot)
+    assert n == found.sum()
+    assert np.abs(fixed[ys, xs] - img[ys, xs]).max() < 0.3          # back to the neighbourhood level
+    untouched = ~found
+    np.testing.assert_array_equal(fixed[untouched], hot[untouched])
+    assert dv.repair_hot_pixels(img)[1] == 0                           # clean data: nothing changed
+
+
+def test_relative_white_and_devignette_exact():
+    yy, xx = np.mgrid[0:60, 0:60]
+    disk = np.clip(5.0 - np.hypot((yy % 12) - 5.5, (xx % 12) - 5.5), 0, 1)
+    vignette = 1.0 - 0.3 * ((yy - 30) ** 2 + (xx - 30) ** 2) / 1800.0
+    gains = np.tile(np.array([[0.9, 0.7], [0.5, 0.8]]), (30, 30))     # channel scales of a real white
+    white = (disk * vignette * gains).astype(np.float32)
+    scene = (0.2 + 0.5 * np.cos(xx / 9.0) ** 2).astype(np.float32)
+    raw = scene * white
+    rel = dv.relative_white(white, "RGGB", window=14)
+    assert rel.max() <= 1.0 and rel[disk > 0.99].min() > 0.9      # peak of each lens ~1, channel scale removed
+    out = dv.devignette(raw, white, rel, floor=0.05)
+    ok = rel >= 0.05
+    np.testing.assert_allclose(out[ok], scene[ok], rtol=1e-5)
+    assert np.isnan(out[~ok]).all()
+
+
+# -- demosaicing ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("method", sorted(DEMOSAIC_METHODS))
+@pytest.mark.parametrize("cfa", ["RGGB", "GRBG", "GBRG", "BGGR"])
+def test_demosaic_exact_on_linear_colour_ramps(method, cfa):
+    yy, xx = np.mgrid[0:40, 0:50].astype(np.float64)
+    truth = np.stack([0.1 + 0.01 * yy + 0.004 * xx, 0.5 - 0.003 * yy + 0.006 * xx, 0.3 + 0.002 * yy - 0.001 * xx], -1)
+    ch = np.tile(cfa_channel_map(cfa), (20, 25))
+    mosaic = np.take_along_axis(truth, ch[..., None].astype(np.int64), axis=-1)[..., 0].astype(np.float32)
+    out = demosaic(mosaic, cfa, method=method)
+    inner = (slice(2, -2), slice(2, -2))
+    np.testing.assert_allclose(out[inner], truth[inner], atol=2e-6)
+
+
+def test_malvar_beats_bilinear_on_correlated_detail():
+    yy, xx = np.mgrid[0:96, 0:96].astype(np.float64)
+    lum = 0.5 + 0.3 * np.sin(xx / 2.3) * np.cos(yy / 3.1)
+    truth = np.stack([0.9 * lum, lum, 0.7 * lum + 0.05], -1)
+    ch = np.tile(cfa_channel_map("GRBG"), (48, 48))
+    mosaic = np.take_along_axis(truth, ch[..., None].astype(np.int64), -1)[..., 0].astype(np.float32)
+    err = {m: np.sqrt(np.mean((demosaic(mosaic, "GRBG", method=m)[4:-4, 4:-4] - truth[4:-4, 4:-4]) ** 2))
+           for m in ("bilinear", "malvar")}
+    assert err["malvar"] < 0.75 * err["bilinear"]
+
+
+def test_malvar_matches_the_papers_5x5_filters():
+    """Interior pixels equal the filters of Malvar, He & Cutler (ICASSP 2004, Fig. 2), applied by convolution."""
+    from scipy.ndimage import correlate
+
+    g_at_rb = np.array([[0, 0, -1, 0, 0], [0, 0, 2, 0, 0], [-1, 2, 4, 2, -1], [0, 0, 2, 0, 0], [0, 0, -1, 0, 0]]) / 8
+    rb_at_g_row = np.array([[0, 0, .5, 0, 0], [0, -1, 0, -1, 0], [-1, 4, 5, 4, -1], [0, -1, 0, -1, 0],
+                            [0, 0, .5, 0, 0]]) / 8          # R/B neighbours along the row
+    rb_at_g_col = rb_at_g_row.T
+    rb_at_br = np.array([[0, 0, -1.5, 0, 0], [0, 2, 0, 2, 0], [-1.5, 0, 6, 0, -1.5], [0, 2, 0, 2, 0],
+                         [0, 0, -1.5, 0, 0]]) / 8
+    rng = np.random.default_rng(4)
+    mosaic = rng.random((24, 24)).astype(np.float32)
+    out = demosaic(mosaic, "RGGB", method="malvar")
+    conv = {name: correlate(mosaic.astype(np.float64), k, mode="reflect")
+            for name, k in [("g", g_at_rb), ("row", rb_at_g_row), ("col", rb_at_g_col), ("x", rb_at_br)]}
+    ch = np.tile(cfa_channel_map("RGGB"), (12, 12))
+    ys, xs = np.mgrid[2:22, 2:22]
+    for y, x in zip(ys.ravel(), xs.ravel()):
+        c = ch[y, x]
+        if c == 1:                      # G site: R along the row on R rows (even y), along the column on B rows
+            r_exp = conv["row"][y, x] if y % 2 == 0 else conv["col"][y, x]
+            b_exp = conv["col"][y, x] if y % 2 == 0 else conv["row"][y, x]
+            np.testing.assert_allclose(out[y, x], [r_exp, mosaic[y, x], b_exp], atol=2e-6)
+        else:
+            other = conv["x"][y, x]
+            exp = [mosaic[y, x], conv["g"][y, x], other] if c == 0 else [other, conv["g"][y, x], mosaic[y, x]]
+            np.testing.assert_allclose(out[y, x], exp, atol=2e-6)
+
+
+@pytest.mark.parametrize("method", sorted(DEMOSAIC_METHODS))
+def test_demosaic_does_not_mix_across_labels(method):
+    labels = np.zeros((30, 30), np.int32)
+    labels[:, 15:] = 1
+    truth = np.where(labels[..., None] == 0, [0.2, 0.4, 0.6], [0.9, 0.1, 0.5]).astype(np.float32)
+    ch = np.tile(cfa_channel_map("BGGR"), (15, 15))
+    mosaic = np.take_along_axis(truth, ch[..., None].astype(np.int64), -1)[..., 0]
+    mixed = demosaic(mosaic, "BGGR", method=method)
+    kept = demosaic(mosaic, "BGGR", method=method, labels=labels)
+    np.testing.assert_allclose(kept, truth, atol=1e-6)          # constant per label: exact everywhere
+    assert np.abs(mixed[:, 14:16] - truth[:, 14:16]).max() > 0.1  # without labels the border mixes
+
+
+def test_demosaic_missing_pixels_and_monochrome():
+    rng = np.random.default_rng(1)
+    m = np.full((20, 20), 0.5, np.float32)
+    m[rng.random(m.shape) < 0.15] = np.nan
+    out = demosaic(m, "RGGB", method="malvar")
+    assert np.isfinite(out).all()
+    np.testing.assert_allclose(out, 0.5, atol=1e-6)
+    labels = np.full((20, 20), -1, np.int32)
+    labels[5:15, 5:15] = 3
+    mono = demosaic(m, None, labels=labels)
+    assert mono.shape == (20, 20, 1)
+    assert np.isnan(mono[labels < 0]).all() and np.isfinite(mono[labels >= 0]).all()
+    with pytest.raises(ValueError, match="malvar"):
+        demosaic(m, "RGGB", method="menon")
+
+
+# -- geometry: labels, slicing, hex -> rect ------------------------------------------------------
+def test_labels_are_the_voronoi_cells():
+    g = hex_grid()
+    labels, dist = lens_labels(g.centres_2d(), g.sensor_shape, 0.6 * g.pitch + 1)
+    c = g.centres()
+    rng = np.random.default_rng(2)
+    pts = np.stack([rng.integers(10, 110, 300), rng.integers(10, 150, 300)], 1)
+    d = np.linalg.norm(pts[:, None, :] - c[None], axis=-1)
+    np.testing.assert_array_equal(labels[pts[:, 0], pts[:, 1]], d.argmin(1))
+    np.testing.assert_allclose(dist[pts[:, 0], pts[:, 1]], d.min(1), atol=1e-4)
+
+
+@pytest.mark.parametrize("rotation", [0.0, 0.01])
+def test_sample_lenses_hits_centre_plus_offset(rotation):
+    g = hex_grid(rotation=rotation)
+    h, w = g.sensor_shape
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)
+    f = lambda y, x: 0.3 + 0.002 * y + 0.001 * x          # linear: bilinear sampling is exact
+    img = f(yy, xx).astype(np.float32)[..., None]
+    labels, _ = lens_labels(g.centres_2d(), (h, w), 0.6 * g.pitch + 1)
+    offs = view_offsets(g, 7)
+    s, wt = sample_lenses(img, np.ones((h, w), np.float32), labels, g.centres_2d(), offs,
+                          safe_radius=safe_radius(g))
+    p = g.centres_2d()[None, None] + offs[:, :, None, None]
+    inside = wt > 0.999
+    assert inside.mean() > 0.7
+    np.testing.assert_allclose(s[..., 0][inside], f(p[..., 0], p[..., 1])[inside], atol=1e-5)
+    # the offsets follow the lattice axes: view (v, u) - centre = (v-3) e_row + (u-3) e_col
+    e_row, e_col = g.axes()
+    np.testing.assert_allclose(offs[5, 1], 2 * e_row - 2 * e_col)
+
+
+def test_hex_to_rect_exact_for_quadratics_and_square_pixels():
+    g = hex_grid(h=200, w=300)
+    rows, cols = g.shape
+    s = g.decoded_sampling()
+    i, j = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+    b = j * g.pitch + g.odd_row_shift * g.pitch * (i % 2)            # lattice position along each row
+    val = lambda a, bb: 0.2 + 0.01 * a + 0.003 * bb - 2e-5 * bb ** 2
+    samples = val(i * g.row_spacing, b).astype(np.float32)[None, None, ..., None]
+    ones = np.ones(samples.shape[:4], np.float32)
+    ny, nx = output_shape(g)
+    yy, xx = np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij")
+    expect = val(yy * s["step"] + s["a0"], xx * s["step"] + s["b0"])
+    cub, wc = hex_to_rect(samples, ones, g, method="cubic")
+    lin, _ = hex_to_rect(samples, ones, g, method="linear")
+    assert cub.shape == (1, 1, ny, nx, 1)
+    inner = (slice(None), slice(2, -2))
+    np.testing.assert_allclose(cub[0, 0, ..., 0][inner], expect[inner], atol=1e-5)   # Keys reproduces quadratics
+    assert np.abs(lin[0, 0, ..., 0][inner] - expect[inner]).max() > 1e-4             # linear does not
+    np.testing.assert_allclose(wc, 1.0, atol=1e-6)
+    # square output pixels: X spans the common row range at the row spacing
+    assert nx == int(math.floor(((cols - 1 - 0.5) * g.pitch) / g.row_spacing + 1e-9)) + 1
+    idx, wts = row_taps(g, method="cubic")
+    np.testing.assert_allclose(wts.sum(-1), 1.0, atol=1e-6)
+    with pytest.raises(ValueError, match="cubic"):
+        row_taps(g, method="sinc")
+
+
+def test_hex_to_rect_skips_missing_lenses():
+    g = hex_grid()
+    rows, cols = g.shape
+    samples = np.full((1, 1, rows, cols, 1), 0.7, np.float32)
+    weight = np.ones((1, 1, rows, cols), np.float32)
+    samples[..., 3, 4, 0] = 0.0
+    weight[..., 3, 4] = 0.0                                     # lens without a sample
+    out, w = hex_to_rect(samples, weight, g)
+    np.testing.assert_allclose(out[0, 0, 3], 0.7, atol=1e-6)    # no dark hole where the lens is missing
+    assert w[0, 0, 3].min() < 0.6
+
+
+def test_bands_cover_all_rows_with_even_starts():
+    g = hex_grid(h=400, w=300, rotation=0.01)
+    bands = plan_bands(g, max_pixels=20_000)
+    assert len(bands) > 3
+    assert bands[0].i0 == 0 and bands[-1].i1 == g.shape[0]
+    assert all(a.i1 == b.i0 for a, b in zip(bands, bands[1:]))
+    assert all(b.r0 % 2 == 0 for b in bands)
+    c = g.centres_2d()
+    for b in bands:   # every decoded lens's cell lies inside the band's sensor rows
+        rr = c[b.i0:b.i1, :, 0]
+        assert rr.min() - 0.6 * g.pitch >= b.r0 or b.r0 == 0
+        assert rr.max() + 0.6 * g.pitch <= b.r1 or b.r1 == g.sensor_shape[0]
+
+
+def test_reference_output_sizes_from_pitch_and_sensor():
+    from plenodecode.io.synthetic import make_grid
+
+    illum = make_grid("illum")
+    f01 = make_grid("f01")
+    assert illum.n_views() == 15 and f01.n_views() == 9
+    iy, ix = output_shape(illum)
+    fy, fx = output_shape(f01)
+    assert abs(iy - 434) <= 1 and abs(ix - 625) <= 2           # LFToolbox: 15x15x434x625
+    assert abs(fy - 381) <= 2 and abs(fx - 380) <= 2           # LFToolbox: about 9x9x380x380
+
+
+@pytest.mark.parametrize("method", sorted(DEMOSAIC_METHODS))
+def test_interior_hint_does_not_change_the_result(method):
+    g = hex_grid()
+    labels, dist = lens_labels(g.centres_2d(), g.sensor_shape, 0.6 * g.pitch + 1)
+    rng = np.random.default_rng(7)
+    m = rng.random(g.sensor_shape).astype(np.float32)
+    m[dist > 0.42 * g.pitch] = np.nan                     # dark rims between the disks
+    interior = dist < safe_radius(g) - 3.0
+    interior[:2], interior[-2:], interior[:, :2], interior[:, -2:] = False, False, False, False
+    assert interior.mean() > 0.1
+    a = demosaic(m, "GRBG", method=method, labels=labels)
+    b = demosaic(m, "GRBG", method=method, labels=labels, interior=interior)
+    np.testing.assert_array_equal(a, b)

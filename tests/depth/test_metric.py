@@ -1,0 +1,143 @@
+"""Metric depth from disparity: HCI camera arrays and unfocused plenoptic cameras."""
+
+import math
+
+import numpy as np
+import pytest
+
+from tests.conftest import shared_path
+from plenodecode.depth import disparity_to_depth
+from plenodecode.depth.metric import depth_to_disparity, depth_to_points, focal_length_px
+from plenodecode.errors import MetadataError
+from plenodecode.types import LightField
+
+#: parameters.cfg of the HCI 'antinous' scene (the values every HCI scene shares for the camera)
+ANTINOUS = {
+    "intrinsics": {"focal_length_mm": 100.0, "image_resolution_x_px": 512, "image_resolution_y_px": 512,
+                   "sensor_size_mm": 35.0, "fstop": 100.0},
+    "extrinsics": {"num_cams_x": 9, "num_cams_y": 9, "baseline_mm": 100.0, "focus_distance_m": 7.0,
+                   "offset": 20.89795918367347},
+    "meta": {"disp_min": -3.3, "disp_max": 2.8},
+}
+
+
+def _lf(meta, shape=(3, 3, 4, 6, 1)):
+    return LightField(np.zeros(shape, np.float32), None, "srgb", meta)
+
+
+def test_hci_depth_formula():
+    lf = _lf({"hci_parameters": ANTINOUS})
+    d = np.array([[0.0, 2.8, -3.3, 1.0]], np.float32)
+    z = disparity_to_depth(d, lf)
+    f_px = 100.0 / 35.0 * 512
+    g = 0.1 * f_px
+    # the cfg's own 'offset' is B f_px / Z_f: the disparity of infinity is -offset
+    assert g / 7.0 == pytest.approx(ANTINOUS["extrinsics"]["offset"], rel=1e-9)
+    assert z[0, 0] == pytest.approx(7.0, rel=1e-6)                       # d = 0 is the focus plane
+    np.testing.assert_allclose(z[0], g / (d[0] + g / 7.0), rtol=1e-6)
+    assert z[0, 1] < 7.0 < z[0, 2]                                        # positive disparity = closer
+    np.testing.assert_allclose(depth_to_disparity(z, lf), d, atol=1e-5)
+    # the scene's range 6.17 m .. 8.31 m around the statue at 7 m
+    assert 6.1 < z[0, 1] < 6.3 and 8.2 < z[0, 2] < 8.4
+    inf = disparity_to_depth(np.array([[-g / 7.0 - 0.1, np.nan]], np.float32), lf)
+    assert np.isinf(inf[0, 0]) and np.isnan(inf[0, 1])
+    dd = np.linspace(-3.3, 2.8, 50, dtype=np.float32)[None]
+    assert np.all(np.diff(disparity_to_depth(dd, lf)[0]) < 0)             # monotonic
+
+
+def test_hci_overrides_and_missing_values():
+    lf = _lf({"hci_parameters": ANTINOUS})
+    assert disparity_to_depth(np.zeros((1, 1)), lf, focus_distance_m=3.0)[0, 0] == pytest.approx(3.0)
+    broken = {"intrinsics": dict(ANTINOUS["intrinsics"]), "extrinsics": {"focus_distance_m": 7.0}}
+    with pytest.raises(MetadataError, match="baseline_mm"):
+        disparity_to_depth(np.zeros((1, 1)), _lf({"hci_parameters": broken}))
+    with pytest.raises(ValueError, match="unknown override"):
+        disparity_to_depth(np.zeros((1, 1)), lf, f_number=2)
+
+
+def test_hci_points_back_project_through_the_pinhole():
+    lf = _lf({"hci_parameters": ANTINOUS}, shape=(3, 3, 512, 512, 1))
+    z = np.full((512, 512), 7.0, np.float32)
+    pts = depth_to_points(z, lf)
+    f_px = 100.0 / 35.0 * 512
+    assert focal_length_px(lf) == pytest.approx(f_px)
+    # the image edge lies at half the sensor width (17.5 mm) scaled by Z / f
+    assert pts[256, 511, 0] == pytest.approx(255.5 * 7.0 / f_px, rel=1e-5)
+    assert pts[0, 256, 1] < 0 and pts[511, 256, 1] > 0 and np.all(pts[..., 2] == 7.0)
+
+
+def test_hci_real_parameters_file():
+    from plenodecode.io.hci import read_parameters
+
+    params = read_parameters(shared_path("hci-antinous", "parameters.cfg"))
+    lf = _lf({"hci_parameters": params})
+    z_inf_disp = depth_to_disparity(np.array([[1e12]]), lf)[0, 0]
+    assert z_inf_disp == pytest.approx(-params["extrinsics"]["offset"], rel=1e-6)
+    z = disparity_to_depth(np.array([[params["meta"]["disp_min"], params["meta"]["disp_max"]]]), lf)
+    assert z[0, 0] > params["extrinsics"]["focus_distance_m"] > z[0, 1] > 0
+
+
+# ------------------------------------------------------------------------------------------ plenoptic
+CAM = {"focal_length_m": 0.03, "f_number": 2.0, "lens_pitch_m": 2.0e-5, "pixel_pitch_m": 1.4e-6}
+PITCH_PX = 2.0e-5 / 1.4e-6
+
+
+def _plenoptic(meta_extra=None, camera_extra=None):
+    meta = {"camera": {**CAM, **(camera_extra or {})}, "calibration": {"pitch": PITCH_PX, "row_spacing": 12.37},
+            "spatial_step_px": 12.37, "view_step_px": 1.0, **(meta_extra or {})}
+    return _lf(meta)
+
+
+def _ray_traced_disparity(z, zf, f=0.03, n=2.0, pitch_px=PITCH_PX, step_px=12.37):
+    """Disparity of a point at depth z by tracing two rays of a thin lens to the MLA plane."""
+    b = 1 / (1 / f - 1 / zf)                 # MLA at the image of the focus plane
+    bp = 1 / (1 / f - 1 / z)                 # image of the point
+    aperture = f / n
+    du = aperture / pitch_px                 # aperture step of one view (1 sensor px under a lens)
+    dx = 2.0e-5 * step_px / pitch_px         # one spatial sample on the MLA
+    x_img = 0.37e-3                          # lateral position of the point's image (any)
+
+    def hit(a):                              # ray from aperture point a through the image point, at z = b
+        return a + (x_img - a) * b / bp
+
+    # view u + 1 looks through aperture position -du (the lenslets invert the aperture); the point
+    # appears at x_u = x_c - d (u - uc) in view u
+    return -(hit(-du) - hit(0.0)) / dx
+
+
+@pytest.mark.parametrize("z", [0.4, 1.0, 1.5, 3.0, 40.0])
+def test_plenoptic_depth_matches_ray_tracing(z):
+    lf = _plenoptic({"focus_distance_m": 1.5})
+    d = _ray_traced_disparity(z, 1.5)
+    assert (d > 0) == (z < 1.5)
+    assert disparity_to_depth(np.array([[d]]), lf)[0, 0] == pytest.approx(z, rel=1e-5)
+
+
+def test_plenoptic_focus_from_infinity_lambda_and_errors():
+    gap = 3.9e-5
+    lam = 15.409461826381098959
+    lf = _plenoptic({"geometry": {"mla_sensor_gap_m": gap}},
+                    {"extra": {"devices": {"lens": {"infinityLambda": lam}}}})
+    b = 0.03 + lam * gap
+    zf = 0.03 * b / (b - 0.03)
+    assert disparity_to_depth(np.zeros((1, 1)), lf)[0, 0] == pytest.approx(zf, rel=1e-6)
+    assert 1.0 < zf < 2.0
+    # an explicit focus distance wins
+    assert disparity_to_depth(np.zeros((1, 1)), lf, focus_distance_m=0.8)[0, 0] == pytest.approx(0.8)
+    with pytest.raises(MetadataError, match="focus_distance_m"):
+        disparity_to_depth(np.zeros((1, 1)), _plenoptic())
+    no_fnum = _lf({"camera": {"focal_length_m": 0.03, "lens_pitch_m": 2e-5}, "spatial_step_px": 12.0,
+                   "view_step_px": 1.0, "focus_distance_m": 1.0})
+    with pytest.raises(MetadataError, match="f_number"):
+        disparity_to_depth(np.zeros((1, 1)), no_fnum)
+    with pytest.raises(ValueError, match="focus_distance_m"):
+        disparity_to_depth(np.zeros((1, 1)), _plenoptic(), focus_distance_m=-1.0)
+
+
+def test_plenoptic_points_scale():
+    lf = _plenoptic({"focus_distance_m": 1.5})
+    f = focal_length_px(lf)
+    b = 1 / (1 / 0.03 - 1 / 1.5)
+    dx = 2.0e-5 * 12.37 / PITCH_PX
+    assert f == pytest.approx(b / dx)
+    assert math.isfinite(f) and f > 0
