@@ -34,7 +34,7 @@ def _inputs() -> tuple[Path, Path]:
     """Cached raws folder and calibration database (generated on first use)."""
     from plenodecode.calib.store import build_database
     from plenodecode.io.lytro import write_lfr, write_raw_pair
-    from plenodecode.io.synthetic import simulate
+    from plenodecode.synthetic import simulate
 
     raws, whites, db = CACHE / "raws", CACHE / "whites", CACHE / "db"
     raws.mkdir(parents=True, exist_ok=True)

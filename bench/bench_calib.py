@@ -31,7 +31,7 @@ def _white(preset: str, seed: int = 0):
     CACHE.mkdir(exist_ok=True)
     path = CACHE / f"calib_{preset}_white_seed{seed}.npz"
     if not path.exists():
-        from plenodecode.io.synthetic import simulate_white
+        from plenodecode.synthetic import simulate_white
 
         raw, grid = simulate_white(preset, seed=seed)
         tmp = path.with_suffix(".tmp.npz")
@@ -85,7 +85,7 @@ def _cpu_seconds(fn) -> float:
 
 def run() -> list[Figure]:
     from plenodecode.calib import calibrate, calibrate_from_scene
-    from plenodecode.io.synthetic import simulate
+    from plenodecode.synthetic import simulate
 
     figures = []
     for preset, target, threads in (("illum", 2.0, None), ("illum", 2.0, 1), ("f01", None, None)):

@@ -29,7 +29,7 @@ def _illum_inputs(seed: int = 1):
     CACHE.mkdir(exist_ok=True)
     path = CACHE / f"illum_full_seed{seed}.npz"
     if not path.exists():
-        from plenodecode.io.synthetic import simulate
+        from plenodecode.synthetic import simulate
 
         sim = simulate("illum", seed=seed)
         tmp = path.with_suffix(".tmp.npz")

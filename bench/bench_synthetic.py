@@ -1,4 +1,4 @@
-"""Benchmark of the synthetic generator :mod:`plenodecode.io.synthetic`.
+"""Benchmark of the synthetic generator :mod:`plenodecode.synthetic`.
 
 * full-size ``illum`` (7728 x 5368): scene raw + white image, no ground-truth light field
   (target <= 60 s; rows are rendered in bands of ``BAND_ROWS``, so memory stays bounded);
@@ -19,7 +19,7 @@ from . import Figure, measure
 
 
 def _numpy_white(preset: str) -> np.ndarray:
-    from plenodecode.io import synthetic as syn
+    from plenodecode import synthetic as syn
 
     p = syn.PRESETS[preset]
     grid = syn.make_grid(p)
@@ -32,7 +32,7 @@ def _numpy_white(preset: str) -> np.ndarray:
 
 
 def run() -> list[Figure]:
-    from plenodecode.io import synthetic as syn
+    from plenodecode import synthetic as syn
 
     syn.simulate("illum", shape=(64, 64))                      # compile / load the kernels
     figures = []

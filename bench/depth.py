@@ -41,7 +41,7 @@ def _scenes():
     else:
         print(f"# {ANTINOUS} not found: HCI rows skipped", file=sys.stderr)
     from plenodecode.decoding import decode
-    from plenodecode.io.synthetic import simulate
+    from plenodecode.synthetic import simulate
 
     sim = simulate("illum-mini", seed=1)
     out.append(("illum-mini GT", sim.ground_truth_lightfield(), sim.disparity, 5))

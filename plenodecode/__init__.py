@@ -22,7 +22,7 @@ __version__ = "0.1.0"
 #: public name -> module that defines it (imported on first access)
 _LAZY = {
     "read_raw": "plenodecode.io",
-    "simulate": "plenodecode.io.synthetic",
+    "simulate": "plenodecode.synthetic",
     "calibrate": "plenodecode.calib",
     "decode": "plenodecode.decoding",
     "refocus": "plenodecode.render",

@@ -3,7 +3,7 @@
     python sample_raws/make_samples.py            # refuses to replace existing files
     python sample_raws/make_samples.py --overwrite
 
-Each sample is ``plenodecode.io.synthetic.simulate(PRESET, seed=SEED)`` (the default scene,
+Each sample is ``plenodecode.synthetic.simulate(PRESET, seed=SEED)`` (the default scene,
 with noise) written by ``write_simulation(..., name='scene', lightfield=False)``: the scene
 raw in the camera's own format, its white image and the ground truth (grid, lens centres,
 centre-view disparity; no ground-truth light field, to keep the folder small).  The same
@@ -30,7 +30,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parent, help="output root (default: here)")
     args = ap.parse_args(argv)
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from plenodecode.io.synthetic import simulate, write_simulation
+    from plenodecode.synthetic import simulate, write_simulation
 
     for folder, (preset, seed) in SAMPLES.items():
         sim = simulate(preset, seed=seed)

@@ -31,7 +31,7 @@ def data(tmp_path_factory):
     """Three good raws (one folder each, as the generator writes them), bad files, a calibration database."""
     from plenodecode.calib.store import build_database
     from plenodecode.io import lytro
-    from plenodecode.io.synthetic import PRESETS, simulate, write_simulation
+    from plenodecode.synthetic import PRESETS, simulate, write_simulation
 
     root = tmp_path_factory.mktemp("batch")
     shoot = root / "shoot"
@@ -187,7 +187,7 @@ def test_batch_uses_the_right_calibration(data, local_run):
     """
     from plenodecode.calib.store import calibration_for
     from plenodecode.io import read_raw
-    from plenodecode.io.synthetic import load_truth
+    from plenodecode.synthetic import load_truth
 
     truth = load_truth(data["shoot"] / "take2" / "scene2.truth.json")
     grid, _ = calibration_for(read_raw(data["shoot"] / "take2" / "scene2.lfr"), data["db"])
@@ -462,7 +462,7 @@ def test_output_folders_follow_the_umask(local_run):
 
 def test_find_raws_takes_mosaics_but_not_their_whites(tmp_path):
     """'square' (PNG + sidecar) and 'raytrix' (PNG + RayCalibData XML) as the generator writes them."""
-    from plenodecode.io.synthetic import simulate, write_simulation
+    from plenodecode.synthetic import simulate, write_simulation
 
     write_simulation(simulate("square", seed=1, shape=(120, 140)), tmp_path / "sq", name="lfm")
     write_simulation(simulate("raytrix", seed=1, shape=(110, 150)), tmp_path / "rx", name="rtx")

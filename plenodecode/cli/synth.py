@@ -8,7 +8,7 @@ import click
 
 from .common import check_output, overwrite_option, progress_bar
 
-#: kept in sync with plenodecode.io.synthetic.PRESETS (checked by the tests); listed here
+#: kept in sync with plenodecode.synthetic.PRESETS (checked by the tests); listed here
 #: so that ``--help`` does not import numba
 PRESET_NAMES = ("illum", "illum-mini", "f01", "f01-mini", "square", "raytrix")
 
@@ -43,7 +43,7 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
     Example:
       plenodecode synth illum-mini -o out/ --seed 3 --offset 0.25 -0.4
     """
-    from ..io.synthetic import simulate, simulation_files, write_simulation
+    from ..synthetic import simulate, simulation_files, write_simulation
 
     out = Path(out_dir)
     try:

@@ -345,7 +345,7 @@ def grid_from_raycalib(cal: RaytrixCalibration, sensor_shape: tuple[int, int]) -
         Lens rows of the centre lens's parity are the unshifted ones, the others are shifted
         by the along-row component of ``base_y`` (mod 1; 0.5 for hex), so ``odd_row_shift``
         is +0.5, or -0.5 when the block's first row is a shifted one (the convention of
-        :func:`plenodecode.io.synthetic.make_grid`).  ``radius = diameter / 2 - lens_border``;
+        :func:`plenodecode.synthetic.make_grid`).  ``radius = diameter / 2 - lens_border``;
         ``lens_type`` (int8) from the rule in the module docstring (None without lens types);
         ``info['raytrix']`` = ``cal.to_dict()``, ``info['centre_lens']`` = its (i, j).
 

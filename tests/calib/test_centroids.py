@@ -10,7 +10,7 @@ from scipy.spatial import cKDTree
 
 from plenodecode.calib import centroids as C
 from plenodecode.errors import CalibrationError
-from plenodecode.io.synthetic import simulate_white
+from plenodecode.synthetic import simulate_white
 from plenodecode.types import RawCapture
 
 

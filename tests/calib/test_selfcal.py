@@ -13,7 +13,7 @@ from plenodecode.calib import calibrate, calibrate_from_scene, calibrate_raytrix
 from plenodecode.calib import centroids as C
 from plenodecode.calib.selfcal import refine_grid
 from plenodecode.errors import CalibrationError
-from plenodecode.io.synthetic import simulate, simulate_white
+from plenodecode.synthetic import simulate, simulate_white
 from plenodecode.types import RawCapture
 
 

@@ -13,7 +13,7 @@ import pytest
 from plenodecode.calib import store
 from plenodecode.errors import CalibrationError
 from plenodecode.io.lytro import write_raw_pair
-from plenodecode.io.synthetic import simulate_white
+from plenodecode.synthetic import simulate_white
 from plenodecode.types import CameraMetadata, RawCapture
 
 SHAPE = (240, 300)
@@ -160,7 +160,7 @@ def test_database_indexes_white_mosaics_marked_in_their_sidecar(tmp_path):
 
     from plenodecode.calib.store import build_database, calibration_for
     from plenodecode.io.generic import write_mosaic
-    from plenodecode.io.synthetic import simulate_white
+    from plenodecode.synthetic import simulate_white
 
     white, truth = simulate_white("square", seed=5, shape=(300, 320))
     assert white.metadata.is_white_image

@@ -15,7 +15,7 @@ from scipy.spatial import cKDTree
 
 from plenodecode.calib import calibrate
 from plenodecode.errors import CalibrationError
-from plenodecode.io.synthetic import simulate_white
+from plenodecode.synthetic import simulate_white
 from plenodecode.types import LensletGrid, RawCapture
 
 RMS_TOL = 0.05
@@ -171,7 +171,7 @@ def test_dark_and_flat_frames_raise_calibration_error():
 
 
 def test_scene_raw_as_white_gives_a_warning():
-    from plenodecode.io.synthetic import simulate
+    from plenodecode.synthetic import simulate
     sim = simulate("f01-mini", seed=1, shape=(300, 300))
     grid = calibrate(sim.raw)
     assert any("scene" in w for w in grid.info["warnings"])

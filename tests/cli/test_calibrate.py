@@ -11,8 +11,8 @@ from click.testing import CliRunner
 
 from plenodecode.cli.main import cli
 from plenodecode.io.lytro import write_raw_pair
-from plenodecode.io.synthetic import simulate, simulate_white
 from plenodecode.report.calibration import vignetting_profile, write_calibration_report
+from plenodecode.synthetic import simulate, simulate_white
 from plenodecode.types import LensletGrid
 
 SHAPE = (260, 320)

@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from plenodecode import synthetic
 from plenodecode.cli.main import cli
-
-from plenodecode.io import synthetic
 
 
 @pytest.fixture(scope="module")

@@ -158,7 +158,7 @@ def test_parallax_writes_animation_and_numbered_frames(tmp_path):
 
 def test_raw_is_decoded_then_refocused(tmp_path):
     """The card's form on a generated Illum raw: decode with a calibration (grid JSON, or the white image)."""
-    from plenodecode.io import synthetic
+    from plenodecode import synthetic
     sim = synthetic.simulate("illum-mini", seed=1, shape=(400, 560), noise=False)
     files = synthetic.write_simulation(sim, tmp_path / "cam", lightfield=False)
     grid = tmp_path / "grid.json"

@@ -39,7 +39,7 @@ def focused_raw(grid: LensletGrid, v: float, *, keplerian: bool) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def hex_grid():
-    from plenodecode.io.synthetic import make_grid
+    from plenodecode.synthetic import make_grid
 
     return make_grid("raytrix", shape=(330, 460))
 
@@ -78,7 +78,7 @@ def test_patch_size_and_orientation_are_estimated(hex_grid):
 
 
 def test_total_focus_on_synthetic_raytrix_preset():
-    from plenodecode.io import synthetic
+    from plenodecode import synthetic
     import cv2
 
     sim = synthetic.simulate("raytrix", noise=False, seed=2)

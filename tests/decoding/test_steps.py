@@ -245,7 +245,7 @@ def test_bands_cover_all_rows_with_even_starts():
 
 
 def test_reference_output_sizes_from_pitch_and_sensor():
-    from plenodecode.io.synthetic import make_grid
+    from plenodecode.synthetic import make_grid
 
     illum = make_grid("illum")
     f01 = make_grid("f01")

@@ -11,10 +11,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from plenodecode import synthetic
 from plenodecode.decoding import decode
 from plenodecode.errors import CalibrationError, DecodeError
-
-from plenodecode.io import synthetic
 
 CASES = {
     "illum-mini": dict(preset="illum-mini"),

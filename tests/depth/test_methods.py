@@ -59,7 +59,7 @@ def planes():
 
 @pytest.fixture(scope="module")
 def simulation():
-    from plenodecode.io.synthetic import simulate
+    from plenodecode.synthetic import simulate
 
     sim = simulate("illum-mini", seed=1)
     return sim, sim.ground_truth_lightfield()

@@ -201,7 +201,7 @@ def test_tight_grids_round_trip_exactly(tmp_path, anchor, rotation, odd_first):
 
 
 def test_synthetic_raytrix_preset_round_trips():
-    from plenodecode.io import synthetic
+    from plenodecode import synthetic
     grid = synthetic.make_grid("raytrix", shape=(200, 300))
     back = grid_from_raycalib(raycalib_from_grid(grid), grid.sensor_shape)
     assert back.shape == grid.shape and back.odd_row_shift == grid.odd_row_shift

@@ -83,9 +83,9 @@ def test_focus_measure_prefers_the_sharp_image():
 
 
 def test_sharpest_slope_on_a_generated_scene():
-    """Planes rendered by the synthetic generator (plenodecode.io.synthetic) with their exact disparity."""
-    from plenodecode.io import synthetic
-    from plenodecode.io._scene import Plane
+    """Planes rendered by the synthetic generator (plenodecode.synthetic) with their exact disparity."""
+    from plenodecode import synthetic
+    from plenodecode.synthetic import Plane
 
     g = 0.3 / 26
     scene = [Plane(d0=-0.5, support=("all",), depth_order=2, texture_seed=1),

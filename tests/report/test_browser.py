@@ -33,7 +33,7 @@ def test_calibration_report_renders_in_chromium(tmp_path):
     marker pixels; the same page with its figures' data URIs broken gives std 24, 499 colours,
     5 % inked and no red, so every threshold below fails on a page whose figures do not render."""
     from plenodecode.calib import calibrate
-    from plenodecode.io.synthetic import simulate_white
+    from plenodecode.synthetic import simulate_white
     from plenodecode.report.calibration import write_calibration_report
 
     raw, _ = simulate_white("f01-mini", seed=4, shape=(260, 320), rotation=0.003, offset=(0.4, -0.2))

@@ -15,7 +15,7 @@ the virtual depth ``v`` instead of a disparity, so the ray hits plane ``k`` wher
 Along a ray the surface nearest the MLA (smallest ``v``: the nearest object) is seen
 first; planes are listed front-first by ``depth_order``.
 
-Multi-focus MLA: three interleaved lens types (:func:`plenodecode.io.synthetic.raytrix_lens_types`)
+Multi-focus MLA: three interleaved lens types (:func:`~plenodecode.synthetic.lattice.raytrix_lens_types`)
 focused at virtual depths ``type_focus``.  A VI point at depth ``v`` seen through a lens
 focused at ``v_f`` is blurred on the sensor by a disc of diameter ``D * |1/v - 1/v_f|``
 (``D`` = lens pitch, px; thin-lens geometry), modelled as a Gaussian of sigma = diameter / 4
@@ -32,7 +32,10 @@ import cv2
 import numpy as np
 
 from ..types import LensletGrid, RawCapture, cfa_channel_map
-from ._scene import Plane, Scene, as_scene, box_radiance, build_textures, front_disparity
+from .lattice import assign_pixels, lens_types_at
+from .scene import Plane, Scene, as_scene, box_radiance, build_textures, front_disparity
+from .sensor import levels, render_sensor
+from .truth import Simulation
 
 #: Gaussian blur levels (px) between which the per-lens blur is interpolated.
 BLUR_LEVELS = np.array([0.0, 0.35, 0.7, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 9.0])
@@ -56,21 +59,9 @@ def default_focused_scene(h: int, w: int, texel: float, seed: int = 0) -> Scene:
     ))
 
 
-def lens_types_at(grid: LensletGrid, i: np.ndarray, j: np.ndarray) -> np.ndarray:
-    """Lens type of lens indices (i, j), also beyond the grid's block.
-
-    ``type = (q - i) mod 3`` with the axial coordinate ``q = j + odd_row_shift * (i mod 2) - i / 2``
-    (see :func:`plenodecode.io.synthetic.raytrix_lens_types`).
-    """
-    q = np.rint(j + grid.odd_row_shift * np.mod(i, 2) - 0.5 * i).astype(np.int64)
-    return np.mod(q - i, 3).astype(np.int64)
-
-
 def simulate_focused(p, grid: LensletGrid, offset, *, seed: int, rngs: Mapping[str, Any] | None, scene,
                      metadata: Callable[[bool], Any], progress=None):
     """Focused-plenoptic raw + white + truth (see the module docstring); returns a Simulation."""
-    from .synthetic import Simulation, _levels, _render_sensor, assign_pixels
-
     h, w = grid.sensor_shape
     texel = float(p.texel_px)
     sc = default_focused_scene(h, w, texel, seed) if scene is None else as_scene(scene)
@@ -109,9 +100,9 @@ def simulate_focused(p, grid: LensletGrid, offset, *, seed: int, rngs: Mapping[s
         gain = np.take_along_axis(radiance, chan[None].astype(np.int64), 0)[0]
 
     noise = rngs is not None
-    mosaic = _render_sensor(grid, p, None, rngs["raw"] if noise else None, progress, gain=gain)
-    white_m = _render_sensor(grid, p, None, rngs["white"] if noise else None, None)
-    black, white = _levels(p)
+    mosaic = render_sensor(grid, p, None, rngs["raw"] if noise else None, progress, gain=gain)
+    white_m = render_sensor(grid, p, None, rngs["white"] if noise else None, None)
+    black, white = levels(p)
     raw = RawCapture(mosaic=mosaic, cfa=p.cfa, black=black, white=white, metadata=metadata(False))
     wcap = RawCapture(mosaic=white_m, cfa=p.cfa, black=black, white=white, metadata=metadata(True))
 
@@ -130,3 +121,6 @@ def simulate_focused(p, grid: LensletGrid, offset, *, seed: int, rngs: Mapping[s
     disparity = (grid.pitch / vdepth).astype(np.float32)
     return Simulation(raw=raw, white=wcap, grid=grid, disparity=disparity, scene=sc, preset=p, seed=int(seed),
                       noise=noise, truth=truth, textures=tex)
+
+
+__all__ = ["BLUR_LEVELS", "default_focused_scene", "simulate_focused"]

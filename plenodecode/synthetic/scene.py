@@ -1,5 +1,5 @@
-"""Scenes of the synthetic generator: textured planes with (slanted) disparity, and the
-compiled per-pixel kernels of the forward model.
+"""Scenes of the synthetic generator: textured planes with (slanted) disparity, rasterised
+textures, and the radiance along the rays of the forward model.
 
 A scene is a list of :class:`Plane` s in decoded light-field coordinates ``(y, x)``
 (decoded spatial samples, see :meth:`plenodecode.types.LensletGrid.decoded_sampling`).
@@ -28,10 +28,11 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import cv2
-import numba
 import numpy as np
 from scipy import ndimage
 from scipy.special import erf
+
+from .kernels import SUBSAMPLES, box_radiance_kernel
 
 #: Raster samples per decoded pixel of the texture interpolant.
 OVERSAMPLE = 4
@@ -322,173 +323,6 @@ def _inside_np(kind: int, prm: np.ndarray, py: np.ndarray, px: np.ndarray) -> np
     return (py - prm[0]) ** 2 + (px - prm[1]) ** 2 <= prm[2] ** 2
 
 
-# ---------------------------------------------------------------------------------------
-# compiled kernels
-# ---------------------------------------------------------------------------------------
-@numba.njit(cache=True, inline="always")
-def _bilinear(tex, k, c, py, px, y0, x0, scale):
-    hr = tex.shape[2]
-    wr = tex.shape[3]
-    fy = (py - y0) * scale
-    fx = (px - x0) * scale
-    fy = min(max(fy, 0.0), hr - 1.0)
-    fx = min(max(fx, 0.0), wr - 1.0)
-    iy = min(int(fy), hr - 2)
-    ix = min(int(fx), wr - 2)
-    wy = fy - iy
-    wx = fx - ix
-    top = tex[k, c, iy, ix] * (1.0 - wx) + tex[k, c, iy, ix + 1] * wx
-    bot = tex[k, c, iy + 1, ix] * (1.0 - wx) + tex[k, c, iy + 1, ix + 1] * wx
-    return top * (1.0 - wy) + bot * wy
-
-
-@numba.njit(cache=True, inline="always")
-def _coverage(kd, prm, k, py, px, width):
-    """Alpha of plane k's support at texture point (py, px): smoothstep of the signed distance."""
-    if kd == 0:
-        return 1.0
-    if kd == 1:
-        dy = max(prm[k, 0] - py, py - prm[k, 2])
-        dx = max(prm[k, 1] - px, px - prm[k, 3])
-        if dy > 0.0 and dx > 0.0:
-            sd = math.sqrt(dy * dy + dx * dx)
-        else:
-            sd = max(dy, dx)
-    else:
-        sd = math.sqrt((py - prm[k, 0]) ** 2 + (px - prm[k, 1]) ** 2) - prm[k, 2]
-    t = 0.5 - sd / width
-    if t <= 0.0:
-        return 0.0
-    if t >= 1.0:
-        return 1.0
-    return t * t * (3.0 - 2.0 * t)
-
-
-@numba.njit(cache=True, inline="always")
-def _ray(y, x, a, b, c, tex, y0, x0, scale, d0, gy, gx, kind, prm, width):
-    """Radiance of channel c along the ray of lattice offset (a, b) at decoded (y, x).
-
-    Planes are composited front to back with their support coverage as alpha.
-    """
-    acc = 0.0
-    trans = 1.0
-    for k in range(d0.size):
-        qy = y + d0[k] * a
-        qx = x + d0[k] * b
-        go = gy[k] * a + gx[k] * b
-        t = (gy[k] * qy + gx[k] * qx) / (1.0 - go)
-        py = qy + a * t
-        px = qx + b * t
-        alpha = _coverage(kind[k], prm, k, py, px, width)
-        if alpha > 0.0:
-            acc += trans * alpha * _bilinear(tex, k, c, py, px, y0, x0, scale)
-            trans *= 1.0 - alpha
-            if trans <= 0.0:
-                break
-    return acc
-
-
-@numba.njit(parallel=True, cache=True)
-def _box_radiance(y, x, oa, ob, ch, sub, tex, y0, x0, scale, d0, gy, gx, kind, prm, width, out):
-    """Mean radiance over the box in o (product rule ``sub`` x ``sub``) of each ray (flat arrays)."""
-    n = y.size
-    m = sub.size
-    norm = 1.0 / (m * m)
-    for i in numba.prange(n):
-        acc = 0.0
-        for si in range(m):
-            for sj in range(m):
-                acc += _ray(y[i], x[i], oa[i] + sub[si], ob[i] + sub[sj], ch[i], tex, y0, x0, scale,
-                            d0, gy, gx, kind, prm, width)
-        out[i] = acc * norm
-
-
-@numba.njit(cache=True, inline="always")
-def _disk(r, radius, edge, falloff):
-    t = (r - (radius - 0.5 * edge)) / edge
-    if t <= 0.0:
-        e = 1.0
-    elif t >= 1.0:
-        return 0.0
-    else:
-        e = 0.5 * (1.0 + math.cos(math.pi * t))
-    f = 1.0 - falloff * (r / radius) ** 2
-    return max(f, 0.0) * e
-
-
-@numba.njit(parallel=True, cache=True)
-def _sensor_band(r0, out, origin_r, origin_c, cos_t, sin_t, pitch, rs, shift, hexagonal, a0, b0, step,
-                 radius, edge, falloff, sub, vig_cy, vig_cx, vig_k, exposure, chmap,
-                 with_scene, tex, y0, x0, scale, d0, gy, gx, kind, prm, width):
-    """Signal (fraction of the black..white range) of sensor rows r0 .. r0 + out.shape[0].
-
-    The compiled twin of ``assign_pixels`` + ``disk_response`` + ``vignetting`` (+ the box
-    radiance of the pixel's CFA channel when ``with_scene``) of :mod:`plenodecode.io.synthetic`.
-    """
-    h, w = out.shape
-    m = sub.size
-    norm = 1.0 / (m * m)
-    reach = math.sqrt(2.0) * np.abs(sub).max()
-    sub2 = 2.0 * np.mean(sub * sub)
-    for rr in numba.prange(h):
-        row = r0 + rr
-        pr = row - origin_r
-        for col in range(w):
-            pc = col - origin_c
-            a = pr * cos_t - pc * sin_t
-            b = pr * sin_t + pc * cos_t
-            if hexagonal:
-                i_lo = math.floor(a / rs)
-                best = 1e300
-                bi = 0.0
-                bj = 0.0
-                for di in range(2):
-                    ic = i_lo + di
-                    bs = shift * pitch * (ic - 2.0 * math.floor(ic / 2.0))
-                    jc = np.rint((b - bs) / pitch)
-                    da = a - ic * rs
-                    db = b - jc * pitch - bs
-                    d2 = da * da + db * db
-                    if d2 < best:
-                        best = d2
-                        bi = ic
-                        bj = jc
-                i = bi
-                j = bj
-            else:
-                i = np.rint(a / rs)
-                j = np.rint(b / pitch)
-            ak = i * rs
-            bk = j * pitch + shift * pitch * (i - 2.0 * math.floor(i / 2.0))
-            oa = a - ak
-            ob = b - bk
-            r_c = math.hypot(oa, ob)
-            if r_c >= radius + 0.5 * edge + reach:
-                dsk = 0.0
-            elif r_c + reach <= radius - 0.5 * edge:
-                # every sub-sample on the flat part: the mean of r^2 over the rule is r_c^2 + 2 * E[sub^2]
-                dsk = 1.0 - falloff * (r_c * r_c + sub2) / (radius * radius)
-            else:
-                dsk = 0.0
-                for si in range(m):
-                    for sj in range(m):
-                        dsk += _disk(math.hypot(oa + sub[si], ob + sub[sj]), radius, edge, falloff)
-                dsk *= norm
-            rho2 = (row - vig_cy) ** 2 + (col - vig_cx) ** 2
-            sig = exposure * dsk / (1.0 + vig_k * rho2) ** 2
-            if with_scene and sig > 0.0:
-                y = (ak - a0) / step
-                x = (bk - b0) / step
-                c = chmap[row % 2, col % 2]
-                acc = 0.0
-                for si in range(m):
-                    for sj in range(m):
-                        acc += _ray(y, x, oa + sub[si], ob + sub[sj], c, tex, y0, x0, scale, d0, gy, gx, kind,
-                                    prm, width)
-                sig *= acc * norm
-            out[rr, col] = sig
-
-
 def box_radiance(tex: Textures, y, x, oa, ob, channel, *, space: str = "camera", box: float = 1.0) -> np.ndarray:
     """Mean radiance over the ``box`` x ``box`` square in ``o`` centred at ``(oa, ob)``, for decoded ``(y, x)``.
 
@@ -505,14 +339,16 @@ def box_radiance(tex: Textures, y, x, oa, ob, channel, *, space: str = "camera",
     -------
     ndarray, broadcast shape, float64
     """
-    from .synthetic import SUBSAMPLES
-
     arrs = np.broadcast_arrays(*(np.asarray(v, np.float64) for v in (y, x, oa, ob)),
                                np.asarray(channel, np.int64))
     flat = [np.ascontiguousarray(a.ravel()) for a in arrs]
     out = np.empty(flat[0].size)
     raster = {"camera": tex.camera, "srgb": tex.srgb}[space]
     sub = SUBSAMPLES * float(box) if box > 0 else np.zeros(1)
-    _box_radiance(*flat, sub, raster, tex.y0, tex.x0, tex.scale, tex.d0, tex.gy, tex.gx, tex.kind,
-                  tex.prm, SUPPORT_EDGE, out)
+    box_radiance_kernel(*flat, sub, raster, tex.y0, tex.x0, tex.scale, tex.d0, tex.gy, tex.gx, tex.kind,
+                        tex.prm, SUPPORT_EDGE, out)
     return out.reshape(arrs[0].shape)
+
+
+__all__ = ["Plane", "Scene", "as_scene", "default_scene", "Textures", "build_textures", "front_disparity",
+           "box_radiance", "SUPPORT_EDGE", "SUPPORT_KINDS", "OVERSAMPLE", "MARGIN", "LUMA"]
