@@ -79,4 +79,3 @@ def test_focused_default_scene_truth():
     assert t["total_focus"].shape == (350, 500, 1)
     with pytest.raises(ValueError, match="focused"):
         sim.ground_truth_lightfield()
-

@@ -258,4 +258,3 @@ def test_ground_truth_lightfield_metadata_and_weight(sim_clean):
     np.testing.assert_allclose(w, w[::-1, ::-1])
     with pytest.raises(ValueError, match="n_views"):
         sim_clean.ground_truth_lightfield(n_views=4)
-

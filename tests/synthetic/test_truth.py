@@ -61,4 +61,3 @@ def test_load_truth_rejects_foreign_files(tmp_path):
         syn.load_truth(bad)
     with pytest.raises(FormatError):
         syn.load_truth(tmp_path / "missing.truth.json")
-
