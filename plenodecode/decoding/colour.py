@@ -7,7 +7,7 @@ The camera pipeline of Lytro metadata (formats.md sections 2-4, LFToolbox ``LFCo
 with ``gains = (r, (gr + gb) / 2, b)`` from ``CameraMetadata.wb_gains`` and ``CCM`` the camera's
 ``ccm`` (rows sum to 1, so a white-balanced neutral stays neutral).  No clipping and no display
 encoding: the result stays linear and may exceed 1 in highlights; encoding is export's job.
-Matrix application uses colour-science (``colour.algebra.vecmul``).
+The matrix is applied as one float32 matrix product over all pixels (:func:`apply_matrix`).
 """
 
 from __future__ import annotations
@@ -23,6 +23,12 @@ log = logging.getLogger(__name__)
 
 #: colour states :func:`plenodecode.decoding.decode` can produce
 DECODE_COLOURS = ("linear-srgb", "camera")
+
+#: Rec. 601 luma weights (R, G, B) of :func:`luma`.
+LUMA_WEIGHTS = np.array([0.299, 0.587, 0.114], np.float32)
+
+#: Pixels per slab of :func:`apply_matrix` (768 kB of float32 RGB: stays in cache).
+_MATRIX_ROWS = 1 << 16
 
 
 def white_balance_gains(metadata: CameraMetadata) -> np.ndarray | None:
@@ -71,28 +77,50 @@ def colour_matrix(metadata: CameraMetadata) -> np.ndarray | None:
 
 
 def apply_matrix(data: np.ndarray, matrix: np.ndarray) -> np.ndarray:
-    """Apply a 3x3 matrix to the last axis of ``data`` (colour-science ``vecmul``), view by view.
+    """Apply a 3x3 matrix to the last axis of ``data``: ``out[..., i] = sum_j matrix[i, j] data[..., j]``.
+
+    One float32 matrix product (``(N, 3) @ matrix.T``) over all pixels, in slabs of
+    :data:`_MATRIX_ROWS` pixels (cache-sized; a float64 input is converted a slab at a time).
 
     Parameters
     ----------
-    data : ndarray, shape (..., 3), float32
+    data : ndarray, shape (..., 3), float32 (other real dtypes are converted)
     matrix : ndarray, shape (3, 3)
 
     Returns
     -------
-    ndarray, same shape, float32 (a new array; float64 temporaries are one leading slice at a time)
+    ndarray, same shape, float32 (a new array)
     """
-    import colour
-
     if data.shape[-1] != 3:
         raise ValueError(f"data must have 3 channels in its last axis, got shape {data.shape}")
-    out = np.empty(data.shape, np.float32)
     m = np.asarray(matrix, np.float64)
-    flat_in = data.reshape(-1, *data.shape[-3:]) if data.ndim > 3 else data[None]
-    flat_out = out.reshape(flat_in.shape)
-    for k in range(flat_in.shape[0]):
-        flat_out[k] = colour.algebra.vecmul(m, flat_in[k])
+    if m.shape != (3, 3):
+        raise ValueError(f"matrix must have shape (3, 3), got {m.shape}")
+    mt = np.ascontiguousarray(m.T, np.float32)
+    out = np.empty(data.shape, np.float32)
+    flat_out = out.reshape(-1, 3)
+    flat_in = data.reshape(-1, 3)                  # a view when data is contiguous
+    for r0 in range(0, flat_in.shape[0], _MATRIX_ROWS):
+        r1 = min(r0 + _MATRIX_ROWS, flat_in.shape[0])
+        np.matmul(np.asarray(flat_in[r0:r1], np.float32), mt, out=flat_out[r0:r1])
     return out
+
+
+def luma(img: np.ndarray) -> np.ndarray:
+    """Rec. 601 luma ``Y' = 0.299 R + 0.587 G + 0.114 B`` of an image (the single channel of a grey one).
+
+    Parameters
+    ----------
+    img : ndarray, shape (..., 3) or (..., 1), float32
+
+    Returns
+    -------
+    ndarray, shape (...), float32, C-contiguous
+        ``img @ LUMA_WEIGHTS``, or ``img[..., 0]`` when there is one channel (a view when already contiguous).
+    """
+    if img.shape[-1] not in (1, 3):
+        raise ValueError(f"img must have 1 or 3 channels in its last axis, got shape {img.shape}")
+    return np.ascontiguousarray(img[..., 0] if img.shape[-1] == 1 else img @ LUMA_WEIGHTS)
 
 
 def to_linear_srgb(lf: LightField, metadata: CameraMetadata | None = None) -> LightField:
@@ -126,4 +154,5 @@ def to_linear_srgb(lf: LightField, metadata: CameraMetadata | None = None) -> Li
     return lf.replace(data=apply_matrix(lf.data, m), colour="linear-srgb", metadata=meta)
 
 
-__all__ = ["DECODE_COLOURS", "white_balance_gains", "colour_matrix", "apply_matrix", "to_linear_srgb"]
+__all__ = ["DECODE_COLOURS", "LUMA_WEIGHTS", "white_balance_gains", "colour_matrix", "apply_matrix", "luma",
+           "to_linear_srgb"]

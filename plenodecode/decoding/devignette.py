@@ -52,8 +52,11 @@ def _normalise_dark(mosaic, dark, scale, out):  # pragma: no cover - numba
 
 
 def normalise(mosaic: np.ndarray, black: np.ndarray, white: np.ndarray, *, dark: np.ndarray | None = None,
-              out: np.ndarray | None = None) -> np.ndarray:
-    """Scale a mosaic to ``(x - black) / (white - black)`` per CFA position.
+              gains: np.ndarray | None = None, out: np.ndarray | None = None) -> np.ndarray:
+    """Scale a mosaic to ``g (x - black) / (white - black)`` per CFA position (``g = 1`` by default).
+
+    The one implementation of level normalisation (:meth:`plenodecode.types.RawCapture.normalised` gives
+    the same values).
 
     Parameters
     ----------
@@ -63,7 +66,9 @@ def normalise(mosaic: np.ndarray, black: np.ndarray, white: np.ndarray, *, dark:
         Levels of each position of the 2x2 CFA tile.
     dark : ndarray, shape (H, W), optional
         Dark frame in sensor units; replaces the black level pixel by pixel (the scale stays
-        ``1 / (white - black)``).
+        ``g / (white - black)``).
+    gains : ndarray, shape (2, 2), optional
+        Per-position factors ``g`` (e.g. CFA equalisation gains of a white image).
     out : ndarray, shape (H, W), float32, optional
         Destination (a scratch buffer); a new array when None.
 
@@ -72,7 +77,8 @@ def normalise(mosaic: np.ndarray, black: np.ndarray, white: np.ndarray, *, dark:
     ndarray, shape (H, W), float32 (not clipped)
     """
     black = np.broadcast_to(np.asarray(black, np.float32), (2, 2)).copy()
-    scale = (1.0 / (np.broadcast_to(np.asarray(white, np.float64), (2, 2)) - black)).astype(np.float32)
+    g = 1.0 if gains is None else np.broadcast_to(np.asarray(gains, np.float64), (2, 2))
+    scale = (g / (np.broadcast_to(np.asarray(white, np.float64), (2, 2)) - black)).astype(np.float32)
     out = np.empty(mosaic.shape, np.float32) if out is None else out
     if dark is not None:
         if dark.shape != mosaic.shape:

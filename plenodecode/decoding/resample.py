@@ -27,32 +27,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..imaging import INTERPOLATION_TAPS, interpolation_taps
 from ..types import LensletGrid
 
 
-def _keys(t: np.ndarray, a: float = -0.5) -> np.ndarray:
-    t = np.abs(t)
-    return np.where(t <= 1, (a + 2) * t**3 - (a + 3) * t**2 + 1,
-                    np.where(t < 2, a * t**3 - 5 * a * t**2 + 8 * a * t - 4 * a, 0.0))
-
-
-def _taps_linear(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    j0 = np.floor(t)
-    f = t - j0
-    idx = j0[:, None] + np.arange(2)[None, :]
-    w = np.stack([1 - f, f], axis=1)
-    return idx, w
-
-
-def _taps_cubic(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    j0 = np.floor(t)
-    idx = j0[:, None] + np.arange(-1, 3)[None, :]
-    w = _keys(t[:, None] - idx)
-    return idx, w
-
-
-#: name -> function returning (tap lens indices, tap weights) for fractional lens indices t.
-RESAMPLE_METHODS = {"linear": _taps_linear, "cubic": _taps_cubic}
+#: Row kernels: name -> number of taps (the kernels are :func:`plenodecode.imaging.interpolation_taps`).
+RESAMPLE_METHODS = INTERPOLATION_TAPS
 
 
 def row_taps(grid: LensletGrid, *, method: str = "cubic") -> tuple[np.ndarray, np.ndarray]:
@@ -82,11 +62,11 @@ def row_taps(grid: LensletGrid, *, method: str = "cubic") -> tuple[np.ndarray, n
     for parity in (0, 1):
         t = (b - shift * parity) / grid.pitch
         t = np.clip(t, 0.0, cols - 1.0)
-        idx, w = RESAMPLE_METHODS[method](t)
+        first, w = interpolation_taps(t, method)
         # edge lenses: fold out-of-range taps onto the nearest lens (replicate)
-        idx = np.clip(idx, 0, cols - 1)
+        idx = np.clip(first[:, None] + np.arange(w.shape[1]), 0, cols - 1)
         idx_all.append(idx.astype(np.int32))
-        w_all.append(w.astype(np.float32))
+        w_all.append(w)
     return np.stack(idx_all), np.stack(w_all)
 
 

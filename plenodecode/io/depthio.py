@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .atomic import atomic_output, check_destination, write_bytes_atomic
-from .images import srgb_encode, write_image
+from .images import quantise, write_image
 from .pfm import write_pfm
 
 log = logging.getLogger(__name__)
@@ -79,22 +79,78 @@ def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
 # ---------------------------------------------------------------------------------------------------------------
 # colour-mapped PNG
 # ---------------------------------------------------------------------------------------------------------------
-def colour_map_figure(values: np.ndarray, *, label: str, cmap: str = "turbo", vmin: float | None = None,
-                      vmax: float | None = None, title: str | None = None):
-    """A matplotlib Figure (no pyplot state) of ``values`` with a colour bar naming ``label``.
+#: Default colour map and percentile range of the depth PNGs (and of :func:`colour_mapped`).
+DEPTH_CMAP = "turbo"
+DEPTH_PERCENTILES = (1.0, 99.0)
 
-    The colour range defaults to the 1st-99th percentiles of the finite values.
+
+def colour_range(values: np.ndarray, *, percentiles: tuple[float, float] = DEPTH_PERCENTILES,
+                 vmin: float | None = None, vmax: float | None = None) -> tuple[float, float]:
+    """The value range a colour map spans: given limits, else percentiles of the finite values.
+
+    Parameters
+    ----------
+    values : ndarray, any shape, float (NaN and inf are ignored)
+    percentiles : (float, float)
+        Lower and upper percentile used for a limit that is not given; ``(0, 1)`` when no value is finite.
+    vmin, vmax : float, optional
+        Fixed limits.
+
+    Returns
+    -------
+    (vmin, vmax) : float
+        ``vmax = vmin + 1e-6`` when the range would be empty.
     """
-    from matplotlib.figure import Figure
-
     v = np.asarray(values, np.float64)
-    fin = v[np.isfinite(v)]
     if vmin is None or vmax is None:
-        lo, hi = (np.percentile(fin, [1, 99]) if fin.size else (0.0, 1.0))
+        fin = v[np.isfinite(v)]
+        lo, hi = (np.percentile(fin, list(percentiles)) if fin.size else (0.0, 1.0))
         vmin = lo if vmin is None else vmin
         vmax = hi if vmax is None else vmax
     if not vmax > vmin:
         vmax = vmin + 1e-6
+    return vmin, vmax
+
+
+def colour_mapped(values: np.ndarray, *, cmap: str = DEPTH_CMAP, percentiles: tuple[float, float] = DEPTH_PERCENTILES,
+                  vmin: float | None = None, vmax: float | None = None) -> np.ndarray:
+    """A disparity or depth map as RGB colours: ``cmap(clip((x - vmin) / (vmax - vmin), 0, 1))``, NaN black.
+
+    Parameters
+    ----------
+    values : ndarray (Y, X), float
+    cmap : str
+        A matplotlib colour map name.
+    percentiles, vmin, vmax
+        The range, see :func:`colour_range`.
+
+    Returns
+    -------
+    ndarray (Y, X, 3), float32 in [0, 1]
+        Non-finite values are black.
+    """
+    from matplotlib import colormaps
+
+    v = np.asarray(values, np.float64)
+    finite = np.isfinite(v)
+    lo, hi = colour_range(v, percentiles=percentiles, vmin=vmin, vmax=vmax)
+    t = np.clip((np.where(finite, v, lo) - lo) / (hi - lo), 0.0, 1.0)
+    rgb = colormaps[cmap](t)[..., :3].astype(np.float32)
+    rgb[~finite] = 0.0
+    return rgb
+
+
+def colour_map_figure(values: np.ndarray, *, label: str, cmap: str = DEPTH_CMAP, vmin: float | None = None,
+                      vmax: float | None = None, title: str | None = None):
+    """A matplotlib Figure (no pyplot state) of ``values`` with a colour bar naming ``label``.
+
+    The colour range defaults to the 1st-99th percentiles of the finite values (:func:`colour_range`);
+    non-finite values are left transparent (the figure's white background).
+    """
+    from matplotlib.figure import Figure
+
+    v = np.asarray(values, np.float64)
+    vmin, vmax = colour_range(v, vmin=vmin, vmax=vmax)
     h, w = v.shape
     scale = 6.0 / max(h, w)
     fig = Figure(figsize=(w * scale + 1.6, h * scale + (0.5 if title else 0.2)), dpi=max(100, int(max(h, w) / 6)))
@@ -109,7 +165,7 @@ def colour_map_figure(values: np.ndarray, *, label: str, cmap: str = "turbo", vm
     return fig
 
 
-def write_colour_map_png(path: str | os.PathLike, values: np.ndarray, *, label: str, cmap: str = "turbo",
+def write_colour_map_png(path: str | os.PathLike, values: np.ndarray, *, label: str, cmap: str = DEPTH_CMAP,
                          vmin: float | None = None, vmax: float | None = None, title: str | None = None,
                          overwrite: bool = False) -> Path:
     """Write ``values`` (Y, X) as a colour-mapped PNG with a legend (see :func:`colour_map_figure`)."""
@@ -139,13 +195,15 @@ def depth_output_paths(pfm_path: str | os.PathLike, *, ply: str | os.PathLike | 
 
 
 def display_colours(image: np.ndarray, colour_state: str) -> np.ndarray:
-    """(Y, X, C) view -> (Y, X, 3) uint8 display colours (sRGB-encoded unless already 'srgb')."""
-    img = np.nan_to_num(np.asarray(image, np.float32), nan=0.0)
+    """(Y, X, C) view -> (Y, X, 3) uint8 display colours.
+
+    ``rint(255 clip(V, 0, 1))`` with ``V`` the sRGB encoding (:func:`plenodecode.io.images.srgb_encode`) of the
+    view unless it is already 'srgb' (:func:`plenodecode.io.images.quantise`); NaN becomes 0.
+    """
+    img = np.asarray(image)
     if img.shape[-1] == 1:
         img = np.repeat(img, 3, axis=-1)
-    if colour_state != "srgb":
-        img = srgb_encode(np.clip(img, 0.0, 1.0))
-    return np.clip(np.rint(img * 255.0), 0, 255).astype(np.uint8)
+    return quantise(img, 8, encode_srgb=colour_state != "srgb")
 
 
 def write_depth_outputs(pfm_path: str | os.PathLike, values: np.ndarray, *, label: str,
@@ -196,5 +254,5 @@ def write_depth_outputs(pfm_path: str | os.PathLike, values: np.ndarray, *, labe
     return written
 
 
-__all__ = ["write_ply", "read_ply", "write_colour_map_png", "colour_map_figure", "write_depth_outputs",
-           "depth_output_paths", "display_colours"]
+__all__ = ["write_ply", "read_ply", "write_colour_map_png", "colour_map_figure", "colour_range", "colour_mapped",
+           "DEPTH_CMAP", "DEPTH_PERCENTILES", "write_depth_outputs", "depth_output_paths", "display_colours"]

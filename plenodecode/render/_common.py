@@ -1,4 +1,7 @@
-"""Helpers shared by the rendering modules: argument checks, synthetic apertures, interpolation taps."""
+"""Helpers shared by the rendering modules: argument checks and synthetic apertures.
+
+Interpolation taps and view warps are in :mod:`plenodecode.imaging` (shared with decoding and depth).
+"""
 
 from __future__ import annotations
 
@@ -8,10 +11,6 @@ from typing import Any
 import numpy as np
 
 from ..types import LightField
-
-#: Interpolation kernels of the shift-sum and of perspective views: name -> number of taps.
-INTERPOLATIONS = {"linear": 2, "cubic": 4}
-
 
 def aperture_mask(shape: tuple[int, int], aperture: float | np.ndarray = 1.0) -> np.ndarray:
     """Per-view weights of a synthetic aperture.
@@ -64,37 +63,3 @@ def check_slopes(slopes: Any) -> np.ndarray:
     if s.size == 0 or not np.all(np.isfinite(s)):
         raise ValueError(f"slopes must be a non-empty sequence of finite numbers, got {slopes}")
     return s
-
-
-def tap_weights(t: np.ndarray, interp: str) -> tuple[np.ndarray, np.ndarray]:
-    """Taps sampling a row at ``x + t`` for every ``x``.
-
-    Parameters
-    ----------
-    t : ndarray (...,) float64
-        Sub-pixel offsets.
-    interp : 'linear' or 'cubic'
-        Linear, or Keys' cubic convolution (a = -0.5; Keys 1981), exact at integer offsets.
-
-    Returns
-    -------
-    base : ndarray (...,) int64
-        Offset of the first tap: tap ``k`` reads ``x + base + k``.
-    weights : ndarray (..., T) float32
-    """
-    i = np.floor(t)
-    f = t - i
-    if interp == "linear":
-        return i.astype(np.int64), np.stack([1.0 - f, f], -1).astype(np.float32)
-    if interp == "cubic":
-        a = -0.5
-
-        def near(x):  # |x| <= 1
-            return (a + 2) * x**3 - (a + 3) * x**2 + 1
-
-        def far(x):  # 1 < |x| < 2
-            return a * x**3 - 5 * a * x**2 + 8 * a * x - 4 * a
-
-        w = np.stack([far(1 + f), near(f), near(1 - f), far(2 - f)], -1)
-        return (i - 1).astype(np.int64), w.astype(np.float32)
-    raise ValueError(f"interp must be one of {', '.join(INTERPOLATIONS)}, got {interp!r}")

@@ -15,6 +15,7 @@ from typing import Any, Callable
 import cv2
 import numpy as np
 
+from ..imaging import remap_view
 from ..types import LightField
 from ._common import aperture_mask, check_lightfield, check_slopes
 from .refocus_methods import get_method
@@ -244,7 +245,7 @@ def refocus_per_pixel(lf: LightField, slope_map: np.ndarray, *, aperture: float 
                       interp: str = "linear", progress: Callable[[int, int], None] | None = None) -> np.ndarray:
     """Every pixel refocused at its own slope: ``E(y, x) = mean_{v,u} L_vu(y - d(y,x) a, x - d(y,x) b)``.
 
-    Weight-normalised like the shift-sum; one ``cv2.remap`` per view (bilinear or bicubic, border replicated).
+    Weight-normalised like the shift-sum; one :func:`plenodecode.imaging.remap_view` per view (bilinear or bicubic, border replicated).
 
     Parameters
     ----------
@@ -266,16 +267,14 @@ def refocus_per_pixel(lf: LightField, slope_map: np.ndarray, *, aperture: float 
         raise ValueError(f"interp must be 'linear' or 'cubic', got {interp!r}")
     mask = aperture_mask((nv, nu), aperture)
     vc, uc = lf.centre_index
-    yy, xx = np.mgrid[0:ny, 0:nx].astype(np.float32)
+    grid = np.mgrid[0:ny, 0:nx].astype(np.float32)
     num = np.zeros((ny, nx, nc), np.float32)
     den = np.zeros((ny, nx), np.float32)
     views = [(v, u) for v in range(nv) for u in range(nu) if mask[v, u] > 0]
     for i, (v, u) in enumerate(views):
-        mx = xx - d * np.float32(u - uc)
-        my = yy - d * np.float32(v - vc)
-        img = cv2.remap(lf.data[v, u], mx, my, flags, borderMode=cv2.BORDER_REPLICATE).reshape(ny, nx, nc)
+        img = remap_view(lf.data[v, u], d, v - vc, u - uc, grid, flags).reshape(ny, nx, nc)
         if lf.weight is not None:
-            w = cv2.remap(lf.weight[v, u], mx, my, flags, borderMode=cv2.BORDER_REPLICATE) * mask[v, u]
+            w = remap_view(lf.weight[v, u], d, v - vc, u - uc, grid, flags) * mask[v, u]
             num += img * w[..., None]
             den += w
         else:

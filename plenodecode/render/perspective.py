@@ -13,16 +13,17 @@ from typing import Callable
 
 import numpy as np
 
+from ..imaging import INTERPOLATION_TAPS, interpolation_taps
 from ..types import LightField
-from ._common import check_lightfield, tap_weights
+from ._common import check_lightfield
 
 #: Angular interpolation kernels of :func:`perspective`.
-PERSPECTIVE_INTERPOLATIONS = ("linear", "cubic")
+PERSPECTIVE_INTERPOLATIONS = tuple(INTERPOLATION_TAPS)
 
 
 def _axis_taps(p: float, n: int, interp: str) -> list[tuple[int, float]]:
     """(index, weight) pairs interpolating position ``p`` on ``n`` samples (indices clamped)."""
-    base, w = tap_weights(np.array([p], np.float64), interp)
+    base, w = interpolation_taps(np.array([p], np.float64), interp)
     taps: dict[int, float] = {}
     for k in range(w.shape[1]):
         if w[0, k] != 0.0:

@@ -32,8 +32,9 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from ..imaging import INTERPOLATION_TAPS, interpolation_taps
 from ..types import LightField
-from ._common import INTERPOLATIONS, aperture_mask, check_lightfield, check_slopes, tap_weights
+from ._common import aperture_mask, check_lightfield, check_slopes
 
 log = logging.getLogger(__name__)
 
@@ -403,8 +404,8 @@ def _shift_sum_phase(lf: LightField, slopes: np.ndarray, vmask: np.ndarray, inte
     weight = np.ascontiguousarray(lf.weight, np.float32) if has_w else np.zeros((0, 0, 0, 0), np.float32)
     a = np.arange(nv, dtype=np.float64) - vc
     b = np.arange(nu, dtype=np.float64) - uc
-    bx, wx = tap_weights(offset[1] - slopes[:, None] * b[None, :], interp)       # (S, U), (S, U, T)
-    by, wy = tap_weights(offset[0] - slopes[:, None] * a[None, :], interp)       # (S, V), (S, V, T)
+    bx, wx = interpolation_taps(offset[1] - slopes[:, None] * b[None, :], interp)       # (S, U), (S, U, T)
+    by, wy = interpolation_taps(offset[0] - slopes[:, None] * a[None, :], interp)       # (S, V), (S, V, T)
     tx0, tx1 = _nonzero_taps(wx)
     ns = len(slopes)
     cp = nc + (1 if has_w else 0)
@@ -461,8 +462,8 @@ def shift_sum(lf: LightField, slopes: float | np.ndarray, *, aperture: float | n
     k = int(upsample)
     if k < 1 or k != upsample:
         raise ValueError(f"upsample must be a positive integer, got {upsample}")
-    if interp not in INTERPOLATIONS:
-        raise ValueError(f"interp must be one of {', '.join(INTERPOLATIONS)}, got {interp!r}")
+    if interp not in INTERPOLATION_TAPS:
+        raise ValueError(f"interp must be one of {', '.join(INTERPOLATION_TAPS)}, got {interp!r}")
     vmask = aperture_mask(lf.shape[:2], aperture)
     _, _, ny, nx, nc = lf.shape
     chunks = 4 if progress is not None else 1

@@ -33,6 +33,21 @@ def test_normalise_per_cfa_position_and_dark():
     np.testing.assert_allclose(out2, (m - 5.0) / np.tile(white - black, (3, 4)), rtol=1e-6)
 
 
+def test_normalise_is_the_level_formula_and_matches_raw_capture():
+    from plenodecode.types import RawCapture
+
+    rng = np.random.default_rng(11)
+    m = rng.integers(0, 4096, (13, 17)).astype(np.uint16)
+    black = np.array([[64.25, 65.0], [63.5, 64.0]])
+    white = np.array([[4095.0, 4000.5], [3999.75, 4095.0]])
+    gains = np.array([[1.0, 0.9], [1.1, 1.25]])
+    got = dv.normalise(m, black, white)
+    np.testing.assert_array_equal(got, RawCapture(m, "RGGB", black, white).normalised())
+    tile = np.tile(gains / (white - black), (7, 9))[:13, :17]
+    ref = (m - np.tile(black, (7, 9))[:13, :17]) * tile
+    np.testing.assert_allclose(dv.normalise(m, black, white, gains=gains), ref, rtol=1e-6)
+
+
 def test_hot_pixels_found_and_repaired_without_touching_structure():
     rng = np.random.default_rng(0)
     yy, xx = np.mgrid[0:64, 0:80]

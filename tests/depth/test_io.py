@@ -5,7 +5,8 @@ import pytest
 from click.testing import CliRunner
 
 from plenodecode.cli.main import cli
-from plenodecode.io.depthio import read_ply, write_depth_outputs, write_ply
+from plenodecode.io.depthio import (colour_mapped, colour_range, display_colours, read_ply, write_depth_outputs,
+                                    write_ply)
 from plenodecode.io.images import read_image
 from plenodecode.io.pfm import read_pfm
 from plenodecode.types import LightField
@@ -24,6 +25,40 @@ def test_ply_round_trip_and_no_overwrite(tmp_path):
         write_ply(p, pts)
     with pytest.raises(ValueError, match="points"):
         write_ply(tmp_path / "d.ply", pts[:, :2])
+
+
+def test_colour_mapped_follows_the_percentile_range_and_blacks_out_nan():
+    from matplotlib import colormaps
+
+    rng = np.random.default_rng(1)
+    d = rng.normal(size=(30, 40))
+    d[2:5, 3:6] = np.nan
+    d[0, 0] = np.inf
+    fin = d[np.isfinite(d)]
+    lo, hi = np.percentile(fin, 2), np.percentile(fin, 98)
+    assert colour_range(d, percentiles=(2, 98)) == (lo, hi)
+    rgb = colour_mapped(d, cmap="viridis", percentiles=(2, 98))
+    assert rgb.shape == (30, 40, 3) and rgb.dtype == np.float32
+    y, x = 10, 7                                      # one finite pixel, mapped by hand
+    t = min(max((d[y, x] - lo) / (hi - lo), 0.0), 1.0)
+    np.testing.assert_array_equal(rgb[y, x], np.float32(colormaps["viridis"](t)[:3]))
+    assert np.all(rgb[2:5, 3:6] == 0) and np.all(rgb[0, 0] == 0)
+    # the depth PNG's defaults: turbo, 1st-99th percentile; an empty range is widened by 1e-6
+    assert colour_range(d) == tuple(np.percentile(fin, [1, 99]))
+    assert colour_range(np.full((3, 3), 2.0)) == (2.0, 2.0 + 1e-6)
+    assert colour_range(np.full((3, 3), np.nan)) == (0.0, 1.0)
+    assert colour_range(d, vmin=-1.0, vmax=1.0) == (-1.0, 1.0)
+
+
+def test_display_colours_are_srgb_encoded_bytes():
+    rng = np.random.default_rng(2)
+    img = (rng.random((6, 7, 3)) * 1.2 - 0.1).astype(np.float32)
+    img[0, 0, 0] = np.nan
+    x = np.clip(np.nan_to_num(img.astype(np.float64)), 0, 1)
+    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
+    np.testing.assert_array_equal(display_colours(img, "linear-srgb"), np.rint(srgb * 255).astype(np.uint8))
+    np.testing.assert_array_equal(display_colours(img, "srgb"), np.rint(x * 255).astype(np.uint8))
+    assert display_colours(img[..., :1], "srgb").shape == (6, 7, 3)
 
 
 def test_depth_outputs_are_written_together(tmp_path):

@@ -1,0 +1,132 @@
+"""Low-level image operations shared by decoding, rendering and depth: interpolation taps and view warps.
+
+Everything here is a pure function of numpy arrays; nothing depends on the light-field types, so any
+layer of the package can use it (``types.py`` stays free of OpenCV: this module imports it, types does not
+import this module).
+
+Interpolation kernels (:data:`INTERPOLATION_TAPS`), for a sample at ``x + t`` with ``i = floor(t)``,
+``f = t - i``:
+
+* ``'linear'``: tent kernel, taps ``x + i`` and ``x + i + 1`` with weights ``(1 - f, f)``;
+* ``'cubic'``: Keys' cubic convolution (R. Keys, "Cubic convolution interpolation for digital image
+  processing", IEEE TASSP 29(6), 1981, eq. (15) with ``a = -0.5``), taps ``x + i - 1 .. x + i + 2`` with
+  weights ``(k(1 + f), k(f), k(1 - f), k(2 - f))`` where
+
+  ``k(s) = (a + 2) |s|^3 - (a + 3) |s|^2 + 1``            for ``|s| <= 1``,
+  ``k(s) = a |s|^3 - 5 a |s|^2 + 8 a |s| - 4 a``         for ``1 < |s| < 2``, else 0.
+
+  Both are interpolating (exact at integer ``t``) and their weights sum to 1.
+
+View warps follow the disparity convention of ``docs/design.md``: a view ``(v, u)`` at offset
+``(dv, du) = (v - vc, u - uc)`` from the centre view is brought onto the centre view for disparity ``d`` by
+``out(y, x) = view(y - d dv, x - d du)``.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+#: Interpolation kernels of :func:`interpolation_taps`: name -> number of taps.
+INTERPOLATION_TAPS = {"linear": 2, "cubic": 4}
+
+#: Keys' free parameter; -0.5 makes the kernel third-order accurate (Keys 1981).
+KEYS_A = -0.5
+
+
+def _keys_inner(s: np.ndarray) -> np.ndarray:
+    """Keys' kernel on ``0 <= s <= 1``: ``(a + 2) s^3 - (a + 3) s^2 + 1``."""
+    a = KEYS_A
+    return (a + 2) * s**3 - (a + 3) * s**2 + 1
+
+
+def _keys_outer(s: np.ndarray) -> np.ndarray:
+    """Keys' kernel on ``1 <= s <= 2``: ``a s^3 - 5 a s^2 + 8 a s - 4 a`` (0 at s = 1 and s = 2)."""
+    a = KEYS_A
+    return a * s**3 - 5 * a * s**2 + 8 * a * s - 4 * a
+
+
+def interpolation_taps(t: np.ndarray, interp: str) -> tuple[np.ndarray, np.ndarray]:
+    """Taps that sample a row at ``x + t`` for every integer ``x``.
+
+    Parameters
+    ----------
+    t : ndarray (...,) float64
+        Sub-pixel positions or offsets.
+    interp : 'linear' or 'cubic'
+        A key of :data:`INTERPOLATION_TAPS` (see the module docstring for the kernels).
+
+    Returns
+    -------
+    first : ndarray (...,) int64
+        Offset of the first tap: tap ``k`` reads ``x + first + k``.
+    weights : ndarray (..., T) float32
+        ``T = INTERPOLATION_TAPS[interp]`` weights, evaluated in float64; they sum to 1.
+
+    Raises
+    ------
+    ValueError
+        ``interp`` is not a key of :data:`INTERPOLATION_TAPS`.
+    """
+    t = np.asarray(t, np.float64)
+    i = np.floor(t)
+    f = t - i                                  # exact: removes the integer part only
+    if interp == "linear":
+        return i.astype(np.int64), np.stack([1.0 - f, f], -1).astype(np.float32)
+    if interp == "cubic":
+        w = np.stack([_keys_outer(1 + f), _keys_inner(f), _keys_inner(1 - f), _keys_outer(2 - f)], -1)
+        return (i - 1).astype(np.int64), w.astype(np.float32)
+    raise ValueError(f"interp must be one of {', '.join(INTERPOLATION_TAPS)}, got {interp!r}")
+
+
+def shift_view(img: np.ndarray, d: float, dv: float, du: float, interpolation: int = cv2.INTER_LINEAR) -> np.ndarray:
+    """One view brought onto the centre view for a constant disparity ``d``.
+
+    ``out(y, x) = img(y - d dv, x - d du)`` (``cv2.warpAffine``; samples outside take the nearest edge value).
+
+    Parameters
+    ----------
+    img : ndarray (Y, X) or (Y, X, C), float32, C <= 4
+    d : float
+        Disparity, pixels per view step.
+    dv, du : float
+        Offset of the view from the centre view, in view steps.
+    interpolation : int
+        OpenCV interpolation flag (``cv2.INTER_LINEAR``, ``cv2.INTER_CUBIC``, ...).
+
+    Returns
+    -------
+    ndarray, shape (Y, X) or (Y, X, C) (OpenCV drops a single channel axis), float32
+    """
+    h, w = img.shape[:2]
+    m = np.array([[1.0, 0.0, -d * du], [0.0, 1.0, -d * dv]], np.float32)
+    return cv2.warpAffine(img, m, (w, h), flags=interpolation | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
+
+
+def remap_view(img: np.ndarray, disparity: np.ndarray, dv: float, du: float, grid: tuple[np.ndarray, np.ndarray],
+               interpolation: int = cv2.INTER_CUBIC) -> np.ndarray:
+    """Per-pixel version of :func:`shift_view`: ``out(y, x) = img(y - d(y, x) dv, x - d(y, x) du)``.
+
+    Parameters
+    ----------
+    img : ndarray (Y, X) or (Y, X, C), float32
+    disparity : ndarray (Y, X), float32
+        ``d(y, x)``, pixels per view step.
+    dv, du : float
+        Offset of the view from the centre view, in view steps.
+    grid : (yy, xx), ndarray (Y, X) float32 each
+        Pixel coordinates, e.g. ``np.mgrid[0:Y, 0:X].astype(np.float32)``.
+    interpolation : int
+        OpenCV interpolation flag; samples outside take the nearest edge value (``cv2.remap``).
+
+    Returns
+    -------
+    ndarray, shape (Y, X) or (Y, X, C) (OpenCV drops a single channel axis), float32
+    """
+    yy, xx = grid
+    mx = xx - disparity * np.float32(du)
+    my = yy - disparity * np.float32(dv)
+    return cv2.remap(img, mx, my, interpolation, borderMode=cv2.BORDER_REPLICATE)
+
+
+__all__ = ["INTERPOLATION_TAPS", "KEYS_A", "interpolation_taps", "shift_view", "remap_view"]

@@ -1,0 +1,74 @@
+"""The shared low-level image operations against simple references."""
+
+import cv2
+import numpy as np
+import pytest
+
+from plenodecode.imaging import INTERPOLATION_TAPS, interpolation_taps, remap_view, shift_view
+
+
+def _keys_reference(s: float, a: float = -0.5) -> float:
+    """Keys (1981) eq. (15), written directly from the paper for one scalar."""
+    s = abs(s)
+    if s <= 1:
+        return (a + 2) * s**3 - (a + 3) * s**2 + 1
+    if s < 2:
+        return a * s**3 - 5 * a * s**2 + 8 * a * s - 4 * a
+    return 0.0
+
+
+@pytest.mark.parametrize("interp", list(INTERPOLATION_TAPS))
+def test_interpolation_taps_match_the_kernel(interp):
+    rng = np.random.default_rng(3)
+    t = np.concatenate([rng.uniform(-20, 20, 500), np.arange(-3, 3, 0.5)])
+    first, w = interpolation_taps(t, interp)
+    assert w.shape == (len(t), INTERPOLATION_TAPS[interp]) and w.dtype == np.float32
+    for k in range(len(t)):
+        for j in range(w.shape[1]):
+            pos = first[k] + j                        # tap position relative to x
+            ref = _keys_reference(t[k] - pos) if interp == "cubic" else max(0.0, 1.0 - abs(t[k] - pos))
+            assert w[k, j] == pytest.approx(ref, abs=1e-7)
+    np.testing.assert_allclose(w.sum(-1), 1.0, atol=1e-6)
+
+
+@pytest.mark.parametrize("interp", list(INTERPOLATION_TAPS))
+def test_interpolation_taps_are_exact_at_integers_and_reproduce_quadratics(interp):
+    first, w = interpolation_taps(np.arange(-4.0, 5.0), interp)
+    rows = np.arange(len(first))
+    hit = first - np.arange(-4, 5)                   # tap index that falls on the sample itself
+    assert np.all(w[rows, -hit] == 1.0) and np.all(np.abs(w).sum(-1) == 1.0)
+    # sampling x**2 at x + t: linear is exact for lines, cubic (a = -0.5) for quadratics
+    t = np.linspace(-2, 2, 41)
+    first, w = interpolation_taps(t, interp)
+    pos = first[:, None] + np.arange(w.shape[1])
+    f = (lambda x: 3 * x - 1) if interp == "linear" else (lambda x: x**2 - 2 * x)
+    np.testing.assert_allclose((w * f(pos)).sum(-1), f(t), atol=1e-5)
+
+
+def test_interpolation_taps_reject_unknown_kernels():
+    with pytest.raises(ValueError, match="interp must be one of linear, cubic"):
+        interpolation_taps(np.zeros(2), "lanczos")
+
+
+def test_shift_view_follows_the_disparity_convention():
+    rng = np.random.default_rng(4)
+    img = rng.random((20, 24, 3)).astype(np.float32)
+    # d = 2, view offset (1, -1): out(y, x) = img(y - 2, x + 2), edge values outside
+    out = shift_view(img, 2.0, 1.0, -1.0)
+    ys = np.clip(np.arange(20) - 2, 0, 19)
+    xs = np.clip(np.arange(24) + 2, 0, 23)
+    np.testing.assert_array_equal(out, img[ys][:, xs])
+    # a fractional shift is the bilinear mix of its two integer neighbours
+    half = shift_view(img, 0.5, 0.0, 1.0)
+    ref = 0.5 * (img + img[:, np.clip(np.arange(24) - 1, 0, 23)])
+    np.testing.assert_allclose(half, ref, atol=2e-3)     # OpenCV's 5-bit fixed-point weights
+
+
+def test_remap_view_is_shift_view_for_a_constant_disparity():
+    rng = np.random.default_rng(5)
+    img = rng.random((16, 18)).astype(np.float32)
+    grid = np.mgrid[0:16, 0:18].astype(np.float32)
+    d = np.full((16, 18), 1.25, np.float32)
+    for flag in (cv2.INTER_LINEAR, cv2.INTER_CUBIC):
+        np.testing.assert_allclose(remap_view(img, d, -1.0, 2.0, grid, flag), shift_view(img, 1.25, -1.0, 2.0, flag),
+                                   atol=1e-5)
