@@ -132,7 +132,8 @@ def visibility_relabel(intensities: Views, disparity: np.ndarray, *, radius: int
     then removes isolated decisions.
 
     This places the thin rims the box costs cannot: the 1-3 px band of an occluder's silhouette that has
-    the background's colour (on hci-antinous the dark outline of the statue, MSE x 100 4.7 -> 2.3).
+    the background's colour, which the colour-guided median of :func:`fix_occlusion_edges` gives to an
+    equally dark background.
 
     Parameters
     ----------
@@ -224,7 +225,7 @@ def visibility_relabel(intensities: Views, disparity: np.ndarray, *, radius: int
         log.debug("visibility relabel: %d band pixels, %d to the far side, %d to the near side", n,
                   int(to_far.sum()), int(to_near.sum()))
     # where both sides match about equally (one flat colour on both) the per-pixel decisions are speckled: a
-    # 3 x 3 median over the band removes isolated ones (hci-antinous MSE x 100 2.55 -> 2.30)
+    # 3 x 3 median over the band removes isolated ones
     out[ys, xs] = cv2.medianBlur(out, 3)[ys, xs]
     return out
 
@@ -291,33 +292,29 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
 
     over the views whose background point the centre view shows unoccluded (no near surface within 2 px of
     it in the map) gives ``1 - a``; the offset terms absorb what changes linearly across the aperture (an
-    occluder disparity a little off moves the outline across the pixel in proportion to the offset; on
-    hci-antinous, without them, most of the changed pixels were wrong).  Where ``a`` lies on the other side
+    occluder disparity a little off moves the outline across the pixel in proportion to the offset, which
+    the fit would otherwise read as background showing through).  Where ``a`` lies on the other side
     of 1/2 than the map by more than ``significance`` standard errors, the pixel takes the other side's
     hypothesis: the pixel-centre convention of a ground truth (a mixed pixel belongs to the surface at its
     centre).  A second, independent estimate of the same fraction comes from the centre view alone: where
     the pixel's colour lies between its neighbours one pixel outward and inward along the edge normal
     (:func:`two_colour_edge`; the normal is the gradient of the near side's indicator smoothed with
     ``sigma = 1``).  Where the two agree on the other side, ``agreed_significance`` standard errors
-    suffice (a box-filtered disc: MSE x 100 1.68 -> 0.93; hci-antinous 2.07 -> 2.06); a colour outside
-    the range between its neighbours' (mixing outside (0, 1): the dark band of a shaded silhouette) is no
-    mix and does not agree (:func:`mixing_agrees`; hci-antinous 2.03 -> 1.90).
+    suffice; a colour outside the range between its neighbours' (mixing outside (0, 1): the dark band of a
+    shaded silhouette) is no mix and does not agree (:func:`mixing_agrees`).
 
     Where the regression cannot decide (fewer than ``min_views`` views, a background without texture, not
     significant), a clean two-colour edge in the centre view decides alone: both sides flat a pixel further
     out (flatness below ``flat_edge``) and the mixing more than ``mixing_margin`` from 1/2.  The regression
     needs a background that moves; this needs two surfaces of different colour, and the flatness keeps out
-    the shaded rims the colour of the background, where the mixing was wrong on most hci-antinous pixels
-    (a disc over a flat background: 74 -> 14 wrong pixels; hci-antinous MSE x 100 2.06 -> 2.03, another
-    generated disc 0.56 -> 0.32).  Only pixels next to the other side are tested, once; the others keep
-    their side.  Both models mix light, so a linear light
-    field's views are taken with their display encoding undone (:meth:`Views.linear`; generated
-    illum-mini MSE x 100 0.65 -> 0.39); stored sRGB values are used as stored (decoding them made
-    hci-antinous worse).
+    the shaded rims the colour of the background, where the mixing says nothing about coverage.  Only
+    pixels next to the other side are tested, once; the others keep their side.  Both models mix light, so
+    a linear light field's views are taken with their display encoding undone (:meth:`Views.linear`);
+    stored sRGB values are used as stored.
 
     Photo-consistency alone cannot do this: with a smooth background a mixed pixel matches the occluder's
     disparity almost as well as a fully covered one, so the relabel before it (:func:`visibility_relabel`)
-    gives the occluder every pixel it covers by about 15 % or more (a disc of exact box-filtered coverage).
+    gives the occluder pixels it covers only in small part.
 
     Parameters
     ----------
@@ -430,9 +427,8 @@ def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, 
        A background pixel fattened by the occluder is seen by all views only on its own surface: its cost at
        the far disparity ``far`` over the views on the un-occluded side is lower.  Those views are the best
        wedge of ``wedge`` of the 8 angular sectors (2: a 90 degree wedge).  A half-plane would do beside a
-       straight edge, but in a concave pocket of the occluder's outline (between chin and neck on
-       hci-antinous) the background is hidden from views on two sides and every half-plane still looks past
-       the occluder.  Pixels with ``C_all(d) > ratio * C_wedge(far)`` take ``far`` (the occlusion reasoning
+       straight edge, but in a concave pocket of the occluder's outline the background is hidden from views
+       on two sides and every half-plane still looks past the occluder.  Pixels with ``C_all(d) > ratio * C_wedge(far)`` take ``far`` (the occlusion reasoning
        of Kang, Szeliski & Chai, CVPR 2001 and Wang, Efros & Ramamoorthi, ICCV 2015, used as a left-right
        style consistency test).
     2. **Edge snapping.**  A weighted median of the disparity guided by the centre view in colour

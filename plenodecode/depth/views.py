@@ -195,9 +195,8 @@ def noise_sigma(views: Views, lo: float, hi: float, step: float = 0.1) -> float:
     ``(I_n(p - d o) - I_c(p))^2`` over the disparities ``d`` in ``[lo, hi]`` (spacing ``step``) is the
     residual after matching (about ``2 sigma^2`` where the views differ only by noise); the median over the
     neighbours and then over the image, over ``2 C``, gives ``sigma^2``.  It also counts the fine texture a
-    bilinear shift cannot reproduce (about 0.007 on clean, pixel-scale random texture; 0.0017 on
-    hci-antinous, 0.006 on a decoded illum-mini raw); added Gaussian noise is found within 20 %.  The views
-    must hold intensities only (no contrast channels).
+    bilinear shift cannot reproduce, so it is an upper bound on the noise of finely textured views.  The
+    views must hold intensities only (no contrast channels).
 
     Returns
     -------
