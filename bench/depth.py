@@ -11,6 +11,9 @@ Metrics as the benchmark toolkit: BadPix0.07 and BadPix0.03 (% of pixels off by 
 a 15 px border excluded (5 px on the 87 x 125 px synthetic scenes).  Runtime is one wall-clock run on this
 machine (the load average is printed: other processes slow it down) and the process CPU time (both cores
 count, so on an idle 2-core machine wall time is about CPU time / 1.5 .. 2).
+
+``python -m bench.depth --quick`` runs every method on the illum-mini ground-truth light field only (seconds).
+What each step of the pipeline bought when it was introduced is tabled in the README's depth section.
 """
 
 from __future__ import annotations
@@ -30,8 +33,16 @@ ANTINOUS = ROOT.parent / "shared" / "data" / "hci-antinous"
 TARGETS = {"costvolume": (5.0, 1.0, 60.0), "fast": (15.0, None, 5.0)}
 
 
-def _scenes():
-    """(name, lightfield, ground truth, border) for every available scene."""
+def _scenes(quick: bool = False):
+    """(name, lightfield, ground truth, border) for every available scene; ``quick``: the small generated
+    scene's ideal light field only."""
+    from plenodecode.decoding import decode
+    from plenodecode.synthetic import simulate
+
+    sim = simulate("illum-mini", seed=1)
+    ideal = ("illum-mini GT", sim.ground_truth_lightfield(), sim.disparity, 5)
+    if quick:
+        return [ideal]
     out = []
     if ANTINOUS.exists():
         from plenodecode.io.hci import read_hci
@@ -40,23 +51,20 @@ def _scenes():
         out.append(("hci-antinous", s.lightfield, s.disparity, 15))
     else:
         print(f"# {ANTINOUS} not found: HCI rows skipped", file=sys.stderr)
-    from plenodecode.decoding import decode
-    from plenodecode.synthetic import simulate
-
-    sim = simulate("illum-mini", seed=1)
-    out.append(("illum-mini GT", sim.ground_truth_lightfield(), sim.disparity, 5))
+    out.append(ideal)
     lf = decode(sim.raw, sim.grid, white=sim.white)
     lf = lf.replace(metadata={**lf.metadata, "disparity_range": list(sim.disparity_range)})
     out.append(("illum-mini decoded", lf, sim.disparity, 5))
     return out
 
 
-def measure_all() -> list[dict]:
-    """Run every method on every scene; a list of result rows."""
-    from plenodecode.depth import DEPTH_METHODS, badpix, estimate_depth, mse100
+def measure_all(quick: bool = False) -> list[dict]:
+    """Run every method on every scene (``quick``: on the small generated scene only); a list of result rows."""
+    from plenodecode.depth import DEPTH_METHODS, estimate_depth
+    from plenodecode.depth.scores import badpix, mse100
 
     rows = []
-    for name, lf, gt, border in _scenes():
+    for name, lf, gt, border in _scenes(quick):
         for method in DEPTH_METHODS:
             estimate_depth(lf, method=method) if name != "hci-antinous" else None   # warm caches / numba
             t0, c0 = time.perf_counter(), time.process_time()
@@ -106,10 +114,13 @@ def run() -> list[Figure]:
     return figs
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    args = sys.argv[1:] if argv is None else argv
+    if set(args) - {"--quick"}:
+        raise SystemExit(f"usage: python -m bench.depth [--quick]; got {' '.join(args)}")
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"# depth benchmark on {os.cpu_count()} cores, load average {load:.1f} at start", file=sys.stderr)
-    rows = measure_all()
+    rows = measure_all(quick="--quick" in args)
     print_rows(rows)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"(load average {load:.1f} at the end; runtimes grow with other processes on the machine)")

@@ -53,11 +53,6 @@ def planes_lightfield(n=7, size=64, d_back=-0.6, d_front=1.0, square=(20, 44, 18
 
 
 @pytest.fixture(scope="module")
-def planes():
-    return planes_lightfield()
-
-
-@pytest.fixture(scope="module")
 def simulation():
     from plenodecode.synthetic import simulate
 
@@ -87,26 +82,6 @@ def test_occluding_square(planes, method, max_bp07, max_mse):
     assert isinstance(dm, DepthMap) and dm.disparity.dtype == np.float32 and dm.method == method
     assert 0.0 <= dm.confidence.min() and dm.confidence.max() <= 1.0
     assert dm.params["disparity_range_source"] == "metadata"
-
-
-def test_half_planes_handle_occlusion_at_the_edge(planes):
-    """Background pixels beside the square are occluded in half of the views: the half-plane minimum
-    finds the background there, the plain mean over all views does not."""
-    from plenodecode.depth import _core
-
-    lf, gt = planes
-    views = _core.prepare_views(lf, grey=True)
-    labels = np.linspace(-1.2, 1.5, 28)
-    cost = _core.half_plane_cost_volume(views, labels, radius=1)
-    plain = _core.half_plane_cost_volume(views, labels, radius=1, n_sectors=1)
-    d_half, _ = _core.winner(cost, labels)
-    d_plain, _ = _core.winner(plain, labels)
-    ring = np.zeros_like(gt, bool)
-    ring[14:50, 12:52] = True
-    ring[20:44, 18:46] = False          # the background band within 6 px of the square (occluded by it)
-    bad_half = np.mean(np.abs(d_half - gt)[ring] > 0.2)
-    bad_plain = np.mean(np.abs(d_plain - gt)[ring] > 0.2)
-    assert bad_half < 0.06 and bad_plain > 3 * bad_half     # measured 3.8 % and 16 %
 
 
 def test_generated_illum_scene(simulation):
@@ -166,7 +141,7 @@ def test_disparity_range_is_estimated_without_metadata():
 
 def test_registry_and_argument_errors(planes):
     lf, _ = planes
-    with pytest.raises(ValueError, match="costvolume, fast"):
+    with pytest.raises(ValueError, match="method must be one of 'costvolume', 'fast', 'focus'"):
         estimate_depth(lf, method="nope")
     with pytest.raises(ValueError, match="radius"):
         estimate_depth(lf, method="costvolume", radius=-1)
@@ -205,23 +180,6 @@ def test_antinous_crop_real_data():
     assert badpix(dm, gt) < 14.0 and mse100(dm, gt) < 18.0
 
 
-def test_noise_sigma_tracks_added_noise():
-    """The residual of the centre view's neighbours after the best shift follows Gaussian noise added to
-    every view (in the views' matching scale: the noise over the 99.5th percentile of the centre view)."""
-    from plenodecode.depth import _core
-
-    est = []
-    for noise in (0.0, 0.01, 0.02, 0.04):
-        lf, _ = planes_lightfield(n=7, size=64, channels=1, noise=noise, seed=2)
-        views = _core.prepare_views(lf, grey=True)
-        est.append(_core.noise_sigma(views, -1.2, 1.5))
-        if noise:
-            expected = noise / float(np.percentile(lf.data[3, 3], 99.5))
-            assert 0.7 < est[-1] / expected < 1.3, (noise, est[-1], expected)      # measured 0.96, 0.85, 0.80
-    assert est == sorted(est)
-    assert est[0] < 0.6 * est[1]        # noise-free: only what the bilinear shift can't reproduce (measured 0.5)
-
-
 def test_contrast_eps_follows_the_noise():
     """With noisy views the normalisation's eps rises with the measured noise, so flat areas' noise is not
     matched as texture; on clean views it stays near its floor and changes little."""
@@ -236,3 +194,14 @@ def test_contrast_eps_follows_the_noise():
     assert adaptive.params["contrast_eps_used"] < 0.02                            # measured 0.015
     assert badpix(adaptive, gt, border=4) < badpix(estimate_depth(clean, method="costvolume", contrast_noise=0),
                                                    gt, border=4) + 0.5             # measured 2.71 and 2.77
+
+
+def test_importing_the_registry_stays_light():
+    """The CLI builds click.Choice(list(DEPTH_METHODS)) at --help time: no numba or OpenCV import for it."""
+    import subprocess
+    import sys
+
+    code = ("import sys, plenodecode.depth as d; assert list(d.DEPTH_METHODS) == ['costvolume', 'fast', 'focus']; "
+            "print(sorted(m for m in ('numba', 'cv2', 'scipy', 'plenodecode.render') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

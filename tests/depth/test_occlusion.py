@@ -1,20 +1,15 @@
 """The occlusion-edge fix (visibility check, colour-guided weighted median, per-pixel visibility relabel, coverage
-relabel) and the threaded cost volume."""
+relabel)."""
 
 import numpy as np
 import pytest
 from scipy import ndimage
 
-from plenodecode.depth import _core
+from plenodecode.depth.occlusion import (coverage_relabel, fix_occlusion_edges, mixing_agrees, nearest_surface,
+                                         two_colour_edge, visibility_relabel)
+from plenodecode.depth.views import colour_guide, prepare_views
 from plenodecode.types import LightField
 from tests.depth.test_methods import _texture, planes_lightfield
-
-
-@pytest.fixture(scope="module")
-def scene():
-    lf, gt = planes_lightfield(n=7, size=64, d_back=-0.6, d_front=1.0, seed=4)
-    views = _core.prepare_views(lf, grey=True, contrast_sigma=1.5, contrast_eps=0.005, contrast_weight=0.07)
-    return lf, gt, views
 
 
 def test_foreground_fattening_is_removed(scene):
@@ -25,7 +20,7 @@ def test_foreground_fattening_is_removed(scene):
     fat = np.where(ndimage.binary_dilation(front, iterations=3), 1.0, -0.6).astype(np.float32)
     before = fat.copy()
     wrong_before = np.count_nonzero(np.abs(fat - gt) > 0.5)            # 3-px ring of the square: 324 px
-    fixed = _core.fix_occlusion_edges(views, fat, _core.colour_guide(lf))
+    fixed = fix_occlusion_edges(views, fat, colour_guide(lf))
     wrong_after = np.count_nonzero(np.abs(fixed - gt) > 0.5)
     assert wrong_before > 300
     assert wrong_after < 0.33 * wrong_before                             # measured 77 px (24 %)
@@ -36,32 +31,14 @@ def test_visibility_check_alone_and_a_correct_map(scene):
     lf, gt, views = scene
     front = gt > 0
     fat = np.where(ndimage.binary_dilation(front, iterations=2), 1.0, -0.6).astype(np.float32)
-    only_check = _core.fix_occlusion_edges(views, fat, _core.colour_guide(lf), median_radius=0)
+    only_check = fix_occlusion_edges(views, fat, colour_guide(lf), median_radius=0)
     # measured 212 -> 59 wrong pixels
     assert np.count_nonzero(np.abs(only_check - gt) > 0.5) < 0.33 * np.count_nonzero(np.abs(fat - gt) > 0.5)
     # the true map is kept: the occluder passes the all-view test (measured 5 px changed)
-    same = _core.fix_occlusion_edges(views, gt, _core.colour_guide(lf), median_radius=0)
+    same = fix_occlusion_edges(views, gt, colour_guide(lf), median_radius=0)
     assert np.count_nonzero(np.abs(same - gt) > 0.5) <= 8
     flat = np.full_like(gt, 0.3)                                        # no edge: returned unchanged
-    np.testing.assert_array_equal(_core.fix_occlusion_edges(views, flat, _core.colour_guide(lf)), flat)
-
-
-def test_cost_volume_threads_give_identical_results(scene):
-    _, _, views = scene
-    labels = np.linspace(-1.0, 1.2, 12)
-    one = _core.half_plane_cost_volume(views, labels, radius=1, threads=1)
-    two = _core.half_plane_cost_volume(views, labels, radius=1, threads=2)
-    np.testing.assert_array_equal(one, two)
-    steps = []
-    _core.half_plane_cost_volume(views, labels, radius=1, threads=2, progress=lambda d, n: steps.append((d, n)))
-    assert steps == [(k + 1, 12) for k in range(12)]
-
-
-def test_colour_guide_scaling(scene):
-    lf, _, _ = scene
-    g = _core.colour_guide(lf)
-    assert g.dtype == np.uint8 and g.shape == lf.shape[2:4] + (3,)
-    assert 250 <= np.percentile(g, 99.5) <= 255 and g.min() >= 0
+    np.testing.assert_array_equal(fix_occlusion_edges(views, flat, colour_guide(lf)), flat)
 
 
 def test_edge_fix_is_deterministic(scene):
@@ -71,8 +48,8 @@ def test_edge_fix_is_deterministic(scene):
     front = gt > 0
     fat = np.where(ndimage.binary_dilation(front, iterations=2), 1.0, -0.6).astype(np.float32)
     noisy = fat + np.random.default_rng(1).normal(0.0, 0.05, fat.shape).astype(np.float32)
-    guide = _core.colour_guide(lf)
-    runs = [_core.fix_occlusion_edges(views, noisy, guide) for _ in range(3)]
+    guide = colour_guide(lf)
+    runs = [fix_occlusion_edges(views, noisy, guide) for _ in range(3)]
     for r in runs[1:]:
         np.testing.assert_array_equal(r, runs[0])
 
@@ -85,25 +62,15 @@ def test_wedge_sees_into_a_concave_pocket():
     for seed in range(3):
         u_shape = [(14, 50, 16, 27), (14, 50, 37, 48), (40, 50, 16, 48)]      # a 10 px wide pocket
         lf, gt = planes_lightfield(n=7, size=64, d_back=-0.6, d_front=1.0, square=u_shape, seed=seed)
-        views = _core.prepare_views(lf, grey=True, contrast_sigma=1.5, contrast_eps=0.005, contrast_weight=0.07)
+        views = prepare_views(lf, grey=True, contrast_sigma=1.5, contrast_eps=0.005, contrast_weight=0.07)
         fat = np.where(ndimage.binary_dilation(gt > 0, iterations=3), 1.0, -0.6).astype(np.float32)
         pocket = np.zeros(gt.shape, bool)
         pocket[14:40, 27:37] = True
         for wedge in wrong:
-            fixed = _core.fix_occlusion_edges(views, fat, _core.colour_guide(lf), wedge=wedge, median_radius=0)
+            fixed = fix_occlusion_edges(views, fat, colour_guide(lf), wedge=wedge, median_radius=0)
             wrong[wedge] += np.count_nonzero((np.abs(fixed - gt) > 0.5) & pocket)
     # the fattening fills 3 x 168 pocket pixels; measured 47 left wrong with the wedge, 65 with half-planes
     assert wrong[2] < 60 and wrong[2] < 0.8 * wrong[4]
-
-
-def test_cost_volume_span_checks(scene):
-    _, _, views = scene
-    labels = np.linspace(-1.0, 1.2, 4)
-    whole = _core.half_plane_cost_volume(views, labels, radius=1, span=_core.N_SECTORS)
-    plain = _core.half_plane_cost_volume(views, labels, radius=1, n_sectors=1)
-    np.testing.assert_allclose(whole, plain, rtol=1e-4, atol=1e-6)      # all 8 sectors = the mean over all views
-    with pytest.raises(ValueError, match="span"):
-        _core.half_plane_cost_volume(views, labels, span=9)
 
 
 def rimmed_square_lightfield(n=7, size=64, d_back=-1.5, d_front=1.0, rim=2, seed=0):
@@ -138,24 +105,24 @@ def test_visibility_relabel_restores_a_dark_rim_and_removes_fattening():
     """Per-pixel visibility puts the silhouette rim back on the occluder (the median of step 2 gives it to
     the background, whose colour it has) and a fattened ring back on the background."""
     lf, gt, front = rimmed_square_lightfield()
-    plain = _core.prepare_views(lf, grey=True)
+    plain = prepare_views(lf, grey=True)
     eroded = np.where(ndimage.binary_erosion(front, iterations=2), 1.0, -1.5).astype(np.float32)
     fattened = np.where(ndimage.binary_dilation(front, iterations=1), 1.0, -1.5).astype(np.float32)
     for wrong_map in (eroded, fattened):
         before = np.count_nonzero(np.abs(wrong_map - gt) > 0.5)        # 176 and 96 px
-        after = np.count_nonzero(np.abs(_core.visibility_relabel(plain, wrong_map) - gt) > 0.5)
+        after = np.count_nonzero(np.abs(visibility_relabel(plain, wrong_map) - gt) > 0.5)
         assert before > 90 and after < 0.2 * before, (before, after)
-    kept = _core.visibility_relabel(plain, gt)                           # a correct map stays correct
+    kept = visibility_relabel(plain, gt)                           # a correct map stays correct
     assert np.count_nonzero(np.abs(kept - gt) > 0.5) <= 4
     flat = np.full_like(gt, 0.3)
-    np.testing.assert_array_equal(_core.visibility_relabel(plain, flat), flat)
+    np.testing.assert_array_equal(visibility_relabel(plain, flat), flat)
 
 
 def test_nearest_surface_is_a_z_buffer():
     """Every centre pixel lands at p - d (dv, du); the nearer of two surfaces landing on a pixel wins."""
     d = np.full((8, 8), -1.0, np.float32)
     d[3:5, 3:5] = 2.0
-    z = _core.nearest_surface(d, 0.0, 1.0)                               # the view one step to the right
+    z = nearest_surface(d, 0.0, 1.0)                               # the view one step to the right
     # the square (x 3..4) lands at x - 2 = 1..2, over the background that lands at x + 1
     assert np.all(z[3:5, 1:4] == 2.0) and z[3, 4] == -1.0 and z[0, 5] == -1.0
     assert np.all(np.isneginf(z[:, 0]))                                 # nothing lands at x = 0 (x + 1 >= 1)
@@ -210,22 +177,22 @@ def test_coverage_relabel_gives_mixed_pixels_to_the_surface_at_their_centre():
     on the outline: either side is right).  Over a flat background (no slope to measure) the centre view's
     clean two-colour edge does most of it."""
     lf, gt, cover = disc_lightfield()
-    plain = _core.prepare_views(lf, grey=True)
+    plain = prepare_views(lf, grey=True)
     touched = np.where(cover > 0, 1.0, -1.5).astype(np.float32)
     covered = np.where(cover >= 1, 1.0, -1.5).astype(np.float32)
     for wrong_map in (touched, covered):
         before = np.count_nonzero(np.abs(wrong_map - gt) > 0.5)        # 74 and 54 px
         kept = wrong_map.copy()
-        after = np.count_nonzero(np.abs(_core.coverage_relabel(plain, wrong_map) - gt) > 0.5)   # 6 and 4
+        after = np.count_nonzero(np.abs(coverage_relabel(plain, wrong_map) - gt) > 0.5)   # 6 and 4
         assert before > 50 and after < 0.2 * before, (before, after)
         np.testing.assert_array_equal(wrong_map, kept)                  # input not modified
-    moved = _core.coverage_relabel(plain, gt) != gt                     # 2 px, both covered by 8/16 samples
+    moved = coverage_relabel(plain, gt) != gt                     # 2 px, both covered by 8/16 samples
     assert moved.sum() <= 3 and np.all(np.abs(cover[moved] - 0.5) < 0.07), cover[moved]
     flat_lf, _, _ = disc_lightfield(flat_back=True)
-    flat = _core.prepare_views(flat_lf, grey=True)
+    flat = prepare_views(flat_lf, grey=True)
     for wrong_map in (touched, covered):
         before = np.count_nonzero(np.abs(wrong_map - gt) > 0.5)
-        after = np.count_nonzero(np.abs(_core.coverage_relabel(flat, wrong_map) - gt) > 0.5)   # 14 and 9
+        after = np.count_nonzero(np.abs(coverage_relabel(flat, wrong_map) - gt) > 0.5)   # 14 and 9
         assert after < 0.25 * before, (before, after)
 
 
@@ -235,7 +202,7 @@ def test_views_give_the_light_back_for_the_mixing_models():
     rng = np.random.default_rng(0)
     data = rng.uniform(0.05, 1.0, (3, 3, 6, 7, 3)).astype(np.float32)
     for colour, gamma in (("linear-srgb", 2.2), ("srgb", 1.0)):
-        views = _core.prepare_views(LightField(data, None, colour, {}))
+        views = prepare_views(LightField(data, None, colour, {}))
         assert views.encoding_gamma == gamma
         ratio = views.linear((0, 2)) / data[0, 2]
         np.testing.assert_allclose(ratio, ratio.flat[0], rtol=1e-4)
@@ -254,7 +221,7 @@ def test_two_colour_edge_gives_the_coverage_and_the_flatness_of_the_sides():
     xs = np.array([9, 10, 11, 3])
     ys = np.full(4, 4)
     normal = np.tile([0.0, 1.0], (4, 1))                                 # (y, x): towards the front
-    m, flatness = _core.two_colour_edge(image, ys, xs, normal)
+    m, flatness = two_colour_edge(image, ys, xs, normal)
     np.testing.assert_allclose(m[:3], [0.0, 0.2, 1.0], atol=1e-5)
     # x = 9: |I(11) - I(10)| / |I(10) - I(8)| = 0.8 / 0.2; x = 11: |I(9) - I(10)| / |I(12) - I(10)| = 0.2 / 0.8
     np.testing.assert_allclose(flatness[:3], [4.0, 0.0, 0.25], atol=1e-5)
@@ -266,7 +233,7 @@ def test_only_a_mix_backs_the_coverage_estimate():
     pixel darker than both its neighbours (mixing < 0) or brighter (> 1), or without contrast, does not."""
     mixed = np.array([0.2, 0.8, 0.2, -0.4, 1.3, np.nan, 0.7])
     covered = np.array([0.1, 0.9, 0.9, 0.1, 0.9, 0.1, 0.3])
-    np.testing.assert_array_equal(_core.mixing_agrees(mixed, covered),
+    np.testing.assert_array_equal(mixing_agrees(mixed, covered),
                                   [True, True, False, False, False, False, False])
 
 

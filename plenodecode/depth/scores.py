@@ -1,4 +1,4 @@
-"""Disparity error metrics of the HCI 4D light-field benchmark (Honauer et al., ACCV 2016).
+"""Disparity scores of the HCI 4D light-field benchmark (Honauer et al., ACCV 2016): BadPix and MSE x 100.
 
 Both ignore a border of ``border`` pixels (15 in the benchmark's toolkit) and pixels whose ground truth is
 not finite.  A non-finite estimate counts as a bad pixel and makes the MSE infinite.

@@ -1,0 +1,173 @@
+"""Depth methods: named presets of one pipeline, the registry and the dispatcher :func:`estimate_depth`.
+
+* ``'costvolume'`` (default, accurate, :data:`COSTVOLUME`): all views, labels 0.1 px apart, 8 aggregation
+  paths, a wide refinement.
+* ``'fast'`` (:data:`FAST`): the views on the horizontal, vertical and two diagonal lines through the centre
+  view (the 'star' of epipolar-plane-image methods, Wanner & Goldluecke, CVPR 2012; Shin et al., CVPR 2018),
+  which carry the parallax of all four directions with a quarter of the views of a 9 x 9 light field;
+  labels 0.25 px apart and 4 aggregation paths.
+* ``'focus'`` (:func:`plenodecode.depth.focus.estimate`): depth from focus, the sharpest slice of a focal
+  stack per pixel.
+
+Both presets run :func:`plenodecode.depth.pipeline.run_pipeline` (the steps and references are there) with
+the shared :data:`~plenodecode.depth.pipeline.VIEW_DEFAULTS` and
+:data:`~plenodecode.depth.occlusion.EDGE_DEFAULTS`.  Importing this module stays light: the pipeline (numba,
+OpenCV) is imported on the first estimate.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from ..registry import lazy, lookup
+from ..types import LightField
+
+log = logging.getLogger(__name__)
+
+#: The accurate method's own parameters of :func:`plenodecode.depth.pipeline.run_pipeline`.
+COSTVOLUME: dict[str, Any] = {
+    "label_step": 0.1,        # px per view step between labels
+    "radius": 1,              # box aggregation radius of the matching cost
+    "p1": 0.1,                # SGM small-step penalty, in units of the median per-pixel cost span
+    "p2": 3.0,                # SGM jump penalty (same units), lowered at image edges
+    "edge_sigma": 0.02,       # guide step (grey centre view in [0, 1]) that halves P2
+    "paths": 8,
+    "median_radius": 5,       # weighted-median clean-up radius (0 = off)
+    "refine_radius": "auto",  # box radius of the refinement cost: 'auto' = min(Y, X) / 85 in [3, 6]; 0 = off
+    "refine_range": 1.0,      # refinement searches +- this many label steps around the estimate
+    "refine_samples": 9,
+    "grey": True,             # match one luma channel (one third of the colour cost volume's work)
+    "pattern": None,          # all views
+    "contrast_weight": 0.07,  # normalised views stacked beside the intensities with this weight (None: replace)
+}
+
+#: The fast method's own parameters: the star views, coarser labels, 4 paths, fewer refinement offsets.
+FAST: dict[str, Any] = {
+    "label_step": 0.25,
+    "radius": 1,
+    "p1": 0.2,
+    "p2": 3.0,
+    "edge_sigma": 0.02,
+    "paths": 4,
+    "median_radius": 3,
+    "refine_radius": "auto",  # per-pixel refinement over the star views; 0 = off
+    "refine_range": 1.0,
+    "refine_samples": 5,
+    "grey": True,             # match one luma channel
+    "pattern": "star",        # the views on the 4 lines through the centre
+    "contrast_weight": 0.05,  # normalised views stacked beside the intensities with this weight (None: replace)
+}
+
+#: Pipeline presets: method name -> its own parameters.
+PRESETS: dict[str, dict[str, Any]] = {"costvolume": COSTVOLUME, "fast": FAST}
+
+Estimator = Callable[..., tuple[np.ndarray, np.ndarray, dict[str, Any]]]
+
+
+def _preset_method(name: str) -> Estimator:
+    """The registry entry of a preset: ``estimate(lf, *, progress=None, **params)`` running
+    :func:`plenodecode.depth.pipeline.run_preset` (imported on the first call)."""
+    run_preset = lazy("plenodecode.depth.pipeline", "run_preset")
+
+    def estimate(lf: LightField, *, progress: Callable[[int, int], None] | None = None,
+                 **params: Any) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+        return run_preset(lf, name, PRESETS[name], progress=progress, **params)
+
+    estimate.__name__ = estimate.__qualname__ = f"estimate_{name}"
+    estimate.__doc__ = (f"The '{name}' preset of the depth pipeline: disparity, confidence, params "
+                        f"(parameters: :data:`{name.upper()}` and the shared defaults).")
+    return estimate
+
+
+#: Depth methods: name -> ``estimate(lf, *, progress=None, **params) -> (disparity, confidence, params)``.
+DEPTH_METHODS: dict[str, Estimator] = {
+    "costvolume": _preset_method("costvolume"),
+    "fast": _preset_method("fast"),
+    "focus": lazy("plenodecode.depth.focus", "estimate"),
+}
+#: The method :func:`estimate_depth` uses when none is given.
+DEFAULT_METHOD = "costvolume"
+
+
+@dataclass(frozen=True)
+class DepthMap:
+    """Disparity of the centre view with its confidence.
+
+    Attributes
+    ----------
+    disparity : ndarray (Y, X) float32
+        px per view step, HCI sign convention (positive = closer than the focus plane).
+    confidence : ndarray (Y, X) float32 in [0, 1]
+        1 = unambiguous match, 0 = no information.
+    method : str
+        Key of :data:`DEPTH_METHODS`.
+    params : dict
+        Parameters used (defaults included), the disparity range and its source, and ``seconds``.
+    """
+
+    disparity: np.ndarray
+    confidence: np.ndarray
+    method: str
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.disparity.ndim != 2 or self.disparity.dtype != np.float32:
+            raise ValueError(f"disparity must be a 2-D float32 array, got {self.disparity.dtype} {self.disparity.shape}")
+        if self.confidence.shape != self.disparity.shape or self.confidence.dtype != np.float32:
+            raise ValueError(f"confidence must be float32 of shape {self.disparity.shape}, got "
+                             f"{self.confidence.dtype} {self.confidence.shape}")
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(Y, X)``."""
+        return self.disparity.shape  # type: ignore[return-value]
+
+
+def estimate_depth(lf: LightField, *, method: str = DEFAULT_METHOD,
+                   progress: Callable[[int, int], None] | None = None, **kw: Any) -> DepthMap:
+    """Estimate the disparity of the centre view of a light field.
+
+    Parameters
+    ----------
+    lf : LightField
+        (V, U, Y, X, C) float32.  ``lf.weight`` (when present) down-weights views; views whose median
+        weight is below ``min_view_weight`` (default 0.1) of the centre view's are not used.
+    method : str
+        A key of :data:`DEPTH_METHODS`.
+    progress : callable(done, total), optional
+    **kw
+        Method parameters (a preset's keys, :data:`COSTVOLUME` or :data:`FAST`, and the shared
+        ``VIEW_DEFAULTS`` and ``EDGE_DEFAULTS`` of :mod:`plenodecode.depth.pipeline`; for 'focus' the keys
+        of :data:`plenodecode.depth.focus.DEFAULTS`), e.g. ``disparity_range=(lo, hi)``; without it the range
+        comes from ``lf.metadata['disparity_range']`` (or an HCI scene's disp_min/disp_max), else it is
+        estimated by a coarse search.
+
+    Returns
+    -------
+    DepthMap
+
+    Raises
+    ------
+    ValueError
+        Unknown method (the message lists the names) or parameter.
+    DecodeError
+        The light field has a single view or an empty centre view.
+    """
+    if not isinstance(lf, LightField):
+        raise ValueError(f"lf must be a LightField, got {type(lf).__name__}")
+    estimate = lookup(DEPTH_METHODS, method, param="method")
+    t0 = time.perf_counter()
+    disparity, confidence, params = estimate(lf, progress=progress, **kw)
+    seconds = time.perf_counter() - t0
+    log.info("depth '%s': %.2f s", method, seconds)
+    return DepthMap(disparity=np.ascontiguousarray(disparity, np.float32),
+                    confidence=np.ascontiguousarray(confidence, np.float32),
+                    method=method, params={**params, "seconds": seconds})
+
+
+__all__ = ["COSTVOLUME", "FAST", "PRESETS", "DEPTH_METHODS", "DEFAULT_METHOD", "DepthMap", "estimate_depth"]

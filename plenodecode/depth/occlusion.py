@@ -1,0 +1,490 @@
+"""Occlusion handling at depth edges: the foreground fattening of window-based matching removed.
+
+* :func:`fix_occlusion_edges`: the pass every method ends with (parameters :data:`EDGE_DEFAULTS`): a
+  visibility check against the best wedge of views, a colour-guided weighted median, then
+  :func:`visibility_relabel` and :func:`coverage_relabel` in the band around each depth jump.
+* :func:`nearest_surface`: a z-buffer of one view rendered from the centre view's disparity map.
+* :func:`two_colour_edge`, :func:`mixing_agrees`: where a pixel's colour lies between its neighbours across
+  an edge, the centre view's own estimate of how much of it an occluder covers.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import cv2
+import numpy as np
+from numba import njit
+
+from .cost import half_plane_cost_volume, worker_threads
+from .views import Views, luma
+
+log = logging.getLogger(__name__)
+
+#: Occlusion-edge pass parameters of :func:`plenodecode.depth.pipeline.run_pipeline`, the same for every method.
+EDGE_DEFAULTS: dict[str, Any] = {
+    "edge_radius": 4,         # fix_occlusion_edges within this many px of a jump; 0 = off
+    "edge_jump": 0.5,         # disparity jump (px per view step) that makes a depth edge
+    "edge_ratio": 1.5,        # near-side pixels whose all-view cost exceeds this x the far wedge cost move back
+    "edge_wedge": 2,          # the far cost's views: the best wedge of this many of the 8 sectors (2 = 90 deg)
+    "edge_median_radius": 5,  # colour-guided weighted median over the edge band (0 = off)
+    "edge_visibility": True,  # then every band pixel takes the side its own colour matches (visibility_relabel)
+    "edge_coverage": True,    # then edge pixels take the surface covering most of them (coverage_relabel)
+}
+
+
+
+def _edge_band(disparity: np.ndarray, radius: int, jump: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(near, far, band): local max and min of the disparity over a (2 radius + 1)^2 window, and the pixels
+    where they differ by more than ``jump`` (within ``radius`` of a depth discontinuity)."""
+    k = np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
+    near = cv2.dilate(disparity, k)
+    far = cv2.erode(disparity, k)
+    return near, far, (near - far) > np.float32(jump)
+
+
+@njit(cache=True, nogil=True)
+def _splat_max(disparity, dv, du, out):
+    # z-buffer of one view: every centre pixel p lands at p - d(p) (dv, du) in the view; the four pixels around
+    # that point keep the largest (nearest) disparity landing on them
+    Y, X = disparity.shape
+    for y in range(Y):
+        for x in range(X):
+            d = disparity[y, x]
+            ty = y - d * dv
+            tx = x - d * du
+            fy = int(math.floor(ty))
+            fx = int(math.floor(tx))
+            for qy in range(fy, fy + 2):
+                if 0 <= qy < Y:
+                    for qx in range(fx, fx + 2):
+                        if 0 <= qx < X and d > out[qy, qx]:
+                            out[qy, qx] = d
+
+
+def nearest_surface(disparity: np.ndarray, dv: float, du: float) -> np.ndarray:
+    """Z-buffer of the view at offset ``(dv, du)``: (Y, X) float32, the largest disparity of the centre-view
+    pixels ``p`` whose image ``p - d(p) (dv, du)`` falls within one pixel, ``-inf`` where none does."""
+    out = np.full(disparity.shape, -np.inf, np.float32)
+    _splat_max(np.ascontiguousarray(disparity, np.float32), float(dv), float(du), out)
+    return out
+
+
+def _side_fill(disparity: np.ndarray, mask: np.ndarray, sigma: float) -> np.ndarray:
+    """Normalised convolution of the disparity over ``mask``: each pixel's Gaussian-weighted mean of the
+    masked pixels (its own value where no masked pixel is near)."""
+    m = mask.astype(np.float32)
+    num = cv2.GaussianBlur(disparity * m, (0, 0), sigma)
+    den = cv2.GaussianBlur(m, (0, 0), sigma)
+    return np.where(den > 1e-3, num / np.maximum(den, 1e-6), disparity).astype(np.float32)
+
+
+def _pixel_image_shape(n: int) -> tuple[int, int]:
+    """(rows, cols) of an image holding ``n`` scattered pixels for cv2.remap, whose maps must be under 32767
+    wide: rows of 1024."""
+    cols = min(n, 1024)
+    return -(-n // cols), cols
+
+
+def _as_pixel_image(a: np.ndarray, rows: int, cols: int) -> np.ndarray:
+    """Per-pixel values ``a`` (n, ...) laid out as a (rows, cols, ...) image, zero-padded."""
+    flat = np.zeros((rows * cols,) + a.shape[1:], a.dtype)
+    flat[:len(a)] = a
+    return flat.reshape((rows, cols) + a.shape[1:])
+
+
+def _band_hypotheses(d: np.ndarray, radius: int, jump: float
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(band, is_near, h_near, h_far), all (Y, X): the pixels within ``radius`` of a jump (:func:`_edge_band`)
+    whose two sides differ by more than ``jump``, which of them are on the near side (``d > (max + min) / 2``
+    over the window), and the near and far hypotheses: Gaussian-weighted means (``sigma = radius / 2``) of the
+    band's pixels on each side."""
+    near, far, band = _edge_band(d, radius, jump)
+    is_near = d > 0.5 * (near + far)
+    sigma = max(radius / 2.0, 1.0)
+    h_near = _side_fill(d, band & is_near, sigma)
+    h_far = _side_fill(d, band & ~is_near, sigma)
+    band &= (h_near - h_far) > np.float32(jump)
+    return band, is_near, h_near, h_far
+
+
+def visibility_relabel(intensities: Views, disparity: np.ndarray, *, radius: int = 4, jump: float = 0.5,
+                       ratio: float = 1.5, search: float = 0.2, min_visible: float = 0.25) -> np.ndarray:
+    """Move edge pixels to the side of a depth edge their own colour matches in the views that see it.
+
+    Within ``radius`` px of a jump (:func:`_edge_band`) each pixel has two hypotheses, the disparity of the
+    near side and of the far side around it (Gaussian-weighted means of the pixels on each side,
+    ``sigma = radius / 2``).  Its per-pixel cost (no box: a box beside an edge mixes both surfaces) is
+
+        C(p, h) = min_{|e| <= search}  sum_{t in vis(p, h + e)} w_t |I_t(p - (h + e) o_t) - I_c(p)|^2
+                                        / sum_{t in vis(p, h + e)} w_t
+
+    over the intensities (the local contrast normalisation mixes both surfaces near an edge), bicubic.
+    A near hypothesis is seen by every view.  A far one is hidden in view ``t`` when a z-buffer of the
+    current map (:func:`nearest_surface`) has a surface nearer by more than ``jump / 2`` at its image: the
+    occlusion reasoning of Kang, Szeliski & Chai (CVPR 2001) with the occluders taken from the map itself
+    rather than from a fixed split of the views.  Fewer than ``min_visible`` of the view weight: no far
+    hypothesis.  A pixel moves to the other side when that side's cost is ``ratio`` times lower and it
+    touches that side, one pixel layer per round, up to ``radius`` rounds; a 3 x 3 median over the band
+    then removes isolated decisions.
+
+    This places the thin rims the box costs cannot: the 1-3 px band of an occluder's silhouette that has
+    the background's colour, which the colour-guided median of :func:`fix_occlusion_edges` gives to an
+    equally dark background.
+
+    Parameters
+    ----------
+    intensities : Views
+        Views without contrast channels (:func:`prepare_views` with ``contrast_sigma=0``).
+    disparity : ndarray (Y, X) float32
+
+    Returns
+    -------
+    ndarray (Y, X) float32, a new array.
+    """
+    d = np.ascontiguousarray(disparity, np.float32)
+    band, is_near, h_near, h_far = _band_hypotheses(d, radius, jump)
+    ys, xs = np.nonzero(band)
+    out = d.copy()
+    if len(ys) == 0:
+        return out
+    n = len(ys)
+    rows, cols = _pixel_image_shape(n)
+
+    def as_image(a: np.ndarray) -> np.ndarray:
+        return _as_pixel_image(a, rows, cols)
+
+    px, py = as_image(xs.astype(np.float32)), as_image(ys.astype(np.float32))
+    hyp = {"near": as_image(h_near[ys, xs]), "far": as_image(h_far[ys, xs])}
+    centre = as_image(intensities.data[intensities.centre][ys, xs])                # (rows, cols, C)
+    offsets = np.linspace(-search, search, 5).astype(np.float32)
+    dv_all, du_all = intensities.offsets
+    used = intensities.used()
+    threads = worker_threads()
+    total = np.float32(sum(float(intensities.weight[vu]) for vu in used))
+    margin = np.float32(0.5 * jump)
+
+    def best_cost(h0: np.ndarray, current: np.ndarray | None) -> np.ndarray:
+        # min over the offsets of the visible views' mean squared difference; current: the map the z-buffers
+        # come from (None: every view sees the hypothesis).  The views are split into 4 parts, each with its
+        # own sums, run on threads (the z-buffer kernel and OpenCV release the GIL); the fixed split keeps the
+        # sums the same on any number of cores.
+        with ThreadPoolExecutor(max_workers=threads) as pool:
+            parts = list(pool.map(lambda i: view_sums(h0, current, used[i::4]), range(4)))
+        cost = sum(p[0] for p in parts)
+        seen = sum(p[1] for p in parts)
+        c = np.where(seen >= min_visible * total, cost / np.maximum(seen, 1e-12), np.inf)
+        return c.min(axis=0).reshape(-1)[:n]
+
+    def view_sums(h0: np.ndarray, current: np.ndarray | None, views: list[tuple[int, int]]
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        cost = np.zeros((len(offsets), rows, cols), np.float32)
+        seen = np.zeros((len(offsets), rows, cols), np.float32)
+        for vu in views:
+            w = np.float32(intensities.weight[vu])
+            dv, du = np.float32(dv_all[vu]), np.float32(du_all[vu])
+            zbuf = None if current is None else nearest_surface(current, dv, du)
+            for k, e in enumerate(offsets):
+                h = h0 + e
+                mx, my = px - h * du, py - h * dv
+                sample = cv2.remap(intensities.data[vu], mx, my, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
+                diff = np.square(sample.reshape(centre.shape) - centre).sum(axis=-1)
+                if zbuf is None:
+                    visible = w
+                else:
+                    z = cv2.remap(zbuf, mx, my, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE)
+                    visible = (z <= h + margin).astype(np.float32) * w
+                cost[k] += visible * diff
+                seen[k] += visible
+        return cost, seen
+
+    near_cost = best_cost(hyp["near"], None)
+    near_value, far_value = hyp["near"].reshape(-1)[:n], hyp["far"].reshape(-1)[:n]
+    side = is_near[ys, xs]
+    r = np.float32(ratio)
+    ring = np.ones((3, 3), np.uint8)
+    # one pixel layer per round: a pixel may join a side only next to it, and the next layer is judged with
+    # the z-buffers of the map that includes this one (a far point beside an eroded occluder looks visible
+    # in views where the occluder's cut-off rim hides it)
+    for _ in range(max(1, radius)):
+        far_cost = best_cost(hyp["far"], out)
+        near_map = np.zeros(d.shape, bool)
+        near_map[ys, xs] = side
+        next_to_near = cv2.dilate(near_map.astype(np.uint8), ring).astype(bool)[ys, xs]
+        next_to_far = cv2.dilate((band & ~near_map).astype(np.uint8), ring).astype(bool)[ys, xs]
+        to_far = side & (far_cost * r < near_cost) & next_to_far
+        to_near = ~side & (near_cost * r < far_cost) & next_to_near
+        if not (to_far.any() or to_near.any()):
+            break
+        out[ys[to_far], xs[to_far]] = far_value[to_far]
+        out[ys[to_near], xs[to_near]] = near_value[to_near]
+        side = (side & ~to_far) | to_near
+        log.debug("visibility relabel: %d band pixels, %d to the far side, %d to the near side", n,
+                  int(to_far.sum()), int(to_near.sum()))
+    # where both sides match about equally (one flat colour on both) the per-pixel decisions are speckled: a
+    # 3 x 3 median over the band removes isolated ones
+    out[ys, xs] = cv2.medianBlur(out, 3)[ys, xs]
+    return out
+
+
+def two_colour_edge(image: np.ndarray, ys: np.ndarray, xs: np.ndarray, normal: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Where each pixel's colour lies between its two neighbours across an edge, and how flat the two sides
+    are: (mixing, flatness), each (n,) float64,
+
+        m = (I(p) - I(p - n)) . (I(p + n) - I(p - n)) / |I(p + n) - I(p - n)|^2
+        f = (|I(p + 2n) - I(p + n)| + |I(p - 2n) - I(p - n)|) / |I(p + n) - I(p - n)|
+
+    with ``n`` the unit ``normal`` (n, 2) as (y, x), ``I`` the (Y, X, C) ``image`` (bilinear).  On an edge
+    between two flat colours ``m`` is the fraction of pixel ``p`` the ``+n`` side covers and ``f = 0``; a side
+    whose colour still changes a pixel further out (texture, shading, a second edge) raises ``f``.  NaN where
+    the two neighbours have the same colour."""
+    img = np.ascontiguousarray(image, np.float32)
+    img = img if img.ndim == 3 else img[..., None]
+    rows, cols = _pixel_image_shape(len(ys))
+
+    def at(k: float) -> np.ndarray:
+        mx = _as_pixel_image((xs + k * normal[:, 1]).astype(np.float32), rows, cols)
+        my = _as_pixel_image((ys + k * normal[:, 0]).astype(np.float32), rows, cols)
+        sample = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return sample.reshape(rows * cols, -1)[:len(ys)].astype(np.float64)
+
+    back_out, back, front, front_out = at(-2.0), at(-1.0), at(1.0), at(2.0)
+    own = img[ys, xs].astype(np.float64)
+    step = front - back
+    contrast = np.einsum("nc,nc->n", step, step)
+    spread = np.linalg.norm(front_out - front, axis=1) + np.linalg.norm(back_out - back, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        valid = contrast > 1e-12
+        mixing = np.where(valid, np.einsum("nc,nc->n", own - back, step) / contrast, np.nan)
+        flatness = np.where(valid, spread / np.sqrt(contrast), np.nan)
+    return mixing, flatness
+
+
+def mixing_agrees(mixed: np.ndarray, covered: np.ndarray) -> np.ndarray:
+    """Where the centre view's colour mixing (:func:`two_colour_edge`) backs a coverage estimate: both on the
+    same side of 1/2, and the mixing a mix, inside (0, 1).  A colour outside the range between its two
+    neighbours' (the dark band of a shaded silhouette, darker than the wall and the lit surface) says
+    nothing about coverage.  Arrays (n,); NaN mixing never agrees."""
+    same_side = ((mixed > 0.5) & (covered > 0.5)) | ((mixed < 0.5) & (covered < 0.5))
+    return same_side & (mixed > 0.0) & (mixed < 1.0)
+
+
+def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int = 4, jump: float = 0.5,
+                     significance: float = 2.0, agreed_significance: float = 0.5, min_views: int = 6,
+                     flat_edge: float = 0.2, mixing_margin: float = 0.1) -> np.ndarray:
+    """Give each pixel on a depth edge to the surface that covers most of it, measured by the background's
+    motion through it.
+
+    A pixel ``p`` cut by an occluder's outline is a mix: a fraction ``a`` of it shows the occluder (disparity
+    ``h_n``) and ``1 - a`` the background (``h_f``).  Followed along the occluder, in view ``t`` (offset
+    ``o_t``) it reads
+
+        N_t = I_t(p - h_n o_t) = a S + (1 - a) B(p + (h_f - h_n) o_t)
+
+    where ``B`` is the background as the centre view shows it: the occluder's part stays put while the
+    background slides through the rest.  A weighted least-squares fit
+
+        N_t = c_0 + (1 - a) B_t + c_v dv_t + c_u du_t
+
+    over the views whose background point the centre view shows unoccluded (no near surface within 2 px of
+    it in the map) gives ``1 - a``; the offset terms absorb what changes linearly across the aperture (an
+    occluder disparity a little off moves the outline across the pixel in proportion to the offset, which
+    the fit would otherwise read as background showing through).  Where ``a`` lies on the other side
+    of 1/2 than the map by more than ``significance`` standard errors, the pixel takes the other side's
+    hypothesis: the pixel-centre convention of a ground truth (a mixed pixel belongs to the surface at its
+    centre).  A second, independent estimate of the same fraction comes from the centre view alone: where
+    the pixel's colour lies between its neighbours one pixel outward and inward along the edge normal
+    (:func:`two_colour_edge`; the normal is the gradient of the near side's indicator smoothed with
+    ``sigma = 1``).  Where the two agree on the other side, ``agreed_significance`` standard errors
+    suffice; a colour outside the range between its neighbours' (mixing outside (0, 1): the dark band of a
+    shaded silhouette) is no mix and does not agree (:func:`mixing_agrees`).
+
+    Where the regression cannot decide (fewer than ``min_views`` views, a background without texture, not
+    significant), a clean two-colour edge in the centre view decides alone: both sides flat a pixel further
+    out (flatness below ``flat_edge``) and the mixing more than ``mixing_margin`` from 1/2.  The regression
+    needs a background that moves; this needs two surfaces of different colour, and the flatness keeps out
+    the shaded rims the colour of the background, where the mixing says nothing about coverage.  Only
+    pixels next to the other side are tested, once; the others keep their side.  Both models mix light, so
+    a linear light field's views are taken with their display encoding undone (:meth:`Views.linear`);
+    stored sRGB values are used as stored.
+
+    Photo-consistency alone cannot do this: with a smooth background a mixed pixel matches the occluder's
+    disparity almost as well as a fully covered one, so the relabel before it (:func:`visibility_relabel`)
+    gives the occluder pixels it covers only in small part.
+
+    Parameters
+    ----------
+    intensities : Views
+        Views without contrast channels; the regression reduces colour views to luma.
+    disparity : ndarray (Y, X) float32
+    radius, jump : the band and hypotheses of :func:`_band_hypotheses`.
+    significance, agreed_significance : float
+        Standard errors of the regression's ``a - 1/2`` needed to move a pixel, alone and with the centre
+        view's colour mixing agreeing.
+    flat_edge, mixing_margin : float
+        Where the regression does not decide: the centre view's flatness and ``|mixing - 1/2|`` that do.
+
+    Returns
+    -------
+    ndarray (Y, X) float32, a new array.
+    """
+    d = np.ascontiguousarray(disparity, np.float32)
+    out = d.copy()
+    band, is_near, h_near, h_far = _band_hypotheses(d, radius, jump)
+    cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
+    near_px, far_px = band & is_near, band & ~is_near
+    edge = (near_px & cv2.dilate(far_px.astype(np.uint8), cross).astype(bool)) | \
+           (far_px & cv2.dilate(near_px.astype(np.uint8), cross).astype(bool))
+    ys, xs = np.nonzero(edge)
+    if len(ys) == 0:
+        return out
+
+    rows, cols = _pixel_image_shape(len(ys))
+    px, py = (_as_pixel_image(a.astype(np.float32), rows, cols) for a in (xs, ys))
+    hn, hf = (_as_pixel_image(h[ys, xs], rows, cols) for h in (h_near, h_far))
+    # the models mix light: the display encoding of linear light fields' views is undone
+    centre_light = intensities.linear(intensities.centre)
+    centre = luma(centre_light)
+    # a background point is seen unoccluded where no pixel within 2 px (the bicubic support) is nearer
+    nearest_around = cv2.dilate(d, np.ones((5, 5), np.uint8))
+    visible_below = hf + np.float32(0.5 * jump)
+    dv_all, du_all = intensities.offsets
+    # weighted least squares of y = follow on (1, x = back, dv, du); the view-offset terms absorb a colour
+    # change linear across the aperture (a slightly wrong occluder disparity moves its outline across the
+    # pixel in proportion to the offset, as a smooth background gradient moves past it)
+    moments = np.zeros((4, 4, rows, cols), np.float64)
+    rhs = np.zeros((4, rows, cols), np.float64)
+    syy = np.zeros((rows, cols), np.float64)
+    count = np.zeros((rows, cols), np.int32)
+    for vu in intensities.used():
+        dv, du = np.float32(dv_all[vu]), np.float32(du_all[vu])
+        follow = cv2.remap(luma(intensities.linear(vu)), px - hn * du, py - hn * dv, cv2.INTER_CUBIC,
+                           borderMode=cv2.BORDER_REPLICATE)
+        bx, by = px + (hf - hn) * du, py + (hf - hn) * dv
+        back = cv2.remap(centre, bx, by, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
+        z = cv2.remap(nearest_around, bx, by, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
+                      borderValue=np.inf)
+        ok = z < visible_below
+        w = ok * np.float64(intensities.weight[vu])
+        r = np.stack([np.ones_like(w), back.astype(np.float64), np.full_like(w, dv), np.full_like(w, du)])
+        y = follow.astype(np.float64)
+        moments += w * r[:, None] * r[None, :]
+        rhs += w * r * y
+        syy += w * y * y
+        count += ok
+    n = len(ys)
+    m = np.moveaxis(moments.reshape(4, 4, -1)[..., :n], -1, 0) + 1e-9 * np.eye(4)
+    inverse = np.linalg.inv(m)                                          # (n, 4, 4)
+    b = rhs.reshape(4, -1)[:, :n].T                                      # (n, 4)
+    coef = np.einsum("nij,nj->ni", inverse, b)
+    sw = np.maximum(m[:, 0, 0], 1e-12)
+    count = count.reshape(-1)[:n]
+    # residual variance per view, unbiased for the 4 fitted parameters
+    residual = (np.maximum(syy.reshape(-1)[:n] - np.einsum("ni,ni->n", coef, b), 0.0) / sw
+                * count / np.maximum(count - 4, 1))
+    x_spread = 1.0 / np.maximum(inverse[:, 1, 1], 1e-30)              # sum w (x - its fit on 1, dv, du)^2
+    stderr = np.sqrt(residual / x_spread)
+    covered = 1.0 - coef[:, 1]
+    # the centre view's own estimate: the normal points into the near side
+    indicator = cv2.GaussianBlur(is_near.astype(np.float32), (0, 0), 1.0)
+    normal = np.stack([g[ys, xs] for g in np.gradient(indicator)], axis=1).astype(np.float64)
+    normal /= np.maximum(np.hypot(normal[:, 0], normal[:, 1]), 1e-12)[:, None]
+    mixed, flatness = two_colour_edge(centre_light, ys, xs, normal)
+    agree = mixing_agrees(mixed, covered)
+    # a background that varies over the views by less than one 8-bit grey level (beyond a linear trend) is
+    # flat: no slope
+    textured = x_spread / sw > (1.0 / 255.0) ** 2
+    needed = np.where(agree, agreed_significance, significance)
+    tested = (count >= min_views) & textured & (np.abs(covered - 0.5) > needed * stderr)
+    clean_edge = ~tested & (flatness < flat_edge) & (np.abs(mixed - 0.5) > mixing_margin)
+    decided = tested | clean_edge
+    estimate = np.where(clean_edge, mixed, covered)
+    side = is_near[ys, xs]
+    to_near, to_far = decided & ~side & (estimate > 0.5), decided & side & (estimate < 0.5)
+    out[ys[to_near], xs[to_near]] = h_near[ys[to_near], xs[to_near]]
+    out[ys[to_far], xs[to_far]] = h_far[ys[to_far], xs[to_far]]
+    log.debug("coverage relabel: %d edge pixels, %d to the near side, %d to the far side", len(ys),
+              int(to_near.sum()), int(to_far.sum()))
+    return out
+
+
+def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, *, radius: int = 4,
+                        jump: float = 0.5, ratio: float = 1.5, wedge: int = 2, median_radius: int = 5,
+                        intensities: Views | None = None, visibility: bool = True, coverage: bool = True
+                        ) -> np.ndarray:
+    """Remove the foreground fattening at depth discontinuities.
+
+    Four steps, all restricted to the band within ``radius`` px of a disparity jump larger than ``jump``
+    (:func:`_edge_band`):
+
+    1. **Visibility check.**  A pixel on the near side of a jump (``d > (near + far) / 2``) claims to lie on
+       the occluder, and nothing occludes an occluder: every view must then see it, so its cost over *all*
+       views (:func:`half_plane_cost_volume` with one sector, views warped per pixel by ``d``) must be small.
+       A background pixel fattened by the occluder is seen by all views only on its own surface: its cost at
+       the far disparity ``far`` over the views on the un-occluded side is lower.  Those views are the best
+       wedge of ``wedge`` of the 8 angular sectors (2: a 90 degree wedge).  A half-plane would do beside a
+       straight edge, but in a concave pocket of the occluder's outline the background is hidden from views
+       on two sides and every half-plane still looks past the occluder.  Pixels with ``C_all(d) > ratio * C_wedge(far)`` take ``far`` (the occlusion reasoning
+       of Kang, Szeliski & Chai, CVPR 2001 and Wang, Efros & Ramamoorthi, ICCV 2015, used as a left-right
+       style consistency test).
+    2. **Edge snapping.**  A weighted median of the disparity guided by the centre view in colour
+       (Ma et al., ICCV 2013; ``cv2.ximgproc.weightedMedianFilter``, radius ``median_radius``) replaces the
+       band, so the remaining depth edge follows the colour edge.
+    3. **Per-pixel visibility** (:func:`visibility_relabel`, when ``intensities`` are given and ``visibility``):
+       every band pixel takes the side whose disparity its own colour matches ``ratio`` times better in the
+       views that see it.  The median of step 2 puts the edge at the strongest colour edge, which cuts off an
+       occluder's silhouette rim when the rim is as dark as the background.
+    4. **Coverage** (:func:`coverage_relabel`, when ``intensities`` are given and ``coverage``): a pixel on
+       the edge goes to the surface that covers more than half of it, measured by how much of the
+       background's motion across the views shows through it and by where its colour lies between its
+       neighbours across the edge.
+
+    Parameters
+    ----------
+    views : Views
+        The matching views (the ones the cost volume used).
+    disparity : ndarray (Y, X) float32
+    guide : ndarray (Y, X, 3) or (Y, X, 1) uint8
+        :func:`plenodecode.depth.views.colour_guide`.
+    intensities : Views, optional
+        The views without contrast channels, for steps 3 and 4 (None: both are skipped).
+    visibility, coverage : bool
+        Run step 3, step 4.
+
+    Returns
+    -------
+    ndarray (Y, X) float32, a new array.
+    """
+    d = np.ascontiguousarray(disparity, np.float32)
+    near, far, band = _edge_band(d, radius, jump)
+    if not band.any():
+        return d.copy()
+    zero = np.zeros(1)
+    c_all = half_plane_cost_volume(views, zero, radius=1, base=d, n_sectors=1)[..., 0]
+    c_far = half_plane_cost_volume(views, zero, radius=1, base=far, span=wedge)[..., 0]
+    switch = band & (d > 0.5 * (near + far)) & (c_all > np.float32(ratio) * c_far)
+    d = np.where(switch, far, d).astype(np.float32)
+    log.debug("occlusion edges: %.2f %% of pixels in the band, %.2f %% moved to the far side",
+              100.0 * band.mean(), 100.0 * switch.mean())
+    if median_radius > 0:
+        _, _, band = _edge_band(d, radius, jump)
+        g = guide if guide.ndim == 2 or guide.shape[-1] in (1, 3) else guide[..., :3]
+        # with a colour guide OpenCV clusters the colours from random seeds (the thread's cv::RNG): seed it so
+        # the same input gives the same map
+        cv2.setRNGSeed(0)
+        wm = cv2.ximgproc.weightedMedianFilter(np.ascontiguousarray(g), d, int(median_radius), 25.5)
+        d = np.where(band, wm, d).astype(np.float32)
+    if intensities is not None and visibility:
+        d = visibility_relabel(intensities, d, radius=radius, jump=jump, ratio=ratio)
+    if intensities is not None and coverage:
+        d = coverage_relabel(intensities, d, radius=radius, jump=jump)
+    return d
+
+
+
+__all__ = ["EDGE_DEFAULTS", "fix_occlusion_edges", "visibility_relabel", "coverage_relabel", "two_colour_edge",
+           "mixing_agrees", "nearest_surface"]

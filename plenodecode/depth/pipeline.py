@@ -1,0 +1,316 @@
+"""The depth pipeline every cost-volume method runs, its parameters and the choice of the disparity range.
+
+Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s parameters,
+:mod:`plenodecode.depth.methods`):
+
+0. **Matching views** (:mod:`~plenodecode.depth.views`): the grey views, plus the same views after a local
+   contrast normalisation ``(I - G*I) / (sqrt(G*(I - G*I)^2) + eps)`` (Gaussian ``G`` of ``contrast_sigma``
+   px) stacked as a second channel with weight ``contrast_weight``.  Faint texture in shadows and on pale
+   surfaces then counts in the cost as much as strong texture (the normalisation of a normalised
+   cross-correlation), while smooth, high-contrast texture keeps its low frequencies in the intensity
+   channel.  ``eps`` is at least ``contrast_noise`` x the views' noise
+   (:func:`~plenodecode.depth.views.noise_sigma`), so that noise in flat areas is not normalised into texture.
+1. **Cost volume** (:mod:`~plenodecode.depth.cost`) over uniformly spaced disparity labels: every used view
+   is shifted onto the centre view and its weighted squared colour difference summed per angular sector; the
+   cost of a pixel is the minimum over half-planes of views of the box-aggregated mean difference, so a
+   point occluded in the views on one side of the centre still matches in the other half (Kang, Szeliski &
+   Chai, CVPR 2001; Wang, Efros & Ramamoorthi, ICCV 2015, who split the angular patch at the occluder edge).
+   Views are weighted by their ``lf.weight`` (Jeon et al., CVPR 2015 also build the volume over all views
+   against the centre view).
+2. **Edge-aware regularisation** (:mod:`~plenodecode.depth.aggregation`): semi-global aggregation along
+   ``paths`` directions (Hirschmueller, TPAMI 2008) whose large-jump penalty P2 falls at the centre view's
+   intensity edges, so depth edges follow image edges.
+3. **Winner-take-all**: best label with a parabola through its neighbours' aggregated cost; confidence is
+   the peak ratio of the aggregated cost (1 - best / second-best distinct minimum).
+4. **Clean-up** (:mod:`~plenodecode.depth.refinement`): an edge-aware weighted median guided by the centre
+   view (Ma et al., ICCV 2013).
+5. **Sub-label refinement without the fronto-parallel bias**: a second, narrow cost volume of offsets
+   ``+-refine_range`` labels around the estimate, every view warped per pixel by ``d(y, x) + offset``
+   (bicubic), so slanted surfaces match exactly (SGM's label penalties favour fronto-parallel steps); its
+   parabolic minimum is added to the estimate.
+6. **Occlusion edges** (:mod:`~plenodecode.depth.occlusion`, parameters ``edge_*``): within ``edge_radius``
+   px of a disparity jump, a pixel on the near side whose cost over *all* views (an occluder is seen by
+   every view) exceeds ``edge_ratio`` x the far disparity's cost over the best wedge of views moves to the
+   far side (a wedge rather than a half-plane, as the background in a concave pocket of an outline is
+   hidden on two sides); a weighted median guided by the colour centre view snaps the depth edge to the
+   colour edge; every band pixel then takes the side its own colour matches better over the views that see
+   it (visibility from z-buffers of the map), and each pixel on the edge goes to the surface covering more
+   than half of it (the pixel-centre convention of a ground truth), from the background's motion through
+   it and its colour between its neighbours across the edge, both in linear light.
+
+The disparity range (:func:`disparity_range`) comes from the caller, else the metadata
+(:func:`metadata_disparity_range`), else a coarse search (:func:`estimate_disparity_range`).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Any, Callable, Mapping
+
+import cv2
+import numpy as np
+
+from ..types import LightField
+from .aggregation import sgm, winner
+from .cost import N_SECTORS, Progress, half_plane_cost_volume, make_labels
+from .occlusion import EDGE_DEFAULTS, fix_occlusion_edges
+from .refinement import refine_disparity, refine_radius_for, weighted_median
+from .views import Views, add_contrast, colour_guide, noise_sigma, prepare_views
+
+log = logging.getLogger(__name__)
+
+#: Matching-view parameters of :func:`run_pipeline` that every preset shares (see :func:`prepare_views`).
+VIEW_DEFAULTS: dict[str, Any] = {
+    "contrast_sigma": 1.5,    # local contrast normalisation of the views (Gaussian sigma, px; 0 = off)
+    "contrast_eps": 0.005,    # floor of the normalisation's eps
+    "contrast_noise": 3.0,    # eps = max(contrast_eps, this x the views' noise sigma); 0 = contrast_eps as given
+    "min_view_weight": 0.1,   # views with a lower decoder weight (relative to the centre view) are dropped
+    "disparity_range": None,  # (lo, hi) px per view step; None = the metadata's, else estimated
+}
+
+
+
+def _check_range(r: Any, name: str) -> tuple[float, float]:
+    try:
+        lo, hi = (float(r[0]), float(r[1]))
+    except (TypeError, ValueError, IndexError) as exc:
+        raise ValueError(f"{name} must be a pair (min, max) of numbers, got {r!r}") from exc
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise ValueError(f"{name} must be finite with min < max, got {r!r}")
+    return lo, hi
+
+
+def metadata_disparity_range(metadata: Mapping[str, Any]) -> tuple[float, float] | None:
+    """``metadata['disparity_range']``, or an HCI scene's ``[meta] disp_min / disp_max``; None if absent."""
+    r = metadata.get("disparity_range")
+    if r is not None:
+        return _check_range(r, "metadata['disparity_range']")
+    hci = (metadata.get("hci_parameters") or {}).get("meta") or {}
+    if "disp_min" in hci and "disp_max" in hci:
+        return _check_range((hci["disp_min"], hci["disp_max"]), "HCI disp_min/disp_max")
+    return None
+
+
+def estimate_disparity_range(views: Views, *, max_abs: float | None = None, n_labels: int = 48,
+                             margin: float = 0.15) -> tuple[float, float]:
+    """Disparity range from a coarse search on 4x down-sampled views.
+
+    Searches ``[-max_abs, max_abs]`` (default: a shift of at most a quarter of the image's smaller side at
+    the outermost view), takes the 2nd and 98th percentiles of the confident per-pixel minima and widens them
+    by ``margin`` of the span (at least 0.25 px).
+
+    Returns
+    -------
+    (float, float)
+    """
+    Y, X = views.data.shape[2:4]
+    dv, du = views.offsets
+    reach = float(max(np.abs(dv).max(), np.abs(du).max()))
+    if max_abs is None:
+        max_abs = 0.25 * min(Y, X) / reach
+    f = 4 if min(Y, X) >= 64 else 1
+    small = views.data[:, :, ::f, ::f] if f == 1 else _downsample(views.data, f)
+    sv = Views(small, views.weight, views.centre)
+    labels = np.linspace(-max_abs / f, max_abs / f, n_labels)
+    cost = half_plane_cost_volume(sv, labels, radius=2)
+    disp, conf = winner(cost, labels)
+    d = disp[conf > np.percentile(conf, 50)] * f
+    if d.size == 0:
+        d = disp.ravel() * f
+    lo, hi = np.percentile(d, [2, 98])
+    pad = max(0.25, margin * (hi - lo))
+    log.info("estimated disparity range [%.2f, %.2f]", lo - pad, hi + pad)
+    return float(lo - pad), float(hi + pad)
+
+
+def _downsample(data: np.ndarray, f: int) -> np.ndarray:
+    V, U, Y, X, C = data.shape
+    out = np.empty((V, U, Y // f, X // f, C), np.float32)
+    for v in range(V):
+        for u in range(U):
+            r = cv2.resize(data[v, u], (X // f, Y // f), interpolation=cv2.INTER_AREA)
+            out[v, u] = r.reshape(Y // f, X // f, C)
+    return out
+
+
+def disparity_range(lf: LightField, views: Callable[[], Views], requested: Any = None
+                    ) -> tuple[tuple[float, float], str]:
+    """The search range: ``requested`` (``disparity_range=`` keyword), else the metadata, else estimated
+    from the matching views ``views()`` builds (called only then).
+
+    Returns
+    -------
+    ((lo, hi), source) with source in {'argument', 'metadata', 'estimated'}.
+    """
+    if requested is not None:
+        return _check_range(requested, "disparity_range"), "argument"
+    r = metadata_disparity_range(lf.metadata)
+    if r is not None:
+        return r, "metadata"
+    return estimate_disparity_range(views()), "estimated"
+
+
+
+#: Parameters of :func:`run_pipeline`: a preset (:mod:`plenodecode.depth.methods`) gives the method's own
+#: ones, :data:`VIEW_DEFAULTS` and :data:`EDGE_DEFAULTS` the rest (:func:`preset_defaults`).
+PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "median_radius", "refine_radius",
+                 "refine_range", "refine_samples", "grey", "pattern", "contrast_sigma", "contrast_eps",
+                 "contrast_noise", "contrast_weight", "min_view_weight", "disparity_range", *EDGE_DEFAULTS)
+
+
+def merge_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]) -> dict[str, Any]:
+    """``{**defaults, **kw}``; ValueError naming the parameters of ``kw`` that ``defaults`` does not have."""
+    unknown = set(kw) - set(defaults)
+    if unknown:
+        raise ValueError(f"unknown parameter(s) {sorted(unknown)} for method {method!r}; valid: {sorted(defaults)}")
+    return {**defaults, **kw}
+
+
+def preset_defaults(preset: Mapping[str, Any]) -> dict[str, Any]:
+    """Every parameter of :func:`run_pipeline`: a method's preset, then :data:`VIEW_DEFAULTS` and
+    :data:`EDGE_DEFAULTS`."""
+    return {**preset, **VIEW_DEFAULTS, **EDGE_DEFAULTS}
+
+
+def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]) -> dict[str, Any]:
+    """Merge keywords into the defaults (:func:`merge_params`); ValueError naming an unknown or invalid
+    parameter."""
+    p = merge_params(method, defaults, kw)
+    for name in ("label_step", "p1", "p2", "edge_sigma", "refine_range", "contrast_eps"):
+        if not float(p[name]) > 0:
+            raise ValueError(f"{name} must be positive, got {p[name]!r}")
+    for name in ("contrast_sigma", "contrast_noise"):
+        if not float(p[name]) >= 0:
+            raise ValueError(f"{name} must be >= 0, got {p[name]!r}")
+    if p["contrast_weight"] is not None and not float(p["contrast_weight"]) > 0:
+        raise ValueError(f"contrast_weight must be positive or None, got {p['contrast_weight']!r}")
+    if not 1 <= int(p["edge_wedge"]) <= N_SECTORS:
+        raise ValueError(f"edge_wedge must be a number of sectors in [1, {N_SECTORS}], got {p['edge_wedge']!r}")
+    if not float(p["edge_jump"]) > 0 or not float(p["edge_ratio"]) > 0:
+        raise ValueError(f"edge_jump and edge_ratio must be positive, got edge_jump={p['edge_jump']!r}, "
+                         f"edge_ratio={p['edge_ratio']!r}")
+    for name in ("radius", "median_radius", "refine_radius", "edge_radius", "edge_median_radius"):
+        if name == "refine_radius" and p[name] == "auto":
+            continue
+        if int(p[name]) < 0:
+            raise ValueError(f"{name} must be >= 0 (or 'auto' for refine_radius), got {p[name]!r}")
+    for name in ("edge_visibility", "edge_coverage"):
+        if not isinstance(p[name], (bool, np.bool_)):
+            raise ValueError(f"{name} must be True or False, got {p[name]!r}")
+    if int(p["refine_samples"]) < 3:
+        raise ValueError(f"refine_samples must be >= 3, got {p['refine_samples']!r}")
+    return p
+
+
+def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = None
+                 ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+    """Matching views -> cost volume -> SGM -> winner -> weighted median -> per-pixel refinement ->
+    occlusion edges (the steps and their references are in the module docstring).
+
+    Parameters
+    ----------
+    lf : LightField
+        (V, U, Y, X, C) float32.
+    p : mapping
+        Every key of :data:`PIPELINE_KEYS`, checked (:func:`check_params`).
+    progress : callable(done, total), optional
+        Called per cost-volume label, per SGM path and per refinement offset.
+
+    Returns
+    -------
+    disparity : ndarray (Y, X) float32
+        px per view step, HCI sign convention.
+    confidence : ndarray (Y, X) float32 in [0, 1]
+    params : dict
+        The parameters used, with the disparity range and its source, the views' noise and the contrast
+        ``eps`` used, the number of labels and of views.
+    """
+    plain = prepare_views(lf, min_view_weight=float(p["min_view_weight"]), grey=bool(p["grey"]),
+                          pattern=p["pattern"])
+    sigma, floor, k = float(p["contrast_sigma"]), float(p["contrast_eps"]), float(p["contrast_noise"])
+    weight = None if p["contrast_weight"] is None else float(p["contrast_weight"])
+    built: dict[float, Views] = {}
+
+    def matching_views(eps: float) -> Views:
+        if eps not in built:
+            built[eps] = add_contrast(plain, sigma, eps, weight) if sigma > 0 else plain
+        return built[eps]
+
+    (lo, hi), source = disparity_range(lf, lambda: matching_views(floor), p["disparity_range"])
+    noise, eps = 0.0, floor
+    if sigma > 0 and k > 0:
+        # the normalisation's floor above the noise, so that noise in flat areas is not matched as texture
+        noise = noise_sigma(plain, lo, hi)
+        eps = max(floor, k * noise)
+        log.info("view noise sigma %.4f: contrast eps %.4f", noise, eps)
+    views = matching_views(eps)
+    # the intensity-only views stay alive for the edge pass's relabel only when it runs
+    intensities = plain if (p["edge_visibility"] or p["edge_coverage"]) and int(p["edge_radius"]) > 0 else None
+    del plain, built
+    step = float(p["label_step"])
+    labels = make_labels(lo, hi, step, pad=2 * step)
+    n_labels, n_paths = len(labels), int(p["paths"])
+    refine_radius = refine_radius_for(lf.shape[2:4], p["refine_radius"])
+    n_refine = int(p["refine_samples"]) if refine_radius > 0 else 0
+    total = n_labels + n_paths + n_refine
+
+    def stage(offset: int) -> Progress:
+        if progress is None:
+            return None
+        return lambda done, _n: progress(offset + done, total)
+
+    log.info("cost volume: %d labels in [%.2f, %.2f] (%s), %d views", n_labels, labels[0], labels[-1], source,
+             len(views.used()) + 1)
+    cost = half_plane_cost_volume(views, labels, radius=int(p["radius"]), progress=stage(0))
+    sub = cost[::4, ::4]
+    span = float(np.median(sub.max(axis=-1) - sub.min(axis=-1)))
+    cost *= np.float32(1.0 / max(span, 1e-12))
+    guide = views.guide()
+    agg = sgm(cost, guide, p1=float(p["p1"]), p2=float(p["p2"]), sigma=float(p["edge_sigma"]), paths=n_paths,
+              progress=stage(n_labels))
+    del cost
+    disparity, confidence = winner(agg, labels)
+    del agg
+    disparity = weighted_median(guide, disparity, int(p["median_radius"]))
+    if n_refine:
+        disparity = refine_disparity(views, disparity, half_range=float(p["refine_range"]) * step,
+                                     samples=n_refine, radius=refine_radius, progress=stage(n_labels + n_paths))
+    if int(p["edge_radius"]) > 0:
+        disparity = fix_occlusion_edges(views, disparity, colour_guide(lf), radius=int(p["edge_radius"]),
+                                        jump=float(p["edge_jump"]), ratio=float(p["edge_ratio"]),
+                                        wedge=int(p["edge_wedge"]),
+                                        median_radius=int(p["edge_median_radius"]),
+                                        intensities=intensities, visibility=bool(p["edge_visibility"]),
+                                        coverage=bool(p["edge_coverage"]))
+    params = {**p, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
+              "noise_sigma": noise, "contrast_eps_used": eps,
+              "disparity_range_source": source, "n_labels": n_labels, "views_used": len(views.used()) + 1}
+    return disparity.astype(np.float32), confidence, params
+
+
+def run_preset(lf: LightField, method: str, preset: Mapping[str, Any], /, *, progress: Progress = None,
+               **params: Any) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+    """:func:`run_pipeline` with a method's preset (:func:`preset_defaults`) and the caller's ``params``.
+
+    Parameters
+    ----------
+    lf : LightField
+    method : str
+        The preset's name, for error messages.
+    preset : mapping
+        The method's own parameters (:mod:`plenodecode.depth.methods`).
+    progress : callable(done, total), optional
+    **params
+        Any key of :data:`PIPELINE_KEYS`, overriding the defaults.
+
+    Returns
+    -------
+    As :func:`run_pipeline`.
+    """
+    p = check_params(method, preset_defaults(preset), params)
+    return run_pipeline(lf, p, progress=progress)
+
+
+__all__ = ["VIEW_DEFAULTS", "PIPELINE_KEYS", "metadata_disparity_range", "estimate_disparity_range",
+           "disparity_range", "merge_params", "preset_defaults", "check_params", "run_pipeline", "run_preset"]

@@ -1,0 +1,50 @@
+"""View preparation: shifts, view patterns, the colour guide, the noise estimate."""
+
+import numpy as np
+import pytest
+
+from plenodecode.depth.cost import sector_of
+from plenodecode.depth.views import colour_guide, noise_sigma, prepare_views, remap_view, shift_view, view_pattern
+from tests.depth.test_methods import planes_lightfield
+
+
+def test_shift_view_convention():
+    rng = np.random.default_rng(0)
+    img = rng.uniform(0, 1, (20, 30, 3)).astype(np.float32)
+    out = shift_view(img, 2.0, dv=1.0, du=-1.0)    # out(y, x) = img(y - 2, x + 2)
+    np.testing.assert_allclose(out[5:15, 5:20], img[3:13, 7:22], atol=1e-6)
+    grid = tuple(np.mgrid[0:20, 0:30].astype(np.float32))
+    d = np.full((20, 30), 2.0, np.float32)
+    np.testing.assert_allclose(remap_view(img, d, 1.0, -1.0, grid), out, atol=1e-5)
+
+
+def test_view_pattern_and_sectors():
+    star = view_pattern(9, 9, "star")
+    assert star.sum() == 33 and star[4].all() and star[:, 4].all() and star[0, 0] and not star[0, 1]
+    # 8 sectors, each holding one arm of the star (4 views each)
+    sectors = [sector_of(v - 4, u - 4) for v in range(9) for u in range(9) if star[v, u] and (v, u) != (4, 4)]
+    assert np.bincount(sectors, minlength=8).tolist() == [4] * 8
+    with pytest.raises(ValueError, match="pattern"):
+        view_pattern(3, 3, "ring")
+
+
+def test_colour_guide_scaling(scene):
+    lf, _, _ = scene
+    g = colour_guide(lf)
+    assert g.dtype == np.uint8 and g.shape == lf.shape[2:4] + (3,)
+    assert 250 <= np.percentile(g, 99.5) <= 255 and g.min() >= 0
+
+
+def test_noise_sigma_tracks_added_noise():
+    """The residual of the centre view's neighbours after the best shift follows Gaussian noise added to
+    every view (in the views' matching scale: the noise over the 99.5th percentile of the centre view)."""
+    est = []
+    for noise in (0.0, 0.01, 0.02, 0.04):
+        lf, _ = planes_lightfield(n=7, size=64, channels=1, noise=noise, seed=2)
+        views = prepare_views(lf, grey=True)
+        est.append(noise_sigma(views, -1.2, 1.5))
+        if noise:
+            expected = noise / float(np.percentile(lf.data[3, 3], 99.5))
+            assert 0.7 < est[-1] / expected < 1.3, (noise, est[-1], expected)      # measured 0.96, 0.85, 0.80
+    assert est == sorted(est)
+    assert est[0] < 0.6 * est[1]        # noise-free: only what the bilinear shift can't reproduce (measured 0.5)
