@@ -1,4 +1,4 @@
-"""Low-level image operations shared by decoding, rendering and depth: interpolation taps and view warps.
+"""Low-level image operations shared by decoding, rendering and depth: interpolation taps, luma and view warps.
 
 Everything here is a pure function of numpy arrays; nothing depends on the light-field types, so any
 layer of the package can use it (``types.py`` stays free of OpenCV: this module imports it, types does not
@@ -79,6 +79,27 @@ def interpolation_taps(t: np.ndarray, interp: str) -> tuple[np.ndarray, np.ndarr
     raise ValueError(f"interp must be one of {', '.join(INTERPOLATION_TAPS)}, got {interp!r}")
 
 
+#: Rec. 601 luma weights (R, G, B) of :func:`luma`.
+LUMA_WEIGHTS = np.array([0.299, 0.587, 0.114], np.float32)
+
+
+def luma(img: np.ndarray) -> np.ndarray:
+    """Rec. 601 luma ``Y' = 0.299 R + 0.587 G + 0.114 B`` of an image (the single channel of a grey one).
+
+    Parameters
+    ----------
+    img : ndarray, shape (..., 3) or (..., 1), float32
+
+    Returns
+    -------
+    ndarray, shape (...), float32, C-contiguous
+        ``img @ LUMA_WEIGHTS``, or ``img[..., 0]`` when there is one channel (a view when already contiguous).
+    """
+    if img.shape[-1] not in (1, 3):
+        raise ValueError(f"img must have 1 or 3 channels in its last axis, got shape {img.shape}")
+    return np.ascontiguousarray(img[..., 0] if img.shape[-1] == 1 else img @ LUMA_WEIGHTS)
+
+
 def shift_view(img: np.ndarray, d: float, dv: float, du: float, interpolation: int = cv2.INTER_LINEAR) -> np.ndarray:
     """One view brought onto the centre view for a constant disparity ``d``.
 
@@ -129,4 +150,4 @@ def remap_view(img: np.ndarray, disparity: np.ndarray, dv: float, du: float, gri
     return cv2.remap(img, mx, my, interpolation, borderMode=cv2.BORDER_REPLICATE)
 
 
-__all__ = ["INTERPOLATION_TAPS", "KEYS_A", "interpolation_taps", "shift_view", "remap_view"]
+__all__ = ["INTERPOLATION_TAPS", "KEYS_A", "interpolation_taps", "LUMA_WEIGHTS", "luma", "shift_view", "remap_view"]

@@ -24,8 +24,6 @@ log = logging.getLogger(__name__)
 #: colour states :func:`plenodecode.decoding.decode` can produce
 DECODE_COLOURS = ("linear-srgb", "camera")
 
-#: Rec. 601 luma weights (R, G, B) of :func:`luma`.
-LUMA_WEIGHTS = np.array([0.299, 0.587, 0.114], np.float32)
 
 #: Pixels per slab of :func:`apply_matrix` (768 kB of float32 RGB: stays in cache).
 _MATRIX_ROWS = 1 << 16
@@ -106,23 +104,6 @@ def apply_matrix(data: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     return out
 
 
-def luma(img: np.ndarray) -> np.ndarray:
-    """Rec. 601 luma ``Y' = 0.299 R + 0.587 G + 0.114 B`` of an image (the single channel of a grey one).
-
-    Parameters
-    ----------
-    img : ndarray, shape (..., 3) or (..., 1), float32
-
-    Returns
-    -------
-    ndarray, shape (...), float32, C-contiguous
-        ``img @ LUMA_WEIGHTS``, or ``img[..., 0]`` when there is one channel (a view when already contiguous).
-    """
-    if img.shape[-1] not in (1, 3):
-        raise ValueError(f"img must have 1 or 3 channels in its last axis, got shape {img.shape}")
-    return np.ascontiguousarray(img[..., 0] if img.shape[-1] == 1 else img @ LUMA_WEIGHTS)
-
-
 def to_linear_srgb(lf: LightField, metadata: CameraMetadata | None = None) -> LightField:
     """Convert a camera-RGB light field to linear sRGB.
 
@@ -154,5 +135,5 @@ def to_linear_srgb(lf: LightField, metadata: CameraMetadata | None = None) -> Li
     return lf.replace(data=apply_matrix(lf.data, m), colour="linear-srgb", metadata=meta)
 
 
-__all__ = ["DECODE_COLOURS", "LUMA_WEIGHTS", "white_balance_gains", "colour_matrix", "apply_matrix", "luma",
+__all__ = ["DECODE_COLOURS", "white_balance_gains", "colour_matrix", "apply_matrix",
            "to_linear_srgb"]

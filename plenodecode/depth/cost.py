@@ -18,7 +18,8 @@ from typing import Callable
 import cv2
 import numpy as np
 
-from .views import Views, remap_view, shift_view
+from ..imaging import remap_view, shift_view
+from .views import Views
 
 log = logging.getLogger(__name__)
 

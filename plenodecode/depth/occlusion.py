@@ -20,7 +20,8 @@ import numpy as np
 from numba import njit
 
 from .cost import half_plane_cost_volume, worker_threads
-from .views import Views, luma
+from ..imaging import luma
+from .views import Views
 
 log = logging.getLogger(__name__)
 

@@ -4,7 +4,6 @@
   linear, with per-view weights from ``lf.weight`` (dark border views of decoded camera light fields are
   dropped or down-weighted), optionally with a local contrast normalisation beside them (:func:`add_contrast`).
 * :func:`noise_sigma`: the views' noise, which sets the floor of that normalisation.
-* :func:`shift_view`, :func:`remap_view`: one view brought onto the centre view for a disparity.
 * :func:`colour_guide`: the centre view in colour, the guide of the occlusion-edge snapping.
 
 Shift convention (design.md): for a disparity ``d``, view ``(v, u)`` is compared with the centre view at
@@ -21,12 +20,10 @@ import cv2
 import numpy as np
 
 from ..errors import DecodeError
+from ..imaging import LUMA_WEIGHTS, luma, shift_view
 from ..types import LightField
 
 log = logging.getLogger(__name__)
-
-#: Luma weights (Rec. 601) used when a method works on one channel.
-LUMA = np.array([0.299, 0.587, 0.114], np.float32)
 
 
 @dataclass(frozen=True)
@@ -84,11 +81,6 @@ class Views:
         if self.encoding_gamma == 1.0:
             return img
         return np.power(np.clip(img, 0.0, None), np.float32(self.encoding_gamma))
-
-
-def luma(img: np.ndarray) -> np.ndarray:
-    """(Y, X) float32 luma of a (Y, X, 1) or (Y, X, 3) view."""
-    return np.ascontiguousarray(img[..., 0] if img.shape[-1] == 1 else img @ LUMA)
 
 
 def view_pattern(V: int, U: int, pattern: str | None) -> np.ndarray:
@@ -242,25 +234,8 @@ def _clean(img: np.ndarray, grey: bool) -> np.ndarray:
     """One view with NaN set to 0, optionally converted to luma; a new (Y, X, C) float32 array."""
     img = np.nan_to_num(img, nan=0.0, posinf=0.0, neginf=0.0)
     if grey and img.shape[-1] == 3:
-        img = cv2.transform(img, LUMA[None, :]).reshape(img.shape[:2] + (1,))
+        img = cv2.transform(img, LUMA_WEIGHTS[None, :]).reshape(img.shape[:2] + (1,))
     return img.astype(np.float32, copy=False)
-
-
-def shift_view(img: np.ndarray, d: float, dv: float, du: float, interpolation: int = cv2.INTER_LINEAR) -> np.ndarray:
-    """``out(y, x) = img(y - d dv, x - d du)``: one view brought onto the centre view for disparity ``d``."""
-    h, w = img.shape[:2]
-    m = np.array([[1.0, 0.0, -d * du], [0.0, 1.0, -d * dv]], np.float32)
-    return cv2.warpAffine(img, m, (w, h), flags=interpolation | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
-
-
-def remap_view(img: np.ndarray, disparity: np.ndarray, dv: float, du: float, grid: tuple[np.ndarray, np.ndarray],
-               interpolation: int = cv2.INTER_CUBIC) -> np.ndarray:
-    """Per-pixel version of :func:`shift_view`: ``out(y, x) = img(y - d(y,x) dv, x - d(y,x) du)``."""
-    yy, xx = grid
-    mx = xx - disparity * np.float32(du)
-    my = yy - disparity * np.float32(dv)
-    return cv2.remap(img, mx, my, interpolation, borderMode=cv2.BORDER_REPLICATE)
-
 
 
 def colour_guide(lf: LightField) -> np.ndarray:
@@ -272,5 +247,5 @@ def colour_guide(lf: LightField) -> np.ndarray:
 
 
 
-__all__ = ["Views", "LUMA", "luma", "view_pattern", "prepare_views", "add_contrast", "local_contrast", "noise_sigma",
-           "shift_view", "remap_view", "colour_guide"]
+__all__ = ["Views", "view_pattern", "prepare_views", "add_contrast", "local_contrast", "noise_sigma",
+           "colour_guide"]

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from plenodecode.decoding.colour import LUMA_WEIGHTS, apply_matrix, luma
+from plenodecode.decoding.colour import apply_matrix
+from plenodecode.imaging import LUMA_WEIGHTS, luma
 
 
 @pytest.mark.parametrize("shape", [(3,), (7, 3), (3, 2, 5, 6, 3), (2, 2, 300, 120, 3)])

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from plenodecode.depth.cost import sector_of
-from plenodecode.depth.views import colour_guide, noise_sigma, prepare_views, remap_view, shift_view, view_pattern
+from plenodecode.depth.views import colour_guide, noise_sigma, prepare_views, view_pattern
+from plenodecode.imaging import remap_view, shift_view
 from tests.depth.test_methods import planes_lightfield
 
 
