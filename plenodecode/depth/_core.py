@@ -300,13 +300,16 @@ def _check_range(r: Any, name: str) -> tuple[float, float]:
 
 
 def metadata_disparity_range(metadata: Mapping[str, Any]) -> tuple[float, float] | None:
-    """``metadata['disparity_range']``, or an HCI scene's ``[meta] disp_min / disp_max``; None if absent."""
-    r = metadata.get("disparity_range")
-    if r is not None:
-        return _check_range(r, "metadata['disparity_range']")
-    hci = (metadata.get("hci_parameters") or {}).get("meta") or {}
-    if "disp_min" in hci and "disp_max" in hci:
-        return _check_range((hci["disp_min"], hci["disp_max"]), "HCI disp_min/disp_max")
+    """``disparity_range`` of the light field's geometry (``lf.metadata`` or ``lf.geometry``; a legacy dict is
+    read by :meth:`LightFieldGeometry.from_legacy`), else an HCI scene's ``[meta] disp_min / disp_max``; None
+    if absent."""
+    from ..types import LightFieldGeometry
+
+    geometry = LightFieldGeometry.coerce(metadata)
+    if geometry.disparity_range is not None:
+        return _check_range(geometry.disparity_range, "metadata['disparity_range']")
+    if geometry.hci is not None and geometry.hci.disparity_range is not None:
+        return _check_range(geometry.hci.disparity_range, "HCI disp_min/disp_max")
     return None
 
 
