@@ -440,7 +440,8 @@ class HCIParameters:
     disparity_range : (float, float) or None
         ``[meta] (disp_min, disp_max)``, px per view step.
     sections : dict
-        The whole parsed file ``{section: {key: value}}``, for reference.
+        The whole parsed file ``{section: {key: value}}``, for reference; the typed fields are written
+        into it on construction.
     """
 
     baseline_mm: float | None = None
@@ -470,12 +471,11 @@ class HCIParameters:
                                         for a in "xy")
         if "disp_min" in meta and "disp_max" in meta:
             kw["disparity_range"] = _pair((meta["disp_min"], meta["disp_max"]), "disp_min/disp_max")
-        copied = {s: dict(v) for s, v in sections.items()}
-        return cls(sections=copied, **kw)
+        return cls(sections=sections, **kw)
 
-    def to_cfg(self) -> dict[str, dict[str, Any]]:
-        """The ``{section: {key: value}}`` of :meth:`from_cfg`, with the typed fields written in."""
-        out = {s: dict(v) for s, v in self.sections.items()}
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "disparity_range", _pair(self.disparity_range, "disparity_range"))
+        sections = {s: dict(v) for s, v in self.sections.items()}     # the typed fields written in
         values = {name: getattr(self, name) for name in _HCI_CFG}
         if self.resolution_px is not None:
             x, y = self.resolution_px
@@ -488,8 +488,12 @@ class HCIParameters:
         for name, value in values.items():
             if value is not None:
                 sec, key = where[name]
-                out.setdefault(sec, {})[key] = value
-        return out
+                sections.setdefault(sec, {})[key] = value
+        object.__setattr__(self, "sections", sections)
+
+    def to_cfg(self) -> dict[str, dict[str, Any]]:
+        """The ``{section: {key: value}}`` of :meth:`from_cfg` (a copy of :attr:`sections`)."""
+        return {s: dict(v) for s, v in self.sections.items()}
 
 
 def _camera_geometry(doc: Mapping[str, Any], calibration: Mapping[str, Any] | None,
