@@ -48,7 +48,7 @@ from typing import Any, Literal, Mapping
 
 import numpy as np
 
-from .errors import CalibrationError
+from .errors import CalibrationError, MetadataError
 
 #: Bayer pattern names, upper-left 2x2 tile read row-major.
 CFA_PATTERNS = ("RGGB", "GRBG", "GBRG", "BGGR")
@@ -390,6 +390,315 @@ class LensletGrid:
         return replace(self, **changes)
 
 
+#: Version of the document :meth:`LightFieldGeometry.to_dict` writes (saved light fields embed it).
+GEOMETRY_SCHEMA_VERSION = 1
+#: Colour states of linear values: a display export applies the sRGB transfer function to them.
+LINEAR_COLOUR_STATES = ("camera", "linear-srgb")
+#: Keys of the legacy free-form ``LightField.metadata`` dict that :class:`LightFieldGeometry` replaces.
+LEGACY_GEOMETRY_KEYS = ("source", "calibration", "camera", "spatial_step_px", "view_step_px", "geometry",
+                        "disparity_range", "hci_parameters", "focus_distance_m", "colour")
+#: Where each :class:`HCIParameters` field sits in ``parameters.cfg``: field -> (section, key).
+_HCI_CFG = {"baseline_mm": ("extrinsics", "baseline_mm"), "focal_length_mm": ("intrinsics", "focal_length_mm"),
+            "sensor_size_mm": ("intrinsics", "sensor_size_mm"), "focus_distance_m": ("extrinsics", "focus_distance_m")}
+
+
+def _number(value: Any, name: str) -> float | None:
+    """``float(value)``, None for None; a MetadataError naming ``name`` when it is not a number."""
+    if value is None:
+        return None
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise MetadataError(f"light-field metadata '{name}' must be a number, got {value!r}") from None
+
+
+def _pair(value: Any, name: str) -> tuple[float, float] | None:
+    """``(float, float)`` of a two-element sequence, None for None (not checked for order or finiteness)."""
+    if value is None:
+        return None
+    try:
+        lo, hi = value
+        return float(lo), float(hi)
+    except (TypeError, ValueError):
+        raise MetadataError(f"light-field metadata '{name}' must be a pair of numbers, got {value!r}") from None
+
+
+@dataclass(frozen=True)
+class HCIParameters:
+    """The camera array of an HCI benchmark scene (``parameters.cfg``; Honauer et al., ACCV 2016).
+
+    Attributes
+    ----------
+    baseline_mm : float or None
+        Distance between neighbouring cameras, mm (``[extrinsics] baseline_mm``).
+    focal_length_mm, sensor_size_mm : float or None
+        ``[intrinsics]`` focal length and sensor width, mm.
+    resolution_px : (int, int) or None
+        ``(image_resolution_x_px, image_resolution_y_px)``; 0 for a side the file does not give.
+    focus_distance_m : float or None
+        Distance of the plane of disparity 0, m (``[extrinsics] focus_distance_m``).
+    disparity_range : (float, float) or None
+        ``[meta] (disp_min, disp_max)``, px per view step.
+    sections : dict
+        The whole parsed file ``{section: {key: value}}``, for reference; the typed fields are written
+        into it on construction.
+    """
+
+    baseline_mm: float | None = None
+    focal_length_mm: float | None = None
+    sensor_size_mm: float | None = None
+    resolution_px: tuple[int, int] | None = None
+    focus_distance_m: float | None = None
+    disparity_range: tuple[float, float] | None = None
+    sections: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+
+    @property
+    def image_resolution_px(self) -> float | None:
+        """The longer side, ``max(x, y)`` px: the size the focal length in pixels refers to."""
+        return None if self.resolution_px is None else float(max(self.resolution_px))
+
+    @classmethod
+    def from_cfg(cls, sections: Mapping[str, Mapping[str, Any]] | None) -> "HCIParameters | None":
+        """Typed parameters of a parsed ``parameters.cfg`` (:func:`plenodecode.io.hci.read_parameters`);
+        None for an empty one."""
+        if not sections:
+            return None
+        kw: dict[str, Any] = {name: _number((sections.get(sec) or {}).get(key), key)
+                              for name, (sec, key) in _HCI_CFG.items()}
+        intr, meta = sections.get("intrinsics") or {}, sections.get("meta") or {}
+        if "image_resolution_x_px" in intr or "image_resolution_y_px" in intr:
+            kw["resolution_px"] = tuple(int(_number(intr.get(f"image_resolution_{a}_px", 0), f"image_resolution_{a}_px"))
+                                        for a in "xy")
+        if "disp_min" in meta and "disp_max" in meta:
+            kw["disparity_range"] = _pair((meta["disp_min"], meta["disp_max"]), "disp_min/disp_max")
+        return cls(sections=sections, **kw)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "disparity_range", _pair(self.disparity_range, "disparity_range"))
+        sections = {s: dict(v) for s, v in self.sections.items()}     # the typed fields written in
+        values = {name: getattr(self, name) for name in _HCI_CFG}
+        if self.resolution_px is not None:
+            x, y = self.resolution_px
+            values.update(image_resolution_x_px=x or None, image_resolution_y_px=y or None)
+        if self.disparity_range is not None:
+            values.update(disp_min=self.disparity_range[0], disp_max=self.disparity_range[1])
+        where = {**_HCI_CFG, "image_resolution_x_px": ("intrinsics", "image_resolution_x_px"),
+                 "image_resolution_y_px": ("intrinsics", "image_resolution_y_px"),
+                 "disp_min": ("meta", "disp_min"), "disp_max": ("meta", "disp_max")}
+        for name, value in values.items():
+            if value is not None:
+                sec, key = where[name]
+                sections.setdefault(sec, {})[key] = value
+        object.__setattr__(self, "sections", sections)
+
+    def to_cfg(self) -> dict[str, dict[str, Any]]:
+        """The ``{section: {key: value}}`` of :meth:`from_cfg` (a copy of :attr:`sections`)."""
+        return {s: dict(v) for s, v in self.sections.items()}
+
+
+def _camera_geometry(doc: Mapping[str, Any], calibration: Mapping[str, Any] | None,
+                     legacy_geometry: Mapping[str, Any]) -> dict[str, float | None]:
+    """Camera constants of :class:`LightFieldGeometry` from a camera document (``CameraMetadata.to_dict()``).
+
+    ``lens_pitch_m`` falls back to ``calibration['pitch'] * pixel_pitch_m``; the MLA-sensor gap is the legacy
+    ``geometry['mla_sensor_gap_m']``, else the z of ``mla_offset_m``; ``infinity_lambda`` is Lytro's
+    ``extra['devices']['lens']['infinityLambda']``, else ``legacy_geometry['infinity_lambda']``.
+    """
+    calib = calibration or {}
+    out = {name: _number(doc.get(name), name) for name in ("focal_length_m", "f_number", "lens_pitch_m",
+                                                          "pixel_pitch_m")}
+    if out["lens_pitch_m"] is None and calib.get("pitch") and out["pixel_pitch_m"]:
+        out["lens_pitch_m"] = float(calib["pitch"]) * out["pixel_pitch_m"]
+    gap = legacy_geometry.get("mla_sensor_gap_m")
+    offset = doc.get("mla_offset_m")
+    if gap is None and offset is not None and len(offset) > 2:
+        gap = offset[2]
+    out["mla_sensor_gap_m"] = _number(gap, "mla_sensor_gap_m")
+    lens = (((doc.get("extra") or {}).get("devices") or {}).get("lens") or {})
+    lam = lens.get("infinityLambda", legacy_geometry.get("infinity_lambda"))
+    out["infinity_lambda"] = _number(lam, "infinity_lambda")
+    return out
+
+
+@dataclass(frozen=True)
+class LightFieldGeometry:
+    """Sampling, camera geometry, colour state and provenance of a light field: ``LightField.geometry``.
+
+    Every field is optional (None = unknown).  Lengths in metres unless the name says px or mm.
+
+    Attributes
+    ----------
+    spatial_step_px : float or None
+        Sensor pixels between neighbouring spatial samples (the decoded sampling step, ``row_spacing``).
+    view_step_px : float or None
+        Sensor pixels between neighbouring views under a lenslet (1 for a decoded light field).
+    focal_length_m, f_number : float or None
+        Main lens.
+    lens_pitch_m, pixel_pitch_m : float or None
+        Lenslet and sensor pixel pitch.
+    mla_sensor_gap_m : float or None
+        Distance between the micro-lens array and the sensor.
+    infinity_lambda : float or None
+        Lytro ``infinityLambda``: refocus steps (of one MLA-sensor gap) to infinity focus.
+    focus_distance_m : float or None
+        Distance of the plane in focus (disparity 0).
+    disparity_range : (float, float) or None
+        Disparities the scene spans, px per view step (HCI sign, design.md).
+    colour : str or None
+        Colour state, one of :data:`COLOUR_STATES`; a :class:`LightField` keeps it equal to ``lf.colour``.
+    source : str or None
+        The raw file (or scene folder) the light field came from.
+    calibration : dict or None
+        ``LensletGrid.to_dict()`` of the grid it was decoded with.
+    camera : CameraMetadata or None
+        The camera and exposure metadata of the raw.
+    hci : HCIParameters or None
+        The camera array, for an HCI benchmark scene.
+    """
+
+    spatial_step_px: float | None = None
+    view_step_px: float | None = None
+    focal_length_m: float | None = None
+    f_number: float | None = None
+    lens_pitch_m: float | None = None
+    pixel_pitch_m: float | None = None
+    mla_sensor_gap_m: float | None = None
+    infinity_lambda: float | None = None
+    focus_distance_m: float | None = None
+    disparity_range: tuple[float, float] | None = None
+    colour: str | None = None
+    source: str | None = None
+    calibration: Mapping[str, Any] | None = None
+    camera: CameraMetadata | None = None
+    hci: HCIParameters | None = None
+
+    def __post_init__(self) -> None:
+        if self.colour is not None and self.colour not in COLOUR_STATES:
+            raise ValueError(f"colour must be one of {COLOUR_STATES}, got {self.colour!r}")
+        object.__setattr__(self, "disparity_range", _pair(self.disparity_range, "disparity_range"))
+
+    @property
+    def display_encoded(self) -> bool:
+        """True when the values are sRGB-encoded for display (colour 'srgb'); a display export of a light
+        field that is not applies the sRGB transfer function (colour 'camera' or 'linear-srgb')."""
+        return self.colour == "srgb"
+
+    @classmethod
+    def from_camera(cls, camera: CameraMetadata, calibration: Mapping[str, Any] | None = None,
+                    **fields_: Any) -> "LightFieldGeometry":
+        """Geometry of a light field decoded from a raw with metadata ``camera`` on grid ``calibration``
+        (``LensletGrid.to_dict()``); the camera constants as :func:`_camera_geometry` finds them; ``fields_``
+        sets the others (``spatial_step_px``, ``view_step_px``, ``source``, ...)."""
+        consts = _camera_geometry(camera.to_dict(), calibration, {})
+        return cls(camera=camera, calibration=calibration, **{**consts, **fields_})
+
+    # -- the legacy free-form dict ------------------------------------------------------------
+    @classmethod
+    def from_legacy(cls, meta: Mapping[str, Any]) -> "LightFieldGeometry":
+        """Read the keys :data:`LEGACY_GEOMETRY_KEYS` of the free-form metadata dict of earlier versions.
+
+        The camera constants come from ``meta['camera']`` (else ``meta['geometry']``); ``spatial_step_px``
+        falls back to ``calibration['row_spacing']``; an HCI scene's ``meta['hci_parameters']`` becomes
+        :attr:`hci`.
+        """
+        calib = meta.get("calibration")
+        legacy_geometry = meta.get("geometry") or {}
+        cam_doc = meta.get("camera")
+        camera = CameraMetadata.from_dict(cam_doc) if isinstance(cam_doc, Mapping) else None
+        consts = _camera_geometry(cam_doc if camera is not None else legacy_geometry, calib, legacy_geometry)
+        step = meta.get("spatial_step_px")
+        if step is None and calib and calib.get("row_spacing"):
+            step = calib["row_spacing"]
+        return cls(spatial_step_px=_number(step, "spatial_step_px"),
+                   view_step_px=_number(meta.get("view_step_px"), "view_step_px"),
+                   focus_distance_m=_number(meta.get("focus_distance_m"), "focus_distance_m"),
+                   disparity_range=meta.get("disparity_range"), colour=meta.get("colour"),
+                   source=None if meta.get("source") is None else str(meta["source"]),
+                   calibration=None if calib is None else dict(calib), camera=camera,
+                   hci=HCIParameters.from_cfg(meta.get("hci_parameters")), **consts)
+
+    def to_legacy(self) -> dict[str, Any]:
+        """The legacy free-form keys (inverse of :meth:`from_legacy`); unknown values are left out."""
+        consts = {name: getattr(self, name) for name in ("focal_length_m", "f_number", "lens_pitch_m",
+                                                         "pixel_pitch_m")}
+        out: dict[str, Any] = {"source": self.source, "colour": self.colour,
+                               "calibration": None if self.calibration is None else dict(self.calibration),
+                               "spatial_step_px": self.spatial_step_px, "view_step_px": self.view_step_px,
+                               "focus_distance_m": self.focus_distance_m,
+                               "disparity_range": None if self.disparity_range is None else list(self.disparity_range),
+                               "hci_parameters": None if self.hci is None else self.hci.to_cfg()}
+        if self.camera is not None:
+            cam = self.camera.to_dict()
+            out["camera"] = {**cam, **{k: v for k, v in consts.items() if cam.get(k) is None}}
+        pitch_px = (self.calibration or {}).get("pitch")
+        step_m = None if self.spatial_step_px is None or self.pixel_pitch_m is None else \
+            self.spatial_step_px * self.pixel_pitch_m
+        geometry = {**consts, "lens_pitch_px": pitch_px, "mla_sensor_gap_m": self.mla_sensor_gap_m,
+                    "infinity_lambda": self.infinity_lambda, "spatial_step_m": step_m}
+        if any(v is not None for v in geometry.values()):
+            out["geometry"] = geometry
+        return {k: v for k, v in out.items() if v is not None}
+
+    @classmethod
+    def coerce(cls, value: "LightFieldGeometry | Mapping[str, Any] | None") -> "LightFieldGeometry":
+        """``value`` itself, the geometry of a legacy metadata dict (:meth:`from_legacy`), or an empty one."""
+        if isinstance(value, cls):
+            return value
+        geometry = getattr(value, "geometry", None)      # a LightField's metadata view carries its geometry
+        if isinstance(geometry, cls):
+            return geometry
+        return cls.from_legacy(value or {})
+
+    # -- versioned document -------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        """Versioned JSON-ready document (``camera`` as ``CameraMetadata.to_dict()``, ``hci`` as its cfg)."""
+        d = {f.name: getattr(self, f.name) for f in fields(self)}
+        d.update(disparity_range=None if self.disparity_range is None else list(self.disparity_range),
+                 calibration=None if self.calibration is None else dict(self.calibration),
+                 camera=None if self.camera is None else self.camera.to_dict(),
+                 hci=None if self.hci is None else self.hci.to_cfg())
+        return {"format": "plenodecode.LightFieldGeometry", "version": GEOMETRY_SCHEMA_VERSION, **d}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> "LightFieldGeometry":
+        """Inverse of :meth:`to_dict`; MetadataError on a newer schema; unknown keys are ignored."""
+        if int(d.get("version", 0) or 0) > GEOMETRY_SCHEMA_VERSION:
+            raise MetadataError(f"light-field geometry schema version {d.get('version')} is newer than this "
+                                f"plenodecode reads ({GEOMETRY_SCHEMA_VERSION}); upgrade plenodecode")
+        names = {f.name for f in fields(cls)} - {"camera", "hci"}
+        kw = {k: v for k, v in d.items() if k in names}
+        if d.get("camera") is not None:
+            kw["camera"] = CameraMetadata.from_dict(d["camera"])
+        kw["hci"] = HCIParameters.from_cfg(d.get("hci"))
+        return cls(**kw)
+
+
+class LightFieldMetadata(Mapping[str, Any]):
+    """``LightField.metadata``: read-only view of the free-form provenance plus the legacy geometry keys.
+
+    Old code reads ``lf.metadata['spatial_step_px']``, ``lf.metadata['camera']``, ...; they come from
+    :meth:`LightFieldGeometry.to_legacy`.  New code reads :attr:`LightField.geometry` and
+    :attr:`provenance`.
+    """
+
+    def __init__(self, provenance: Mapping[str, Any], geometry: LightFieldGeometry) -> None:
+        self.provenance = dict(provenance)
+        self.geometry = geometry
+        self._items = {**geometry.to_legacy(), **self.provenance}
+
+    def __getitem__(self, key: str) -> Any:
+        return self._items[key]
+
+    def __iter__(self):
+        return iter(self._items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __repr__(self) -> str:
+        return f"LightFieldMetadata({self._items!r})"
+
+
 @dataclass(frozen=True)
 class LightField:
     """A decoded 4D light field.
@@ -402,15 +711,21 @@ class LightField:
         Confidence of each sample in [0, 1] (low where a view leaves the lenslet disk).
     colour : str
         'camera', 'linear-srgb' or 'srgb'.
-    metadata : dict
-        Free-form: 'source', 'calibration' (grid dict), 'camera' (CameraMetadata dict),
-        'spatial_step_px', 'view_step_px', and camera geometry for disparity-to-depth.
+    metadata : Mapping
+        Given: free-form provenance (decoder settings, ...), optionally with the legacy keys
+        :data:`LEGACY_GEOMETRY_KEYS` ('source', 'calibration', 'camera', 'spatial_step_px', ...), which are
+        read into ``geometry`` (they win over a ``geometry`` passed alongside).  Stored: a read-only
+        :class:`LightFieldMetadata`, the provenance plus the legacy keys written from ``geometry``.
+    geometry : LightFieldGeometry
+        Sampling, camera geometry, colour state and source: what refocusing by alpha, depth and export
+        read.  Its ``colour`` always equals :attr:`colour`.
     """
 
     data: np.ndarray
     weight: np.ndarray | None = None
     colour: str = "camera"
     metadata: Mapping[str, Any] = field(default_factory=dict)
+    geometry: LightFieldGeometry | None = None
 
     def __post_init__(self) -> None:
         if self.data.ndim != 5:
@@ -423,6 +738,24 @@ class LightField:
             raise ValueError(f"weight must have shape {self.data.shape[:4]}, got {self.weight.shape}")
         if self.colour not in COLOUR_STATES:
             raise ValueError(f"colour must be one of {COLOUR_STATES}, got {self.colour!r}")
+        given = self.metadata if self.metadata is not None else {}
+        geometry = self.geometry
+        if isinstance(given, LightFieldMetadata):            # another light field's: its provenance only
+            provenance: Mapping[str, Any] = given.provenance
+        else:
+            provenance = {k: v for k, v in given.items() if k not in LEGACY_GEOMETRY_KEYS}
+            if len(provenance) < len(given):
+                geometry = LightFieldGeometry.from_legacy(given)
+        geometry = geometry if geometry is not None else LightFieldGeometry()
+        if geometry.colour != self.colour:
+            geometry = replace(geometry, colour=self.colour)
+        object.__setattr__(self, "geometry", geometry)
+        object.__setattr__(self, "metadata", LightFieldMetadata(provenance, geometry))
+
+    @property
+    def provenance(self) -> dict[str, Any]:
+        """The free-form part of :attr:`metadata` (decoder settings and the like), without the geometry."""
+        return dict(self.metadata.provenance)  # type: ignore[attr-defined]
 
     @property
     def shape(self) -> tuple[int, int, int, int, int]:
@@ -440,11 +773,19 @@ class LightField:
         return self.data[vc, uc]
 
     def replace(self, **changes: Any) -> "LightField":
-        """A copy with some fields changed."""
+        """A copy with some fields changed.
+
+        ``metadata=`` without ``geometry=`` replaces the whole metadata: the geometry is read from the legacy
+        keys of the new dict, so ``lf.replace(metadata={})`` drops it and ``lf.replace(metadata={**lf.metadata,
+        'disparity_range': r})`` changes one value.  Keep the geometry with ``geometry=lf.geometry``.
+        """
+        if "metadata" in changes:
+            changes.setdefault("geometry", None)
         return replace(self, **changes)
 
 
 __all__ = [
     "CFA_PATTERNS", "COLOUR_STATES", "GRID_JSON_VERSION", "cfa_channel_map",
-    "CameraMetadata", "RawCapture", "LensletGrid", "LightField",
+    "CameraMetadata", "RawCapture", "LensletGrid", "LightField", "LightFieldGeometry", "HCIParameters",
+    "LightFieldMetadata", "GEOMETRY_SCHEMA_VERSION", "LINEAR_COLOUR_STATES", "LEGACY_GEOMETRY_KEYS",
 ]

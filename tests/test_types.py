@@ -1,3 +1,4 @@
+import json
 import math
 
 import numpy as np
@@ -89,3 +90,134 @@ def test_public_api_names_are_callables_even_after_subpackage_imports():
                  "perspective", "estimate_depth", "disparity_to_depth", "save_lightfield", "load_lightfield"):
         assert callable(getattr(pd, name)), name
         assert not isinstance(getattr(pd, name), types.ModuleType), name
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# LightFieldGeometry: the typed metadata of a light field
+# ---------------------------------------------------------------------------------------------------------------
+def _camera():
+    from plenodecode.types import CameraMetadata
+
+    return CameraMetadata(model="ILLUM", serial="B5", focal_length_m=0.0301, f_number=2.0, lens_pitch_m=2.0e-5,
+                          pixel_pitch_m=1.4e-6, mla_offset_m=(0.0, 0.0, 3.7e-5), wb_gains={"r": 1.9, "g": 1.0, "b": 1.4},
+                          ccm=((1.5, -0.3, -0.2), (-0.2, 1.4, -0.2), (0.0, -0.5, 1.5)),
+                          extra={"devices": {"lens": {"infinityLambda": 12.5}}})
+
+
+def _legacy_decoded_metadata():
+    """The free metadata dict decode() wrote before the typed geometry."""
+    grid = _hex_grid()
+    return {"source": "a.lfr", "calibration": grid.to_dict(), "camera": _camera().to_dict(),
+            "spatial_step_px": grid.row_spacing, "view_step_px": 1.0, "colour": "linear-srgb", "demosaic": "malvar",
+            "geometry": {"pixel_pitch_m": 1.4e-6, "lens_pitch_m": 2.0e-5, "lens_pitch_px": 14.29,
+                         "focal_length_m": 0.0301, "f_number": 2.0, "mla_sensor_gap_m": 3.7e-5}}
+
+
+def _lf(meta=None, colour="linear-srgb", **kw):
+    return LightField(np.zeros((3, 3, 4, 5, 3), np.float32), None, colour, meta, **kw)
+
+
+def test_legacy_metadata_dict_becomes_the_typed_geometry():
+    from plenodecode.types import LightFieldGeometry
+
+    lf = _lf(_legacy_decoded_metadata())
+    g = lf.geometry
+    assert isinstance(g, LightFieldGeometry)
+    assert (g.focal_length_m, g.f_number, g.lens_pitch_m, g.pixel_pitch_m) == (0.0301, 2.0, 2.0e-5, 1.4e-6)
+    assert g.spatial_step_px == pytest.approx(14.29 * math.sqrt(3) / 2) and g.view_step_px == 1.0
+    assert g.mla_sensor_gap_m == 3.7e-5 and g.infinity_lambda == 12.5
+    assert g.source == "a.lfr" and g.calibration == _hex_grid().to_dict() and g.camera == _camera()
+    assert g.colour == "linear-srgb" and g.hci is None and g.disparity_range is None
+    # provenance stays free-form; the legacy keys are still readable from lf.metadata
+    assert lf.provenance == {"demosaic": "malvar"}
+    assert lf.metadata["camera"]["serial"] == "B5" and lf.metadata["view_step_px"] == 1.0
+    assert lf.metadata["geometry"]["lens_pitch_m"] == 2.0e-5 and lf.metadata["demosaic"] == "malvar"
+
+
+def test_legacy_fallbacks_lens_pitch_and_spatial_step_from_the_calibration():
+    meta = _legacy_decoded_metadata()
+    meta["camera"] = dict(meta["camera"], lens_pitch_m=None, mla_offset_m=None)
+    del meta["spatial_step_px"], meta["geometry"]
+    g = _lf(meta).geometry
+    assert g.lens_pitch_m == pytest.approx(14.29 * 1.4e-6, rel=1e-12)
+    assert g.spatial_step_px == pytest.approx(_hex_grid().row_spacing)
+    assert g.mla_sensor_gap_m is None
+
+
+def test_synthetic_generator_metadata_converts():
+    """The keys io/synthetic.py builds (Simulation.lightfield, load_truth)."""
+    grid = _hex_grid()
+    meta = {"source": "plenodecode.io.synthetic", "preset": "illum-mini", "seed": 3, "spatial_step_px": 12.0,
+            "view_step_px": 1.0, "calibration": grid.to_dict(), "camera": _camera().to_dict(),
+            "disparity_range": [-0.5, 0.9]}
+    lf = _lf(meta)
+    assert lf.geometry.disparity_range == (-0.5, 0.9) and lf.geometry.spatial_step_px == 12.0
+    assert lf.provenance == {"preset": "illum-mini", "seed": 3}
+    assert lf.metadata["disparity_range"] == [-0.5, 0.9] and lf.metadata["calibration"] == grid.to_dict()
+
+
+def test_legacy_view_round_trips_and_replace_rules():
+    from dataclasses import replace
+
+    lf = _lf(_legacy_decoded_metadata())
+    # the legacy view read back gives the same geometry
+    assert _lf(dict(lf.metadata)).geometry == lf.geometry
+    # a copy keeps geometry and provenance; colour follows lf.colour
+    enc = lf.replace(colour="srgb")
+    assert enc.geometry == replace(lf.geometry, colour="srgb") and enc.geometry.display_encoded
+    assert not lf.geometry.display_encoded and enc.provenance == lf.provenance
+    # metadata= replaces everything (legacy keys included); geometry= keeps the typed part
+    assert lf.replace(metadata={}).geometry == _lf({}).geometry
+    edited = lf.replace(metadata={**lf.metadata, "disparity_range": [-1.0, 2.0]})
+    assert edited.geometry == replace(lf.geometry, disparity_range=(-1.0, 2.0))
+    kept = lf.replace(metadata={"note": 1}, geometry=lf.geometry)
+    assert kept.geometry == lf.geometry and kept.provenance == {"note": 1}
+    # a typed geometry passed with free metadata
+    from plenodecode.types import LightFieldGeometry
+
+    typed = _lf({"note": 2}, geometry=LightFieldGeometry(spatial_step_px=2.0, disparity_range=[0, 1]))
+    assert typed.geometry.disparity_range == (0.0, 1.0) and typed.metadata["spatial_step_px"] == 2.0
+
+
+def test_geometry_document_round_trip_and_version():
+    from plenodecode.errors import MetadataError
+    from plenodecode.types import GEOMETRY_SCHEMA_VERSION, HCIParameters, LightFieldGeometry
+
+    g = _lf(_legacy_decoded_metadata()).geometry
+    hci = HCIParameters(baseline_mm=100.0, focal_length_mm=100.0, sensor_size_mm=35.0, resolution_px=(512, 512),
+                        focus_distance_m=7.0, disparity_range=(-3.3, 2.8), sections={"meta": {"scene": "x"}})
+    for geometry in (g, LightFieldGeometry(), LightFieldGeometry(hci=hci, spatial_step_px=1.0, colour="srgb")):
+        doc = json.loads(json.dumps(geometry.to_dict()))
+        assert doc["version"] == GEOMETRY_SCHEMA_VERSION
+        back = LightFieldGeometry.from_dict(doc)
+        assert back == LightFieldGeometry.from_dict(json.loads(json.dumps(back.to_dict())))
+        for name in ("spatial_step_px", "focal_length_m", "lens_pitch_m", "mla_sensor_gap_m", "disparity_range",
+                     "colour", "source", "calibration", "camera"):
+            assert getattr(back, name) == getattr(geometry, name), name
+    assert LightFieldGeometry.from_dict(json.loads(json.dumps(LightFieldGeometry(hci=hci).to_dict()))).hci == \
+        HCIParameters.from_cfg(hci.to_cfg())
+    with pytest.raises(MetadataError, match="newer"):
+        LightFieldGeometry.from_dict({"version": GEOMETRY_SCHEMA_VERSION + 1})
+    with pytest.raises(ValueError, match="colour"):
+        LightFieldGeometry(colour="rgb")
+
+
+def test_hci_parameters_from_cfg():
+    from plenodecode.errors import MetadataError
+    from plenodecode.types import HCIParameters
+
+    cfg = {"intrinsics": {"focal_length_mm": 100, "image_resolution_x_px": 512, "image_resolution_y_px": 384,
+                          "sensor_size_mm": 35, "fstop": 100},
+           "extrinsics": {"baseline_mm": 100, "focus_distance_m": 7, "num_cams_x": 9},
+           "meta": {"disp_min": -3.3, "disp_max": 2.8}}
+    h = HCIParameters.from_cfg(cfg)
+    assert (h.baseline_mm, h.focal_length_mm, h.sensor_size_mm, h.focus_distance_m) == (100.0, 100.0, 35.0, 7.0)
+    assert h.resolution_px == (512, 384) and h.image_resolution_px == 512.0 and h.disparity_range == (-3.3, 2.8)
+    assert h.to_cfg() == cfg and HCIParameters.from_cfg(h.to_cfg()) == h
+    assert HCIParameters.from_cfg({}) is None and HCIParameters.from_cfg(None) is None
+    assert HCIParameters.from_cfg({"extrinsics": {"focus_distance_m": 7}}).baseline_mm is None
+    with pytest.raises(MetadataError, match="baseline_mm"):
+        HCIParameters.from_cfg({"extrinsics": {"baseline_mm": "wide"}})
+    # the HCI scene of a legacy dict: metric depth and the search range read it
+    lf = _lf({"hci_parameters": cfg})
+    assert lf.geometry.hci == h and lf.geometry.disparity_range is None

@@ -39,7 +39,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import CalibrationError, DecodeError
-from ..types import LensletGrid, LightField, RawCapture
+from ..types import LensletGrid, LightField, LightFieldGeometry, RawCapture
 from . import colour as _colour
 from . import devignette as _dv
 from .demosaic import DEMOSAIC_METHODS
@@ -314,35 +314,20 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
         timings["wall"] = timings.get("wall", 0.0) + time.perf_counter() - t_wall
 
     s = grid.decoded_sampling()
-    cam = raw.metadata
-    gap = cam.mla_offset_m[2] if cam.mla_offset_m is not None and len(cam.mla_offset_m) > 2 else None
-    metadata = {
-        "source": raw.path,
-        "calibration": grid.to_dict(),
-        "camera": cam.to_dict(),
-        "spatial_step_px": float(s["step"]),
-        "view_step_px": 1.0,
+    geometry = LightFieldGeometry.from_camera(raw.metadata, grid.to_dict(), spatial_step_px=float(s["step"]),
+                                              view_step_px=1.0, source=raw.path)
+    provenance = {
         "decoded_sampling": {k: float(v) for k, v in s.items()},
         "n_views": nv,
         "lattice": grid.lattice,
-        "colour": colour_state,
         "colour_matrix": None if matrix is None else np.asarray(matrix).tolist(),
         "demosaic": demosaic if nch == 3 else None,
         "resample": resample,
         "devignetted": white_p is not None,
         "dark_subtracted": dark_p is not None,
         "hot_pixels_repaired": int(n_hot),
-        "geometry": {
-            "pixel_pitch_m": cam.pixel_pitch_m,
-            "lens_pitch_m": cam.lens_pitch_m,
-            "lens_pitch_px": float(grid.pitch),
-            "focal_length_m": cam.focal_length_m,
-            "f_number": cam.f_number,
-            "mla_sensor_gap_m": gap,
-            "spatial_step_m": None if cam.pixel_pitch_m is None else float(s["step"]) * cam.pixel_pitch_m,
-        },
     }
-    return LightField(data=data, weight=weight, colour=colour_state, metadata=metadata)
+    return LightField(data=data, weight=weight, colour=colour_state, metadata=provenance, geometry=geometry)
 
 
 __all__ = ["decode", "decode_timed", "DEMOSAIC_METHODS", "RESAMPLE_METHODS", "DEFAULT_DEMOSAIC"]

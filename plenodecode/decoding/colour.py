@@ -112,7 +112,7 @@ def to_linear_srgb(lf: LightField, metadata: CameraMetadata | None = None) -> Li
     lf : LightField
         ``colour == 'camera'``, C = 3.
     metadata : CameraMetadata, optional
-        Source of gains and CCM; default: ``lf.metadata['camera']``.
+        Source of gains and CCM; default: ``lf.geometry.camera``.
 
     Returns
     -------
@@ -125,14 +125,13 @@ def to_linear_srgb(lf: LightField, metadata: CameraMetadata | None = None) -> Li
     if lf.data.shape[-1] != 3:
         raise ValueError("lf must have 3 channels")
     if metadata is None:
-        metadata = CameraMetadata.from_dict(lf.metadata.get("camera") or {})
+        metadata = lf.geometry.camera or CameraMetadata()
     m = colour_matrix(metadata)
     if m is None:
         raise MetadataError("expected a colour matrix (ccm) in the camera metadata, found none; "
                             "keep the light field in camera colour or pass metadata with a ccm")
-    meta = dict(lf.metadata)
-    meta["colour_matrix"] = m.tolist()
-    return lf.replace(data=apply_matrix(lf.data, m), colour="linear-srgb", metadata=meta)
+    provenance = {**lf.provenance, "colour_matrix": m.tolist()}
+    return lf.replace(data=apply_matrix(lf.data, m), colour="linear-srgb", metadata=provenance, geometry=lf.geometry)
 
 
 __all__ = ["DECODE_COLOURS", "white_balance_gains", "colour_matrix", "apply_matrix",

@@ -31,7 +31,10 @@ spatial sample is ``Dx = lens_pitch_m * spatial_step_px / lens_pitch_px`` on the
 (the ``K`` of :func:`plenodecode.render.alpha.slope_per_alpha_unit`, ``alpha = b' / b``).  Eliminating
 ``b'`` gives ``1/Z = 1/Z_f + d / (K b)``, so ``G = K b``.
 
-``Z_f`` comes from ``focus_distance_m`` (keyword or ``lf.metadata``).  Lytro metadata has no focus
+Every constant is read from ``lf.geometry`` (:class:`plenodecode.types.LightFieldGeometry`; an HCI scene's
+``parameters.cfg`` is ``lf.geometry.hci``) unless a keyword overrides it.
+
+``Z_f`` comes from ``focus_distance_m`` (keyword or ``lf.geometry``).  Lytro metadata has no focus
 distance but ``devices.lens.infinityLambda``: lambda counts refocus steps of one MLA-sensor gap ``g`` from
 the MLA towards the lens, so the film plane of infinity focus is ``lambda_inf g`` in front of the MLA:
 ``b = F + lambda_inf g``.  **This unit of lambda is an assumption** (the Lytro format is undocumented; it
@@ -48,7 +51,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import MetadataError
-from ..types import LightField
+from ..types import HCIParameters, LightField
 
 log = logging.getLogger(__name__)
 
@@ -69,26 +72,28 @@ def _positive(name: str, value: Any) -> float:
     return v
 
 
-def hci_constants(params: Mapping[str, Mapping[str, Any]], **overrides: float) -> tuple[float, float]:
-    """``(G, Z_f)`` of an HCI scene from its parsed ``parameters.cfg`` (see the module docstring).
+def hci_constants(params: HCIParameters | Mapping[str, Mapping[str, Any]], **overrides: float
+                  ) -> tuple[float, float]:
+    """``(G, Z_f)`` of an HCI scene from its camera parameters (see the module docstring).
+
+    Parameters
+    ----------
+    params : HCIParameters or dict
+        ``lf.geometry.hci``, or a parsed ``parameters.cfg`` ``{section: {key: value}}``.
+    **overrides : float
+        Any of :data:`HCI_KEYS`.
 
     Raises
     ------
     MetadataError
         A needed value is neither in ``params`` nor among the overrides.
     """
-    intr = params.get("intrinsics", {}) or {}
-    extr = params.get("extrinsics", {}) or {}
-    res = overrides.get("image_resolution_px")
-    if res is None and ("image_resolution_x_px" in intr or "image_resolution_y_px" in intr):
-        res = max(float(intr.get("image_resolution_x_px", 0)), float(intr.get("image_resolution_y_px", 0)))
-    found = {
-        "baseline_mm": overrides.get("baseline_mm", extr.get("baseline_mm")),
-        "focal_length_mm": overrides.get("focal_length_mm", intr.get("focal_length_mm")),
-        "sensor_size_mm": overrides.get("sensor_size_mm", intr.get("sensor_size_mm")),
-        "image_resolution_px": res,
-        "focus_distance_m": overrides.get("focus_distance_m", extr.get("focus_distance_m")),
-    }
+    if not isinstance(params, HCIParameters):
+        params = HCIParameters.from_cfg(params) or HCIParameters()
+    res = overrides.get("image_resolution_px", params.image_resolution_px)
+    found = {name: overrides.get(name, getattr(params, name))
+             for name in ("baseline_mm", "focal_length_mm", "sensor_size_mm", "focus_distance_m")}
+    found["image_resolution_px"] = res
     for name, value in found.items():
         if value is None:
             raise MetadataError(f"metric depth of an HCI scene needs '{name}', which parameters.cfg does not have; "
@@ -99,20 +104,10 @@ def hci_constants(params: Mapping[str, Mapping[str, Any]], **overrides: float) -
 
 
 def _camera_constants(lf: LightField, overrides: Mapping[str, Any]) -> dict[str, float]:
-    """Focal length, f-number, lens pitch (m), spatial and view step (px) from the overrides or the metadata
-    (the constants of :func:`plenodecode.render.alpha.slope_per_alpha_unit`, read the same way)."""
-    meta = lf.metadata
-    camera = meta.get("camera") or {}
-    calib = meta.get("calibration") or {}
-    found = {
-        "focal_length_m": camera.get("focal_length_m"),
-        "f_number": camera.get("f_number"),
-        "lens_pitch_m": camera.get("lens_pitch_m"),
-        "spatial_step_px": meta.get("spatial_step_px") or calib.get("row_spacing"),
-        "view_step_px": meta.get("view_step_px"),
-    }
-    if found["lens_pitch_m"] is None and calib.get("pitch") and camera.get("pixel_pitch_m"):
-        found["lens_pitch_m"] = float(calib["pitch"]) * float(camera["pixel_pitch_m"])
+    """Focal length, f-number, lens pitch (m), spatial and view step (px) from the overrides or ``lf.geometry``
+    (the constants of :func:`plenodecode.render.alpha.slope_per_alpha_unit`)."""
+    found = {name: getattr(lf.geometry, name)
+             for name in ("focal_length_m", "f_number", "lens_pitch_m", "spatial_step_px", "view_step_px")}
     found.update({k: v for k, v in overrides.items() if k in found and v is not None})
     out = {}
     for name, value in found.items():
@@ -134,10 +129,9 @@ def plenoptic_constants(lf: LightField, **overrides: float) -> tuple[float, floa
     """
     c = _camera_constants(lf, overrides)
     k = (c["focal_length_m"] / c["f_number"]) * c["view_step_px"] / (c["lens_pitch_m"] * c["spatial_step_px"])
-    meta = lf.metadata
-    camera = meta.get("camera") or {}
+    geometry = lf.geometry
     f = c["focal_length_m"]
-    zf = overrides.get("focus_distance_m", meta.get("focus_distance_m"))
+    zf = overrides.get("focus_distance_m", geometry.focus_distance_m)
     if zf is not None:
         zf = _positive("focus_distance_m", zf)
         if zf <= f:
@@ -146,13 +140,10 @@ def plenoptic_constants(lf: LightField, **overrides: float) -> tuple[float, floa
         return k * b, zf
     lam = overrides.get("infinity_lambda")
     if lam is None:
-        lens = ((camera.get("extra") or {}).get("devices") or {}).get("lens") or {}
-        lam = lens.get("infinityLambda")
+        lam = geometry.infinity_lambda
     gap = overrides.get("mla_sensor_gap_m")
     if gap is None:
-        gap = (meta.get("geometry") or {}).get("mla_sensor_gap_m")
-    if gap is None and camera.get("mla_offset_m") is not None and len(camera["mla_offset_m"]) > 2:
-        gap = camera["mla_offset_m"][2]
+        gap = geometry.mla_sensor_gap_m
     if lam is None or gap is None:
         what = "no infinityLambda" if lam is None else "no MLA-sensor gap"
         raise MetadataError(f"metric depth needs the focus distance: the light field's metadata has no "
@@ -170,9 +161,9 @@ def plenoptic_constants(lf: LightField, **overrides: float) -> tuple[float, floa
 
 
 def depth_constants(lf: LightField, **overrides: float) -> tuple[float, float, str]:
-    """``(G, Z_f, model)`` with model 'hci' (``lf.metadata['hci_parameters']``) or 'plenoptic'."""
-    hci = lf.metadata.get("hci_parameters")
-    if hci:
+    """``(G, Z_f, model)`` with model 'hci' (``lf.geometry.hci``) or 'plenoptic'."""
+    hci = lf.geometry.hci
+    if hci is not None:
         bad = set(overrides) - set(HCI_KEYS)
         if bad:
             raise ValueError(f"unknown override(s) {sorted(bad)} for an HCI scene; valid: {', '.join(HCI_KEYS)}")
@@ -193,7 +184,7 @@ def disparity_to_depth(depth_map: Any, lf: LightField, **overrides: float) -> np
     depth_map : DepthMap or ndarray (Y, X)
         Disparity in px per view step (HCI sign convention).
     lf : LightField
-        Supplies the camera geometry: ``metadata['hci_parameters']`` (HCI scenes) or the camera metadata
+        Supplies the camera geometry, ``lf.geometry``: ``hci`` (HCI scenes) or the camera constants
         of a decoded plenoptic light field (see the module docstring for both derivations).
     **overrides : float
         Constants that win over the metadata: HCI ``baseline_mm, focal_length_mm, sensor_size_mm,
@@ -232,19 +223,16 @@ def focal_length_px(lf: LightField, **overrides: float) -> float:
     """
     g, zf, model = depth_constants(lf, **overrides)
     if model == "hci":
-        hci = lf.metadata["hci_parameters"]
-        b_m = _positive("baseline_mm", overrides.get("baseline_mm", (hci.get("extrinsics") or {}).get("baseline_mm")))
+        b_m = _positive("baseline_mm", overrides.get("baseline_mm", lf.geometry.hci.baseline_mm))
         return g / (b_m / 1000.0)
     c = _camera_constants(lf, overrides)
-    meta = lf.metadata
-    calib = meta.get("calibration") or {}
-    camera = meta.get("camera") or {}
-    pitch_px = calib.get("pitch")
-    if pitch_px is None and camera.get("pixel_pitch_m"):
-        pitch_px = c["lens_pitch_m"] / float(camera["pixel_pitch_m"])
+    geometry = lf.geometry
+    pitch_px = (geometry.calibration or {}).get("pitch")
+    if pitch_px is None and geometry.pixel_pitch_m:
+        pitch_px = c["lens_pitch_m"] / geometry.pixel_pitch_m
     if pitch_px is None:
-        raise MetadataError("3-D points need the lenslet pitch in pixels (metadata['calibration']['pitch'] or "
-                            "camera pixel_pitch_m); decode with a calibration")
+        raise MetadataError("3-D points need the lenslet pitch in pixels (the calibration's pitch or the camera's "
+                            "pixel_pitch_m); decode with a calibration")
     dx = c["lens_pitch_m"] * c["spatial_step_px"] / float(pitch_px)
     f = c["focal_length_m"]
     b = f * zf / (zf - f)

@@ -81,14 +81,20 @@ def _check_range(r: Any, name: str) -> tuple[float, float]:
     return lo, hi
 
 
-def metadata_disparity_range(metadata: Mapping[str, Any]) -> tuple[float, float] | None:
-    """``metadata['disparity_range']``, or an HCI scene's ``[meta] disp_min / disp_max``; None if absent."""
-    r = metadata.get("disparity_range")
-    if r is not None:
-        return _check_range(r, "metadata['disparity_range']")
-    hci = (metadata.get("hci_parameters") or {}).get("meta") or {}
-    if "disp_min" in hci and "disp_max" in hci:
-        return _check_range((hci["disp_min"], hci["disp_max"]), "HCI disp_min/disp_max")
+def metadata_disparity_range(metadata: Any) -> tuple[float, float] | None:
+    """``disparity_range`` of a light field's geometry, else an HCI scene's ``[meta] disp_min / disp_max``;
+    None if absent.
+
+    ``metadata`` is a :class:`~plenodecode.types.LightFieldGeometry` (``lf.geometry``), ``lf.metadata`` or a
+    legacy metadata dict (read by :meth:`LightFieldGeometry.coerce`).
+    """
+    from ..types import LightFieldGeometry
+
+    geometry = LightFieldGeometry.coerce(metadata)
+    if geometry.disparity_range is not None:
+        return _check_range(geometry.disparity_range, "metadata['disparity_range']")
+    if geometry.hci is not None and geometry.hci.disparity_range is not None:
+        return _check_range(geometry.hci.disparity_range, "HCI disp_min/disp_max")
     return None
 
 
@@ -145,7 +151,7 @@ def disparity_range(lf: LightField, views: Callable[[], Views], requested: Any =
     """
     if requested is not None:
         return _check_range(requested, "disparity_range"), "argument"
-    r = metadata_disparity_range(lf.metadata)
+    r = metadata_disparity_range(lf.geometry)
     if r is not None:
         return r, "metadata"
     return estimate_disparity_range(views()), "estimated"

@@ -149,7 +149,7 @@ def prepare_views(lf: LightField, *, min_view_weight: float = 0.1, grey: bool = 
     scale = float(np.percentile(centre, 99.5))
     if not scale > 0:
         raise DecodeError("the centre view is empty (all zero or NaN); nothing to match. Check the decode")
-    gamma = lf.colour != "srgb"
+    gamma = not lf.geometry.display_encoded
     for v in range(V):
         for u in range(U):
             if weight[v, u] > 0:
@@ -242,7 +242,8 @@ def colour_guide(lf: LightField) -> np.ndarray:
     """The centre view as the guide of the edge snapping: (Y, X, 3) or (Y, X, 1) uint8, scaled so its 99.5th
     percentile is 255, display-encoded (``x ** (1 / 2.2)``) when linear."""
     c = _clean(lf.data[lf.centre_index], False)
-    c = _display_encode(c, max(float(np.percentile(c, 99.5)), 1e-12), lf.colour != "srgb")
+    c = _display_encode(c, max(float(np.percentile(c, 99.5)), 1e-12),
+                        not lf.geometry.display_encoded)
     return np.ascontiguousarray(np.clip(np.round(c * 255.0), 0, 255).astype(np.uint8))
 
 

@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 
 from ..errors import FormatError
-from ..types import LightField
+from ..types import HCIParameters, LightField, LightFieldGeometry
 from .pfm import read_pfm
 
 
@@ -48,6 +48,20 @@ def read_parameters(path: str | os.PathLike) -> dict[str, dict[str, Any]]:
     return {s: {k: _parse_value(v) for k, v in cp[s].items()} for s in cp.sections()}
 
 
+def scene_parameters(folder: str | os.PathLike) -> dict[str, dict[str, Any]]:
+    """The parsed ``parameters.cfg`` of a scene folder, ``{}`` when the folder has none."""
+    cfg = Path(folder) / "parameters.cfg"
+    return read_parameters(cfg) if cfg.is_file() else {}
+
+
+def scene_geometry(folder: str | os.PathLike, params: dict[str, dict[str, Any]]) -> LightFieldGeometry:
+    """Geometry of an HCI scene: one pixel per spatial sample and per view step (a camera array), the camera
+    parameters of its ``parameters.cfg`` (``params``), the folder as source.  Read by :func:`read_hci` and by
+    :func:`plenodecode.io.lightfield.load_lightfield` on a scene folder."""
+    return LightFieldGeometry(spatial_step_px=1.0, view_step_px=1.0, source=str(folder),
+                              hci=HCIParameters.from_cfg(params))
+
+
 def read_hci(folder: str | os.PathLike) -> HCIScene:
     """Read an HCI benchmark scene folder.
 
@@ -55,13 +69,14 @@ def read_hci(folder: str | os.PathLike) -> HCIScene:
     -------
     HCIScene
         ``lightfield.data`` is (9, 9, 512, 512, 3) float32 in [0, 1] (sRGB-encoded as stored,
-        colour state 'srgb'); ``disparity`` (512, 512) float32 when ``gt_disp_lowres.pfm`` exists.
+        colour state 'srgb'; ``lightfield.geometry`` from :func:`scene_geometry`); ``disparity`` (512, 512)
+        float32 when ``gt_disp_lowres.pfm`` exists.
     """
     root = Path(folder)
     files = sorted(root.glob("input_Cam*.png"))
     if not files:
         raise FormatError(f"{root}: no input_Cam*.png views; expected an HCI benchmark scene folder")
-    params = read_parameters(root / "parameters.cfg") if (root / "parameters.cfg").exists() else {}
+    params = scene_parameters(root)
     ext = params.get("extrinsics", {})
     nv, nu = int(ext.get("num_cams_y", 0)), int(ext.get("num_cams_x", 0))
     if nv * nu != len(files):
@@ -82,5 +97,4 @@ def read_hci(folder: str | os.PathLike) -> HCIScene:
     disp = None
     if (root / "gt_disp_lowres.pfm").exists():
         disp = read_pfm(root / "gt_disp_lowres.pfm")
-    meta = {"source": str(root), "hci_parameters": params, "spatial_step_px": 1.0, "view_step_px": 1.0}
-    return HCIScene(LightField(data, None, "srgb", meta), params, disp)
+    return HCIScene(LightField(data, None, "srgb", geometry=scene_geometry(root, params)), params, disp)

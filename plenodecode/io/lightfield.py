@@ -5,23 +5,34 @@ Formats (:data:`LIGHTFIELD_FORMATS`; ``format=None`` picks one from the path):
 ``zarr``  (``X.zarr`` folder)
     Zarr v3 group: array ``data`` (V, U, Y, X, C) float32 chunked one view per chunk
     ``(1, 1, Y, X, C)``, ``weight`` (V, U, Y, X) chunked ``(1, 1, Y, X)`` when present;
-    attributes ``format``, ``version``, ``colour``, ``metadata`` (JSON-safe).  Lossless
+    attributes ``format``, ``version``, ``colour``, ``geometry``, ``metadata`` (see below).  Lossless
     float32 (``bit_depth`` is not used).  A single view is read from its own chunk.
 ``views``  (a folder)
     ``input_Cam000.png`` ... (HCI naming, index ``v * U + u``), 8/16-bit PNG (or TIFF with
-    ``image_ext='.tif'``) or 32-bit EXR, plus ``lightfield.json`` (shape, colour, metadata,
-    bit depth) and ``weight.npy`` when the light field has weights.
+    ``image_ext='.tif'``) or 32-bit EXR, plus ``lightfield.json`` (shape, colour, geometry, metadata,
+    bit depth) and ``weight.npy`` when the light field has weights.  A folder without
+    ``lightfield.json`` but with ``parameters.cfg`` is an HCI benchmark scene: its camera
+    parameters become ``geometry.hci`` as :func:`plenodecode.io.hci.read_hci` reads them.
 ``mat``  (``X.mat``)
     LFToolbox-compatible MATLAB file: ``LF`` uint16 ``(j, i, l, k, c) = (V, U, Y, X, C + 1)``,
     the weight as the last channel (ones when the light field has none), values
-    ``rint(clip(x, 0, 1) * 65535)``; ``LFMetadata`` struct.  Always 16 bit.
+    ``rint(clip(x, 0, 1) * 65535)``; ``LFMetadata`` struct (field ``plenodecode``: the JSON document
+    of the other formats).  Always 16 bit.
 ``npy``  (``X.npy``)
-    ``X.npy`` float32 data, ``X.weight.npy`` when present, ``X.json`` with colour and metadata.
+    ``X.npy`` float32 data, ``X.weight.npy`` when present, ``X.json`` with colour, geometry and metadata.
     Lossless; a single view is read through a memory map.
 ``eslf``  (``X.png``, ``X.tif``)
     The Stanford Lytro archive mosaic ``eslf[y * V + v, x * U + u] = LF[v, u, y, x]`` as one
     8/16-bit image, the weight (if any) as an alpha channel, plus ``X.json`` with V and U.
     Without the sidecar, 14 x 14 views are assumed (the archive's layout).
+
+Metadata schema (the document every format stores), ``version`` :data:`FORMAT_VERSION`:
+
+* version 2: ``geometry`` is :meth:`plenodecode.types.LightFieldGeometry.to_dict` (itself versioned,
+  :data:`plenodecode.types.GEOMETRY_SCHEMA_VERSION`), ``metadata`` the free-form provenance;
+* version 1 (before the typed geometry): no ``geometry``; ``metadata`` is the free dict whose legacy keys
+  ('source', 'calibration', 'camera', 'spatial_step_px', ...) :class:`LightField` converts.  Such files
+  still load with the same geometry.
 
 Integer formats clip to [0, 1].  ``encode_srgb=True`` applies the sRGB transfer function
 before quantising and records the colour state 'srgb'.  Every output is written under a
@@ -42,8 +53,8 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ..errors import FormatError
-from ..types import LightField
+from ..errors import FormatError, MetadataError
+from ..types import LightField, LightFieldGeometry
 from .atomic import atomic_output, atomic_outputs, refuse_existing
 from .generic import json_safe
 from .images import quantise, read_image, srgb_encode, to_unit_float, write_image
@@ -52,7 +63,8 @@ log = logging.getLogger(__name__)
 
 Progress = Callable[[int, int], None] | None
 FORMAT_TAG = "plenodecode.LightField"
-FORMAT_VERSION = 1
+#: Version of the saved document; 2 stores the typed geometry (see the module docstring).
+FORMAT_VERSION = 2
 VIEWS_JSON = "lightfield.json"
 #: Angular size assumed for an ESLF image without a sidecar (Stanford Lytro archive).
 ESLF_DEFAULT_VIEWS = (14, 14)
@@ -71,7 +83,21 @@ class LightFieldFormat:
 # ----------------------------------------------------------------------------- helpers
 def _attrs(lf: LightField) -> dict[str, Any]:
     return {"format": FORMAT_TAG, "version": FORMAT_VERSION, "colour": lf.colour,
-            "metadata": json_safe(dict(lf.metadata))}
+            "geometry": json_safe(lf.geometry.to_dict()), "metadata": json_safe(lf.provenance)}
+
+
+def _restored(data: np.ndarray, weight: np.ndarray | None, colour: str, doc: Mapping[str, Any],
+              src: Path) -> LightField:
+    """The light field of a saved document: version 2 has the typed ``geometry``; in version 1 the geometry
+    is in the legacy keys of ``metadata``, which :class:`LightField` reads."""
+    provenance = dict(doc.get("metadata") or {})
+    if doc.get("geometry") is None:
+        return LightField(data, weight, colour, provenance)
+    try:
+        geometry = LightFieldGeometry.from_dict(doc["geometry"])
+    except (MetadataError, TypeError, ValueError) as exc:
+        raise FormatError(f"{src}: unreadable light-field geometry ({exc}); rewrite the light field") from exc
+    return LightField(data, weight, colour, provenance, geometry)
 
 
 def _check_version(doc: Mapping[str, Any], src: Path) -> None:
@@ -139,8 +165,7 @@ def _load_zarr(path: Path, *, view: tuple[int, int] | None = None) -> LightField
         v, u = _check_view(view, data.shape)
         return np.asarray(data[v, u], np.float32)
     weight = np.asarray(group["weight"][...], np.float32) if "weight" in group else None
-    return LightField(np.asarray(data[...], np.float32), weight, attrs.get("colour", "camera"),
-                      dict(attrs.get("metadata") or {}))
+    return _restored(np.asarray(data[...], np.float32), weight, attrs.get("colour", "camera"), attrs, path)
 
 
 # ----------------------------------------------------------------------------- views
@@ -224,7 +249,11 @@ def _load_views(path: Path, *, view: tuple[int, int] | None = None) -> LightFiel
         weight = np.load(path / doc["weight"]).astype(np.float32)
     # without lightfield.json: integer PNG/TIFF views are display images (HCI), float EXR views linear
     colour = doc.get("colour") or ("camera" if files[0].suffix.lower() == ".exr" else "srgb")
-    return LightField(data, weight, colour, dict(doc.get("metadata") or {}))
+    if not doc and (path / "parameters.cfg").is_file():       # an HCI benchmark scene
+        from .hci import scene_geometry, scene_parameters
+
+        return LightField(data, weight, colour, geometry=scene_geometry(path, scene_parameters(path)))
+    return _restored(data, weight, colour, doc, path)
 
 
 # ----------------------------------------------------------------------------- mat (LFToolbox)
@@ -243,12 +272,12 @@ def _save_mat(lf: LightField, path: Path, *, bit_depth: int, **_: Any) -> None:
         "HasWeight": int(lf.weight is not None),
         "Channels": "RGBW" if C == 3 else "YW",
     }
-    camera = lf.metadata.get("camera") if isinstance(lf.metadata, Mapping) else None
-    if isinstance(camera, Mapping):
+    camera = lf.geometry.camera
+    if camera is not None:
         for key, field in (("model", "CamModel"), ("serial", "CamSerial"), ("zoom_step", "ZoomStep"),
                            ("focus_step", "FocusStep"), ("exposure_s", "ExposureDuration")):
-            if camera.get(key) is not None:
-                meta[field] = camera[key]
+            if getattr(camera, key) is not None:
+                meta[field] = getattr(camera, key)
     with open(path, "wb") as fh:
         scipy.io.savemat(fh, {"LF": lf16, "LFMetadata": meta}, do_compression=True, oned_as="row")
 
@@ -272,6 +301,7 @@ def _load_mat(path: Path, *, view: tuple[int, int] | None = None) -> LightField 
             info = json.loads(str(meta["plenodecode"].item()))
         except (json.JSONDecodeError, ValueError):
             info = {}
+        _check_version(info, path)
     nch = lf.shape[4]
     has_weight = nch in (2, 4)
     c = nch - 1 if has_weight else nch
@@ -283,7 +313,7 @@ def _load_mat(path: Path, *, view: tuple[int, int] | None = None) -> LightField 
     weight = (lf[..., c] * scale).astype(np.float32) if has_weight else None
     if info and meta is not None and "HasWeight" in meta.dtype.names and not int(meta["HasWeight"].item()):
         weight = None
-    return LightField(data, weight, info.get("colour", "camera"), dict(info.get("metadata") or {}))
+    return _restored(data, weight, info.get("colour", "camera"), info, path)
 
 
 # ----------------------------------------------------------------------------- npy
@@ -330,7 +360,7 @@ def _load_npy(path: Path, *, view: tuple[int, int] | None = None) -> LightField 
             doc = {}
         _check_version(doc, jpath)
     weight = np.load(wpath).astype(np.float32) if wpath.is_file() else None
-    return LightField(np.array(arr, np.float32), weight, doc.get("colour", "camera"), dict(doc.get("metadata") or {}))
+    return _restored(np.array(arr, np.float32), weight, doc.get("colour", "camera"), doc, jpath)
 
 
 # ----------------------------------------------------------------------------- eslf
@@ -402,7 +432,7 @@ def _load_eslf(path: Path, *, view: tuple[int, int] | None = None) -> LightField
         return np.ascontiguousarray(lf[v, u, :, :, :c])
     weight = np.ascontiguousarray(lf[..., c]) if has_weight and nch > c else None
     colour = doc.get("colour", "srgb")
-    return LightField(np.ascontiguousarray(lf[..., :c]), weight, colour, dict(doc.get("metadata") or {}))
+    return _restored(np.ascontiguousarray(lf[..., :c]), weight, colour, doc, side)
 
 
 # ----------------------------------------------------------------------------- registry

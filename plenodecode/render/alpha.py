@@ -22,22 +22,21 @@ read ``u (1 - 1/alpha)`` metres away from the output position.
    ``alpha > 1`` and appears in view ``a`` displaced by ``-d a`` with ``d > 0``: the disparity of design.md.
 5. Inverse: ``alpha = 1 / (1 - s / K)``, defined for ``s < K`` (``s -> K`` is a film plane at infinity).
 
-Constants and where they are read: ``focal_length_m``, ``f_number``, ``lens_pitch_m`` from
-``lf.metadata['camera']`` (``CameraMetadata.to_dict()``; ``lens_pitch_m`` falls back to
-``calibration['pitch'] * camera['pixel_pitch_m']``), ``spatial_step_px`` and ``view_step_px`` from
-``lf.metadata`` (``spatial_step_px`` falls back to ``calibration['row_spacing']``, the decoded sampling step).
-Every constant can be passed as a keyword, which wins over the metadata.
+Constants and where they are read: the fields of the same names of ``lf.geometry``
+(:class:`plenodecode.types.LightFieldGeometry`; from the camera metadata, ``lens_pitch_m`` falling back to the
+calibration's pitch times the pixel pitch, ``spatial_step_px`` to the calibration's row spacing, the decoded
+sampling step).  Every constant can be passed as a keyword, which wins over the metadata.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
 from ..errors import MetadataError
-from ..types import LightField
+from ..types import LightField, LightFieldGeometry
 
 #: Constants of :func:`slope_per_alpha_unit` (keyword overrides of :func:`alpha_to_slope`).
 REFOCUS_CONSTANTS = ("focal_length_m", "f_number", "lens_pitch_m", "spatial_step_px", "view_step_px")
@@ -49,7 +48,7 @@ def refocus_constants(lf: LightField | None = None, **overrides: float) -> dict[
     Parameters
     ----------
     lf : LightField, optional
-        Source of the constants (``metadata['camera']``, ``metadata['calibration']``, ``metadata``).
+        Source of the constants (``lf.geometry``).
     **overrides : float
         Any of :data:`REFOCUS_CONSTANTS`; wins over the metadata.
 
@@ -68,20 +67,8 @@ def refocus_constants(lf: LightField | None = None, **overrides: float) -> dict[
     unknown = set(overrides) - set(REFOCUS_CONSTANTS)
     if unknown:
         raise ValueError(f"unknown refocus constant(s) {sorted(unknown)}; valid: {', '.join(REFOCUS_CONSTANTS)}")
-    meta: Mapping[str, Any] = lf.metadata if lf is not None else {}
-    camera = meta.get("camera") or {}
-    calib = meta.get("calibration") or {}
-    found: dict[str, Any] = {
-        "focal_length_m": camera.get("focal_length_m"),
-        "f_number": camera.get("f_number"),
-        "lens_pitch_m": camera.get("lens_pitch_m"),
-        "spatial_step_px": meta.get("spatial_step_px"),
-        "view_step_px": meta.get("view_step_px"),
-    }
-    if found["lens_pitch_m"] is None and calib.get("pitch") and camera.get("pixel_pitch_m"):
-        found["lens_pitch_m"] = float(calib["pitch"]) * float(camera["pixel_pitch_m"])
-    if found["spatial_step_px"] is None and calib.get("row_spacing"):
-        found["spatial_step_px"] = float(calib["row_spacing"])
+    geometry = lf.geometry if lf is not None else LightFieldGeometry()
+    found: dict[str, Any] = {name: getattr(geometry, name) for name in REFOCUS_CONSTANTS}
     found.update({k: v for k, v in overrides.items() if v is not None})
     out = {}
     for name in REFOCUS_CONSTANTS:

@@ -22,13 +22,13 @@ from .refocus_methods import get_method
 
 log = logging.getLogger(__name__)
 
-#: Default slopes of a focal stack when neither the caller nor the metadata ('disparity_range') gives any.
+#: Default slopes of a focal stack when neither the caller nor ``lf.geometry.disparity_range`` gives any.
 DEFAULT_SLOPE_RANGE = (-2.0, 2.0)
 
 
 def default_slopes(lf: LightField, n: int = 33) -> np.ndarray:
-    """``n`` slopes over ``lf.metadata['disparity_range']`` (widened by 10 %) or :data:`DEFAULT_SLOPE_RANGE`."""
-    rng = lf.metadata.get("disparity_range") if lf.metadata else None
+    """``n`` slopes over ``lf.geometry.disparity_range`` (widened by 10 %) or :data:`DEFAULT_SLOPE_RANGE`."""
+    rng = lf.geometry.disparity_range
     if rng is not None and len(rng) == 2 and np.all(np.isfinite(rng)) and rng[1] > rng[0]:
         lo, hi = float(rng[0]), float(rng[1])
         pad = 0.1 * (hi - lo) + 0.05

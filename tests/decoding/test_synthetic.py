@@ -209,3 +209,26 @@ def test_raytrix_hex_grid_decodes_into_sub_aperture_views():
     w = lf.weight.mean(axis=(2, 3))
     assert w[17, 17] > 0.9 and w[0, 0] < 0.05            # centre inside the disk, corner outside
     assert np.isfinite(lf.data).all()
+
+
+def test_decode_writes_the_typed_geometry(decoded):
+    import dataclasses
+
+    from plenodecode.decoding.colour import to_linear_srgb
+    from plenodecode.render.alpha import refocus_constants
+
+    sim, lf, gt = decoded("illum-mini")
+    g, cam = lf.geometry, sim.raw.metadata
+    assert g.camera == cam and g.calibration == sim.grid.to_dict() and g.source == sim.raw.path
+    assert (g.focal_length_m, g.f_number, g.lens_pitch_m, g.pixel_pitch_m) == \
+        (cam.focal_length_m, cam.f_number, cam.lens_pitch_m, cam.pixel_pitch_m)
+    assert g.spatial_step_px == pytest.approx(sim.grid.row_spacing) and g.view_step_px == 1.0
+    assert g.colour == lf.colour == "linear-srgb" and not g.display_encoded
+    assert "camera" not in lf.provenance and lf.provenance["n_views"] == lf.shape[0]
+    # the generator's ground truth (legacy metadata dict) has the same sampling and camera constants
+    assert refocus_constants(gt) == pytest.approx(refocus_constants(lf), rel=1e-12)
+    # colour conversion keeps the geometry and records the matrix in the provenance
+    camera_lf = decode(sim.raw, sim.grid, white=sim.white, colour="camera")
+    conv = to_linear_srgb(camera_lf)
+    assert conv.geometry == dataclasses.replace(camera_lf.geometry, colour="linear-srgb")
+    assert "colour_matrix" in conv.provenance

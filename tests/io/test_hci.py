@@ -29,3 +29,17 @@ def test_hci_antinous_disparity_matches_views():
     err_gt = np.median(np.abs(warped - centre)[inner])
     err_flip = np.median(np.abs(cv2.remap(view, xx + d * 4, yy, cv2.INTER_LINEAR) - centre)[inner])
     assert err_gt < 0.01 and err_gt < 0.5 * err_flip
+
+
+def test_read_hci_geometry_is_typed_and_the_legacy_keys_stay_readable(tmp_path):
+    from tests.io.test_lightfield import write_hci_folder
+
+    scene = read_hci(write_hci_folder(tmp_path / "scene", views=3, size=(6, 5)))
+    g = scene.lightfield.geometry
+    assert scene.lightfield.shape == (3, 3, 6, 5, 3) and scene.lightfield.colour == g.colour == "srgb"
+    assert g.display_encoded and g.spatial_step_px == g.view_step_px == 1.0 and g.source == str(tmp_path / "scene")
+    assert (g.hci.baseline_mm, g.hci.focal_length_mm, g.hci.sensor_size_mm, g.hci.focus_distance_m) == \
+        (100.0, 100.0, 35.0, 7.0)
+    assert g.hci.image_resolution_px == 512.0 and g.hci.disparity_range == (-3.3, 2.8)
+    assert scene.lightfield.metadata["hci_parameters"] == scene.parameters
+    assert scene.lightfield.metadata["source"] == str(tmp_path / "scene")

@@ -1,4 +1,5 @@
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -224,3 +225,118 @@ def test_cli_export(tmp_path):
     assert res.exit_code == 2 and "--format" in res.output
     res = runner.invoke(cli, ["export", "--help"], obj={})
     assert res.exit_code == 0 and "Example" in res.output
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# the typed geometry in saved light fields; files of format version 1 (free metadata dict)
+# ---------------------------------------------------------------------------------------------------------------
+V1_DATA = Path(__file__).parent / "data" / "lightfield_v1"
+V1_FILES = ["lf.zarr", "views", "lf.npy", "lf.mat", "mosaic.png"]
+
+
+def _geometry_lf(colour="linear-srgb"):
+    from plenodecode.types import CameraMetadata, HCIParameters, LightFieldGeometry
+
+    cam = CameraMetadata(model="ILLUM", serial="B5", focal_length_m=0.0301, f_number=2.0, lens_pitch_m=2.0e-5,
+                         pixel_pitch_m=1.4e-6, wb_gains={"r": 1.9, "g": 1.0, "b": 1.4},
+                         ccm=((1.5, -0.3, -0.2), (-0.2, 1.4, -0.2), (0.0, -0.5, 1.5)), extra={"a": [1, 2]})
+    geometry = LightFieldGeometry(spatial_step_px=12.4, view_step_px=1.0, focal_length_m=0.0301, f_number=2.0,
+                                  lens_pitch_m=2.0e-5, pixel_pitch_m=1.4e-6, mla_sensor_gap_m=3.7e-5,
+                                  infinity_lambda=12.5, focus_distance_m=1.2, disparity_range=(-0.75, 1.25),
+                                  source="a.lfr", calibration={"pitch": 14.3, "row_spacing": 12.4}, camera=cam,
+                                  hci=HCIParameters(baseline_mm=100.0, resolution_px=(7, 6)))
+    lf = make_lf()
+    return LightField(lf.data, lf.weight, colour, {"demosaic": "malvar", "hot_pixels_repaired": 2}, geometry)
+
+
+@pytest.mark.parametrize("fmt,name,bits,stored", CASES)
+def test_geometry_round_trips_through_every_format(tmp_path, fmt, name, bits, stored):
+    lf = _geometry_lf()
+    back = load_lightfield(save_lightfield(lf, tmp_path / name, bit_depth=bits))
+    assert back.geometry == lf.geometry and back.provenance == lf.provenance
+    doc = json.loads(json.dumps(lf.geometry.to_dict()))
+    assert doc["format"] == "plenodecode.LightFieldGeometry" and doc["version"] >= 1
+
+
+@pytest.mark.parametrize("name", V1_FILES)
+def test_files_of_format_version_1_load_with_the_same_geometry(name):
+    """Written by the code before the typed geometry (tests/io/data/lightfield_v1/README.md); the numbers are
+    what that code computed from them."""
+    from plenodecode.depth._core import metadata_disparity_range
+    from plenodecode.depth.metric import depth_constants, focal_length_px
+    from plenodecode.render.alpha import slope_per_alpha_unit
+
+    lf = load_lightfield(V1_DATA / name)
+    g = lf.geometry
+    assert lf.colour == g.colour == "linear-srgb" and g.source == "scene.lfr"
+    assert (g.focal_length_m, g.f_number, g.lens_pitch_m, g.pixel_pitch_m) == (0.0301, 2.0, 2.0e-5, 1.4e-6)
+    assert (g.spatial_step_px, g.view_step_px, g.focus_distance_m) == (12.384, 1.0, 1.2)
+    assert g.mla_sensor_gap_m == 3.7e-5 and g.infinity_lambda == 12.5 and g.disparity_range == (-0.75, 1.25)
+    assert g.calibration["pitch"] == 14.3 and g.camera.serial == "B5151500000"
+    assert lf.provenance["demosaic"] == "malvar" and lf.provenance["hot_pixels_repaired"] == 3
+    assert slope_per_alpha_unit(lf) == pytest.approx(60.76388888888888, rel=1e-14)
+    g_px_m, zf, model = depth_constants(lf)
+    assert (g_px_m, zf, model) == (pytest.approx(1.8760506596005355, rel=1e-14), 1.2, "plenoptic")
+    g_px_m, zf, _ = depth_constants(lf, focus_distance_m=None)     # from infinityLambda and the MLA gap
+    assert (g_px_m, zf) == pytest.approx((1.8570963541666663, 1.9890405405405356), rel=1e-14)
+    assert focal_length_px(lf) == pytest.approx(1782.5597629427016, rel=1e-14)
+    assert metadata_disparity_range(lf.metadata) == (-0.75, 1.25)
+    assert lf.shape == (3, 3, 4, 5, 3) and lf.weight is not None
+
+
+def test_version_1_file_saved_again_keeps_the_geometry(tmp_path):
+    from plenodecode.io.lightfield import FORMAT_VERSION
+
+    old = load_lightfield(V1_DATA / "lf.npy")
+    out = save_lightfield(old, tmp_path / "new.npy")
+    doc = json.loads(out.with_suffix(".json").read_text())
+    assert doc["version"] == FORMAT_VERSION == 2 and "geometry" in doc and "camera" not in doc["metadata"]
+    assert load_lightfield(out).geometry == old.geometry
+
+
+def test_newer_geometry_schema_is_refused(tmp_path):
+    out = save_lightfield(_geometry_lf(), tmp_path / "a.npy")
+    side = out.with_suffix(".json")
+    doc = json.loads(side.read_text())
+    doc["geometry"]["version"] = 99
+    side.write_text(json.dumps(doc))
+    with pytest.raises(FormatError, match="newer"):
+        load_lightfield(out)
+
+
+def write_hci_folder(root, seed=0, views=3, size=(8, 10)):
+    """A small HCI benchmark scene folder: input_CamNNN.png views and the antinous parameters.cfg."""
+    import cv2
+
+    root.mkdir()
+    rng = np.random.default_rng(seed)
+    for k in range(views * views):
+        cv2.imwrite(str(root / f"input_Cam{k:03d}.png"), rng.integers(0, 256, (*size, 3), dtype=np.uint8))
+    (root / "parameters.cfg").write_text(
+        "[intrinsics]\nfocal_length_mm = 100\nimage_resolution_x_px = 512\nimage_resolution_y_px = 512\n"
+        "sensor_size_mm = 35\nfstop = 100\n\n[extrinsics]\nfocus_distance_m = 7\nbaseline_mm = 100\n"
+        f"num_cams_x = {views}\nnum_cams_y = {views}\noffset = 20.89795918367347\n\n"
+        "[meta]\ndisp_min = -3.3\ndisp_max = 2.8\n")
+    return root
+
+
+@pytest.mark.parametrize("source", ["generated", "hci-antinous"])
+def test_load_lightfield_of_an_hci_folder_keeps_parameters_cfg(tmp_path, source):
+    from tests.conftest import shared_path
+    from plenodecode.depth._core import disparity_range
+    from plenodecode.depth.metric import depth_constants, focal_length_px
+    from plenodecode.io.hci import read_hci
+
+    folder = write_hci_folder(tmp_path / "scene") if source == "generated" else shared_path(source)
+    loaded, read = load_lightfield(folder), read_hci(folder).lightfield
+    assert loaded.colour == read.colour == "srgb" and loaded.geometry == read.geometry
+    assert loaded.geometry.hci.disparity_range == (-3.3, 2.8)
+
+    def no_estimate():
+        raise AssertionError("the range must come from parameters.cfg")
+
+    assert disparity_range(loaded, no_estimate) == disparity_range(read, no_estimate) == ((-3.3, 2.8), "metadata")
+    assert depth_constants(loaded) == depth_constants(read)
+    assert depth_constants(read)[:2] == pytest.approx((0.1 * 100 / 35 * 512, 7.0)) and depth_constants(read)[2] == "hci"
+    assert focal_length_px(loaded) == focal_length_px(read)
+    np.testing.assert_allclose(loaded.data, read.data, atol=1e-6)
