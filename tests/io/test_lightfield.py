@@ -262,7 +262,7 @@ def test_geometry_round_trips_through_every_format(tmp_path, fmt, name, bits, st
 def test_files_of_format_version_1_load_with_the_same_geometry(name):
     """Written by the code before the typed geometry (tests/io/data/lightfield_v1/README.md); the numbers are
     what that code computed from them."""
-    from plenodecode.depth._core import metadata_disparity_range
+    from plenodecode.depth.pipeline import metadata_disparity_range
     from plenodecode.depth.metric import depth_constants, focal_length_px
     from plenodecode.render.alpha import slope_per_alpha_unit
 
@@ -323,7 +323,7 @@ def write_hci_folder(root, seed=0, views=3, size=(8, 10)):
 @pytest.mark.parametrize("source", ["generated", "hci-antinous"])
 def test_load_lightfield_of_an_hci_folder_keeps_parameters_cfg(tmp_path, source):
     from tests.conftest import shared_path
-    from plenodecode.depth._core import disparity_range
+    from plenodecode.depth.pipeline import disparity_range
     from plenodecode.depth.metric import depth_constants, focal_length_px
     from plenodecode.io.hci import read_hci
 
