@@ -30,7 +30,6 @@ image; see :func:`simulate`.
 
 from __future__ import annotations
 
-import functools
 import json
 import logging
 import math
@@ -425,7 +424,6 @@ def _vignette_k(p: Preset) -> float:
     return (1.0 / math.sqrt(p.vignette_corner) - 1.0) / (((nh - 1) / 2.0) ** 2 + ((nw - 1) / 2.0) ** 2)
 
 
-@functools.lru_cache(maxsize=1)
 def _empty_textures():
     """A tiny placeholder scene: the kernel's texture arguments when rendering a white image."""
     from ._scene import Plane, Scene, build_textures
