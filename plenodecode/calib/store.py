@@ -246,17 +246,12 @@ def build_database(folder: str | os.PathLike, db_dir: str | os.PathLike = DEFAUL
     fit : bool
         Fit and cache the grids of these white images now (:func:`cache_grids`); otherwise a lookup
         fits them in memory each time until :func:`cache_grids` is run.
-    overwrite : bool
-        Refit grids that are already cached.
-    progress : callable(done, total), optional
-        Called per white image while fitting.
-    **calibrate_kw
-        Passed to :func:`plenodecode.calib.calibrate`.
+    overwrite, progress, **calibrate_kw
+        As :func:`cache_grids` (``overwrite`` also drops the cached grid names of these files from the index).
 
     Returns
     -------
-    list of WhiteEntry
-        The whole index afterwards.
+    list of WhiteEntry, the whole index afterwards
 
     Raises
     ------
