@@ -1,9 +1,16 @@
-"""The README's Python tour runs as written (issue 7: examples are tests)."""
+"""The README's tours run as written (issue 7: examples are tests): the Python tour block by block, the
+command-line tour line by line."""
 
+import json
 import os
 import re
+import shlex
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -25,3 +32,76 @@ def test_readme_python_tour_runs(tmp_path, monkeypatch):
     for i, block in enumerate(_python_blocks()):
         code = compile(block.replace("tour_out/", f"{tmp_path}{os.sep}"), f"README.md[python block {i}]", "exec")
         exec(code, namespace)  # noqa: S102 - the README's own examples
+
+
+# ------------------------------------------------------------------------------------------ command-line tour
+def _cli_tour() -> list[list[str]]:
+    """The command lines of the README's 'Command-line tour' code block, split as a shell would (comments dropped)."""
+    text = (ROOT / "README.md").read_text()
+    section = text.split("## Command-line tour", 1)[1].split("\n## ", 1)[0]
+    block = re.search(r"```\n(.*?)```", section, flags=re.S).group(1)
+    return [shlex.split(line, comments=True) for line in block.splitlines() if line.strip()]
+
+
+def _plenodecode() -> list[str]:
+    """The venv's console script, or the same entry point through this interpreter."""
+    script = Path(sys.executable).with_name("plenodecode")
+    if script.is_file():
+        return [str(script)]
+    return [sys.executable, "-c", "import sys; from plenodecode.cli.main import cli; sys.exit(cli())"]
+
+
+def _written(path: Path) -> bool:
+    """A non-empty file, or a folder holding at least one file."""
+    if path.is_dir():
+        return any(p.is_file() for p in path.rglob("*"))
+    return path.is_file() and path.stat().st_size > 0
+
+
+#: output options whose value every tour line must have written
+_OUTPUT_OPTIONS = ("-o", "--output", "--report", "--ply")
+
+
+def _check_claims(args: list[str], work: Path, stdout: str) -> None:
+    """What the line's comment says it writes, beyond its output options."""
+    command = args[1]
+    if command == "info":
+        assert "B5143909630" in stdout                                     # the camera's serial
+    elif command == "calibrate" and "--database" in args:
+        db = work / args[args.index("--database") + 1]
+        entries = json.loads((db / "index.json").read_text())["entries"]
+        assert len(entries) == 3 and all((db / e["grid"]).is_file() for e in entries)   # indexed, grids cached
+    elif command == "refocus" and "--focal-stack" in args:
+        out = work / args[args.index("-o") + 1]
+        assert len(list(out.glob("slice_*.png"))) == 30 and (out / "all_in_focus.png").is_file()
+    elif command == "depth":
+        out = work / args[args.index("-o") + 1]
+        assert all(_written(out.with_suffix(s)) for s in (".exr", ".png"))
+    elif command == "batch":
+        out = work / args[args.index("-o") + 1]
+        summary = json.loads((out / "summary.json").read_text())
+        assert len(summary["results"]) == 3 and (out / "index.html").is_file()
+        assert all(_written(f / "centre.png") for f in out.iterdir() if f.is_dir())
+
+
+def test_readme_has_a_cli_tour():
+    lines = _cli_tour()
+    assert len(lines) >= 10 and all(args[0] == "plenodecode" for args in lines)
+
+
+@pytest.mark.slow
+def test_readme_cli_tour_runs(tmp_path):
+    """Each line of the command-line tour exits 0 and writes what it names, in order, in a folder holding a
+    copy of the bundled sample raws and calibration database (as the project folder does)."""
+    shutil.copytree(ROOT / "sample_raws", tmp_path / "sample_raws")
+    shutil.copytree(ROOT / "calib", tmp_path / "calib", ignore=shutil.ignore_patterns(".*"))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)}
+    for number, args in enumerate(_cli_tour(), 1):
+        run = subprocess.run(_plenodecode() + args[1:], cwd=tmp_path, env=env, capture_output=True, text=True,
+                             timeout=900)
+        where = f"README command-line tour, line {number}: {shlex.join(args)}\n{run.stdout}\n{run.stderr}"
+        assert run.returncode == 0, where
+        for i, arg in enumerate(args[:-1]):
+            if arg in _OUTPUT_OPTIONS:
+                assert _written(tmp_path / args[i + 1]), where
+        _check_claims(args, tmp_path, run.stdout)

@@ -3,10 +3,14 @@
 Layout of a database folder (default ``calib/``, relative to the working directory)::
 
     calib/index.json                       the index (below)
-    calib/<serial>/<stem>.grid.json        fitted grid of each white image (cached on first use)
+    calib/.index.json.lock                 lock file that serialises writers of the index
+    calib/<serial>/<stem>.grid.json        fitted grid of each white image (written by :func:`cache_grids`)
 
-:func:`calibration_for` gives a raw's grid together with the white image it was fitted on (for
-devignetting); :func:`grid_for` gives the grid only.
+Looking up never writes: :func:`calibration_for` gives a raw's grid together with the white image it
+was fitted on (for devignetting), :func:`grid_for` gives the grid only; a grid that is not cached
+yet is fitted in memory and a log line suggests caching it.  Writing is explicit:
+:func:`build_database` indexes white images, :func:`cache_grids` fits the grids the index lacks and
+stores them (``plenodecode calibrate --database DIR [FOLDER...]`` does both).
 
 ``index.json``::
 
@@ -18,18 +22,25 @@ devignetting); :func:`grid_for` gives the grid only.
 Selection follows LFToolbox's ``LFSelectFromDatabase``: the same serial first, then the smallest
 ``|zoom_step - zoom|``, then among those the smallest ``|focus_step - focus|``.  The white images
 themselves are not copied; paths are stored relative to the database folder so a committed
-database works from any checkout.  Files are written to a temporary name and renamed.
+database works from any checkout.  Files are written to a temporary name and renamed; every
+read-modify-write of ``index.json`` holds an exclusive ``flock`` on ``.index.json.lock`` (POSIX),
+so concurrent batch workers or commands cannot lose each other's entries.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any, Callable, Iterable, Iterator, Mapping
 
-from typing import Any, Callable, Mapping
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - Windows: no advisory locks, one writer at a time is the user's job
+    fcntl = None  # type: ignore[assignment]
 
 from ..errors import CalibrationError, FormatError
 from ..io.atomic import write_text_atomic
@@ -42,6 +53,8 @@ Progress = Callable[[int, int], None] | None
 #: Default database folder (relative to the working directory).
 DEFAULT_DB = "calib"
 INDEX_NAME = "index.json"
+#: Lock file beside the index; writers hold an exclusive ``flock`` on it while they read, merge and write.
+LOCK_NAME = ".index.json.lock"
 INDEX_FORMAT = "plenodecode.calibration-db"
 INDEX_VERSION = 1
 
@@ -84,10 +97,6 @@ class WhiteEntry:
 
 
 # -- files ------------------------------------------------------------------------------------
-def _atomic_write_text(path: Path, text: str, *, overwrite: bool = True) -> None:
-    write_text_atomic(path, text, overwrite=overwrite)
-
-
 def _rel(path: Path, db: Path) -> str:
     try:
         return os.path.relpath(path.resolve(), db.resolve())
@@ -121,12 +130,77 @@ def load_index(db_dir: str | os.PathLike = DEFAULT_DB) -> list[WhiteEntry]:
     return [WhiteEntry.from_dict(e) for e in doc.get("entries", [])]
 
 
-def save_index(db_dir: str | os.PathLike, entries: list[WhiteEntry]) -> Path:
-    """Write ``index.json`` atomically; returns its path."""
-    p = Path(db_dir) / INDEX_NAME
+@contextlib.contextmanager
+def index_lock(db_dir: str | os.PathLike) -> Iterator[Path]:
+    """Hold the database's writer lock (exclusive ``flock`` on ``<db>/.index.json.lock``) in a block.
+
+    The folder is created.  The lock is per open file, so a block must not be nested in the same
+    process; it is released when the block ends or the process dies (a killed writer never leaves
+    the database locked).
+
+    Yields
+    ------
+    Path
+        The database folder.
+    """
+    db = Path(db_dir)
+    db.mkdir(parents=True, exist_ok=True)
+    fd = os.open(db / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        if fcntl is not None:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        yield db
+    finally:
+        os.close(fd)  # closing the file releases the lock
+
+
+def _write_index(db: Path, entries: Iterable[WhiteEntry]) -> Path:
+    """Write ``index.json`` atomically (temporary name + rename); the caller holds :func:`index_lock`."""
+    p = db / INDEX_NAME
     doc = {"format": INDEX_FORMAT, "version": INDEX_VERSION, "entries": [e.to_dict() for e in entries]}
-    _atomic_write_text(p, json.dumps(doc, indent=1))
+    write_text_atomic(p, json.dumps(doc, indent=1), overwrite=True)
     return p
+
+
+def _sorted(entries: Iterable[WhiteEntry]) -> list[WhiteEntry]:
+    return sorted(entries, key=lambda e: (str(e.serial), e.zoom_step or 0, e.focus_step or 0, e.file))
+
+
+def save_index(db_dir: str | os.PathLike, entries: list[WhiteEntry]) -> Path:
+    """Replace the whole ``index.json`` by ``entries``, atomically and under :func:`index_lock`; returns its path."""
+    with index_lock(db_dir) as db:
+        return _write_index(db, entries)
+
+
+def update_index(db_dir: str | os.PathLike, entries: Iterable[WhiteEntry]) -> list[WhiteEntry]:
+    """Merge entries into ``index.json``: an entry replaces the one of the same ``file``, others are kept.
+
+    Read, merge and write happen under :func:`index_lock`, so concurrent writers (batch workers,
+    two ``calibrate --database`` commands) each see the other's entries; the file is replaced
+    atomically, so readers never see a half-written index.
+
+    Parameters
+    ----------
+    db_dir : path
+        Database folder (created, with an empty index, if new).
+    entries : iterable of WhiteEntry
+
+    Returns
+    -------
+    list of WhiteEntry
+        The whole index after the merge, sorted by serial, zoom step, focus step, file.
+
+    Raises
+    ------
+    CalibrationError
+        The folder holds an index that is not a readable plenodecode calibration index.
+    """
+    with index_lock(db_dir) as db:
+        merged = {e.file: e for e in (load_index(db) if (db / INDEX_NAME).is_file() else [])}
+        merged.update((e.file, e) for e in entries)
+        out = _sorted(merged.values())
+        _write_index(db, out)
+    return out
 
 
 #: image mosaics whose JSON sidecar marks them as white images are indexed too (microscopes, generic cameras)
@@ -157,10 +231,10 @@ def _grid_relpath(entry: WhiteEntry) -> str:
     return f"{serial}/{Path(entry.file).stem}.grid.json"
 
 
-# -- build / select -----------------------------------------------------------------------------
+# -- build / cache (the explicit writing steps) ----------------------------------------------------
 def build_database(folder: str | os.PathLike, db_dir: str | os.PathLike = DEFAULT_DB, *, fit: bool = True,
                    overwrite: bool = False, progress: Progress = None, **calibrate_kw: Any) -> list[WhiteEntry]:
-    """Index the white images (``MOD_NNNN.RAW`` + ``.TXT``) under a folder and fit each once.
+    """Index the white images (``MOD_NNNN.RAW`` + ``.TXT``) under a folder and, with ``fit``, cache their grids.
 
     Parameters
     ----------
@@ -168,18 +242,16 @@ def build_database(folder: str | os.PathLike, db_dir: str | os.PathLike = DEFAUL
         Searched recursively for ``MOD_*.RAW`` files with a metadata sidecar.
     db_dir : path
         Database folder (created); its ``index.json`` is merged with the new entries (same file ->
-        replaced).
+        replaced) under the writer lock (:func:`update_index`).
     fit : bool
-        Fit and cache every grid now (otherwise on first use by :func:`grid_for`).
-    overwrite : bool
-        Refit grids that are already cached.
-    progress : callable(done, total), optional
-    **calibrate_kw
-        Passed to :func:`plenodecode.calib.calibrate`.
+        Fit and cache the grids of these white images now (:func:`cache_grids`); otherwise a lookup
+        fits them in memory each time until :func:`cache_grids` is run.
+    overwrite, progress, **calibrate_kw
+        As :func:`cache_grids` (``overwrite`` also drops the cached grid names of these files from the index).
 
     Returns
     -------
-    list of WhiteEntry
+    list of WhiteEntry, the whole index afterwards
 
     Raises
     ------
@@ -201,9 +273,8 @@ def build_database(folder: str | os.PathLike, db_dir: str | os.PathLike = DEFAUL
         existing = {e.file: e for e in load_index(db)}
     except CalibrationError:
         existing = {}
-    entries: dict[str, WhiteEntry] = dict(existing)
-    total = len(paths)
-    for k, p in enumerate(paths):
+    found: list[WhiteEntry] = []
+    for p in paths:
         try:
             if p.suffix.lower() in MOSAIC_SUFFIXES:
                 white = read_generic(p)
@@ -216,30 +287,72 @@ def build_database(folder: str | os.PathLike, db_dir: str | os.PathLike = DEFAUL
             continue
         rel = _rel(p, db)
         old = existing.get(rel)
-        entry = WhiteEntry(file=rel, serial=cam.serial, model=cam.model, zoom_step=cam.zoom_step,
-                           focus_step=cam.focus_step, exposure_s=cam.exposure_s, shape=(int(h), int(w)),
-                           grid=old.grid if old is not None and not overwrite else None)
-        if fit and (entry.grid is None or not (db / entry.grid).is_file()):
-            entry = _fit_entry(entry, db, **calibrate_kw)
-        entries[rel] = entry
-        if progress is not None:
-            progress(k + 1, total)
-    out = sorted(entries.values(), key=lambda e: (str(e.serial), e.zoom_step or 0, e.focus_step or 0, e.file))
-    save_index(db, out)
+        found.append(WhiteEntry(file=rel, serial=cam.serial, model=cam.model, zoom_step=cam.zoom_step,
+                                focus_step=cam.focus_step, exposure_s=cam.exposure_s, shape=(int(h), int(w)),
+                                grid=old.grid if old is not None and not overwrite else None))
+    out = update_index(db, found)
+    if fit:
+        out = cache_grids(db, files=[e.file for e in found], overwrite=overwrite, progress=progress, **calibrate_kw)
     log.info("calibration database %s: %d white images of %d camera(s)", db, len(out),
              len({e.serial for e in out}))
     return out
 
 
-def _fit_entry(entry: WhiteEntry, db: Path, **calibrate_kw: Any) -> WhiteEntry:
+def cache_grids(db_dir: str | os.PathLike = DEFAULT_DB, *, files: Iterable[str] | None = None,
+                overwrite: bool = False, progress: Progress = None, **calibrate_kw: Any) -> list[WhiteEntry]:
+    """Fit the grids the index lacks and store them in the database: the one step that writes grids.
+
+    Each grid goes to ``<db>/<serial>/<stem>.grid.json`` (atomic write) and its entry's ``grid``
+    field is set in ``index.json`` through :func:`update_index` (locked read-merge-write), so
+    several processes may cache grids of one database at once.
+
+    Parameters
+    ----------
+    db_dir : path
+        Database folder with an ``index.json``.
+    files : iterable of str, optional
+        Only these entries (their ``file`` field); default all.
+    overwrite : bool
+        Refit grids that are already cached.
+    progress : callable(done, total), optional
+        Called after each white image considered.
+    **calibrate_kw
+        Passed to :func:`plenodecode.calib.calibrate`.
+
+    Returns
+    -------
+    list of WhiteEntry
+        The whole index afterwards.
+
+    Raises
+    ------
+    CalibrationError
+        No index, or a white image cannot be calibrated.
+    """
+    db = Path(db_dir)
+    wanted = None if files is None else set(files)
+    todo = [e for e in load_index(db) if wanted is None or e.file in wanted]
+    fitted: list[WhiteEntry] = []
+    for k, entry in enumerate(todo):
+        if overwrite or entry.grid is None or not (db / entry.grid).is_file():
+            rel = _grid_relpath(entry)
+            write_text_atomic(db / rel, _fit_grid(entry, db, **calibrate_kw).to_json(), overwrite=True)
+            fitted.append(replace(entry, grid=rel))
+        if progress is not None:
+            progress(k + 1, len(todo))
+    out = update_index(db, fitted) if fitted else load_index(db)
+    log.info("calibration database %s: %d grid(s) fitted and cached", db, len(fitted))
+    return out
+
+
+def _fit_grid(entry: WhiteEntry, db: Path, **calibrate_kw: Any) -> LensletGrid:
+    """Fit the grid of an entry's white image (in memory); ``info`` names the white and the database."""
     from . import calibrate
-    grid = calibrate(_white_path(entry, db), **calibrate_kw)
-    rel = _grid_relpath(entry)
-    info = {**grid.info, "source": entry.file, "database": str(db)}
-    _atomic_write_text(db / rel, grid.replace(info=info).to_json())
-    return WhiteEntry(**{**entry.__dict__, "grid": rel})
+    grid = calibrate(_existing_white(entry, db), **calibrate_kw)
+    return grid.replace(info={**grid.info, "source": entry.file, "database": str(db)})
 
 
+# -- look up (never writes) ------------------------------------------------------------------------
 def select_white(db_dir: str | os.PathLike, metadata: CameraMetadata | RawCapture) -> WhiteEntry:
     """The database entry for a raw: same serial, then nearest zoom step, then nearest focus step.
 
@@ -289,18 +402,32 @@ def _white_path(entry: WhiteEntry, db: Path) -> Path:
     return Path(entry.file) if os.path.isabs(entry.file) else Path(os.path.normpath(db / entry.file))
 
 
-def _cached_grid(raw: RawCapture, db: Path, **calibrate_kw: Any) -> tuple[WhiteEntry, LensletGrid]:
-    """The entry :func:`select_white` picks for ``raw`` and its grid (fitted and cached on first use)."""
+def _existing_white(entry: WhiteEntry, db: Path) -> Path:
+    """:func:`_white_path`, or a CalibrationError naming the entry when the file is gone."""
+    path = _white_path(entry, db)
+    if not path.is_file():
+        raise CalibrationError(f"{path}: the white image of database entry {entry.file} is missing; restore it or "
+                               f"rebuild the database {db}")
+    return path
+
+
+def _lookup_grid(raw: RawCapture, db: Path, **calibrate_kw: Any) -> tuple[WhiteEntry, LensletGrid]:
+    """The entry :func:`select_white` picks for ``raw`` and its grid: read from the cache, else fitted in memory.
+
+    Writes nothing; a missing cached grid costs a fit per call and is logged with the command that
+    caches it.
+    """
     entry = select_white(db, raw)
-    if entry.grid is None or not (db / entry.grid).is_file():
-        entries = load_index(db)
-        entry = _fit_entry(entry, db, **calibrate_kw)
-        save_index(db, [entry if e.file == entry.file else e for e in entries])
-    try:
-        grid = LensletGrid.from_json((db / entry.grid).read_text(encoding="utf-8"))  # type: ignore[operator]
-    except OSError as exc:
-        raise CalibrationError(f"{db / str(entry.grid)}: cannot read the cached grid ({exc}); rebuild the "
-                               "database") from exc
+    if entry.grid is not None and (db / entry.grid).is_file():
+        try:
+            grid = LensletGrid.from_json((db / entry.grid).read_text(encoding="utf-8"))
+        except OSError as exc:
+            raise CalibrationError(f"{db / str(entry.grid)}: cannot read the cached grid ({exc}); rebuild the "
+                                   "database") from exc
+    else:
+        log.warning("grid of %s is not cached in %s: fitting it in memory (cache it once with "
+                    "'plenodecode calibrate --database %s')", entry.file, db, db)
+        grid = _fit_grid(entry, db, **calibrate_kw)
     if tuple(grid.sensor_shape) != tuple(raw.shape):
         raise CalibrationError(f"the white image {entry.file} is {grid.sensor_shape[1]}x{grid.sensor_shape[0]} "
                                f"but the raw is {raw.shape[1]}x{raw.shape[0]}; the database entry belongs to "
@@ -310,7 +437,7 @@ def _cached_grid(raw: RawCapture, db: Path, **calibrate_kw: Any) -> tuple[WhiteE
 
 
 def grid_for(raw: RawCapture, db_dir: str | os.PathLike = DEFAULT_DB, **calibrate_kw: Any) -> LensletGrid:
-    """The lenslet grid for a raw from the database: nearest white image, fitted once, then cached.
+    """The lenslet grid for a raw from the database: nearest white image, its cached grid (read only).
 
     Parameters
     ----------
@@ -318,7 +445,8 @@ def grid_for(raw: RawCapture, db_dir: str | os.PathLike = DEFAULT_DB, **calibrat
     db_dir : path
         Database folder (default ``calib``).
     **calibrate_kw
-        Passed to :func:`plenodecode.calib.calibrate` when the grid is not cached yet.
+        Passed to :func:`plenodecode.calib.calibrate` when the grid is not cached (it is then fitted in
+        memory and not stored: :func:`cache_grids` stores it).
 
     Returns
     -------
@@ -329,7 +457,7 @@ def grid_for(raw: RawCapture, db_dir: str | os.PathLike = DEFAULT_DB, **calibrat
     CalibrationError
         No matching camera (see :func:`select_white`), or a cached grid for another sensor size.
     """
-    return _cached_grid(raw, Path(db_dir), **calibrate_kw)[1]
+    return _lookup_grid(raw, Path(db_dir), **calibrate_kw)[1]
 
 
 def calibration_for(raw: RawCapture, db_dir: str | os.PathLike = DEFAULT_DB,
@@ -345,7 +473,8 @@ def calibration_for(raw: RawCapture, db_dir: str | os.PathLike = DEFAULT_DB,
     db_dir : path
         Database folder (default ``calib``).
     **calibrate_kw
-        Passed to :func:`plenodecode.calib.calibrate` when the grid is not cached yet.
+        Passed to :func:`plenodecode.calib.calibrate` when the grid is not cached (it is then fitted in
+        memory and not stored: :func:`cache_grids` stores it).
 
     Returns
     -------
@@ -364,17 +493,13 @@ def calibration_for(raw: RawCapture, db_dir: str | os.PathLike = DEFAULT_DB,
     from ..io import read_raw
 
     db = Path(db_dir)
-    entry, grid = _cached_grid(raw, db, **calibrate_kw)
-    path = _white_path(entry, db)
-    if not path.is_file():
-        raise CalibrationError(f"{path}: the white image of database entry {entry.file} is missing; restore it or "
-                               f"rebuild the database {db}")
-    white = read_raw(path)
+    entry, grid = _lookup_grid(raw, db, **calibrate_kw)
+    white = read_raw(_existing_white(entry, db))
     if white.shape != raw.shape:
         raise CalibrationError(f"the white image {entry.file} is {white.shape[1]}x{white.shape[0]} but the raw is "
                                f"{raw.shape[1]}x{raw.shape[0]}; rebuild the database {db}")
     return grid, white
 
 
-__all__ = ["DEFAULT_DB", "WhiteEntry", "build_database", "select_white", "grid_for", "calibration_for", "load_index",
-           "save_index"]
+__all__ = ["DEFAULT_DB", "WhiteEntry", "build_database", "cache_grids", "select_white", "grid_for", "calibration_for",
+           "load_index", "save_index", "update_index", "index_lock"]

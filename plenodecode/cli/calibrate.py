@@ -27,8 +27,9 @@ def _write_text(path: Path, text: str) -> None:
 @click.option("--pitch", "pitch_hint", type=float, default=None,
               help="Approximate lens pitch in px (a hint; default from metadata or the image).")
 @click.option("--database", type=click.Path(path_type=Path, file_okay=False), default=None,
-              help="Calibration database folder: with WHITE folders of MOD_NNNN.RAW/.TXT pairs it is built; "
-                   "with --for RAW the grid of the matching white image is written to -o.")
+              help="Calibration database folder: WHITE folders of MOD_NNNN.RAW/.TXT pairs are indexed into it and "
+                   "the grids it lacks are fitted and cached (no WHITE: only that); with --for RAW the grid of the "
+                   "matching white image is written to -o.")
 @click.option("--for", "for_raw", type=click.Path(exists=True, path_type=Path, dir_okay=False), default=None,
               help="With --database: pick the white image for this raw (same serial, nearest zoom/focus).")
 @click.option("--scene", is_flag=True, help="Self-calibrate from a scene raw or image (no white image).")
@@ -48,6 +49,7 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
       plenodecode calibrate MOD_0000.RAW -o grid.json --report grid.html
       plenodecode calibrate radiometry.png --lattice square -o grid.json
       plenodecode calibrate --database calib/ sample_raws/illum-mini/
+      plenodecode calibrate --database calib/            # fit and cache the grids the index lacks
       plenodecode calibrate --database calib/ --for scene.lfr -o grid.json
     """
     from ..calib import store
@@ -57,14 +59,18 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
     if report is not None:
         check_output(report, overwrite)
     if database is not None and for_raw is None:
-        if not inputs:
-            raise click.UsageError("--database needs the folder(s) of MOD_NNNN.RAW/.TXT white images to index")
-        entries = []
         for folder in inputs:
             if not folder.is_dir():
                 raise click.UsageError(f"{folder} is not a folder; --database indexes folders of white images")
+        if not inputs and not (database / store.INDEX_NAME).is_file():
+            raise click.UsageError("--database needs the folder(s) of MOD_NNNN.RAW/.TXT white images to index")
+        entries = []
+        for folder in inputs:  # index the folder's whites, fit and cache their grids (store.cache_grids)
             entries = store.build_database(folder, database, overwrite=overwrite, lattice=lattice,
                                            progress=progress_bar(f"fitting whites in {folder}", ctx))
+        if not inputs:  # the database alone: fit and cache the grids its index lacks
+            entries = store.cache_grids(database, overwrite=overwrite, lattice=lattice,
+                                        progress=progress_bar(f"fitting the white images of {database}", ctx))
         serials = sorted({str(e.serial) for e in entries})
         click.echo(f"{database}: {len(entries)} white image(s) of camera(s) {', '.join(serials)}")
         return

@@ -19,8 +19,8 @@ import cv2
 import numpy as np
 from numba import njit
 
-from .cost import half_plane_cost_volume, worker_threads
 from ..imaging import luma
+from .cost import half_plane_cost_volume, worker_threads
 from .views import Views
 
 log = logging.getLogger(__name__)
@@ -474,10 +474,15 @@ def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, 
     if median_radius > 0:
         _, _, band = _edge_band(d, radius, jump)
         g = guide if guide.ndim == 2 or guide.shape[-1] in (1, 3) else guide[..., :3]
-        # with a colour guide OpenCV clusters the colours from random seeds (the thread's cv::RNG): seed it so
-        # the same input gives the same map
-        cv2.setRNGSeed(0)
-        wm = cv2.ximgproc.weightedMedianFilter(np.ascontiguousarray(g), d, int(median_radius), 25.5)
+        # with a colour guide OpenCV clusters the colours by k-means++ from the calling thread's cv::RNG, which is
+        # thread-local: seed the RNG of a short-lived thread of its own, so the same input gives the same map and
+        # no other RNG of the process is seeded (the thread, and its RNG, end with the call)
+        def seeded_weighted_median(guide: np.ndarray, values: np.ndarray) -> np.ndarray:
+            cv2.setRNGSeed(0)
+            return cv2.ximgproc.weightedMedianFilter(guide, values, int(median_radius), 25.5)
+
+        with ThreadPoolExecutor(max_workers=1) as own_thread:
+            wm = own_thread.submit(seeded_weighted_median, np.ascontiguousarray(g), d).result()
         d = np.where(band, wm, d).astype(np.float32)
     if intensities is not None and visibility:
         d = visibility_relabel(intensities, d, radius=radius, jump=jump, ratio=ratio)

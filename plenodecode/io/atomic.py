@@ -5,11 +5,21 @@ replaced without ``overwrite=True``.  This module is the one implementation of i
 
 Names
 -----
-Temporary outputs are hidden siblings of the destination, ``.<name>.<12 hex>.tmp`` (plus
-``suffix`` when a writer picks its format from the extension, e.g. ``.<name>.<hex>.tmp.png`` for
-OpenImageIO).  A folder that is replaced is first moved into ``.<name>.<12 hex>.old`` and deleted
-after the rename.  :func:`is_temporary` recognises both, so a later run can remove what a killed
-one left behind.
+Temporary outputs are hidden siblings of the destination, ``.<name>.<owner>-<12 hex>.tmp`` (plus
+``suffix`` when a writer picks its format from the extension, e.g. ``.<name>.<owner>-<hex>.tmp.png``
+for OpenImageIO), where ``<owner>`` is ``<pid>-<host>``: the writing process's id and 8 hex digits
+of a hash of its host name.  A folder that is replaced is first moved into
+``.<name>.<owner>-<12 hex>.old`` and deleted after the rename.  :func:`is_temporary` recognises
+both (and the names without an owner that earlier versions wrote).
+
+Leftovers of killed runs
+------------------------
+A killed run cannot clean up, so the next one does: creating a temporary in a folder first removes
+the stale leftovers there (:func:`remove_stale_temporaries`): those whose owner is a process of this
+host that no longer runs, and those of other hosts (or without an owner) not modified for
+:data:`STALE_AFTER_S`.  A temporary of a live run, here or on another machine sharing the folder,
+is left alone.  A ``.old`` folder whose destination is missing (the run died between its two
+renames) is moved back into place instead of deleted.
 
 Permissions
 -----------
@@ -32,8 +42,11 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import hashlib
 import re
 import shutil
+import socket
+import time
 import uuid
 from pathlib import Path
 from typing import Iterable, Iterator, Sequence
@@ -46,7 +59,10 @@ OLD_MARK = ".old"
 _TOKEN_HEX = 12
 #: Longest part of the destination's name kept in a temporary name (NAME_MAX is 255 bytes).
 _NAME_KEEP = 160
-_LEFTOVER = re.compile(r"^\..*\.[0-9a-f]{%d}(?:\.tmp(?:\.[^.]*)?|\.old)$" % _TOKEN_HEX)
+#: A leftover of another host, or one without an owner, is stale when not modified for this long (seconds).
+STALE_AFTER_S = 24 * 3600.0
+_LEFTOVER = re.compile(r"^\.(?P<name>.+)\.(?:(?P<pid>[0-9]+)-(?P<host>[0-9a-f]{8})-)?[0-9a-f]{%d}"
+                       r"(?P<kind>\.tmp(?:\.[^.]*)?|\.old)$" % _TOKEN_HEX)
 
 
 def check_destination(path: str | os.PathLike, overwrite: bool) -> Path:
@@ -114,11 +130,19 @@ def temporary_sibling(path: str | os.PathLike, *, folder: bool = False, suffix: 
     return _reserve(Path(path), TEMP_MARK + (suffix or ""), folder)
 
 
+def _host_tag() -> str:
+    """8 hex digits naming this machine in temporary names (SHA-256 of the host name)."""
+    return hashlib.sha256(socket.gethostname().encode("utf-8", "replace")).hexdigest()[:8]
+
+
 def _reserve(p: Path, tail: str, folder: bool) -> Path:
     if "/" in tail or os.sep in tail:
         raise ValueError(f"suffix must be a file extension such as '.png', got {tail[len(TEMP_MARK):]!r}")
+    if tail.startswith(TEMP_MARK):  # a new write into this folder: first clear what killed runs left there
+        remove_stale_temporaries(p.parent)
+    owner = f"{os.getpid()}-{_host_tag()}"
     while True:
-        tmp = p.with_name(f".{p.name[:_NAME_KEEP]}.{uuid.uuid4().hex[:_TOKEN_HEX]}{tail}")
+        tmp = p.with_name(f".{p.name[:_NAME_KEEP]}.{owner}-{uuid.uuid4().hex[:_TOKEN_HEX]}{tail}")
         try:
             if folder:
                 os.mkdir(tmp, 0o777)
@@ -127,6 +151,70 @@ def _reserve(p: Path, tail: str, folder: bool) -> Path:
             return tmp
         except FileExistsError:  # pragma: no cover - 48 random bits
             continue
+
+
+def _pid_alive(pid: int) -> bool:
+    """True unless ``pid`` is certainly not a running process of this machine (signal 0 probes it)."""
+    if pid == os.getpid():
+        return True
+    if os.name == "nt":  # os.kill would terminate the process there: never treat a pid as dead
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # PermissionError: it runs, as another user
+        return True
+    return True
+
+
+def remove_stale_temporaries(folder: str | os.PathLike, *, max_age_s: float = STALE_AFTER_S) -> list[Path]:
+    """Remove the temporaries and replaced folders that killed runs left in ``folder``.
+
+    A leftover (a name :func:`is_temporary` recognises) is stale when its owner is a process of this
+    host that is no longer running, or, for leftovers of other hosts and ones without an owner,
+    when it was not modified for ``max_age_s`` seconds.  A stale ``.old`` folder whose destination
+    is missing is moved back into place (the run died between its two renames).  Errors are logged,
+    never raised: cleaning up must not stop a write.
+
+    Parameters
+    ----------
+    folder : path-like
+        The folder to clean (not recursive); a missing folder is fine.
+    max_age_s : float
+        Age limit for leftovers whose owner cannot be checked.
+
+    Returns
+    -------
+    list of Path
+        The leftovers removed (or moved back).
+    """
+    here, now, removed = _host_tag(), time.time(), []
+    try:
+        with os.scandir(folder) as entries:
+            candidates = [(e.path, m) for e in entries if (m := _LEFTOVER.match(e.name))]
+    except OSError:
+        return removed
+    for path, m in candidates:
+        try:
+            if m["pid"] is not None and m["host"] == here:
+                stale = not _pid_alive(int(m["pid"]))
+            else:
+                stale = now - os.lstat(path).st_mtime > max_age_s
+            if not stale:
+                continue
+            dest = Path(folder) / m["name"]
+            inside = Path(path) / m["name"]
+            whole_name = len(m["name"]) < _NAME_KEEP  # else the name was cut and the destination is unknown
+            if m["kind"] == OLD_MARK and whole_name and os.path.lexists(inside) and not os.path.lexists(dest):
+                os.replace(inside, dest)
+                log.warning("restored %s, which an interrupted run had moved aside", dest)
+            discard(path)
+            removed.append(Path(path))
+            log.info("removed %s, left behind by an interrupted run", path)
+        except OSError as exc:  # pragma: no cover - e.g. a read-only folder; the write itself goes on
+            log.debug("could not remove the leftover %s: %s", path, exc)
+    return removed
 
 
 def discard(path: str | os.PathLike) -> None:
@@ -302,4 +390,5 @@ def write_text_atomic(path: str | os.PathLike, text: str, *, overwrite: bool = F
 
 
 __all__ = ["check_destination", "refuse_existing", "atomic_output", "atomic_outputs", "write_bytes_atomic", "write_text_atomic",
-           "temporary_sibling", "commit", "discard", "is_temporary", "TEMP_MARK", "OLD_MARK"]
+           "temporary_sibling", "commit", "discard", "is_temporary", "remove_stale_temporaries", "TEMP_MARK",
+           "OLD_MARK", "STALE_AFTER_S"]

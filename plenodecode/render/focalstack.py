@@ -50,7 +50,7 @@ def focal_stack(lf: LightField, slopes: np.ndarray | list[float], *, method: str
         Spatial samples per view step.
     method : str
         A key of :data:`plenodecode.render.REFOCUS_METHODS`.  'shift-sum' computes every slice in one pass
-        over the light field; 'fourier-slice' reuses one cached 4D transform.
+        over the light field; 'fourier-slice' computes one 4D transform (or reuses ``refocuser=``).
     aperture, upsample, **kw
         As :func:`plenodecode.render.refocus`.
     progress : callable(done, total), optional

@@ -25,7 +25,6 @@ import logging
 import math
 import os
 import time
-import weakref
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Callable
 
@@ -199,6 +198,8 @@ class FourierRefocuser:
     ----------
     spectrum : ndarray, shape (Pv, Pu, Yp, Xp // 2 + 1, C') complex64
         The 4D spectrum (angular frequency bins first).
+    aperture : ndarray, shape (V, U)
+        The view weights of the synthetic aperture it was built with (:func:`aperture_mask`).
     transform_seconds : float
         Time the transform took.
     timings : dict
@@ -228,6 +229,7 @@ class FourierRefocuser:
         self.shape = lf.shape
         self.max_slope = pad / reach if reach else math.inf
         mask = aperture_mask((nv, nu), aperture)
+        self.aperture = mask
         self.has_weight = lf.weight is not None
         self.n_views = float(mask.sum())
         blend = max(8, self.pad // 2)                        # width of the periodic blend (see _smooth_pad)
@@ -345,59 +347,51 @@ class FourierRefocuser:
         return np.ascontiguousarray(out, np.float32)
 
 
-# One cached transform (the most recent), dropped when its light field is garbage-collected.
-_CACHE: dict[tuple, FourierRefocuser] = {}
-
-
-def _aperture_key(aperture: Any) -> Any:
-    if isinstance(aperture, np.ndarray):
-        return ("mask", aperture.shape, aperture.tobytes())
-    return ("radius", float(aperture))
-
-
-def cached_refocuser(lf: LightField, *, aperture: float | np.ndarray = 1.0, max_slope: float | None = None,
-                     progress: Callable[[int, int], None] | None = None, **kw: Any) -> FourierRefocuser:
-    """The :class:`FourierRefocuser` of ``lf`` for these options, built once and reused.
-
-    One transform is kept (the most recent); it is released when ``lf`` is garbage-collected.  A cached
-    transform whose padding covers ``max_slope`` is reused.
-    """
-    key_opts = (_aperture_key(aperture), tuple(sorted(kw.items())))
-    key = (id(lf), key_opts)
-    hit = _CACHE.get(key)
-    if hit is not None and (max_slope is None or hit.max_slope >= max_slope):
-        return hit
-    _CACHE.clear()
-    ref = FourierRefocuser(lf, aperture=aperture, max_slope=2.0 if max_slope is None else max_slope,
-                           progress=progress, **kw)
-    _CACHE[key] = ref
-    weakref.finalize(lf, _CACHE.pop, key, None)
-    return ref
-
-
-def clear_cache() -> None:
-    """Release the cached transform of :func:`cached_refocuser` (it is also released with its light field)."""
-    _CACHE.clear()
+def _check_refocuser(ref: FourierRefocuser, lf: LightField, aperture: float | np.ndarray, largest: float,
+                     kw: dict[str, Any]) -> None:
+    """ValueError naming ``refocuser`` unless ``ref`` transforms ``lf``'s shape and aperture and covers the slopes."""
+    if tuple(ref.shape) != tuple(lf.shape):
+        raise ValueError(f"refocuser was built for a light field of shape {tuple(ref.shape)}, got {tuple(lf.shape)}; "
+                         "build one with FourierRefocuser(lf)")
+    if not np.array_equal(ref.aperture, aperture_mask(lf.shape[:2], aperture)):
+        raise ValueError("refocuser was built with another aperture; pass the aperture it was built with")
+    if largest > ref.max_slope:
+        raise ValueError(f"refocuser covers |slope| <= {ref.max_slope:.3g} without wrap-around, got {largest:.3g}; "
+                         f"build it with FourierRefocuser(lf, max_slope={largest:.3g})")
+    if kw:
+        raise ValueError(f"{', '.join(sorted(kw))} cannot change a built refocuser; pass them to FourierRefocuser")
 
 
 def fourier_slice(lf: LightField, slopes: float | np.ndarray, *, aperture: float | np.ndarray = 1.0,
                   upsample: int = 1, progress: Callable[[int, int], None] | None = None,
-                  **kw: Any) -> np.ndarray:
+                  refocuser: FourierRefocuser | None = None, **kw: Any) -> np.ndarray:
     """Photographs at ``slopes`` by Fourier slice photography; (S, k Y, k X, C) float32.
 
-    ``progress`` is called per view while a transform is computed, then per photograph.  The 4D transform is
-    cached (see :func:`cached_refocuser`) with padding for the largest ``|slope|`` asked
-    (at least 2).  ``kw`` goes to :class:`FourierRefocuser` (``oversample``, ``kernel_width``, ``pad``).
+    ``progress`` is called per view while a transform is computed, then per photograph.  Without
+    ``refocuser`` the 4D transform is computed for this call, with padding for the largest ``|slope|``
+    asked (at least 2), and dropped afterwards; ``kw`` goes to :class:`FourierRefocuser` (``oversample``,
+    ``kernel_width``, ``pad``).  To reuse one transform over several calls, build it once and pass it:
+    ``ref = FourierRefocuser(lf, max_slope=3)`` then ``refocus(lf, slope=s, method='fourier-slice',
+    refocuser=ref)``; its options then apply (``kw`` must be empty, ``aperture`` must match).
+
+    Raises
+    ------
+    ValueError
+        A slope is not finite; ``refocuser`` was built for another light-field shape or aperture, does
+        not cover the slopes, or comes with transform options.
     """
     check_lightfield(lf)
     s = np.atleast_1d(np.asarray(slopes, np.float64)).ravel()
     if not np.all(np.isfinite(s)):
         raise ValueError(f"slopes must be finite, got {slopes}")
-    need = max(2.0, float(np.max(np.abs(s)))) if s.size else 2.0
-    ref = cached_refocuser(lf, aperture=aperture, max_slope=need, progress=progress, **kw)
+    largest = float(np.max(np.abs(s))) if s.size else 0.0
+    if refocuser is None:
+        refocuser = FourierRefocuser(lf, aperture=aperture, max_slope=max(2.0, largest), progress=progress, **kw)
+    else:
+        _check_refocuser(refocuser, lf, aperture, largest, kw)
     out = None
     for i, si in enumerate(s):
-        img = ref.photograph(si, upsample=upsample)
+        img = refocuser.photograph(si, upsample=upsample)
         if out is None:
             out = np.empty((len(s), *img.shape), np.float32)
         out[i] = img
@@ -406,5 +400,5 @@ def fourier_slice(lf: LightField, slopes: float | np.ndarray, *, aperture: float
     return out
 
 
-__all__ = ["FourierRefocuser", "fourier_slice", "cached_refocuser", "clear_cache", "kaiser_bessel",
+__all__ = ["FourierRefocuser", "fourier_slice", "kaiser_bessel",
            "kaiser_bessel_beta", "rolloff"]

@@ -56,16 +56,16 @@ def refocus(lf: LightField, *, slope: float | None = None, alpha: float | None =
         override them).  Exactly one of ``slope`` and ``alpha``.
     method : str
         A key of :data:`REFOCUS_METHODS`: 'shift-sum' (direct, bicubic by default) or 'fourier-slice' (Ng 2005;
-        the first call computes and caches a 4D transform, several seconds for a full-size light field, after
-        which each photograph is cheap: worth it for many photographs of one light field).
+        a 4D transform, several seconds for a full-size light field, after which each photograph is cheap:
+        build it once, ``ref = FourierRefocuser(lf)``, and pass ``refocuser=ref`` to every call).
     aperture : float or ndarray (V, U)
         Synthetic aperture: a radius in (0, 1] (1 = all views) or a mask over the views (:func:`aperture_mask`).
     upsample : int
         Spatial upsampling factor.
     progress : callable(done, total), optional
     **kw
-        Refocus constants, then method options (shift-sum: ``interp``; fourier-slice: ``oversample``,
-        ``kernel_width``, ``pad``).
+        Refocus constants, then method options (shift-sum: ``interp``; fourier-slice: ``refocuser`` or
+        ``oversample``, ``kernel_width``, ``pad``).
 
     Returns
     -------

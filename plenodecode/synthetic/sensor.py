@@ -11,7 +11,6 @@ Then Poisson-Gaussian noise (full well, read noise), hot pixels, rounding and cl
 
 from __future__ import annotations
 
-import functools
 import math
 from typing import Callable
 
@@ -131,7 +130,6 @@ def _vignette_k(p: Preset) -> float:
     return (1.0 / math.sqrt(p.vignette_corner) - 1.0) / (((nh - 1) / 2.0) ** 2 + ((nw - 1) / 2.0) ** 2)
 
 
-@functools.lru_cache(maxsize=1)
 def _empty_textures():
     """A tiny placeholder scene: the kernel's texture arguments when rendering a white image."""
     return build_textures(Scene((Plane(0.0, colour=(1.0, 1.0, 1.0)),)), 2, 2, mono=True, cam_matrix=np.eye(3))

@@ -25,6 +25,11 @@ def _white(serial: str, zoom: float, focus: float, seed: int = 0, offset=(0.3, 0
     return replace(raw, metadata=md), truth
 
 
+def _snapshot(folder: Path) -> dict[str, bytes]:
+    """Every file under a folder (relative name -> bytes), to show that a lookup wrote nothing."""
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
 @pytest.fixture
 def whites(tmp_path):
     """Three white images of camera A (zooms 100/500, focus 10/300) and one of camera B, as MOD pairs."""
@@ -78,12 +83,17 @@ def test_build_select_and_cache(whites, tmp_path, calls):
     with pytest.raises(CalibrationError, match="several cameras"):
         store.select_white(db, md(None, 100, 10))
 
-    # grid_for fits on first use and then reads the cache
+    # a lookup never writes: without a cached grid it fits in memory; cache_grids is the step that stores it,
+    # after which lookups read the cache
     raw = RawCapture(np.zeros(SHAPE, np.uint16), "BGGR", 168.0, 4095.0,
                      md("A000000001", 500, 290))
+    before = _snapshot(db)
     g1 = store.grid_for(raw, db)
+    assert len(calls) == 1 and _snapshot(db) == before
+    store.cache_grids(db, files=[e.file for e in store.load_index(db) if e.file.endswith("MOD_0002.RAW")])
+    assert len(calls) == 2
     g2 = store.grid_for(raw, db)
-    assert len(calls) == 1
+    assert len(calls) == 2
     truth = truths["MOD_0002.RAW"]
     np.testing.assert_allclose(g1.centres(), g2.centres())
     from scipy.spatial import cKDTree
@@ -123,8 +133,9 @@ def test_calibration_for_returns_the_grid_and_its_white(whites, tmp_path, calls)
     store.build_database(src, db, fit=False)
     raw = RawCapture(np.zeros(SHAPE, np.uint16), "BGGR", 168.0, 4095.0,
                      CameraMetadata(serial="A000000001", zoom_step=480, focus_step=0))
+    before = _snapshot(db)
     grid, white = store.calibration_for(raw, db)
-    assert len(calls) == 1                                       # fitted on first use ...
+    assert len(calls) == 1 and _snapshot(db) == before           # fitted in memory, nothing written ...
     assert grid.info["source"].endswith("MOD_0001.RAW")
     # ... the white is the very file the grid was fitted on (zoom 500, focus 10), read back bit-exactly
     from plenodecode.io import read_raw
@@ -132,10 +143,12 @@ def test_calibration_for_returns_the_grid_and_its_white(whites, tmp_path, calls)
     assert isinstance(white, RawCapture) and white.path.endswith("MOD_0001.RAW")
     np.testing.assert_array_equal(white.mosaic, expected.mosaic)
     assert white.metadata.zoom_step == 500 and white.metadata.focus_step == 10
-    # grid_for shares the cache (no second fit) and gives the same grid
+    # once cached (the explicit step), grid_for and calibration_for read it (no further fit): the same grid
+    store.cache_grids(db, files=[e.file for e in store.load_index(db) if e.file.endswith("MOD_0001.RAW")])
+    assert len(calls) == 2
     g2 = store.grid_for(raw, db)
     g3, _ = store.calibration_for(raw, db)
-    assert len(calls) == 1
+    assert len(calls) == 2
     np.testing.assert_allclose(g2.centres(), grid.centres())
     np.testing.assert_allclose(g3.centres(), grid.centres())
     from scipy.spatial import cKDTree
@@ -171,3 +184,72 @@ def test_database_indexes_white_mosaics_marked_in_their_sidecar(tmp_path):
     assert [Path(e.file).name for e in entries] == ["flat.png"]
     grid, w = calibration_for(white, tmp_path / "db")
     assert w.shape == white.shape and abs(grid.pitch - truth.pitch) < 1e-3
+
+
+_WORKER = """
+import sys, time
+from pathlib import Path
+from plenodecode.calib import store
+src, db, go = Path(sys.argv[1]), Path(sys.argv[2]), Path(sys.argv[3])
+deadline = time.monotonic() + 60
+while not go.exists() and time.monotonic() < deadline:   # start together, to make the writers overlap
+    time.sleep(0.005)
+for folder in sorted(src.iterdir()):
+    store.build_database(folder, db, fit=False)
+"""
+
+
+def test_concurrent_writers_keep_every_entry(tmp_path):
+    """Several processes indexing into one database at once: index.json stays valid and loses no entry
+    (every read-merge-write holds the lock; each write is atomic)."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    raw, _ = simulate_white("f01-mini", seed=0, shape=(60, 80))
+    pair = tmp_path / "pair" / "MOD_0000.RAW"
+    write_raw_pair(pair, raw)
+    n_workers, n_folders = 4, 8
+    for w in range(n_workers):
+        for f in range(n_folders):
+            folder = tmp_path / f"w{w}" / f"f{f:02d}"
+            folder.mkdir(parents=True)
+            for p in pair.parent.iterdir():
+                shutil.copy(p, folder / p.name)
+    db, go = tmp_path / "db", tmp_path / "go"
+    root = str(Path(__file__).resolve().parents[2])
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
+    procs = [subprocess.Popen([sys.executable, "-c", _WORKER, str(tmp_path / f"w{w}"), str(db), str(go)], env=env,
+                              stderr=subprocess.PIPE, text=True) for w in range(n_workers)]
+    go.touch()
+    errors = [p.communicate(timeout=300)[1] for p in procs]
+    assert [p.returncode for p in procs] == [0] * n_workers, errors
+    entries = store.load_index(db)                               # valid JSON of the right format
+    expected = {os.path.relpath(tmp_path / f"w{w}" / f"f{f:02d}" / "MOD_0000.RAW", db)
+                for w in range(n_workers) for f in range(n_folders)}
+    assert {e.file for e in entries} == expected                 # complete: no writer lost another's entries
+    assert sorted(p.name for p in db.iterdir()) == [".index.json.lock", "index.json"]   # no temporaries left
+
+
+def test_cache_grids_is_the_step_that_writes(whites, tmp_path, calls):
+    """cache_grids fits only what the index lacks (overwrite refits); the CLI's --database DIR runs it."""
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+
+    src, _ = whites
+    db = tmp_path / "calib"
+    store.build_database(src / "B", db, fit=False)
+    assert [e.grid for e in store.load_index(db)] == [None]
+    entries = store.cache_grids(db)
+    assert len(calls) == 1 and entries[0].grid is not None and (db / entries[0].grid).is_file()
+    assert store.cache_grids(db) == entries and len(calls) == 1             # nothing left to fit
+    store.cache_grids(db, overwrite=True)
+    assert len(calls) == 2
+    store.build_database(src / "A", db, fit=False)                          # three more, not fitted yet
+    r = CliRunner().invoke(cli, ["calibrate", "--database", str(db)], obj={})
+    assert r.exit_code == 0, r.output
+    assert len(calls) == 5 and all(e.grid for e in store.load_index(db))
+    r = CliRunner().invoke(cli, ["calibrate", "--database", str(tmp_path / "none")], obj={})
+    assert r.exit_code == 2 and "needs the folder" in r.output

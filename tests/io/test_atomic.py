@@ -226,3 +226,66 @@ def test_is_temporary_names():
     assert is_temporary(".lf.zarr.0123456789ab.old")
     for name in ("summary.json", ".hidden", "x.tmp", ".a.0123456789ab.partial", ".a.0123.tmp"):
         assert not is_temporary(name)
+
+
+def _dead_pid() -> int:
+    """The id of a process that has exited and been reaped."""
+    import subprocess
+    p = subprocess.Popen([sys.executable, "-c", "pass"])
+    p.wait()
+    return p.pid
+
+
+def test_new_names_carry_the_owner_and_stay_recognised(tmp_path):
+    with atomic_output(tmp_path / "lf.zarr", folder=True) as tmp:
+        pid, host, token = tmp.name[len(".lf.zarr."):-len(".tmp")].split("-")
+        assert int(pid) == os.getpid() and len(host) == 8 and len(token) == 12 and is_temporary(tmp)
+    assert is_temporary(".lf.zarr.4321-0a1b2c3d-0123456789ab.tmp")
+    assert is_temporary(".view.png.4321-0a1b2c3d-0123456789ab.tmp.png")
+    assert is_temporary(".lf.zarr.4321-0a1b2c3d-0123456789ab.old")
+
+
+@pytest.mark.skipif(os.name == "nt", reason="pid probing is POSIX-only")
+def test_next_write_removes_leftovers_of_dead_runs_only(tmp_path):
+    """A killed run's temporary (dead pid on this host) goes at the next write into the folder; a live run's
+    stays; one of another host goes only once older than STALE_AFTER_S."""
+    import subprocess
+    import time
+
+    host = atomic._host_tag()
+    dead = tmp_path / f".lf.zarr.{_dead_pid()}-{host}-0123456789ab.tmp"
+    (dead / "0.0.0").mkdir(parents=True)
+    (dead / "0.0.0" / "chunk").write_bytes(b"x" * 1000)
+    dead_file = tmp_path / f".view.png.{_dead_pid()}-{host}-0123456789ab.tmp.png"
+    dead_file.write_bytes(b"half")
+    live_run = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        live = tmp_path / f".lf.zarr.{live_run.pid}-{host}-abcdefabcdef.tmp"
+        live.mkdir()
+        other_host_new = tmp_path / ".a.png.4321-ffffffff-0123456789ab.tmp"
+        other_host_new.write_bytes(b"")
+        other_host_old = tmp_path / ".b.png.4321-ffffffff-0123456789ab.tmp"
+        other_host_old.write_bytes(b"")
+        no_owner_old = tmp_path / ".c.png.0123456789ab.tmp"
+        no_owner_old.write_bytes(b"")
+        long_ago = time.time() - atomic.STALE_AFTER_S - 60
+        for p in (other_host_old, no_owner_old):
+            os.utime(p, (long_ago, long_ago))
+        write_text_atomic(tmp_path / "summary.json", "{}")
+        assert _names(tmp_path) == sorted([live.name, other_host_new.name, "summary.json"])
+        assert live.is_dir()
+    finally:
+        live_run.kill()
+        live_run.wait()
+    write_text_atomic(tmp_path / "summary.json", "{}", overwrite=True)      # now its owner is gone too
+    assert _names(tmp_path) == sorted([other_host_new.name, "summary.json"])
+
+
+@pytest.mark.skipif(os.name == "nt", reason="pid probing is POSIX-only")
+def test_a_folder_left_aside_by_a_dead_run_is_put_back(tmp_path):
+    """A run killed between the two renames of a folder replacement left the old output in '.old': restored."""
+    aside = tmp_path / f".out.{_dead_pid()}-{atomic._host_tag()}-0123456789ab.old"
+    (aside / "out").mkdir(parents=True)
+    (aside / "out" / "a.txt").write_text("old")
+    write_text_atomic(tmp_path / "other.txt", "x")
+    assert _names(tmp_path) == ["other.txt", "out"] and (tmp_path / "out" / "a.txt").read_text() == "old"

@@ -11,7 +11,7 @@ from plenodecode.errors import MetadataError
 import plenodecode.render.shiftsum as shiftsum
 from plenodecode.render import REFOCUS_METHODS, focal_stack, refocus, sharpest_slope, shift_sum
 from plenodecode.render.focalstack import gradient_energy
-from plenodecode.render.fourier import FourierRefocuser, cached_refocuser
+from plenodecode.render.fourier import FourierRefocuser
 from plenodecode.types import LightField
 
 # ----------------------------------------------------------------------------------------------------------
@@ -324,14 +324,29 @@ def test_fourier_slice_has_no_wraparound_ghosts():
         assert psnr(photo, refocus(lf, slope=s), border=0) >= 35.0
 
 
-def test_fourier_transform_is_cached_and_reused():
+def test_fourier_transform_is_reused_when_passed(monkeypatch):
+    """No module cache: a transform built once is passed explicitly (refocuser=) and checked against the call."""
+    from plenodecode.render import fourier
+
     lf, _ = two_planes(n=5, shape=(24, 30))
-    a = cached_refocuser(lf)
-    assert cached_refocuser(lf) is a
+    a = FourierRefocuser(lf)
+    built = []
+    monkeypatch.setattr(fourier, "FourierRefocuser", lambda *args, **kw: built.append(1) or a)
+    stack = focal_stack(lf, [-0.5, 0.5], method="fourier-slice", refocuser=a)
+    photo = refocus(lf, slope=0.5, method="fourier-slice", refocuser=a)
+    assert built == []                                           # the focal stack and refocus used the same transform
+    np.testing.assert_array_equal(stack[1], photo)
     focal_stack(lf, [-0.5, 0.5], method="fourier-slice")
-    assert cached_refocuser(lf) is a                             # the focal stack used the same transform
-    other = LightField(lf.data.copy())
-    assert cached_refocuser(other) is not a
+    assert built == [1]                                          # without it, one transform per call
+    other = LightField(lf.data[:, :, :20].copy())
+    with pytest.raises(ValueError, match="refocuser was built for a light field of shape"):
+        refocus(other, slope=0.5, method="fourier-slice", refocuser=a)
+    with pytest.raises(ValueError, match="refocuser covers"):
+        refocus(lf, slope=a.max_slope + 1, method="fourier-slice", refocuser=a)
+    with pytest.raises(ValueError, match="aperture"):
+        refocus(lf, slope=0.5, method="fourier-slice", refocuser=a, aperture=0.5)
+    with pytest.raises(ValueError, match="oversample"):
+        refocus(lf, slope=0.5, method="fourier-slice", refocuser=a, oversample=2.0)
 
 
 def test_fourier_weighted_matches_shift_sum():
