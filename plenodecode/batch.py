@@ -59,8 +59,9 @@ RAW_SUFFIXES = (".lfr", ".lfp", ".dng", ".cr2", ".cr3", ".nef", ".arw", ".raf", 
 PAIR_SUFFIXES = (".raw",)
 #: Image mosaics: taken when a plenodecode mosaic sidecar or a Raytrix calibration XML is beside them.
 MOSAIC_SUFFIXES = (".png", ".tif", ".tiff", ".exr", ".pgm")
-#: Outputs a batch can produce per raw; the CLI's --outputs choices.
-BATCH_OUTPUTS = ("lightfield", "views", "centre", "refocus", "depth")
+#: Outputs a batch can produce per raw (the CLI's --outputs choices): the decoded light field, and products of
+#: :data:`plenodecode.pipeline.PRODUCTS` under the same names (their options: :class:`BatchOptions`).
+BATCH_OUTPUTS = ("lightfield", "views", "centre", "refocus", "depth", "all-in-focus", "total-focus")
 #: Light-field file formats of the 'lightfield' output -> name of the written file or folder.
 LIGHTFIELD_NAMES = {"zarr": "lightfield.zarr", "views": "lightfield_views", "mat": "lightfield.mat",
                     "npy": "lightfield.npy", "eslf": "lightfield.eslf.png"}
@@ -85,8 +86,8 @@ class BatchOptions:
     ----------
     outputs : tuple of str
         Non-empty subset of :data:`BATCH_OUTPUTS`.
-    db_dir : str
-        Calibration database folder (:mod:`plenodecode.calib.store`).
+    db_dir : str or None
+        Calibration database folder (default :data:`plenodecode.calib.store.DEFAULT_DB`).
     lightfield_format : str
         Format of the 'lightfield' output, a key of :data:`LIGHTFIELD_NAMES`.
     bit_depth : {8, 16, 32}
@@ -98,7 +99,7 @@ class BatchOptions:
     """
 
     outputs: tuple[str, ...] = ("centre",)
-    db_dir: str = "calib"
+    db_dir: str | None = None
     lightfield_format: str = "zarr"
     bit_depth: int = 16
     slope: float = 0.0
@@ -122,6 +123,10 @@ class BatchOptions:
                 raise ValueError(f"depth_method must be one of {sorted(DEPTH_METHODS)} or None, "
                                  f"got {self.depth_method!r}")
         object.__setattr__(self, "slope", float(self.slope))
+        if self.db_dir is None:
+            from .calib.store import DEFAULT_DB
+
+            object.__setattr__(self, "db_dir", DEFAULT_DB)
         object.__setattr__(self, "db_dir", str(self.db_dir))
 
     def as_key_dict(self) -> dict[str, Any]:
@@ -443,16 +448,13 @@ def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: Ba
 
 
 # ---------------------------------------------------------------------------- products
-def _image_name(stem: str, bit_depth: int) -> str:
-    return f"{stem}.exr" if bit_depth == 32 else f"{stem}.png"
-
-
-def _thumbnail(image: Any, path: Path, *, encode_srgb: bool) -> Path:
-    """8-bit PNG, longest side <= THUMB_SIZE (area-averaged), of a float image in [0, 1]."""
+def _thumbnail(image: Any, path: Path, *, colour: str) -> Path:
+    """8-bit PNG, longest side <= THUMB_SIZE (area-averaged), of a float image in [0, 1] of colour state
+    ``colour`` (display-encoded by :func:`plenodecode.pipeline.display_encoding`)."""
     import cv2
     import numpy as np
 
-    from .io.images import write_image
+    from .pipeline import write_image_file
 
     img = np.nan_to_num(np.asarray(image, np.float32), nan=0.0)
     if img.ndim == 3 and img.shape[2] == 1:
@@ -461,7 +463,7 @@ def _thumbnail(image: Any, path: Path, *, encode_srgb: bool) -> Path:
     scale = min(1.0, THUMB_SIZE / max(h, w))
     if scale < 1.0:
         img = cv2.resize(img, (max(1, round(w * scale)), max(1, round(h * scale))), interpolation=cv2.INTER_AREA)
-    return write_image(path, np.clip(img, 0.0, 1.0), bit_depth=8, encode_srgb=encode_srgb)
+    return write_image_file(path, np.clip(img, 0.0, 1.0), colour=colour, bit_depth=8)
 
 
 def _colour_mapped(values: Any) -> Any:
@@ -480,63 +482,57 @@ def _colour_mapped(values: Any) -> Any:
     return rgb
 
 
+def _image_product_options(product: str, options: BatchOptions) -> dict[str, Any]:
+    """Options of an image product of :data:`plenodecode.pipeline.PRODUCTS` taken from ``options``."""
+    return {"slope": options.slope} if product == "refocus" else {}
+
+
 def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
                     threads: int | None = None) -> list[tuple[Path, Path | None]]:
-    """Decode ``raw`` with its camera's calibration and write ``options.outputs`` into ``folder``.
+    """Calibrate and decode ``raw`` and write ``options.outputs`` into ``folder``, all through
+    :mod:`plenodecode.pipeline` (the same calibration policy, products, display encoding and writers as the
+    single-purpose commands).
 
-    Image outputs are sRGB-encoded 8/16-bit PNGs of the linear light field clipped to [0, 1]
-    (``bit_depth=32``: linear float EXR); the light field itself is saved linear.
+    Image outputs are 8/16-bit PNGs, display-encoded when the light field is linear (``bit_depth=32``: float
+    EXR, linear); the light field itself is saved as it is; the 'views' folder is display-encoded like images.
 
     Returns
     -------
     list of (product path, thumbnail path or None), in the order of ``options.outputs``.
     """
-    import numpy as np
+    from . import pipeline
 
-    from .decoding import decode
-    from .io.images import write_image
-    from .io.lightfield import save_lightfield
-
-    from .calib.store import calibration_for
-
-    grid, white = calibration_for(raw, options.db_dir)
-    lf = decode(raw, grid, white=white, workers=threads)
-    encode = lf.colour == "linear-srgb" and options.bit_depth != 32
-    thumb_encode = lf.colour == "linear-srgb"
-    centre = np.clip(lf.centre_view(), 0.0, 1.0)
+    calibration = pipeline.choose_calibration(raw, database=options.db_dir)
+    src = pipeline.Source(raw=raw, calibration=calibration, decode_options={"workers": threads})
+    bits = options.bit_depth
     thumbs = folder / THUMB_DIR
     thumbs.mkdir()
     written: list[tuple[Path, Path | None]] = []
+
+    def centre_thumbnail(name: str) -> Path:
+        lf = src.lightfield
+        return _thumbnail(lf.centre_view(), thumbs / f"{name}.png", colour=lf.colour)
+
     for product in options.outputs:
         if product == "lightfield":
-            dest = save_lightfield(lf, folder / LIGHTFIELD_NAMES[options.lightfield_format],
-                                   format=options.lightfield_format, bit_depth=options.bit_depth)
-            written.append((Path(dest), _thumbnail(centre, thumbs / "lightfield.png", encode_srgb=thumb_encode)))
+            dest = pipeline.write_lightfield(src.lightfield, folder / LIGHTFIELD_NAMES[options.lightfield_format],
+                                             format=options.lightfield_format, bit_depth=bits)
+            written.append((dest, centre_thumbnail("lightfield")))
         elif product == "views":
-            dest = save_lightfield(lf, folder / "views", format="views", bit_depth=options.bit_depth,
-                                   encode_srgb=encode)
-            written.append((Path(dest), _thumbnail(centre, thumbs / "views.png", encode_srgb=thumb_encode)))
-        elif product == "centre":
-            dest = write_image(folder / _image_name("centre", options.bit_depth), centre,
-                               bit_depth=options.bit_depth, encode_srgb=encode)
-            written.append((Path(dest), _thumbnail(centre, thumbs / "centre.png", encode_srgb=thumb_encode)))
-        elif product == "refocus":
-            from .render import refocus
-
-            photo = np.clip(refocus(lf, slope=options.slope), 0.0, 1.0)
-            stem = f"refocus_s{options.slope:+.2f}"
-            dest = write_image(folder / _image_name(stem, options.bit_depth), photo,
-                               bit_depth=options.bit_depth, encode_srgb=encode)
-            written.append((Path(dest), _thumbnail(photo, thumbs / f"{stem}.png", encode_srgb=thumb_encode)))
+            dest = pipeline.write_lightfield(src.lightfield, folder / "views", format="views", bit_depth=bits,
+                                             display=True)
+            written.append((dest, centre_thumbnail("views")))
         elif product == "depth":
-            from .depth import estimate_depth
-            from .io.pfm import write_pfm
-
-            kw = {"method": options.depth_method} if options.depth_method else {}
-            dm = estimate_depth(lf, **kw)
-            dest = write_pfm(folder / "disparity.pfm", dm.disparity)
-            written.append((Path(dest), _thumbnail(_colour_mapped(dm.disparity), thumbs / "disparity.png",
-                                                   encode_srgb=False)))
+            rendered = pipeline.render_product(src, "depth", method=options.depth_method)
+            dest, = pipeline.write_depth(rendered, folder / "disparity.pfm", full=False)
+            disparity = rendered.data["depthmap"].disparity
+            written.append((dest, _thumbnail(_colour_mapped(disparity), thumbs / "disparity.png", colour="srgb")))
+        else:
+            rendered = pipeline.render_product(src, product, **_image_product_options(product, options))
+            (stem, image), = rendered.images
+            name = f"{stem}.{pipeline.default_extension(bits)}"
+            dest, = pipeline.write_product(rendered, folder / name, bit_depth=bits)
+            written.append((dest, _thumbnail(image, thumbs / f"{stem}.png", colour=rendered.colour)))
     return written
 
 

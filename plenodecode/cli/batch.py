@@ -10,7 +10,7 @@ from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES
 from ..batch import LIGHTFIELD_NAMES
 from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
 from ..depth import DEPTH_METHODS
-from .common import bit_depth_option, jobs_option, progress_bar
+from .common import bit_depth_option, database_option, jobs_option, progress_bar
 
 LIGHTFIELD_FORMATS = tuple(LIGHTFIELD_NAMES)
 
@@ -42,8 +42,7 @@ def _echo_table(summary) -> None:
               help="Dask scheduler address (tcp://host:8786): run the tasks on that cluster (--jobs is ignored).")
 @click.option("--outputs", default="centre", show_default=True, callback=_parse_outputs,
               help=f"Comma-separated products per raw: {', '.join(OUTPUT_CHOICES)}.")
-@click.option("--database", "--white-dir", "db_dir", type=click.Path(path_type=Path), default=Path("calib"),
-              show_default=True, help="Calibration database (white images and fitted grids).")
+@database_option
 @click.option("--format", "lf_format", type=click.Choice(LIGHTFIELD_FORMATS), default="zarr", show_default=True,
               help="Format of the 'lightfield' product.")
 @bit_depth_option
@@ -52,7 +51,7 @@ def _echo_table(summary) -> None:
               show_default=True, help="Method of the 'depth' product.")
 @click.option("--overwrite", is_flag=True, help="Redo raws a previous run finished and replace their outputs.")
 @click.pass_context
-def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, db_dir, lf_format, bit_depth, slope,
+def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, database, lf_format, bit_depth, slope,
             depth_method, overwrite) -> None:
     """Decode every raw under INPUTS and write the chosen outputs per raw into OUTPUT/<name>/.
 
@@ -67,9 +66,11 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, db_di
       plenodecode batch shoot/ -o decoded/ --scheduler tcp://10.0.0.5:8786
     """
     from ..batch import BatchOptions, check_summary_files, find_raws, run_batch, write_summary
+    from ..calib.store import DEFAULT_DB
 
     if jobs is not None and jobs < 1:
         raise click.BadParameter(f"must be >= 1, got {jobs}", param_hint="--jobs")
+    db_dir = database or Path(DEFAULT_DB)
     if not db_dir.is_dir():
         raise click.BadParameter(f"{db_dir} is not a folder; build the database with `plenodecode calibrate "
                                  "--database`", param_hint="--database")

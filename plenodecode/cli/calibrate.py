@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from ..io.atomic import write_text_atomic
-from .common import check_output, overwrite_option, progress_bar
+from .common import RegistryChoice, check_output, overwrite_option, progress_bar
 
 
 def _write_text(path: Path, text: str) -> None:
@@ -22,7 +22,7 @@ def _write_text(path: Path, text: str) -> None:
               help="Grid JSON to write (required unless building a database).")
 @click.option("--report", type=click.Path(path_type=Path, dir_okay=False), default=None,
               help="Also write a self-contained HTML calibration report.")
-@click.option("--lattice", type=click.Choice(["auto", "hex", "square"]), default="auto", show_default=True,
+@click.option("--lattice", type=RegistryChoice("plenodecode.calib", "LATTICES"), default="auto", show_default=True,
               help="Lenslet lattice type.")
 @click.option("--pitch", "pitch_hint", type=float, default=None,
               help="Approximate lens pitch in px (a hint; default from metadata or the image).")

@@ -1,18 +1,110 @@
-"""Options and helpers shared by every command, so they behave the same everywhere."""
+"""Options and helpers shared by every command, so they behave the same everywhere.
+
+Every ``click.Choice`` lists the keys of a registry.  Registries in heavy modules (numba, OpenCV) are read
+through :class:`RegistryChoice`, which imports them only when a command's help or its arguments need them, so
+``plenodecode --help`` imports no command at all.
+"""
 
 from __future__ import annotations
 
+import contextlib
+import importlib
 import os
 import sys
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable, Iterator
 
 import click
+
+from ..pipeline import BIT_DEPTHS
+
+
+class RegistryChoice(click.Choice):
+    """A :class:`click.Choice` of the names of a registry (dict keys, or a tuple of names), imported on first use.
+
+    Parameters
+    ----------
+    module : str
+        Absolute module name, e.g. ``'plenodecode.render'``.
+    attribute : str
+        The registry in that module, e.g. ``'REFOCUS_METHODS'``.
+    """
+
+    def __init__(self, module: str, attribute: str, *, sort: bool = False) -> None:
+        self._registry = (module, attribute)
+        self._sort = sort
+        self.case_sensitive = True
+
+    @property
+    def choices(self) -> tuple[str, ...]:  # type: ignore[override]
+        names = tuple(getattr(importlib.import_module(self._registry[0]), self._registry[1]))
+        return tuple(sorted(names)) if self._sort else names
+
+
+class DatabaseOption(click.Option):
+    """``--database DIR``; its old spelling ``--white-dir`` is accepted but not shown in the help, and the help
+    shows the default folder :data:`plenodecode.calib.store.DEFAULT_DB` (read only when help is shown)."""
+
+    def get_help_record(self, ctx: click.Context) -> tuple[str, str] | None:
+        from ..calib.store import DEFAULT_DB
+
+        shown, self.opts = self.opts, self.opts[:1]
+        try:
+            record = super().get_help_record(ctx)
+        finally:
+            self.opts = shown
+        return None if record is None else (record[0], f"{record[1]}  [default: ./{DEFAULT_DB}]")
+
+
+database_option = click.option("--database", "--white-dir", "database", cls=DatabaseOption, default=None,
+                               type=click.Path(exists=True, file_okay=False, path_type=Path),
+                               help="Calibration database of raws (white images and fitted grids).")
+
+
+def input_options(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """The calibration options of every command that reads a raw: ``--calibration/-g``, ``--white/-w``,
+    ``--database`` and ``--self-calibrate`` (see :func:`plenodecode.pipeline.choose_calibration`)."""
+    fn = click.option("--self-calibrate", "self_calibrate", is_flag=True,
+                      help="Raws without any other calibration: find the lenslet grid in the scene itself.")(fn)
+    fn = database_option(fn)
+    fn = click.option("--white", "-w", "white", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                      default=None, help="White image of the same zoom/focus: devignetting (and the grid, if no "
+                                         "--calibration).")(fn)
+    fn = click.option("--calibration", "-g", "calibration", type=click.Path(exists=True, dir_okay=False,
+                                                                            path_type=Path),
+                      default=None, help="Lenslet grid JSON written by 'plenodecode calibrate'.")(fn)
+    return fn
+
+
+def calibration_kwargs(calibration: Path | None, white: Path | None, database: Path | None,
+                       self_calibrate: bool) -> dict[str, Any]:
+    """The command's calibration options as keywords of :func:`plenodecode.pipeline.open_source`."""
+    return {"grid": calibration, "white": white, "database": database, "self_calibrate": self_calibrate}
+
+
+@contextlib.contextmanager
+def usage_errors(param_hint: str | None = None) -> Iterator[None]:
+    """Turn a refused overwrite (FileExistsError) and a bad value (ValueError) into usage errors (exit 2);
+    with ``param_hint`` a ValueError names that option."""
+    try:
+        yield
+    except FileExistsError as exc:
+        raise click.UsageError(f"{exc}; pass --overwrite" if "--overwrite" not in str(exc) else str(exc)) from exc
+    except ValueError as exc:
+        if param_hint is not None:
+            raise click.BadParameter(str(exc), param_hint=param_hint) from exc
+        raise click.UsageError(str(exc)) from exc
+
+
+def quiet(ctx: click.Context) -> bool:
+    """True with ``plenodecode -q``."""
+    return bool((ctx.obj or {}).get("quiet"))
+
 
 output_option = click.option("-o", "--output", "output", type=click.Path(path_type=Path), required=True,
                              help="Output file or folder.")
 overwrite_option = click.option("--overwrite", is_flag=True, help="Replace existing outputs.")
-bit_depth_option = click.option("--bit-depth", type=click.Choice(["8", "16", "32"]), default="16", show_default=True,
+bit_depth_option = click.option("--bit-depth", type=click.Choice([str(b) for b in BIT_DEPTHS]), default="16", show_default=True,
                                 help="Bits per sample of image outputs (32 = float).")
 jobs_option = click.option("--jobs", "-j", type=int, default=None,
                            help="Worker processes (default: all cores).")
@@ -22,6 +114,15 @@ def check_output(path: Path, overwrite: bool) -> None:
     """Refuse to replace an existing output unless ``--overwrite`` was given (usage error, exit 2)."""
     if path.exists() and not overwrite:
         raise click.UsageError(f"{path} exists; pass --overwrite to replace it")
+
+
+def check_folder_output(folder: Path, names: list[str], overwrite: bool) -> None:
+    """Refuse a folder output that is a file, or where one of ``names`` exists without ``--overwrite``
+    (usage error, exit 2).  Creates nothing: the folder appears only when its files are written."""
+    from ..pipeline import refuse_folder_clash
+
+    with usage_errors():
+        refuse_folder_clash(folder, names, overwrite)
 
 
 def lightfield_output_format(output: Path, fmt: str | None, overwrite: bool) -> str:

@@ -7,11 +7,8 @@ from pathlib import Path
 
 import click
 
-from ..decoding.colour import DECODE_COLOURS
-from ..decoding.demosaic import DEMOSAIC_METHODS
-from ..io.lightfield import LIGHTFIELD_FORMATS
-from ._load import resolve_calibration
-from .common import bit_depth_option, lightfield_output_format, output_option, overwrite_option, progress_bar
+from .common import (RegistryChoice, bit_depth_option, input_options, lightfield_output_format, output_option,
+                     overwrite_option, progress_bar, quiet, usage_errors)
 
 log = logging.getLogger(__name__)
 
@@ -19,59 +16,52 @@ log = logging.getLogger(__name__)
 @click.command("decode")
 @click.argument("raw_path", metavar="RAW", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @output_option
-@click.option("--calibration", "-g", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
-              help="Lenslet grid JSON written by 'plenodecode calibrate'.")
-@click.option("--white", "-w", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
-              help="White image of the same zoom/focus: devignetting (and the grid, if no --calibration).")
-@click.option("--white-dir", type=click.Path(exists=True, file_okay=False, path_type=Path), default=None,
-              help="Calibration database folder (picks the white by serial, zoom, focus) [default: ./calib].")
+@input_options
 @click.option("--dark", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
               help="Dark frame, subtracted from raw and white (microscopes).")
-@click.option("--format", "fmt", type=click.Choice(sorted(LIGHTFIELD_FORMATS)), default=None,
-              help="Output format (default: from OUTPUT's extension; a path without one is a views folder).")
+@click.option("--format", "fmt", type=RegistryChoice("plenodecode.io.lightfield", "LIGHTFIELD_FORMATS", sort=True),
+              default=None, help="Output format (default: from OUTPUT's extension; a path without one is a views "
+                                 "folder).")
 @bit_depth_option
-@click.option("--demosaic", type=click.Choice(sorted(DEMOSAIC_METHODS)), default="malvar", show_default=True,
-              help="Demosaicing method (within each micro-image).")
+@click.option("--demosaic", type=RegistryChoice("plenodecode.decoding.demosaic", "DEMOSAIC_METHODS", sort=True),
+              default="malvar", show_default=True, help="Demosaicing method (within each micro-image).")
 @click.option("--views", "n_views", type=int, default=None,
               help="Views per angular axis (odd) [default: 2*floor(pitch/2)+1].")
-@click.option("--colour", type=click.Choice(list(DECODE_COLOURS)), default="linear-srgb", show_default=True,
-              help="Colour of the output: white balance + colour matrix, or camera RGB.")
+@click.option("--colour", type=RegistryChoice("plenodecode.decoding.colour", "DECODE_COLOURS"), default="linear-srgb",
+              show_default=True, help="Colour of the output: white balance + colour matrix, or camera RGB.")
 @click.option("--no-hot-pixels", is_flag=True, help="Do not repair hot pixels.")
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path | None, white: Path | None,
-            white_dir: Path | None, dark: Path | None, fmt: str | None, bit_depth: str, demosaic: str,
-            n_views: int | None, colour: str, no_hot_pixels: bool, overwrite: bool) -> None:
+            database: Path | None, self_calibrate: bool, dark: Path | None, fmt: str | None, bit_depth: str,
+            demosaic: str, n_views: int | None, colour: str, no_hot_pixels: bool, overwrite: bool) -> None:
     """Decode RAW into a 4D light field (V, U, Y, X, C) and write it to OUTPUT.
 
-    The lenslet grid comes from --calibration, from --white (calibrated on the fly), or from the
-    calibration database (--white-dir, default ./calib) by camera serial, zoom and focus.
+    The lenslet grid comes from --calibration, from --white (calibrated on the fly), from the camera's
+    own calibration (Raytrix XML), or from the calibration database (--database, default ./calib) by
+    camera serial, zoom and focus.
 
     \b
     Examples:
-      plenodecode decode scene.lfr --white-dir calib/ -o scene.zarr
+      plenodecode decode scene.lfr --database calib/ -o scene.zarr
       plenodecode decode scene.lfr -g grid.json -w MOD_0000.RAW -o views/ --format views --bit-depth 8
       plenodecode decode lf.png -w white.png --dark dark.tif -o lf.mat
     """
-    from ..decoding import decode
     from ..io import read_raw
-    from ..io.lightfield import save_lightfield
+    from ..pipeline import choose_calibration, decode_raw, write_lightfield
 
-    if white_dir is not None and (calibration is not None or white is not None):
-        raise click.UsageError("--white-dir cannot be combined with --calibration or --white")
+    if database is not None and (calibration is not None or white is not None):
+        raise click.UsageError("--database cannot be combined with --calibration or --white")
     if n_views is not None and (n_views < 1 or n_views % 2 == 0):
         raise click.BadParameter("must be a positive odd number", param_hint="--views")
     name = lightfield_output_format(output, fmt, overwrite)
     raw = read_raw(raw_path)
-    grid, white_raw = resolve_calibration(raw, calibration=calibration, white=white, white_dir=white_dir)
-    dark_raw = read_raw(dark) if dark is not None else None
-    lf = decode(raw, grid, white=white_raw, dark=dark_raw, demosaic=demosaic, colour=colour, n_views=n_views,
-                hot_pixels=not no_hot_pixels, progress=progress_bar("decoding", ctx))
-    try:
-        out = save_lightfield(lf, output, format=name, bit_depth=int(bit_depth), overwrite=overwrite,
-                              progress=progress_bar(f"writing {name}", ctx))
-    except FileExistsError as exc:
-        raise click.UsageError(f"{exc}; pass --overwrite") from exc
-    if not (ctx.obj or {}).get("quiet"):
+    cal = choose_calibration(raw, grid=calibration, white=white, database=database, self_calibrate=self_calibrate)
+    lf = decode_raw(raw, cal, dark=read_raw(dark) if dark is not None else None, demosaic=demosaic, colour=colour,
+                    n_views=n_views, hot_pixels=not no_hot_pixels, progress=progress_bar("decoding", ctx))
+    with usage_errors():
+        out = write_lightfield(lf, output, format=name, bit_depth=int(bit_depth), overwrite=overwrite,
+                               progress=progress_bar(f"writing {name}", ctx))
+    if not quiet(ctx):
         V, U, Y, X, C = lf.shape
         click.echo(f"wrote {out} ({name}: {V}x{U} views of {Y}x{X}x{C}, colour {lf.colour})")

@@ -7,8 +7,8 @@ from pathlib import Path
 import click
 
 from ..depth import DEFAULT_METHOD, DEPTH_METHODS
-from ._load import input_options, load_input
-from .common import output_option, overwrite_option, progress_bar
+from .common import (calibration_kwargs, input_options, output_option, overwrite_option, progress_bar, quiet,
+                     usage_errors)
 
 
 def parse_range(text: str | None) -> tuple[float, float] | None:
@@ -43,8 +43,8 @@ def parse_range(text: str | None) -> tuple[float, float] | None:
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, output: Path, method: str, metric: bool, ply: Path | None,
-            disparity_range: str | None, focus_distance: float | None, white_dir: Path | None,
-            calibration: Path | None, white: Path | None, overwrite: bool) -> None:
+            disparity_range: str | None, focus_distance: float | None, calibration: Path | None,
+            white: Path | None, database: Path | None, self_calibrate: bool, overwrite: bool) -> None:
     """Estimate the depth of RAW_OR_LF (a raw, a saved light field, an HCI scene folder or a .npy).
 
     Writes OUTPUT (.pfm, readable by the HCI benchmark toolkit), OUTPUT with .exr (32-bit float) and
@@ -55,9 +55,12 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
     Examples:
       plenodecode depth ../shared/data/hci-antinous -o antinous.pfm
       plenodecode depth photo.zarr -o depth.pfm --metric --ply cloud.ply
-      plenodecode depth raw.lfr --method fast -o preview.pfm --white-dir calib/
+      plenodecode depth raw.lfr --method fast -o preview.pfm --database calib/
     """
+    import numpy as np
+
     from ..io.depthio import depth_output_paths
+    from ..pipeline import open_source, render_product, write_depth
 
     rng = parse_range(disparity_range)
     try:
@@ -68,31 +71,15 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
         clash = [p for p in paths.values() if p.exists()]
         if clash:
             raise click.UsageError(f"{clash[0]} exists; pass --overwrite to replace it")
-
-    import numpy as np
-
-    from ..depth import disparity_to_depth, estimate_depth
-    from ..depth.metric import depth_to_points
-    from ..io.depthio import display_colours, write_depth_outputs
-
-    lf = load_input(input_path, white_dir=white_dir, calibration=calibration, white=white,
-                    progress=progress_bar("decoding", ctx))
-    overrides = {} if focus_distance is None else {"focus_distance_m": focus_distance}
-    if metric or ply is not None:
-        from ..depth.metric import depth_constants
-
-        depth_constants(lf, **overrides)    # fail before the estimate when the camera geometry is missing
-    kw = {} if rng is None else {"disparity_range": rng}
-    dm = estimate_depth(lf, method=method, progress=progress_bar(f"depth ({method})", ctx), **kw)
-    depth = disparity_to_depth(dm, lf, **overrides) if (metric or ply is not None) else None
-    values, label = (depth, "depth (m)") if metric else (dm.disparity, "disparity (px / view step)")
-    points = colours = None
-    if ply is not None:
-        points = depth_to_points(depth, lf, **overrides)
-        colours = display_colours(lf.centre_view(), lf.colour)
-    written = write_depth_outputs(output, values, label=label, points=points, colours=colours, ply=ply,
-                                  title=f"{input_path.name}: {method}", overwrite=overwrite)
-    if not (ctx.obj or {}).get("quiet"):
+    src = open_source(input_path, progress=progress_bar("decoding", ctx),
+                      **calibration_kwargs(calibration, white, database, self_calibrate))
+    rendered = render_product(src, "depth", method=method, disparity_range=rng, metric=metric,
+                              points=ply is not None, focus_distance=focus_distance,
+                              progress=progress_bar(f"depth ({method})", ctx))
+    with usage_errors():
+        written = write_depth(rendered, output, ply=ply, title=f"{input_path.name}: {method}", overwrite=overwrite)
+    if not quiet(ctx):
+        dm = rendered.data["depthmap"]
         d = dm.disparity
         click.echo(f"{method}: disparity {float(np.nanmin(d)):.3f} .. {float(np.nanmax(d)):.3f} px/view, "
                    f"mean confidence {float(dm.confidence.mean()):.2f}, {dm.params['seconds']:.1f} s")

@@ -6,17 +6,19 @@ from pathlib import Path
 
 import click
 
-from ..io.lightfield import LIGHTFIELD_FORMATS
-from .common import bit_depth_option, lightfield_output_format, output_option, overwrite_option, progress_bar
+from ..pipeline import IMAGE_EXTENSIONS
+from .common import (RegistryChoice, bit_depth_option, lightfield_output_format, output_option, overwrite_option,
+                     progress_bar)
 
 
 @click.command("export")
 @click.argument("lf_in", type=click.Path(exists=True, path_type=Path))
 @output_option
-@click.option("--format", "fmt", type=click.Choice(sorted(LIGHTFIELD_FORMATS)), default=None,
+@click.option("--format", "fmt", type=RegistryChoice("plenodecode.io.lightfield", "LIGHTFIELD_FORMATS", sort=True),
+              default=None,
               help="Output format (default: from OUTPUT's extension; a path without one is a views folder).")
 @bit_depth_option
-@click.option("--image-type", type=click.Choice(["png", "tif", "exr"]), default=None,
+@click.option("--image-type", type=click.Choice(IMAGE_EXTENSIONS), default=None,
               help="Image type of the 'views' format (default: png for 8/16 bit, exr for 32).")
 @click.option("--srgb", is_flag=True, help="Apply the sRGB transfer function (display encoding) before writing.")
 @overwrite_option

@@ -6,8 +6,12 @@ from pathlib import Path
 
 import click
 
-from ._load import IMAGE_EXTENSIONS, METHOD_NAMES, input_options, load_input, prepare_folder, save_image, write_json
-from .common import bit_depth_option, check_output, output_option, overwrite_option, progress_bar
+from ..pipeline import IMAGE_EXTENSIONS, STACK_UNITS, focal_stack_names
+from .common import (RegistryChoice, bit_depth_option, calibration_kwargs, check_folder_output, check_output,
+                     input_options, output_option, overwrite_option, progress_bar, quiet, usage_errors)
+
+#: The refocus methods of the library, for ``--method`` (imported when the command needs them).
+REFOCUS_METHOD_CHOICE = RegistryChoice("plenodecode.render", "REFOCUS_METHODS")
 
 
 def parse_stack(text: str) -> tuple[float, float, int]:
@@ -34,9 +38,9 @@ def parse_stack(text: str) -> tuple[float, float, int]:
 @click.option("--focal-stack", "stack", metavar="START:STOP:N", default=None,
               help="Write N photographs from START to STOP (slopes, or alphas with --stack-units alpha) and an "
                    "all-in-focus image into the OUTPUT folder.")
-@click.option("--stack-units", type=click.Choice(["slope", "alpha"]), default="slope", show_default=True,
+@click.option("--stack-units", type=click.Choice(list(STACK_UNITS)), default="slope", show_default=True,
               help="Units of START and STOP.")
-@click.option("--method", type=click.Choice(METHOD_NAMES), default="shift-sum", show_default=True,
+@click.option("--method", type=REFOCUS_METHOD_CHOICE, default="shift-sum", show_default=True,
               help="Refocusing method.")
 @click.option("--aperture", type=click.FloatRange(0, 1, min_open=True), default=1.0, show_default=True,
               help="Synthetic aperture radius as a fraction of the view grid (1 = all views); smaller = more "
@@ -51,8 +55,8 @@ def parse_stack(text: str) -> tuple[float, float, int]:
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, output: Path, slope: float | None, alpha: float | None,
             stack: str | None, stack_units: str, method: str, aperture: float, upsample: int, ext: str,
-            bit_depth: str, white_dir: Path | None, calibration: Path | None, white: Path | None,
-            overwrite: bool) -> None:
+            bit_depth: str, calibration: Path | None, white: Path | None, database: Path | None,
+            self_calibrate: bool, overwrite: bool) -> None:
     """Refocus RAW_OR_LF (a raw, a saved light field or an HCI scene folder).
 
     One photograph: --slope S or --alpha A, written to OUTPUT (.png, .tif, .exr).
@@ -62,9 +66,11 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
     \b
     Examples:
       plenodecode refocus photo.zarr --slope 0.8 -o near.png
-      plenodecode refocus raw.lfr --alpha 1.02 --aperture 0.4 -o deep_dof.png --white-dir calib/
+      plenodecode refocus raw.lfr --alpha 1.02 --aperture 0.4 -o deep_dof.png --database calib/
       plenodecode refocus photo.zarr --focal-stack -1.5:1.5:30 -o stack/ --method fourier-slice
     """
+    from ..pipeline import open_source, render_product, write_product
+
     chosen = sum(x is not None for x in (slope, alpha, stack))
     if chosen != 1:
         raise click.UsageError("pass exactly one of --slope, --alpha and --focal-stack")
@@ -72,45 +78,22 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
         check_output(output, overwrite)
     else:
         start, stop, n = parse_stack(stack)
-        names = [f"slice_{i:03d}.{ext}" for i in range(n)] + [f"all_in_focus.{ext}", "focal_stack.json"]
-        prepare_folder(output, names, overwrite)
-
-    import numpy as np
-
-    from ..render import alpha_to_slope, focal_stack, refocus, slope_to_alpha
-    from ..render.focalstack import depth_from_focus, refocus_per_pixel
-
-    lf = load_input(input_path, white_dir=white_dir, calibration=calibration, white=white,
-                    progress=progress_bar("decoding", ctx))
-    depth = int(bit_depth)
-    quiet = bool((ctx.obj or {}).get("quiet"))
+        names = focal_stack_names(n, ext)
+        check_folder_output(output, names, overwrite)
+    src = open_source(input_path, progress=progress_bar("decoding", ctx),
+                      **calibration_kwargs(calibration, white, database, self_calibrate))
     if stack is None:
-        img = refocus(lf, slope=slope, alpha=alpha, method=method, aperture=aperture, upsample=upsample)
-        save_image(output, img, lf=lf, bit_depth=depth, overwrite=overwrite)
-        if not quiet:
+        photo = render_product(src, "refocus", slope=slope, alpha=alpha, method=method, aperture=aperture,
+                               upsample=upsample)
+        with usage_errors():
+            write_product(photo, output, bit_depth=int(bit_depth), overwrite=overwrite)
+        if not quiet(ctx):
             what = f"slope {slope:g}" if slope is not None else f"alpha {alpha:g}"
             click.echo(f"wrote {output} ({what}, {method}, aperture {aperture:g})")
         return
-    values = np.linspace(start, stop, n)
-    slopes = alpha_to_slope(values, lf) if stack_units == "alpha" else values
-    order = np.argsort(slopes)
-    imgs = focal_stack(lf, slopes, method=method, aperture=aperture, upsample=upsample,
-                       progress=progress_bar("focal stack", ctx))
-    for i in range(n):
-        save_image(output / names[i], imgs[i], lf=lf, bit_depth=depth, overwrite=overwrite)
-    slope_map, _ = depth_from_focus(imgs[order], np.asarray(slopes)[order])
-    if upsample > 1:
-        import cv2
-
-        slope_map = cv2.resize(slope_map, (lf.shape[3], lf.shape[2]), interpolation=cv2.INTER_AREA)
-    aif = refocus_per_pixel(lf, slope_map, aperture=aperture)
-    save_image(output / names[n], aif, lf=lf, bit_depth=depth, overwrite=overwrite)
-    try:
-        alphas = [float(a) for a in slope_to_alpha(np.asarray(slopes), lf)]
-    except Exception:  # noqa: BLE001 - alphas are informative only; the camera may not be known
-        alphas = None
-    write_json(output / names[n + 1], {"slopes": [float(s) for s in slopes], "alphas": alphas, "method": method,
-                                       "aperture": aperture, "files": names[:n], "all_in_focus": names[n]},
-               overwrite=overwrite)
-    if not quiet:
+    rendered = render_product(src, "focal-stack", start=start, stop=stop, n=n, units=stack_units, method=method,
+                              aperture=aperture, upsample=upsample, progress=progress_bar("focal stack", ctx))
+    with usage_errors():
+        write_product(rendered, output, bit_depth=int(bit_depth), ext=ext, overwrite=overwrite)
+    if not quiet(ctx):
         click.echo(f"wrote {n} slices, {names[n]} and {names[n + 1]} to {output}")

@@ -42,3 +42,13 @@ def test_data_error_exits_1_with_one_line(tmp_path):
     err = res.stderr.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error:") and "bad.lfr" in err[0]
     assert "Traceback" not in res.output
+
+
+def test_database_option_has_one_spelling_in_the_help():
+    """``--database`` everywhere; ``--white-dir`` still parses but is not shown; the default is calib.store's."""
+    from plenodecode.calib.store import DEFAULT_DB
+
+    for command in ("decode", "refocus", "views", "parallax", "depth", "render", "batch"):
+        out = CliRunner().invoke(cli, [command, "--help"]).output
+        assert "--database" in out and "--white-dir" not in out, command
+        assert f"[default: ./{DEFAULT_DB}]" in " ".join(out.split()), command

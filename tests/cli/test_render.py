@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from plenodecode.cli._load import METHOD_NAMES, load_input
 from plenodecode.cli.main import cli
+from plenodecode.cli.refocus import REFOCUS_METHOD_CHOICE
 from plenodecode.io.images import read_image, write_image
+from plenodecode.pipeline import load_lightfield_input as load_input
 from plenodecode.render import REFOCUS_METHODS, alpha_to_slope, perspective, refocus
 from plenodecode.types import CameraMetadata, LightField
 
@@ -35,6 +36,7 @@ def run(*args):
 
 
 def test_method_choices_match_the_registry():
+    METHOD_NAMES = REFOCUS_METHOD_CHOICE.choices
     assert set(METHOD_NAMES) == set(REFOCUS_METHODS)
 
 
@@ -166,7 +168,7 @@ def test_raw_is_decoded_then_refocused(tmp_path):
     out = tmp_path / "photo.png"
     res = run(files["raw"], "--refocus", 1.0, "-o", out, "--calibration", grid)
     assert res.exit_code == 0, res.output
-    lf = load_input(files["raw"], calibration=grid)
+    lf = load_input(files["raw"], grid=grid)
     assert lf.shape[:2] == (15, 15)
     img = read_image(out)
     assert img.shape == (*lf.shape[2:4], 3) and img.std() > 1000          # a real picture, not flat

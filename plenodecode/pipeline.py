@@ -1,0 +1,751 @@
+"""The workflow both front ends use: open any input, choose the calibration, decode, render a product, write it.
+
+The command line (:mod:`plenodecode.cli`), :mod:`plenodecode.batch` and Python callers go through the same
+five steps, each implemented once here::
+
+    open_input(path)          raw file (Lytro container, raw + sidecar, Raytrix image + XML, camera raw, mosaic
+                              + sidecar) -> RawCapture; saved light field or HCI scene folder -> LightField
+    choose_calibration(raw)   explicit grid JSON / white image > the camera's own calibration (Raytrix XML)
+                              > the calibration database > self-calibration from the scene (when allowed);
+                              the choice is logged in one info line
+    Source                    an opened input; a raw is decoded on first use of ``Source.lightfield``
+    render_product(src, name) a product of :data:`PRODUCTS` (centre, views, refocus, focal-stack, all-in-focus,
+                              parallax, depth, total-focus) -> :class:`Rendered`
+    write_product(r, output)  display encoding, bit depth, file names, atomic rename, overwrite checks
+
+Display encoding (one rule, :func:`display_encoding`): images of a linear light field (colour state
+'camera' or 'linear-srgb') get the sRGB transfer function, except 32-bit float outputs, which stay linear;
+'srgb' images are written as they are.
+
+Importing this module is light (no numba, OpenCV or OpenImageIO): the CLI reads its registries for
+``click.Choice`` lists.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import os
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Any, Callable, Iterator, Mapping, Sequence
+
+from .errors import CalibrationError
+from .registry import lazy, lookup
+from .types import LensletGrid, LightField, RawCapture
+
+log = logging.getLogger(__name__)
+
+Progress = Callable[[int, int], None] | None
+
+#: Extensions of saved light fields (any other file is read as a raw).
+LIGHTFIELD_EXTENSIONS = (".npy", ".mat", ".zarr")
+#: Image types the rendering products are written as.
+IMAGE_EXTENSIONS = ("png", "tif", "exr")
+#: Bits per sample of image outputs (32 = float).
+BIT_DEPTHS = (8, 16, 32)
+#: Colour states that hold linear values (display-encoded when written, except as 32-bit float).
+LINEAR_COLOURS = ("camera", "linear-srgb")
+
+
+# ------------------------------------------------------------------------------------------------- inputs
+def is_hci_folder(path: str | os.PathLike) -> bool:
+    """True for an HCI benchmark scene folder (``input_Cam*.png`` views, not a saved views light field)."""
+    p = Path(path)
+    return p.is_dir() and not (p / "lightfield.json").exists() and not (p / "zarr.json").exists() \
+        and any(p.glob("input_Cam*.png"))
+
+
+def _is_eslf_image(p: Path) -> bool:
+    """A PNG/TIFF whose JSON sidecar says format 'plenodecode.eslf' (a saved ESLF mosaic)."""
+    side = p.with_suffix(".json")
+    if p.suffix.lower() not in (".png", ".tif", ".tiff") or not side.is_file():
+        return False
+    try:
+        doc = json.loads(side.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(doc, dict) and doc.get("format") == "plenodecode.eslf"
+
+
+def input_kind(path: str | os.PathLike) -> str:
+    """What ``path`` holds: a key of :data:`INPUT_READERS` ('hci', 'lightfield' or 'raw').
+
+    Folders are HCI scenes or saved light fields (zarr store, views folder); ``.npy``, ``.mat``, ``.zarr``
+    and ESLF images with their JSON are saved light fields; any other file is a raw.
+    """
+    p = Path(path)
+    if is_hci_folder(p):
+        return "hci"
+    if p.is_dir() or p.suffix.lower() in LIGHTFIELD_EXTENSIONS or _is_eslf_image(p):
+        return "lightfield"
+    return "raw"
+
+
+def is_lightfield_path(path: str | os.PathLike) -> bool:
+    """True when ``path`` is a saved light field or an HCI folder rather than a raw."""
+    return input_kind(path) != "raw"
+
+
+def _read_hci(p: Path) -> LightField:
+    from .io.hci import read_hci
+
+    log.info("reading HCI scene %s", p)
+    return read_hci(p).lightfield
+
+
+def _read_lightfield(p: Path) -> LightField:
+    from .io.lightfield import load_lightfield
+
+    log.info("reading light field %s", p)
+    return load_lightfield(p)
+
+
+def _read_raw(p: Path) -> RawCapture:
+    from .io import read_raw
+
+    return read_raw(p)
+
+
+#: Input kind -> reader ``fn(path) -> LightField | RawCapture``.
+INPUT_READERS: dict[str, Callable[[Path], LightField | RawCapture]] = {
+    "hci": _read_hci, "lightfield": _read_lightfield, "raw": _read_raw,
+}
+
+
+def open_input(path: str | os.PathLike) -> LightField | RawCapture:
+    """Read any supported input.
+
+    Parameters
+    ----------
+    path : path-like
+        A raw (anything :func:`plenodecode.io.read_raw` reads: Lytro containers, ``.RAW`` + ``.TXT``, Raytrix
+        image + ``RayCalibData`` XML, DNG / camera raws, mosaics with a JSON sidecar), a saved light field
+        (:func:`plenodecode.io.lightfield.load_lightfield`) or an HCI scene folder with its ``parameters.cfg``.
+
+    Returns
+    -------
+    RawCapture or LightField
+
+    Raises
+    ------
+    FormatError
+        Unreadable input.
+    """
+    p = Path(path)
+    return INPUT_READERS[input_kind(p)](p)
+
+
+# -------------------------------------------------------------------------------------------- calibration
+@dataclass(frozen=True)
+class Calibration:
+    """The lenslet grid a raw is decoded with, the white image that devignettes it, and where both came from.
+
+    Attributes
+    ----------
+    grid : LensletGrid
+    white : RawCapture or None
+        Flat field of the same sensor (mosaic (H, W) uint16), None when there is none.
+    source : str
+        'grid file', 'white image', 'camera' (Raytrix XML), 'database' or 'self-calibration'.
+    detail : str
+        Which file(s): shown after ``source`` in the log line.
+    """
+
+    grid: LensletGrid
+    white: RawCapture | None
+    source: str
+    detail: str = ""
+
+    def describe(self) -> str:
+        """One line, e.g. ``'calibration: database calib/ (white MOD_0003.RAW, cached grid)'``."""
+        return f"calibration: {self.source}" + (f" {self.detail}" if self.detail else "")
+
+
+def _grid_from_file(path: str | os.PathLike) -> LensletGrid:
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CalibrationError(f"{path}: cannot read the lenslet grid ({exc}); pass a grid written by "
+                               "'plenodecode calibrate'") from exc
+    return LensletGrid.from_json(text)
+
+
+def _from_database(raw: RawCapture, db: Path) -> Calibration:
+    from .calib import store
+
+    entry = store.select_white(db, raw)
+    cached = entry.grid is not None and (db / entry.grid).is_file()
+    grid, white = store.calibration_for(raw, db)
+    return Calibration(grid, white, "database",
+                       f"{db}/ (white {Path(entry.file).name}, {'cached grid' if cached else 'grid fitted now'})")
+
+
+def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None,
+                       white: str | os.PathLike | RawCapture | None = None,
+                       database: str | os.PathLike | None = None, self_calibrate: bool = False,
+                       progress: Progress = None) -> Calibration:
+    """The calibration of ``raw``, chosen by one policy (first that applies).
+
+    1. ``grid`` (a grid JSON written by ``plenodecode calibrate``); ``white``, when given, devignettes;
+    2. ``white`` alone: calibrated on the spot (:func:`plenodecode.calib.calibrate`), and devignettes;
+    3. the camera's own calibration: a Raytrix raw's ``RayCalibData`` (:func:`~plenodecode.calib.selfcal.calibrate_raytrix`);
+    4. the calibration database ``database`` (default :data:`plenodecode.calib.store.DEFAULT_DB`): the white
+       image of the raw's camera, nearest zoom and focus, and its cached grid;
+    5. with ``self_calibrate``: the grid found in the scene itself
+       (:func:`~plenodecode.calib.selfcal.calibrate_from_scene`), no devignetting.
+
+    The choice is logged in one info line (:meth:`Calibration.describe`).
+
+    Parameters
+    ----------
+    raw : RawCapture
+    grid, white : path-like, optional
+    database : path-like, optional
+    self_calibrate : bool
+        Fall back to self-calibration when nothing above applies (instead of raising).
+    progress : callable(done, total), optional
+        Progress of an on-the-spot calibration.
+
+    Returns
+    -------
+    Calibration
+
+    Raises
+    ------
+    CalibrationError
+        Nothing usable; the message says which option to pass.
+    """
+    from .calib import store
+
+    white_raw = _read_raw(Path(white)) if isinstance(white, (str, os.PathLike)) else white
+    db = Path(database) if database is not None else Path(store.DEFAULT_DB)
+    if grid is not None:
+        cal = Calibration(_grid_from_file(grid), white_raw, "grid file",
+                          str(grid) + (f" (white {Path(white_raw.path or '?').name})" if white_raw else ""))
+    elif white_raw is not None:
+        from .calib import calibrate
+
+        cal = Calibration(calibrate(white_raw, progress=progress), white_raw, "white image",
+                          Path(white_raw.path or "?").name)
+    elif "raytrix" in raw.metadata.extra:
+        from .calib.selfcal import calibrate_raytrix
+
+        cal = Calibration(calibrate_raytrix(raw), None, "camera", "(Raytrix RayCalibData)")
+    else:
+        cal = _database_or_scene(raw, db, self_calibrate=self_calibrate, progress=progress)
+    log.info("%s", cal.describe())
+    return cal
+
+
+def _database_or_scene(raw: RawCapture, db: Path, *, self_calibrate: bool, progress: Progress) -> Calibration:
+    from .calib import store
+
+    name = Path(raw.path).name if raw.path else "this raw"
+    if (db / store.INDEX_NAME).is_file():
+        try:
+            return _from_database(raw, db)
+        except CalibrationError as exc:
+            if not self_calibrate:
+                raise CalibrationError(f"{exc}; or pass --calibration grid.json, --white WHITE_IMAGE or "
+                                       "--self-calibrate") from exc
+            log.info("database %s: %s", db, exc)
+    elif not self_calibrate:
+        raise CalibrationError(
+            f"no calibration for {name} (camera {raw.metadata.model or '?'} {raw.metadata.serial or '?'}): "
+            f"no calibration database in {db}; pass --database DIR, --calibration grid.json, "
+            "--white WHITE_IMAGE or --self-calibrate")
+    from .calib.selfcal import calibrate_from_scene
+
+    return Calibration(calibrate_from_scene(raw, progress=progress), None, "self-calibration", f"from {name}")
+
+
+# ------------------------------------------------------------------------------------------------ decoding
+class Source:
+    """An opened input, ready for rendering: a light field, or a raw with its calibration.
+
+    A raw is decoded on the first use of :attr:`lightfield` (once); products that render from the raw itself
+    (:func:`render_total_focus`) never decode it.
+
+    Parameters
+    ----------
+    lightfield : LightField, optional
+        An input that is already a light field.
+    raw : RawCapture, optional
+        A raw; needs ``calibration``.
+    calibration : Calibration, optional
+    decode_options : mapping, optional
+        Keywords of :func:`plenodecode.decoding.decode` (``demosaic``, ``colour``, ``n_views``, ``dark``,
+        ``hot_pixels``, ``workers``).
+    progress : callable(done, total), optional
+        Progress of the decoding.
+    """
+
+    def __init__(self, *, lightfield: LightField | None = None, raw: RawCapture | None = None,
+                 calibration: Calibration | None = None, decode_options: Mapping[str, Any] | None = None,
+                 progress: Progress = None) -> None:
+        if (lightfield is None) == (raw is None):
+            raise ValueError("pass exactly one of lightfield and raw")
+        if raw is not None and calibration is None:
+            raise ValueError("a raw needs its calibration")
+        self.raw = raw
+        self.calibration = calibration
+        self.decode_options = dict(decode_options or {})
+        self.progress = progress
+        if lightfield is not None:
+            self.__dict__["lightfield"] = lightfield
+
+    @cached_property
+    def lightfield(self) -> LightField:
+        """The light field (V, U, Y, X, C) float32: the input itself, or the raw decoded."""
+        return decode_raw(self.raw, self.calibration, progress=self.progress, **self.decode_options)
+
+    @property
+    def focused(self) -> bool:
+        """True for a focused-plenoptic (Raytrix) raw: a grid with lens types."""
+        return self.raw is not None and self.calibration.grid.lens_type is not None
+
+
+def decode_raw(raw: RawCapture, calibration: Calibration, *, progress: Progress = None,
+               **decode_options: Any) -> LightField:
+    """Decode ``raw`` with ``calibration`` (:func:`plenodecode.decoding.decode`; devignetted by its white).
+
+    Returns
+    -------
+    LightField
+        ``data`` (V, U, Y, X, C) float32.
+    """
+    from .decoding import decode
+
+    log.info("decoding %s", raw.path)
+    return decode(raw, calibration.grid, white=calibration.white, progress=progress, **decode_options)
+
+
+def open_source(path: str | os.PathLike, *, grid: str | os.PathLike | None = None,
+                white: str | os.PathLike | None = None, database: str | os.PathLike | None = None,
+                self_calibrate: bool = False, decode_options: Mapping[str, Any] | None = None,
+                progress: Progress = None) -> Source:
+    """:func:`open_input`, then for a raw :func:`choose_calibration`; the decoding waits for first use.
+
+    The calibration options apply to raws only.
+    """
+    item = open_input(path)
+    if isinstance(item, LightField):
+        return Source(lightfield=item)
+    cal = choose_calibration(item, grid=grid, white=white, database=database, self_calibrate=self_calibrate)
+    return Source(raw=item, calibration=cal, decode_options=decode_options, progress=progress)
+
+
+def load_lightfield_input(path: str | os.PathLike, **options: Any) -> LightField:
+    """The light field of any input: read, or decoded (options of :func:`open_source`)."""
+    return open_source(path, **options).lightfield
+
+
+# ------------------------------------------------------------------------------------------------ products
+@dataclass(frozen=True)
+class Rendered:
+    """A rendered product, before writing.
+
+    Attributes
+    ----------
+    product : str
+        Its key in :data:`PRODUCTS`.
+    images : tuple of (str, ndarray)
+        File stem and image (H, W, C) float32 of every image; one for single-image products.
+    colour : str
+        Colour state of the images ('camera', 'linear-srgb' or 'srgb'); decides the display encoding.
+    folder : bool
+        The product is a folder of images (and ``documents``), not one file.
+    documents : tuple of (str, callable)
+        JSON files written beside the images: file name and ``fn(ext) -> mapping``, the content given the
+        image type the images are written as (documents list the image files).
+    data : mapping
+        Other results (depth map, animation frames, slopes, ...).
+    """
+
+    product: str
+    images: tuple[tuple[str, Any], ...]
+    colour: str
+    folder: bool = False
+    documents: tuple[tuple[str, Callable[[str], Mapping[str, Any]]], ...] = ()
+    data: Mapping[str, Any] = field(default_factory=dict)
+
+    def file_names(self, ext: str) -> list[str]:
+        """The names written into a folder product: images ``<stem>.<ext>``, then the documents."""
+        return [f"{stem}.{ext}" for stem, _ in self.images] + [name for name, _ in self.documents]
+
+
+def render_centre(src: Source) -> Rendered:
+    """The centre view ``(V // 2, U // 2)``, image (Y, X, C)."""
+    lf = src.lightfield
+    return Rendered("centre", (("centre", lf.centre_view()),), lf.colour)
+
+
+def view_names(shape: Sequence[int]) -> list[str]:
+    """File stems of all views of a light field of ``shape`` (V, U, ...): ``view_VV_UU``."""
+    return [f"view_{v:02d}_{u:02d}" for v in range(shape[0]) for u in range(shape[1])]
+
+
+def render_views(src: Source, *, view: tuple[float, float] | None = None, interp: str = "linear") -> Rendered:
+    """Every sub-aperture view (a folder of ``view_VV_UU`` images), or with ``view=(v, u)`` the perspective view
+    at that (fractional) position (:func:`plenodecode.render.perspective`, ``interp`` 'linear' or 'cubic')."""
+    lf = src.lightfield
+    if view is not None:
+        from .render import perspective
+
+        return Rendered("views", (("view", perspective(lf, view[0], view[1], interp=interp)),), lf.colour)
+    nu = lf.shape[1]
+    images = tuple((name, lf.data[i // nu, i % nu]) for i, name in enumerate(view_names(lf.shape)))
+    return Rendered("views", images, lf.colour, folder=True)
+
+
+def refocus_stem(*, slope: float | None = None, alpha: float | None = None) -> str:
+    """File stem of a refocused photograph: ``refocus_s+0.30`` (slope) or ``refocus_a1.020`` (alpha)."""
+    return f"refocus_s{slope:+.2f}" if slope is not None else f"refocus_a{alpha:.3f}"
+
+
+def render_refocus(src: Source, *, slope: float | None = None, alpha: float | None = None,
+                   method: str = "shift-sum", aperture: float = 1.0, upsample: int = 1) -> Rendered:
+    """One photograph refocused at ``slope`` or ``alpha`` (:func:`plenodecode.render.refocus`)."""
+    from .render import refocus
+
+    lf = src.lightfield
+    img = refocus(lf, slope=slope, alpha=alpha, method=method, aperture=aperture, upsample=upsample)
+    return Rendered("refocus", ((refocus_stem(slope=slope, alpha=alpha), img),), lf.colour,
+                    data={"slope": slope, "alpha": alpha, "method": method, "aperture": aperture})
+
+
+def focal_stack_names(n: int, ext: str) -> list[str]:
+    """Files of a focal stack of ``n`` slices: ``slice_000.<ext>`` ..., ``all_in_focus.<ext>``, the JSON."""
+    return [f"slice_{i:03d}.{ext}" for i in range(n)] + [f"all_in_focus.{ext}", "focal_stack.json"]
+
+
+def _slopes_as_given(values: Any, lf: LightField) -> Any:
+    return values
+
+
+#: Units of a focal stack's START and STOP -> ``fn(values, lf) -> slopes`` (px per view step).
+STACK_UNITS: dict[str, Callable[..., Any]] = {
+    "slope": _slopes_as_given,
+    "alpha": lazy("plenodecode.render.alpha", "alpha_to_slope"),
+}
+
+
+def render_focal_stack(src: Source, *, start: float, stop: float, n: int, units: str = "slope",
+                       method: str = "shift-sum", aperture: float = 1.0, upsample: int = 1,
+                       progress: Progress = None) -> Rendered:
+    """``n`` photographs from ``start`` to ``stop`` (slopes, or alphas with ``units='alpha'``), the all-in-focus
+    image made from them, and ``focal_stack.json`` (slopes, alphas, method, file names).
+
+    The all-in-focus image renders every pixel at the slope of its sharpest slice
+    (:func:`~plenodecode.render.focalstack.depth_from_focus`, :func:`~plenodecode.render.focalstack.refocus_per_pixel`).
+    """
+    import numpy as np
+
+    from .render import focal_stack, slope_to_alpha
+    from .render.focalstack import depth_from_focus, refocus_per_pixel
+
+    lf = src.lightfield
+    slopes = lookup(STACK_UNITS, units, param="units")(np.linspace(start, stop, n), lf)
+    order = np.argsort(slopes)
+    imgs = focal_stack(lf, slopes, method=method, aperture=aperture, upsample=upsample, progress=progress)
+    slope_map, _ = depth_from_focus(imgs[order], np.asarray(slopes)[order])
+    if upsample > 1:
+        import cv2
+
+        slope_map = cv2.resize(slope_map, (lf.shape[3], lf.shape[2]), interpolation=cv2.INTER_AREA)
+    aif = refocus_per_pixel(lf, slope_map, aperture=aperture)
+    try:
+        alphas = [float(a) for a in slope_to_alpha(np.asarray(slopes), lf)]
+    except Exception:  # noqa: BLE001 - alphas are informative only; the camera may not be known
+        alphas = None
+    stems = [f"slice_{i:03d}" for i in range(n)]
+
+    def document(ext: str) -> dict[str, Any]:
+        return {"slopes": [float(s) for s in slopes], "alphas": alphas, "method": method, "aperture": aperture,
+                "files": [f"{s}.{ext}" for s in stems], "all_in_focus": f"all_in_focus.{ext}"}
+
+    return Rendered("focal-stack", (*zip(stems, imgs), ("all_in_focus", aif)), lf.colour, folder=True,
+                    documents=(("focal_stack.json", document),), data={"slopes": slopes})
+
+
+def render_all_in_focus(src: Source, *, slopes: Sequence[float] | None = None, method: str = "shift-sum",
+                        aperture: float = 1.0, progress: Progress = None) -> Rendered:
+    """An image sharp everywhere (:func:`plenodecode.render.all_in_focus`; default slopes of the light field)."""
+    from .render import all_in_focus
+
+    lf = src.lightfield
+    img = all_in_focus(lf, slopes=slopes, method=method, aperture=aperture, progress=progress)
+    return Rendered("all-in-focus", (("all_in_focus", img),), lf.colour)
+
+
+def parallax_frame_names(n: int, ext: str = "png") -> list[str]:
+    """Files of the ``n`` numbered frames of a parallax product: ``frame_000.<ext>`` ..."""
+    return [f"frame_{i:03d}.{ext}" for i in range(n)]
+
+
+def render_parallax(src: Source, *, frames: int = 24, radius: float | None = None, interp: str = "linear",
+                    progress: Progress = None) -> Rendered:
+    """Perspective views along a circle of viewpoints (:func:`plenodecode.render.render_parallax`): the
+    numbered frames ``frame_000`` ... and, in ``data['animation']``, the (N, Y, X, 3) frames of the animation."""
+    from .render import render_parallax as parallax
+
+    lf = src.lightfield
+    out = parallax(lf, frames, radius, interp=interp, progress=progress)
+    anim = out if out.shape[-1] == 3 else out.repeat(3, axis=-1)
+    stems = [Path(name).stem for name in parallax_frame_names(len(out))]
+    return Rendered("parallax", tuple(zip(stems, out)), lf.colour, folder=True,
+                    data={"animation": anim})
+
+
+def render_depth(src: Source, *, method: str | None = None, disparity_range: tuple[float, float] | None = None,
+                 metric: bool = False, points: bool = False, focus_distance: float | None = None,
+                 progress: Progress = None) -> Rendered:
+    """Disparity of the centre view (:func:`plenodecode.depth.estimate_depth`), px per view step; with ``metric``
+    also depth in metres, with ``points`` the 3-D point of every pixel and its display colour.
+
+    ``data``: 'depthmap' (DepthMap), 'values' (Y, X) float32 (depth in m with ``metric``, else disparity),
+    'label', and with ``points`` 'points' (Y, X, 3) m and 'colours' (Y, X, 3) uint8.
+    """
+    from .depth import DEFAULT_METHOD, disparity_to_depth, estimate_depth
+    from .depth.metric import depth_constants, depth_to_points
+
+    lf = src.lightfield
+    method = method or DEFAULT_METHOD
+    overrides = {} if focus_distance is None else {"focus_distance_m": focus_distance}
+    if metric or points:
+        depth_constants(lf, **overrides)    # fail before the estimate when the camera geometry is missing
+    kw = {} if disparity_range is None else {"disparity_range": disparity_range}
+    dm = estimate_depth(lf, method=method, progress=progress, **kw)
+    depth = disparity_to_depth(dm, lf, **overrides) if (metric or points) else None
+    data: dict[str, Any] = {"depthmap": dm, "method": method,
+                            "values": depth if metric else dm.disparity,
+                            "label": "depth (m)" if metric else "disparity (px / view step)"}
+    if points:
+        from .io.depthio import display_colours
+
+        data["points"] = depth_to_points(depth, lf, **overrides)
+        data["colours"] = display_colours(lf.centre_view(), lf.colour)
+    return Rendered("depth", (), lf.colour, data=data)
+
+
+def render_total_focus(src: Source, *, patch: float | None = None, sharpness: float = 2.0,
+                       progress: Progress = None) -> Rendered:
+    """All-in-focus rendering of a focused-plenoptic (Raytrix) raw from its micro-images
+    (:func:`plenodecode.decoding.focused.render_total_focus`), devignetted by the calibration's white.
+
+    Raises
+    ------
+    ValueError
+        The input is not a raw (a light field has no micro-images).
+    """
+    if src.raw is None:
+        raise ValueError("total-focus renders a focused-plenoptic raw; the input is a light field")
+    from .decoding.focused import render_total_focus as total_focus
+
+    res = total_focus(src.raw, src.calibration.grid, patch=patch, white=src.calibration.white,
+                      sharpness=sharpness, progress=progress)
+    return Rendered("total-focus", (("total_focus", res.image),), "camera", data={"render": res})
+
+
+#: Product name -> ``fn(source, **options) -> Rendered``; the same names in the CLI, batch and Python.
+PRODUCTS: dict[str, Callable[..., Rendered]] = {
+    "centre": render_centre,
+    "views": render_views,
+    "refocus": render_refocus,
+    "focal-stack": render_focal_stack,
+    "all-in-focus": render_all_in_focus,
+    "parallax": render_parallax,
+    "depth": render_depth,
+    "total-focus": render_total_focus,
+}
+
+
+def render_product(src: Source, name: str, **options: Any) -> Rendered:
+    """Render the product ``name`` (a key of :data:`PRODUCTS`) of ``src`` with its ``options``."""
+    return lookup(PRODUCTS, name, param="product")(src, **options)
+
+
+# ------------------------------------------------------------------------------------------------- writing
+def display_encoding(colour: str, bit_depth: int) -> bool:
+    """Whether an image of colour state ``colour`` gets the sRGB transfer function when written at
+    ``bit_depth``: linear states ('camera', 'linear-srgb') do, except 32-bit float outputs."""
+    return colour in LINEAR_COLOURS and int(bit_depth) != 32
+
+
+def default_extension(bit_depth: int) -> str:
+    """Image type of a product written without an explicit one: 'exr' for 32-bit float, else 'png'."""
+    return "exr" if int(bit_depth) == 32 else "png"
+
+
+def write_image_file(path: str | os.PathLike, image: Any, *, colour: str, bit_depth: int,
+                     overwrite: bool = False) -> Path:
+    """Write one rendered image (:func:`plenodecode.io.images.write_image`, atomic) with :func:`display_encoding`.
+
+    Raises
+    ------
+    FileExistsError
+        ``path`` exists and ``overwrite`` is False.
+    ValueError
+        A bit depth the image type cannot hold.
+    """
+    from .io import images
+
+    return images.write_image(path, image, bit_depth=int(bit_depth), overwrite=overwrite,
+                              encode_srgb=display_encoding(colour, bit_depth))
+
+
+def refuse_folder_clash(folder: str | os.PathLike, names: Sequence[str], overwrite: bool) -> None:
+    """Check a folder output before any work: ``folder`` is a folder (or absent) and, unless ``overwrite``,
+    none of ``names`` exists in it.  Creates nothing.
+
+    Raises
+    ------
+    FileExistsError
+        A clash; or ``folder`` is a file.
+    """
+    from .io.atomic import refuse_existing
+
+    p = Path(folder)
+    if p.exists() and not p.is_dir():
+        raise FileExistsError(f"{p} exists and is not a folder")
+    if p.is_dir():
+        refuse_existing([p / n for n in names], overwrite)
+
+
+@contextlib.contextmanager
+def staged_folder(folder: str | os.PathLike, names: Sequence[str], *, overwrite: bool = False) -> Iterator[Path]:
+    """Context manager for the files ``names`` of a folder output: write them into the yielded staging folder;
+    they appear under ``folder`` together on normal exit, and on an exception nothing is left.
+
+    A missing ``folder`` is staged whole and renamed into place (so a failed run leaves no empty folder); into
+    an existing one the files are renamed one by one, other files in it are kept.
+
+    Raises
+    ------
+    FileExistsError
+        See :func:`refuse_folder_clash` (checked on entry, before anything is created).
+    """
+    from .io.atomic import atomic_output, commit, discard, temporary_sibling
+
+    p = Path(folder)
+    refuse_folder_clash(p, names, overwrite)
+    if not p.exists():
+        with atomic_output(p, folder=True) as tmp:
+            yield tmp
+        return
+    stage = temporary_sibling(p / "staging", folder=True)
+    created: list[Path] = []
+    try:
+        yield stage
+        refuse_folder_clash(p, names, overwrite)
+        for name in names:
+            existed = os.path.lexists(p / name)
+            commit(stage / name, p / name)
+            if not existed:
+                created.append(p / name)
+    except BaseException:
+        for f in created:      # a rename failed half-way: do not leave an incomplete set behind
+            discard(f)
+        raise
+    finally:
+        discard(stage)
+
+
+def write_product(rendered: Rendered, output: str | os.PathLike, *, bit_depth: int = 16, ext: str | None = None,
+                  overwrite: bool = False, progress: Progress = None) -> list[Path]:
+    """Write the images and documents of a product: one image file ``output``, or the folder ``output``.
+
+    Parameters
+    ----------
+    rendered : Rendered
+        An image product (not 'depth': :func:`write_depth`).
+    output : path-like
+        The image file (its extension gives the type), or the folder of a folder product.
+    bit_depth : {8, 16, 32}
+    ext : str, optional
+        Image type of a folder product's files (default :func:`default_extension`).
+    overwrite : bool
+    progress : callable(done, total), optional
+        After every image of a folder product.
+
+    Returns
+    -------
+    list of Path
+        The written file, or the folder's files.
+    """
+    out = Path(output)
+    if not rendered.folder:
+        (_, image), = rendered.images
+        return [write_image_file(out, image, colour=rendered.colour, bit_depth=bit_depth, overwrite=overwrite)]
+    from .io.atomic import write_text_atomic
+
+    ext = ext or default_extension(bit_depth)
+    names = rendered.file_names(ext)
+    with staged_folder(out, names, overwrite=overwrite) as stage:
+        for i, (name, (_, image)) in enumerate(zip(names, rendered.images)):
+            write_image_file(stage / name, image, colour=rendered.colour, bit_depth=bit_depth)
+            if progress is not None:
+                progress(i + 1, len(rendered.images))
+        for name, document in rendered.documents:
+            write_text_atomic(stage / name, json.dumps(document(ext), indent=1))
+    return [out / n for n in names]
+
+
+def write_parallax(rendered: Rendered, animation: str | os.PathLike, *, fps: float,
+                   frames_dir: str | os.PathLike | None = None, bit_depth: int = 16,
+                   overwrite: bool = False) -> list[Path]:
+    """Write a parallax product: the animation (.gif / .webp) and, with ``frames_dir``, its numbered frames
+    (``frame_000.png`` ...).  Both or neither: the frames folder is committed after the animation is written."""
+    from .io import images
+
+    def write_animation() -> Path:
+        return images.write_animation(animation, rendered.data["animation"], fps=fps, overwrite=overwrite,
+                                      encode_srgb=rendered.colour in LINEAR_COLOURS)
+
+    if frames_dir is None:
+        return [write_animation()]
+    names = rendered.file_names("png")
+    with staged_folder(frames_dir, names, overwrite=overwrite) as stage:
+        for name, (_, frame) in zip(names, rendered.images):
+            write_image_file(stage / name, frame, colour=rendered.colour, bit_depth=bit_depth)
+        written = [write_animation()]
+    return written + [Path(frames_dir) / n for n in names]
+
+
+def write_depth(rendered: Rendered, pfm_path: str | os.PathLike, *, ply: str | os.PathLike | None = None,
+                title: str | None = None, full: bool = True, overwrite: bool = False) -> list[Path]:
+    """Write a depth product: ``X.pfm`` (the values, float32), and with ``full`` ``X.exr`` and a colour-mapped
+    ``X.png`` (:func:`plenodecode.io.depthio.write_depth_outputs`), plus a PLY point cloud with ``ply``."""
+    values = rendered.data["values"]
+    if not full:
+        from .io.pfm import write_pfm
+
+        return [write_pfm(pfm_path, values, overwrite=overwrite)]
+    from .io.depthio import write_depth_outputs
+
+    return write_depth_outputs(pfm_path, values, label=rendered.data["label"], points=rendered.data.get("points"),
+                               colours=rendered.data.get("colours"), ply=ply, title=title, overwrite=overwrite)
+
+
+def write_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | None = None, bit_depth: int = 16,
+                     display: bool = False, overwrite: bool = False, progress: Progress = None) -> Path:
+    """Save a light field (:func:`plenodecode.io.lightfield.save_lightfield`, atomic).
+
+    ``display=True`` applies :func:`display_encoding` (for image formats meant for viewing, e.g. the views of a
+    batch); otherwise the data are stored as they are (linear).
+    """
+    from .io.lightfield import save_lightfield
+
+    return Path(save_lightfield(lf, path, format=format, bit_depth=int(bit_depth), overwrite=overwrite,
+                                progress=progress, encode_srgb=display and display_encoding(lf.colour, bit_depth)))
+
+
+__all__ = ["LIGHTFIELD_EXTENSIONS", "IMAGE_EXTENSIONS", "BIT_DEPTHS", "INPUT_READERS", "PRODUCTS", "STACK_UNITS", "Calibration", "Source",
+           "Rendered", "input_kind", "is_hci_folder", "is_lightfield_path", "open_input", "choose_calibration",
+           "decode_raw", "open_source", "load_lightfield_input", "render_product", "display_encoding",
+           "default_extension", "write_image_file", "refuse_folder_clash", "staged_folder", "write_product",
+           "write_parallax", "write_depth", "write_lightfield", "view_names", "refocus_stem", "focal_stack_names",
+           "parallax_frame_names"]
