@@ -138,7 +138,7 @@ def calibrate_image(img: np.ndarray, sensor_shape: tuple[int, int], *, scale: fl
     est = estimate if estimate is not None else _c.estimate_lattice_vectors(img, pitch_hint=hint, lattice=lattice)
     tick(1)
     contrast_img = _c.devignette(img, est.pitch)
-    peaks, contrast, smoothed = _c._detect(contrast_img, est.pitch, min_contrast=min_contrast)
+    peaks, contrast, smoothed = _c.detect_peaks_and_filtered(contrast_img, est.pitch, min_contrast=min_contrast)
     tick(2)
     cen, ok = _c.refine_peaks(contrast_img, peaks, est.pitch, method=method, smoothed=smoothed)
     tick(3)
