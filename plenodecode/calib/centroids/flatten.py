@@ -152,7 +152,7 @@ def fix_hot_pixels(img: np.ndarray, *, threshold: float = 0.1) -> np.ndarray:
     Notes
     -----
     A numba kernel that tests and repairs each row in one pass; on a full-size Illum image it is
-    ~2.5x faster than the same test through OpenCV (``make bench`` compares it with
+    several times faster than the same test through OpenCV (``make bench`` compares it with
     :func:`fix_hot_pixels_reference`, which the tests check it against).
     """
     a = np.ascontiguousarray(img, np.float32)

@@ -82,7 +82,7 @@ def window_contrast(g: np.ndarray, rr: np.ndarray, cc: np.ndarray, half: int) ->
 
     ``c_k = g[r_k, c_k] - min over the (2 half + 1)^2 window (clipped to the image) of g``.
     A numba kernel that visits only the windows of the N listed pixels: on a full-size Illum
-    image it is ~3x faster than eroding the whole image (``make bench`` compares it with
+    image it is several times faster than eroding the whole image (``make bench`` compares it with
     :func:`window_contrast_reference`, the same value through ``cv2.erode``).
 
     Parameters
