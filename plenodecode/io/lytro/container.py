@@ -23,7 +23,7 @@ import numpy as np
 from ...errors import FormatError
 from ..atomic import refuse_existing, write_bytes_atomic
 from .contents import ContentItem, describe_contents
-from .fields import _dict, _frame_wrapper, _get, _norm_sha1, _parse_json, _tags
+from .fields import lookup_dict, first_frame, lookup, normalise_sha1, parse_json, frame_tags
 
 log = logging.getLogger(__name__)
 
@@ -109,7 +109,7 @@ class LytroContainer:
 
     def has(self, sha1: str) -> bool:
         """True if a section with this SHA-1 name is in the file."""
-        return _norm_sha1(sha1) in self._index()
+        return normalise_sha1(sha1) in self._index()
 
     def _index(self) -> dict[str, Section]:
         idx: dict[str, Section] = {}
@@ -119,7 +119,7 @@ class LytroContainer:
 
     def section(self, sha1: str) -> Section:
         """The section named ``sha1`` ('sha1-<hex>' or bare hex, any case)."""
-        s = self._index().get(_norm_sha1(sha1))
+        s = self._index().get(normalise_sha1(sha1))
         if s is None:
             raise FormatError(f"{self.path}: the TOC refers to {sha1!r}, but no section with that SHA-1 is in "
                               "the file; the file is incomplete (it may be a Desktop export without the raw)")
@@ -136,7 +136,7 @@ class LytroContainer:
 
     def item(self, sha1: str) -> ContentItem | None:
         """The content item stored in section ``sha1``, or None when the TOC does not refer to it."""
-        key = _norm_sha1(sha1)
+        key = normalise_sha1(sha1)
         for it in self.items:
             if it.sha1 == key:
                 return it
@@ -197,7 +197,7 @@ def _scan_sections(data: Any, size: int, where: str) -> list[Section]:
     return sections
 
 
-def _map_file(fh: Any) -> mmap.mmap:
+def map_file(fh: Any) -> mmap.mmap:
     """Read-only memory map of a whole (non-empty) file; pages pre-faulted where the OS allows."""
     if hasattr(mmap, "MAP_POPULATE"):
         return mmap.mmap(fh.fileno(), 0, flags=mmap.MAP_SHARED | mmap.MAP_POPULATE, prot=mmap.PROT_READ)
@@ -234,7 +234,7 @@ def read_container(path: str | os.PathLike, *, verify: bool = True) -> LytroCont
             if size < 16:
                 data: Any = fh.read()
             else:
-                data = _map_file(fh)
+                data = map_file(fh)
     except FileNotFoundError:
         raise FormatError(f"{where}: no such file") from None
     except IsADirectoryError:
@@ -253,7 +253,7 @@ def read_container(path: str | os.PathLike, *, verify: bool = True) -> LytroCont
         raise FormatError(f"{where}: expected exactly one LFM (table of contents) section, found {len(lfms)}; "
                           "the file is damaged or truncated")
     lfm = lfms[0]
-    toc = _parse_json(memoryview(data)[lfm.data_offset:lfm.data_offset + lfm.length],
+    toc = parse_json(memoryview(data)[lfm.data_offset:lfm.data_offset + lfm.length],
                       f"{where}: the table of contents (LFM)")
     if not isinstance(toc, dict):
         raise FormatError(f"{where}: the table of contents should be a JSON object, found {type(toc).__name__}")
@@ -269,38 +269,38 @@ def _build_container(p: Path, sections: tuple[Section, ...], toc: dict, data: An
         payloads.setdefault(s.sha1, memoryview(data)[s.data_offset:s.data_offset + s.length])
 
     def resolve_json(ref: Any, what: str) -> Mapping[str, Any] | None:
-        if not isinstance(ref, str) or _norm_sha1(ref) not in payloads:
+        if not isinstance(ref, str) or normalise_sha1(ref) not in payloads:
             return None
-        obj = _parse_json(payloads[_norm_sha1(ref)], f"{where}: the {what}")
+        obj = parse_json(payloads[normalise_sha1(ref)], f"{where}: the {what}")
         if not isinstance(obj, Mapping):
             raise FormatError(f"{where}: the {what} should be a JSON object, found {type(obj).__name__}")
         return obj
 
-    wrapper = _frame_wrapper(toc)
-    frame = _dict(wrapper, "frame")
+    wrapper = first_frame(toc)
+    frame = lookup_dict(wrapper, "frame")
     meta = frame.get("metadata") if isinstance(frame.get("metadata"), Mapping) else \
         resolve_json(frame.get("metadataRef"), "frame metadata (metadataRef)")
     private = frame.get("privateMetadata") if isinstance(frame.get("privateMetadata"), Mapping) else \
         resolve_json(frame.get("privateMetadataRef"), "private metadata (privateMetadataRef)")
 
     image_ref = frame.get("imageRef")
-    if isinstance(_get(toc, "files"), list):
+    if isinstance(lookup(toc, "files"), list):
         kind = "calibration"
-    elif isinstance(image_ref, str) and _norm_sha1(image_ref) in payloads:
+    elif isinstance(image_ref, str) and normalise_sha1(image_ref) in payloads:
         kind = "raw"
     else:
         kind = "processed"
 
-    model = _get(meta, "camera", "model")
+    model = lookup(meta, "camera", "model")
     model_source = "metadata"
     if not isinstance(model, str):
         model, model_source = None, "unknown"
-        if isinstance(_get(toc, "picture", "frameArray"), list) and isinstance(_get(toc, "version"), Mapping):
+        if isinstance(lookup(toc, "picture", "frameArray"), list) and isinstance(lookup(toc, "version"), Mapping):
             # Lytro Desktop <= 3 TOC shape ("version" 1.0, picture.frameArray): written only for the F01.
             model, model_source = "F01", "toc layout"
-    serial = _get(private, "camera", "serialNumber")
+    serial = lookup(private, "camera", "serialNumber")
     serial = str(serial) if isinstance(serial, (str, int)) and not isinstance(serial, bool) else None
-    white = bool(_get(_tags(wrapper), "modulationFrame", default=False) is True)
+    white = bool(lookup(frame_tags(wrapper), "modulationFrame", default=False) is True)
     items = describe_contents(toc, payloads, meta)
     return LytroContainer(path=p, sections=sections, toc=toc, kind=kind, model=model, serial=serial,
                           model_source=model_source, metadata=meta, private_metadata=private,

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping, Sequence
 
 from ...errors import PlenodecodeError
-from .fields import _norm_sha1, _number
+from .fields import normalise_sha1, as_number
 from .metadata import metadata_from_lytro
 
 _SHA1_STR_RE = re.compile(r"^sha1-[0-9a-fA-F]{40}$")
@@ -101,7 +101,7 @@ def _shape_from(chain: Sequence[Any]) -> tuple[int, int] | None:
     """Nearest ancestor dict with integer ``width`` and ``height`` -> (height, width)."""
     for obj in reversed(chain):
         if isinstance(obj, Mapping):
-            w, h = _number(obj.get("width")), _number(obj.get("height"))
+            w, h = as_number(obj.get("width")), as_number(obj.get("height"))
             if w is not None and h is not None and w > 0 and h > 0 and w == int(w) and h == int(h):
                 return int(h), int(w)
     return None
@@ -155,7 +155,7 @@ def describe_contents(toc: Mapping[str, Any], payloads: Mapping[str, memoryview]
         return name
 
     for keys, chain, value in _walk_refs(toc):
-        sha = _norm_sha1(value)
+        sha = normalise_sha1(value)
         if sha in seen or sha not in payloads:
             continue
         seen.add(sha)
@@ -186,7 +186,7 @@ def describe_contents(toc: Mapping[str, Any], payloads: Mapping[str, memoryview]
             name = {"depthMap": "depth_map", "confidenceMap": "confidence_map", "depthLut": "depth_lut"}[parent_key]
             shape = _shape_from(chain)
             for k in ("minLambda", "maxLambda"):
-                v = next((o[k] for o in reversed(chain) if isinstance(o, Mapping) and _number(o.get(k)) is not None),
+                v = next((o[k] for o in reversed(chain) if isinstance(o, Mapping) and as_number(o.get(k)) is not None),
                          None)
                 if v is not None:
                     info[k] = v
@@ -217,7 +217,7 @@ def describe_contents(toc: Mapping[str, Any], payloads: Mapping[str, memoryview]
             name = f"{base}_{counters[base] - 1:02d}"
             shape = _shape_from(chain)
             for k in ("focus", "lambda"):
-                if isinstance(parent, Mapping) and _number(parent.get(k)) is not None:
+                if isinstance(parent, Mapping) and as_number(parent.get(k)) is not None:
                     info[k] = parent[k]
         else:
             typ = sniff or "binary"
@@ -230,7 +230,8 @@ def describe_contents(toc: Mapping[str, Any], payloads: Mapping[str, memoryview]
     return items
 
 
-def _summary(items: Iterable[ContentItem]) -> str:
+def summarise_contents(items: Iterable[ContentItem]) -> str:
+    """What a container holds besides JSON, in words, e.g. ``'3 x jpeg 16x8, depth float32 4x3'``."""
     counts: dict[str, int] = {}
     for it in items:
         if it.type == "json":

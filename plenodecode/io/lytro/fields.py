@@ -13,12 +13,13 @@ from typing import Any, Mapping
 from ...errors import FormatError
 
 
-def _norm_sha1(s: str) -> str:
+def normalise_sha1(s: str) -> str:
+    """A section name as the file stores it: ``'sha1-'`` + lower-case hex, from bare hex or any case."""
     s = str(s).strip().lower()
     return s if s.startswith("sha1-") else "sha1-" + s
 
 
-def _get(obj: Any, *keys: Any, default: Any = None) -> Any:
+def lookup(obj: Any, *keys: Any, default: Any = None) -> Any:
     """``obj[k0][k1]...`` through dicts and lists; ``default`` when any step is missing or of the wrong type."""
     for k in keys:
         if isinstance(k, int):
@@ -30,12 +31,13 @@ def _get(obj: Any, *keys: Any, default: Any = None) -> Any:
     return obj
 
 
-def _dict(obj: Any, *keys: Any) -> Mapping[str, Any]:
-    v = _get(obj, *keys)
+def lookup_dict(obj: Any, *keys: Any) -> Mapping[str, Any]:
+    """:func:`lookup`, but {} unless the value found is a dict."""
+    v = lookup(obj, *keys)
     return v if isinstance(v, Mapping) else {}
 
 
-def _number(v: Any) -> float | None:
+def as_number(v: Any) -> float | None:
     """``v`` as a finite float, None if it is not a number."""
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         return None
@@ -46,21 +48,23 @@ def _number(v: Any) -> float | None:
     return f if math.isfinite(f) else None
 
 
-def _first_number(*values: Any) -> float | None:
+def first_number(*values: Any) -> float | None:
+    """The first of ``values`` that is a finite number (see :func:`as_number`), else None."""
     for v in values:
-        f = _number(v)
+        f = as_number(v)
         if f is not None:
             return f
     return None
 
 
-def _json_number(x: float) -> int | float:
+def json_number(x: float) -> int | float:
     """Integral values as int (as Lytro writes them), others as float."""
     x = float(x)
     return int(x) if x.is_integer() and abs(x) < 2**53 else x
 
 
-def _parse_json(buf: bytes | memoryview, what: str) -> Any:
+def parse_json(buf: bytes | memoryview, what: str) -> Any:
+    """JSON of a UTF-8 payload (BOM allowed); a FormatError naming ``what`` when it is not valid JSON."""
     try:
         text = bytes(buf).decode("utf-8-sig")
         return json.loads(text)
@@ -69,14 +73,15 @@ def _parse_json(buf: bytes | memoryview, what: str) -> Any:
                           "the file is damaged") from None
 
 
-def _frame_wrapper(toc: Mapping[str, Any]) -> Mapping[str, Any]:
+def first_frame(toc: Mapping[str, Any]) -> Mapping[str, Any]:
     """The ``{frame, parameters}`` entry of the first frame in either TOC shape (or {})."""
     for keys in (("frames", 0), ("picture", "frameArray", 0), ("master", "picture", "frameArray", 0)):
-        w = _get(toc, *keys)
+        w = lookup(toc, *keys)
         if isinstance(w, Mapping):
             return w
     return {}
 
 
-def _tags(wrapper: Mapping[str, Any]) -> Mapping[str, Any]:
-    return _dict(wrapper, "parameters", "vendorContent", "com.lytro.tags")
+def frame_tags(wrapper: Mapping[str, Any]) -> Mapping[str, Any]:
+    """The ``parameters.vendorContent['com.lytro.tags']`` of a frame entry (``modulationFrame``, ...) or {}."""
+    return lookup_dict(wrapper, "parameters", "vendorContent", "com.lytro.tags")

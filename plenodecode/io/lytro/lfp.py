@@ -13,10 +13,10 @@ from ...errors import FormatError
 from ...types import RawCapture
 from .. import packing
 from ..atomic import atomic_outputs, refuse_existing
-from .contents import EXTENSIONS, _summary
+from .contents import EXTENSIONS, summarise_contents
 from .container import read_container, section_name, write_container
-from .fields import _dict, _frame_wrapper
-from .metadata import _packed_size_or_error, _tags_entry, lytro_metadata, metadata_from_lytro
+from .fields import lookup_dict, first_frame
+from .metadata import packed_size_or_error, tags_entry, lytro_metadata, metadata_from_lytro
 
 ILLUM_PICTURE_SCHEMA = "http://schema.lytro.com/lfp/picture/2.1.4/picture_schema.json"
 
@@ -49,15 +49,15 @@ def read_lytro(path: str | os.PathLike, *, verify: bool = True) -> RawCapture:
                           f"picture; run 'plenodecode info {where}' to list it")
     if c.kind != "raw":
         raise FormatError(f"{where}: holds no raw image: it is a processed Lytro Desktop file with "
-                          f"{_summary(c.items)}; run 'plenodecode info {where}' to see what it holds")
+                          f"{summarise_contents(c.items)}; run 'plenodecode info {where}' to see what it holds")
     if c.metadata is None:
         raise FormatError(f"{where}: the raw's frame metadata is missing (no metadata or metadataRef section); "
                           "the file is incomplete")
     cam, cfa, black, white, w, h, bits, endian = metadata_from_lytro(
         c.metadata, c.private_metadata, c.path, white_image=c.white_image)
-    ref = _dict(_frame_wrapper(c.toc), "frame").get("imageRef")
+    ref = lookup_dict(first_frame(c.toc), "frame").get("imageRef")
     buf = c.payload(ref)
-    expected = _packed_size_or_error(h, w, bits, where)
+    expected = packed_size_or_error(h, w, bits, where)
     if len(buf) != expected:
         raise FormatError(f"{where}: the raw payload is {len(buf)} bytes but the metadata declares {w} x {h} at "
                           f"{bits} bit = {expected} bytes; the file is damaged or its metadata is wrong")
@@ -77,7 +77,7 @@ def _frame_payloads(raw: RawCapture, schema: str, bits: int) -> tuple[bytes, byt
     priv_b = json.dumps(private, indent="\t").encode("utf-8")
     frame = {"metadataRef": section_name(meta_b), "privateMetadataRef": section_name(priv_b),
              "imageRef": section_name(image)}
-    return image, meta_b, priv_b, {"frame": frame, "parameters": _tags_entry(raw)}
+    return image, meta_b, priv_b, {"frame": frame, "parameters": tags_entry(raw)}
 
 
 def write_lfr(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = False) -> Path:

@@ -16,7 +16,7 @@ import numpy as np
 from ...errors import FormatError, MetadataError
 from ...types import CFA_PATTERNS, CameraMetadata, RawCapture
 from .. import packing
-from .fields import _dict, _first_number, _frame_wrapper, _get, _json_number, _number, _tags
+from .fields import lookup_dict, first_number, first_frame, lookup, json_number, as_number, frame_tags
 
 log = logging.getLogger(__name__)
 
@@ -29,7 +29,7 @@ ILLUM_PRIVATE_SCHEMA = "http://schema.lytro.com/lfp/lytro_illum_private/1.1.1/ly
 
 
 def _int_side(v: Any, what: str, where: str) -> int:
-    f = _number(v)
+    f = as_number(v)
     if f is None or f != int(f):
         raise MetadataError(f"{where}{what} should be a positive integer, found {v!r}; the metadata is damaged")
     n = int(f)
@@ -41,14 +41,14 @@ def _int_side(v: Any, what: str, where: str) -> int:
 
 def _unwrap(doc: Mapping[str, Any]) -> tuple[Mapping[str, Any], Mapping[str, Any] | None, Mapping[str, Any]]:
     """``(metadata, privateMetadata, tags)`` of a TXT document with the ``master`` wrapper."""
-    wrapper = _frame_wrapper(doc)
-    frame = _dict(wrapper, "frame")
+    wrapper = first_frame(doc)
+    frame = lookup_dict(wrapper, "frame")
     meta = frame.get("metadata")
     if not isinstance(meta, Mapping):
         raise MetadataError("the white-image TXT has no master.picture.frameArray[0].frame.metadata object; "
                             "it is not a Lytro MOD_NNNN.TXT")
     private = frame.get("privateMetadata")
-    return meta, private if isinstance(private, Mapping) else None, _tags(wrapper)
+    return meta, private if isinstance(private, Mapping) else None, frame_tags(wrapper)
 
 
 def _cfa_names(tile: Any, upper_left: Any, where: str) -> list[list[str]]:
@@ -68,14 +68,14 @@ def _cfa_names(tile: Any, upper_left: Any, where: str) -> list[list[str]]:
 
 
 def _levels(obj: Any, names: list[list[str]], what: str, where: str) -> np.ndarray:
-    if _number(obj) is not None:
+    if as_number(obj) is not None:
         return np.full((2, 2), float(obj))
     if not isinstance(obj, Mapping):
         raise MetadataError(f"{where}pixelFormat.{what} should be an object {{r, gr, gb, b}}, found {obj!r}")
     out = np.empty((2, 2))
     for i in range(2):
         for j in range(2):
-            v = _number(obj.get(names[i][j]))
+            v = as_number(obj.get(names[i][j]))
             if v is None:
                 raise MetadataError(f"{where}pixelFormat.{what}.{names[i][j]} should be a number, found "
                                     f"{obj.get(names[i][j])!r}")
@@ -132,23 +132,23 @@ def metadata_from_lytro(meta: Mapping[str, Any], private: Mapping[str, Any] | No
         private = private if private is not None else private2
     if not isinstance(private, Mapping):
         private = None
-    image = _dict(meta, "image")
-    devices = _dict(meta, "devices")
-    sensor = _dict(devices, "sensor")
+    image = lookup_dict(meta, "image")
+    devices = lookup_dict(meta, "devices")
+    sensor = lookup_dict(devices, "sensor")
     raw_details = image.get("rawDetails")
     src = raw_details if isinstance(raw_details, Mapping) else image
     if not image:
         raise MetadataError(f"{where}Lytro metadata has no 'image' object; it is not frame metadata")
 
-    w_decl = _first_number(image.get("width"), sensor.get("pixelWidth"))
-    h_decl = _first_number(image.get("height"), sensor.get("pixelHeight"))
+    w_decl = first_number(image.get("width"), sensor.get("pixelWidth"))
+    h_decl = first_number(image.get("height"), sensor.get("pixelHeight"))
     if (w_decl is None or h_decl is None) and default_size is not None:
         h_decl, w_decl = default_size
     width = _int_side(w_decl, "image.width", where)
     height = _int_side(h_decl, "image.height", where)
 
-    pk = _dict(src, "pixelPacking")
-    bits_f = _first_number(pk.get("bitsPerPixel"), sensor.get("bitsPerPixel"))
+    pk = lookup_dict(src, "pixelPacking")
+    bits_f = first_number(pk.get("bitsPerPixel"), sensor.get("bitsPerPixel"))
     if bits_f is None or bits_f not in (8, 10, 12, 16):
         raise MetadataError(f"{where}pixelPacking.bitsPerPixel should be 8, 10, 12 or 16, found "
                             f"{pk.get('bitsPerPixel', sensor.get('bitsPerPixel'))!r}")
@@ -168,56 +168,56 @@ def metadata_from_lytro(meta: Mapping[str, Any], private: Mapping[str, Any] | No
     cfa = "".join(n[0] for row in names for n in row).upper()
     if cfa not in CFA_PATTERNS:  # pragma: no cover - every valid shift of the tile is a Bayer pattern
         raise MetadataError(f"{where}mosaic gives an unknown CFA {cfa}")
-    pf = _dict(src, "pixelFormat")
+    pf = lookup_dict(src, "pixelFormat")
     if not pf:
         raise MetadataError(f"{where}Lytro metadata has no pixelFormat {{black, white}}; cannot tell the levels")
     black = _levels(pf.get("black"), names, "black", where)
     white = _levels(pf.get("white"), names, "white", where)
-    if _number(pf.get("rightShift")) not in (None, 0.0):
+    if as_number(pf.get("rightShift")) not in (None, 0.0):
         log.warning("%spixelFormat.rightShift = %s is not 0; levels used as written", where, pf.get("rightShift"))
 
-    color = _dict(image, "color")
+    color = lookup_dict(image, "color")
     gains = color.get("whiteBalanceGain")
     if not isinstance(gains, Mapping):
-        gains = _get(meta, "algorithms", "awb", "computed", "gain")
+        gains = lookup(meta, "algorithms", "awb", "computed", "gain")
     wb = None
     if isinstance(gains, Mapping):
-        wb = {k: float(v) for k, v in gains.items() if k in ("r", "gr", "gb", "b", "g") and _number(v) is not None}
+        wb = {k: float(v) for k, v in gains.items() if k in ("r", "gr", "gb", "b", "g") and as_number(v) is not None}
         wb = wb or None
     ccm_list = color.get("ccmRgbToSrgbArray", color.get("ccm"))
     ccm = None
-    if isinstance(ccm_list, list) and len(ccm_list) == 9 and all(_number(x) is not None for x in ccm_list):
+    if isinstance(ccm_list, list) and len(ccm_list) == 9 and all(as_number(x) is not None for x in ccm_list):
         vals = [float(x) for x in ccm_list]
         ccm = (tuple(vals[0:3]), tuple(vals[3:6]), tuple(vals[6:9]))
 
-    mla = _dict(devices, "mla")
-    lens = _dict(devices, "lens")
-    off = _dict(mla, "sensorOffset")
-    offset = tuple(_number(off.get(k)) for k in ("x", "y", "z"))
-    scale = tuple(_number(_dict(mla, "scaleFactor").get(k)) for k in ("x", "y"))
-    camera = _dict(meta, "camera")
-    serial = _get(private, "camera", "serialNumber")
+    mla = lookup_dict(devices, "mla")
+    lens = lookup_dict(devices, "lens")
+    off = lookup_dict(mla, "sensorOffset")
+    offset = tuple(as_number(off.get(k)) for k in ("x", "y", "z"))
+    scale = tuple(as_number(lookup_dict(mla, "scaleFactor").get(k)) for k in ("x", "y"))
+    camera = lookup_dict(meta, "camera")
+    serial = lookup(private, "camera", "serialNumber")
     if white_image is None:
-        white_image = _get(tags, "modulationFrame") is True
+        white_image = lookup(tags, "modulationFrame") is True
     text = lambda v: str(v) if isinstance(v, (str, int)) and not isinstance(v, bool) else None  # noqa: E731
 
     cam = CameraMetadata(
         make=text(camera.get("make")),
         model=text(camera.get("model")),
         serial=text(serial),
-        zoom_step=_number(lens.get("zoomStep")),
-        focus_step=_number(lens.get("focusStep")),
-        exposure_s=_number(_get(devices, "shutter", "frameExposureDuration")),
-        iso=_first_number(image.get("iso"), sensor.get("iso")),
+        zoom_step=as_number(lens.get("zoomStep")),
+        focus_step=as_number(lens.get("focusStep")),
+        exposure_s=as_number(lookup(devices, "shutter", "frameExposureDuration")),
+        iso=first_number(image.get("iso"), sensor.get("iso")),
         wb_gains=wb,
         ccm=ccm,  # type: ignore[arg-type]
-        pixel_pitch_m=_number(sensor.get("pixelPitch")),
-        lens_pitch_m=_number(mla.get("lensPitch")),
-        mla_rotation=_number(mla.get("rotation")),
+        pixel_pitch_m=as_number(sensor.get("pixelPitch")),
+        lens_pitch_m=as_number(mla.get("lensPitch")),
+        mla_rotation=as_number(mla.get("rotation")),
         mla_offset_m=offset if all(v is not None for v in offset) else None,  # type: ignore[arg-type]
         mla_scale=scale if all(v is not None for v in scale) else None,  # type: ignore[arg-type]
-        focal_length_m=_number(lens.get("focalLength")),
-        f_number=_number(lens.get("fNumber")),
+        focal_length_m=as_number(lens.get("focalLength")),
+        f_number=as_number(lens.get("fNumber")),
         is_white_image=bool(white_image),
         extra={"lytro": {"metadata": meta, "privateMetadata": private,
                          **({"document": doc} if doc is not meta else {})}},
@@ -225,7 +225,8 @@ def metadata_from_lytro(meta: Mapping[str, Any], private: Mapping[str, Any] | No
     return cam, cfa, black, white, width, height, bits, endian
 
 
-def _packed_size_or_error(h: int, w: int, bits: int, where: str) -> int:
+def packed_size_or_error(h: int, w: int, bits: int, where: str) -> int:
+    """Bytes of an ``h x w`` raw packed at ``bits``; a FormatError naming ``where`` for an impossible layout."""
     try:
         return packing.packed_size(h, w, bits)
     except ValueError as exc:
@@ -233,7 +234,7 @@ def _packed_size_or_error(h: int, w: int, bits: int, where: str) -> int:
 
 
 def _level_dict(levels: np.ndarray, names: list[list[str]]) -> dict[str, int | float]:
-    return {names[i][j]: _json_number(levels[i, j]) for i in range(2) for j in range(2)}
+    return {names[i][j]: json_number(levels[i, j]) for i in range(2) for j in range(2)}
 
 
 def _upper_left_for(cfa: str) -> tuple[str, list[list[str]]]:
@@ -286,7 +287,7 @@ def lytro_metadata(raw: RawCapture, *, schema: str, bits: int | None = None) -> 
     if schema == "illum":
         image.update(pixelPacking=pixel_packing, pixelFormat=pixel_format, mosaic=mosaic)
         if m.iso is not None:
-            image["iso"] = _json_number(m.iso)
+            image["iso"] = json_number(m.iso)
         image["color"] = color
     else:
         image.update(representation="rawPacked",
@@ -296,14 +297,14 @@ def lytro_metadata(raw: RawCapture, *, schema: str, bits: int | None = None) -> 
     if schema == "illum":
         sensor.update(pixelWidth=w, pixelHeight=h)
     elif m.iso is not None:
-        sensor["iso"] = _json_number(m.iso)
+        sensor["iso"] = json_number(m.iso)
     if m.pixel_pitch_m is not None:
         sensor["pixelPitch"] = float(m.pixel_pitch_m)
     lens: dict[str, Any] = {}
     for key, v in (("zoomStep", m.zoom_step), ("focusStep", m.focus_step),
                    ("focalLength", m.focal_length_m), ("fNumber", m.f_number)):
         if v is not None:
-            lens[key] = _json_number(v) if key.endswith("Step") else float(v)
+            lens[key] = json_number(v) if key.endswith("Step") else float(v)
     mla: dict[str, Any] = {"tiling": "hexUniformRowMajor", "config": "com.lytro.mla.3", "defectArray": []}
     if m.lens_pitch_m is not None:
         mla["lensPitch"] = float(m.lens_pitch_m)
@@ -334,6 +335,7 @@ def lytro_metadata(raw: RawCapture, *, schema: str, bits: int | None = None) -> 
     return meta, private
 
 
-def _tags_entry(raw: RawCapture) -> dict:
+def tags_entry(raw: RawCapture) -> dict:
+    """The frame's ``parameters`` entry: ``com.lytro.tags`` with ``modulationFrame`` (white image) and ``darkFrame``."""
     return {"vendorContent": {"com.lytro.tags": {"darkFrame": False,
                                                  "modulationFrame": bool(raw.metadata.is_white_image)}}}

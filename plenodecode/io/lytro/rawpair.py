@@ -13,9 +13,9 @@ from ...errors import FormatError
 from ...types import CameraMetadata, RawCapture
 from .. import packing
 from ..atomic import atomic_outputs, refuse_existing
-from .container import _map_file
-from .fields import _parse_json
-from .metadata import _packed_size_or_error, _tags_entry, lytro_metadata, metadata_from_lytro
+from .container import map_file
+from .fields import parse_json
+from .metadata import packed_size_or_error, tags_entry, lytro_metadata, metadata_from_lytro
 
 #: Known sensors: packed size in bytes -> (height, width, bits, endianness).
 KNOWN_SENSORS = {
@@ -42,7 +42,14 @@ def find_sidecar(path: str | os.PathLike) -> Path | None:
     return None
 
 
-def _read_sidecar(side: Path) -> Any:
+def read_sidecar(side: Path) -> Any:
+    """The JSON document of a sidecar (a TXT may have trailing bytes after its last ``}``).
+
+    Raises
+    ------
+    FormatError
+        Unreadable file, or no valid JSON up to the last ``}``.
+    """
     try:
         raw = side.read_bytes()
     except OSError as exc:
@@ -50,7 +57,7 @@ def _read_sidecar(side: Path) -> Any:
     end = raw.rfind(b"}")  # a TXT may have trailing bytes after the final '}'
     if end < 0:
         raise FormatError(f"{side}: expected a JSON object, found no '}}'; the metadata file is damaged")
-    return _parse_json(raw[:end + 1], f"{side}: the metadata sidecar")
+    return parse_json(raw[:end + 1], f"{side}: the metadata sidecar")
 
 
 def read_raw_pair_metadata(path: str | os.PathLike,
@@ -73,14 +80,14 @@ def read_raw_pair_metadata(path: str | os.PathLike,
     if side is None:
         raise FormatError(f"{p}: no metadata sidecar ({p.stem}.TXT, .txt or .json) beside the raw; put the "
                           "camera's JSON next to it")
-    doc = _read_sidecar(side)
+    doc = read_sidecar(side)
     if not isinstance(doc, Mapping):
         raise FormatError(f"{side}: expected a JSON object, found {type(doc).__name__}")
     size = p.stat().st_size
     default = KNOWN_SENSORS[size][:2] if size in KNOWN_SENSORS else None
     result = metadata_from_lytro(doc, None, side, default_size=default)
     _, _, _, _, w, h, bits, _ = result
-    expected = _packed_size_or_error(h, w, bits, str(p))
+    expected = packed_size_or_error(h, w, bits, str(p))
     if size != expected:
         raise FormatError(f"{p}: the raw is {size} bytes but {side.name} declares {w} x {h} at {bits} bit = "
                           f"{expected} bytes; the pair does not match or the raw is truncated")
@@ -107,7 +114,7 @@ def read_raw_pair(path: str | os.PathLike) -> RawCapture:
     p = Path(path)
     cam, cfa, black, white, w, h, bits, endian = read_raw_pair_metadata(p)
     with open(p, "rb") as fh:
-        buf = _map_file(fh)
+        buf = map_file(fh)
     try:
         mosaic = packing.unpack(buf, h, w, bits, endian)
     finally:
@@ -147,7 +154,7 @@ def write_raw_pair(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool 
                 "viewArray": [],
                 "accelerationArray": [],
                 "frameArray": [{"frame": {"privateMetadata": private, "metadata": meta, "imageRef": "unknown"},
-                                "parameters": _tags_entry(raw)}],
+                                "parameters": tags_entry(raw)}],
                 "derivationArray": [],
             },
             "thumbnailArray": [],
