@@ -120,7 +120,7 @@ def kernel_figures(repeat: int = 3) -> list[Figure]:
 
     img = _lenslet_image()
     size = f"{img.shape[1]}x{img.shape[0]}"
-    g = peaks._smooth(img, ILLUM_PITCH)
+    g = peaks.smooth_for_peaks(img, ILLUM_PITCH)
     half = max(1, int(math.floor(0.4 * ILLUM_PITCH)))
     figures = []
 

@@ -23,7 +23,19 @@ def smoothing_sigma(pitch: float) -> float:
     return 0.25 * pitch
 
 
-def _smooth(img: np.ndarray, pitch: float) -> np.ndarray:
+def smooth_for_peaks(img: np.ndarray, pitch: float) -> np.ndarray:
+    """``img`` filtered with the Gaussian of :func:`smoothing_sigma` (the lenslet matched filter), reflected border.
+
+    Parameters
+    ----------
+    img : ndarray, shape (H, W), float32
+    pitch : float
+        Lattice pitch, px.
+
+    Returns
+    -------
+    ndarray, shape (H, W), float32
+    """
     return cv2.GaussianBlur(img, (0, 0), smoothing_sigma(pitch), borderType=cv2.BORDER_REFLECT)
 
 
@@ -152,7 +164,7 @@ def detect_peaks_and_filtered(img: np.ndarray, pitch: float, *, min_contrast: fl
         ``img`` filtered with the Gaussian of :func:`smoothing_sigma`, which
         :func:`~plenodecode.calib.centroids.refine_peaks` reuses.
     """
-    g = _smooth(img, pitch)
+    g = smooth_for_peaks(img, pitch)
     half = max(1, int(math.floor(0.4 * pitch)))
     margin = int(math.ceil(0.5 * pitch)) if margin is None else max(0, int(margin))
     rr, cc = np.nonzero(window_maxima(g, half, margin))

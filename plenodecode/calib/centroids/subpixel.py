@@ -12,7 +12,7 @@ from typing import Callable
 import numba
 import numpy as np
 
-from .peaks import _smooth
+from .peaks import smooth_for_peaks
 
 
 #: Newton steps of the 'dog' estimator stop once a step is shorter than this (px).
@@ -151,6 +151,23 @@ def refine_dog(img: np.ndarray, peaks: np.ndarray, pitch: float,
     once a Newton step is shorter than :data:`NEWTON_TOL` px (quadratic convergence: on the
     full-size Illum white the centres then differ from fully converged ones by a median of
     5e-6 px and a 99th percentile of 1e-4 px, with 1.2 instead of 2 iterations per lens).
+
+    Parameters
+    ----------
+    img : ndarray, shape (H, W), float32
+        Contrast image (:func:`~plenodecode.calib.centroids.devignette`).
+    peaks : ndarray, shape (N, 2), int
+        Integer peaks ``(row, col)``.
+    pitch : float
+        Lattice pitch, px.
+    smoothed : ndarray, shape (H, W), float32, optional
+        ``img`` filtered by :func:`~plenodecode.calib.centroids.peaks.smooth_for_peaks`.
+
+    Returns
+    -------
+    centres : ndarray, shape (N, 2), float64
+    ok : ndarray, shape (N,), bool
+        False where the estimate left the image or moved more than 1.5 px from its parabolic start.
     """
     start, ok0 = refine_parabolic(img, peaks, pitch, smoothed)
     img = np.ascontiguousarray(img, np.float32)
@@ -164,8 +181,25 @@ def refine_parabolic(img: np.ndarray, peaks: np.ndarray, pitch: float,
     """Separable 3-point parabola through the Gaussian-filtered image at each integer peak.
 
     Cheap, but biased by a few hundredths of a pixel depending on the sub-pixel phase.
+
+    Parameters
+    ----------
+    img : ndarray, shape (H, W), float32
+        Contrast image (:func:`~plenodecode.calib.centroids.devignette`).
+    peaks : ndarray, shape (N, 2), int
+        Integer peaks ``(row, col)``.
+    pitch : float
+        Lattice pitch, px.
+    smoothed : ndarray, shape (H, W), float32, optional
+        ``img`` filtered by :func:`~plenodecode.calib.centroids.peaks.smooth_for_peaks`.
+
+    Returns
+    -------
+    centres : ndarray, shape (N, 2), float64
+    ok : ndarray, shape (N,), bool
+        False where the estimate left the image.
     """
-    g = smoothed if smoothed is not None else _smooth(img, pitch)
+    g = smoothed if smoothed is not None else smooth_for_peaks(img, pitch)
     r, c = peaks[:, 0], peaks[:, 1]
     ok = (r > 0) & (c > 0) & (r < g.shape[0] - 1) & (c < g.shape[1] - 1)
     r, c = np.clip(r, 1, g.shape[0] - 2), np.clip(c, 1, g.shape[1] - 2)
@@ -205,8 +239,8 @@ def refine_peaks(img: np.ndarray, peaks: np.ndarray, pitch: float, *, method: st
         difference-of-Gaussians response) or 'parabolic' (3-point parabola, faster, biased by
         the sub-pixel phase).
     smoothed : ndarray, shape (H, W), float32, optional
-        ``img`` filtered with the Gaussian of :func:`smoothing_sigma` (as :func:`detect_peaks`
-        computes it); recomputed when not given.
+        ``img`` filtered by :func:`~plenodecode.calib.centroids.peaks.smooth_for_peaks` (as
+        :func:`detect_peaks` computes it); recomputed when not given.
 
     Returns
     -------

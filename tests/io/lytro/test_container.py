@@ -1,4 +1,7 @@
-"""The container grammar (:mod:`plenodecode.io.lytro.container`): damaged files give a FormatError naming the file and the problem."""
+"""The container grammar (:mod:`plenodecode.io.lytro.container`).
+
+Damaged files give a FormatError naming the file and the problem.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,7 @@
-"""What a container holds (:mod:`plenodecode.io.lytro.contents`): processed Desktop files, depth maps, focal stacks, calibration archives."""
+"""What a container holds (:mod:`plenodecode.io.lytro.contents`).
+
+Processed Desktop files, depth maps, focal stacks, calibration archives.
+"""
 
 from __future__ import annotations
 

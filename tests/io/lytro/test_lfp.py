@@ -1,4 +1,7 @@
-"""Picture files (:mod:`plenodecode.io.lytro.lfp`): F01 ``.lfp`` / Illum ``.lfr`` round trips and layout, payload extraction, real Illum living picture."""
+"""Picture files (:mod:`plenodecode.io.lytro.lfp`).
+
+F01 ``.lfp`` / Illum ``.lfr`` round trips and layout, payload extraction, real Illum living picture.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,7 @@
-"""Headerless raws with a sidecar (:mod:`plenodecode.io.lytro.rawpair`): round trips, real white images and F01 frames, bad pairs."""
+"""Headerless raws with a sidecar (:mod:`plenodecode.io.lytro.rawpair`).
+
+Round trips, real white images and F01 frames, bad pairs.
+"""
 
 from __future__ import annotations
 
