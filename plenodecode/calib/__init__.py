@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 
 from ..errors import CalibrationError
+from ..registry import lookup
 from ..types import LensletGrid, RawCapture
 from . import centroids as _c
 from . import grid as _g
@@ -126,8 +127,7 @@ def calibrate_image(img: np.ndarray, sensor_shape: tuple[int, int], *, scale: fl
     """
     if lattice not in LATTICES:
         raise ValueError(f"lattice must be one of {LATTICES}, got {lattice!r}")
-    if method not in _c.CENTROID_METHODS:
-        raise ValueError(f"method must be one of {sorted(_c.CENTROID_METHODS)}, got {method!r}")
+    lookup(_c.CENTROID_METHODS, method, param="method")
     total = 5
 
     def tick(k: int) -> None:

@@ -12,6 +12,7 @@ from typing import Callable
 import numba
 import numpy as np
 
+from ...registry import lookup
 from .peaks import smooth_for_peaks
 
 
@@ -248,9 +249,7 @@ def refine_peaks(img: np.ndarray, peaks: np.ndarray, pitch: float, *, method: st
     ok : ndarray, shape (N,), bool
         False where the estimate left the image or did not converge.
     """
-    fn = CENTROID_METHODS.get(method)
-    if fn is None:
-        raise ValueError(f"method must be one of {sorted(CENTROID_METHODS)}, got {method!r}")
+    fn = lookup(CENTROID_METHODS, method, param="method")
     if len(peaks) == 0:
         return np.zeros((0, 2)), np.zeros(0, bool)
     return fn(img, np.asarray(peaks), float(pitch), smoothed)
