@@ -153,22 +153,8 @@ def refine_dog(img: np.ndarray, peaks: np.ndarray, pitch: float,
     full-size Illum white the centres then differ from fully converged ones by a median of
     5e-6 px and a 99th percentile of 1e-4 px, with 1.2 instead of 2 iterations per lens).
 
-    Parameters
-    ----------
-    img : ndarray, shape (H, W), float32
-        Contrast image (:func:`~plenodecode.calib.centroids.devignette`).
-    peaks : ndarray, shape (N, 2), int
-        Integer peaks ``(row, col)``.
-    pitch : float
-        Lattice pitch, px.
-    smoothed : ndarray, shape (H, W), float32, optional
-        ``img`` filtered by :func:`~plenodecode.calib.centroids.peaks.smooth_for_peaks`.
-
-    Returns
-    -------
-    centres : ndarray, shape (N, 2), float64
-    ok : ndarray, shape (N,), bool
-        False where the estimate left the image or moved more than 1.5 px from its parabolic start.
+    Arguments and results as :func:`refine_peaks`; ``ok`` is also False where a centre moved more
+    than 1.5 px from its parabolic start.
     """
     start, ok0 = refine_parabolic(img, peaks, pitch, smoothed)
     img = np.ascontiguousarray(img, np.float32)
@@ -183,22 +169,7 @@ def refine_parabolic(img: np.ndarray, peaks: np.ndarray, pitch: float,
 
     Cheap, but biased by a few hundredths of a pixel depending on the sub-pixel phase.
 
-    Parameters
-    ----------
-    img : ndarray, shape (H, W), float32
-        Contrast image (:func:`~plenodecode.calib.centroids.devignette`).
-    peaks : ndarray, shape (N, 2), int
-        Integer peaks ``(row, col)``.
-    pitch : float
-        Lattice pitch, px.
-    smoothed : ndarray, shape (H, W), float32, optional
-        ``img`` filtered by :func:`~plenodecode.calib.centroids.peaks.smooth_for_peaks`.
-
-    Returns
-    -------
-    centres : ndarray, shape (N, 2), float64
-    ok : ndarray, shape (N,), bool
-        False where the estimate left the image.
+    Arguments and results as :func:`refine_peaks`.
     """
     g = smoothed if smoothed is not None else smooth_for_peaks(img, pitch)
     r, c = peaks[:, 0], peaks[:, 1]
