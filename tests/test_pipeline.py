@@ -28,7 +28,7 @@ SLOPE = "0.3"
 def shoot(tmp_path_factory):
     """One raw in its own folder and a calibration database built from its camera's white image."""
     from plenodecode.calib.store import build_database
-    from plenodecode.io.synthetic import simulate, write_simulation
+    from plenodecode.synthetic import simulate, write_simulation
 
     root = tmp_path_factory.mktemp("pipeline")
     files = write_simulation(simulate("illum-mini", seed=1, shape=SHAPE), root / "take", name="scene")

@@ -145,7 +145,7 @@ def test_legacy_fallbacks_lens_pitch_and_spatial_step_from_the_calibration():
 
 
 def test_synthetic_generator_metadata_converts():
-    """The keys io/synthetic.py builds (Simulation.lightfield, load_truth)."""
+    """The keys plenodecode.synthetic builds (Simulation.lightfield, load_truth)."""
     grid = _hex_grid()
     meta = {"source": "plenodecode.io.synthetic", "preset": "illum-mini", "seed": 3, "spatial_step_px": 12.0,
             "view_step_px": 1.0, "calibration": grid.to_dict(), "camera": _camera().to_dict(),

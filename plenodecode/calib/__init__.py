@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 
 from ..errors import CalibrationError
+from ..registry import lookup
 from ..types import LensletGrid, RawCapture
 from . import centroids as _c
 from . import grid as _g
@@ -126,8 +127,7 @@ def calibrate_image(img: np.ndarray, sensor_shape: tuple[int, int], *, scale: fl
     """
     if lattice not in LATTICES:
         raise ValueError(f"lattice must be one of {LATTICES}, got {lattice!r}")
-    if method not in _c.CENTROID_METHODS:
-        raise ValueError(f"method must be one of {sorted(_c.CENTROID_METHODS)}, got {method!r}")
+    lookup(_c.CENTROID_METHODS, method, param="method")
     total = 5
 
     def tick(k: int) -> None:
@@ -138,7 +138,7 @@ def calibrate_image(img: np.ndarray, sensor_shape: tuple[int, int], *, scale: fl
     est = estimate if estimate is not None else _c.estimate_lattice_vectors(img, pitch_hint=hint, lattice=lattice)
     tick(1)
     contrast_img = _c.devignette(img, est.pitch)
-    peaks, contrast, smoothed = _c._detect(contrast_img, est.pitch, min_contrast=min_contrast)
+    peaks, contrast, smoothed = _c.detect_peaks_and_filtered(contrast_img, est.pitch, min_contrast=min_contrast)
     tick(2)
     cen, ok = _c.refine_peaks(contrast_img, peaks, est.pitch, method=method, smoothed=smoothed)
     tick(3)

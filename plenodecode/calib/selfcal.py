@@ -93,13 +93,13 @@ def _hough_starts(gy: np.ndarray, gx: np.ndarray, pitch: float) -> np.ndarray:
     """One start per disk: maxima of the lightly smoothed Hough accumulator, parabolic sub-pixel."""
     acc = cv2.GaussianBlur(_c.rim_votes(gy, gx, RIM_START_FRACTION * pitch), (0, 0), 0.7)
     half = max(1, int(math.floor(0.4 * pitch)))
-    rr, cc = np.nonzero(_c._window_maxima(acc, half, int(math.ceil(0.5 * pitch))))
-    contrast = _c._window_contrast(acc, rr, cc, half)
+    rr, cc = np.nonzero(_c.window_maxima(acc, half, int(math.ceil(0.5 * pitch))))
+    contrast = _c.window_contrast(acc, rr, cc, half)
     if len(contrast) == 0:
         return np.zeros((0, 2))
     keep = contrast > 0.2 * float(np.percentile(contrast, 90))
     peaks = np.stack([rr[keep], cc[keep]], axis=1)
-    start, ok = _c._refine_parabolic(acc, peaks, pitch, acc)
+    start, ok = _c.refine_parabolic(acc, peaks, pitch, acc)
     return start[ok]
 
 
@@ -164,7 +164,7 @@ def _peak_points(img: np.ndarray, est: _c.LatticeEstimate, *, method: str, min_c
                  tick: Callable[[int], None]) -> tuple[np.ndarray, dict[str, Any]]:
     """Disk centres of a scene as intensity peaks (the white-image estimators)."""
     contrast_img = _c.devignette(img, est.pitch)
-    peaks, _, smoothed = _c._detect(contrast_img, est.pitch, min_contrast=min_contrast)
+    peaks, _, smoothed = _c.detect_peaks_and_filtered(contrast_img, est.pitch, min_contrast=min_contrast)
     tick(2)
     cen, ok = _c.refine_peaks(contrast_img, peaks, est.pitch, method=method, smoothed=smoothed)
     tick(3)

@@ -1,0 +1,185 @@
+"""Lytro picture files: the raw of an F01 ``.lfp`` / Illum ``.lfr``, writers of both, payload extraction."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ...errors import FormatError
+from ...types import RawCapture
+from .. import packing
+from ..atomic import atomic_outputs, refuse_existing
+from .contents import EXTENSIONS, summarise_contents
+from .container import read_container, section_name, write_container
+from .fields import lookup_dict, first_frame
+from .metadata import packed_size_or_error, tags_entry, lytro_metadata, metadata_from_lytro
+
+ILLUM_PICTURE_SCHEMA = "http://schema.lytro.com/lfp/picture/2.1.4/picture_schema.json"
+
+
+def read_lytro(path: str | os.PathLike, *, verify: bool = True) -> RawCapture:
+    """Read the raw sensor image of an F01 ``.lfp`` or Illum ``.lfr`` (either section order).
+
+    Parameters
+    ----------
+    path : path-like
+    verify : bool
+        Check every section's SHA-1 (see :func:`read_container`).
+
+    Returns
+    -------
+    RawCapture
+        ``mosaic`` (H, W) uint16 as on the sensor, ``cfa``, per-position levels and
+        :class:`CameraMetadata` (see :func:`metadata_from_lytro`).
+
+    Raises
+    ------
+    FormatError
+        A processed (Desktop) file with no raw inside, a damaged container, or a payload
+        whose size disagrees with width x height x bits / 8.
+    """
+    c = read_container(path, verify=verify)
+    where = str(c.path)
+    if c.kind == "calibration":
+        raise FormatError(f"{where}: is a Lytro calibration archive (data.C.N) of {len(c.items)} files, not a "
+                          f"picture; run 'plenodecode info {where}' to list it")
+    if c.kind != "raw":
+        raise FormatError(f"{where}: holds no raw image: it is a processed Lytro Desktop file with "
+                          f"{summarise_contents(c.items)}; run 'plenodecode info {where}' to see what it holds")
+    if c.metadata is None:
+        raise FormatError(f"{where}: the raw's frame metadata is missing (no metadata or metadataRef section); "
+                          "the file is incomplete")
+    cam, cfa, black, white, w, h, bits, endian = metadata_from_lytro(
+        c.metadata, c.private_metadata, c.path, white_image=c.white_image)
+    ref = lookup_dict(first_frame(c.toc), "frame").get("imageRef")
+    buf = c.payload(ref)
+    expected = packed_size_or_error(h, w, bits, where)
+    if len(buf) != expected:
+        raise FormatError(f"{where}: the raw payload is {len(buf)} bytes but the metadata declares {w} x {h} at "
+                          f"{bits} bit = {expected} bytes; the file is damaged or its metadata is wrong")
+    mosaic = packing.unpack(buf, h, w, bits, endian)
+    return RawCapture(mosaic=mosaic, cfa=cfa, black=black, white=white, metadata=cam, path=where)
+
+
+def _frame_payloads(raw: RawCapture, schema: str, bits: int) -> tuple[bytes, bytes, bytes, dict]:
+    """``(image, metadata JSON, private metadata JSON, frame entry)`` of a picture file.
+
+    ``image`` is ``raw.mosaic`` packed at ``bits``; the frame entry ``{frame: {metadataRef,
+    privateMetadataRef, imageRef}, parameters}`` refers to the three payloads by their section names.
+    """
+    meta, private = lytro_metadata(raw, schema=schema, bits=bits)
+    image = packing.pack(raw.mosaic, bits)
+    meta_b = json.dumps(meta, indent="\t").encode("utf-8")
+    priv_b = json.dumps(private, indent="\t").encode("utf-8")
+    frame = {"metadataRef": section_name(meta_b), "privateMetadataRef": section_name(priv_b),
+             "imageRef": section_name(image)}
+    return image, meta_b, priv_b, {"frame": frame, "parameters": tags_entry(raw)}
+
+
+def write_lfr(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = False) -> Path:
+    """Write an Illum-camera-style ``.lfr``: 10-bit raw, LFC sections first, LFM last.
+
+    The TOC has the 'picture 2.1' shape (``frames[0].frame.{metadataRef, privateMetadataRef,
+    imageRef}``, ``thumbnails``, ``views``, ...); the metadata uses the Illum schema and is
+    generated from ``raw.metadata`` (see :func:`lytro_metadata`), so :func:`read_lytro`
+    returns the same mosaic, levels, CFA and metadata.
+
+    Raises
+    ------
+    ValueError
+        ``raw`` cannot be 10-bit packed (values >= 1024, pixel count not divisible by 4, no CFA).
+    FileExistsError
+        ``path`` exists and ``overwrite`` is False.
+    """
+    p = Path(path)
+    refuse_existing([p], overwrite)
+    image, meta_b, priv_b, frame = _frame_payloads(raw, "illum", 10)
+    toc = {
+        "schema": ILLUM_PICTURE_SCHEMA,
+        "generators": ["lightning"],
+        "thumbnails": [],
+        "derivations": [],
+        "views": [],
+        "annotations": [],
+        "frames": [frame],
+    }
+    return write_container(p, toc, [image, meta_b, priv_b], lfm_first=False, overwrite=overwrite)
+
+
+def write_lfp(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = False) -> Path:
+    """Write an F01 Lytro-Desktop-style raw ``.lfp``: LFM first, 12-bit big-endian raw, F01 schema.
+
+    Raises
+    ------
+    ValueError
+        ``raw`` cannot be 12-bit packed (values >= 4096, odd pixel count, no CFA).
+    FileExistsError
+        ``path`` exists and ``overwrite`` is False.
+    """
+    p = Path(path)
+    refuse_existing([p], overwrite)
+    image, meta_b, priv_b, frame = _frame_payloads(raw, "rawdetails", 12)
+    toc = {
+        "picture": {
+            "frameArray": [frame],
+            "viewArray": [],
+            "accelerationArray": [],
+            "derivationArray": [],
+        },
+        "thumbnailArray": [],
+        "version": {"major": 1, "minor": 0, "provisionalDate": "2012-02-07"},
+    }
+    return write_container(p, toc, [meta_b, priv_b, image], lfm_first=True, overwrite=overwrite)
+
+
+def extract_contents(path: str | os.PathLike, out_dir: str | os.PathLike, *,
+                     overwrite: bool = False) -> list[Path]:
+    """Save every payload of a container as a file in ``out_dir``.
+
+    JPEGs -> ``.jpg``, H.264 blocks -> ``.h264``, depth / confidence maps and depth LUTs ->
+    ``.npy`` float32 (rows, cols) (payloads are little-endian float32), JSON -> ``.json``,
+    the raw -> ``frame.raw`` beside ``frame.json`` (readable with :func:`read_raw_pair`),
+    and the table of contents -> ``toc.json``.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+
+    Raises
+    ------
+    FormatError
+        A damaged container, or a float map whose size disagrees with its declared shape.
+    FileExistsError
+        A target exists and ``overwrite`` is False (nothing is written then).
+    """
+    c = read_container(path)
+    out = Path(out_dir)
+    plan: list[tuple[Path, Any]] = [(out / "toc.json", json.dumps(c.toc, indent="\t").encode("utf-8"))]
+    for it in c.items:
+        buf = c.payload(it.sha1)
+        target = out / (it.name + EXTENSIONS.get(it.type, ".bin"))
+        if it.type in ("depth", "confidence", "lut"):
+            if it.shape is not None and it.shape[0] * it.shape[1] * 4 != len(buf):
+                raise FormatError(f"{c.path}: {it.name} is {len(buf)} bytes, but the TOC declares "
+                                  f"{it.shape[1]} x {it.shape[0]} float32 = {it.shape[0] * it.shape[1] * 4}; "
+                                  "the file is damaged")
+            if len(buf) % 4:
+                raise FormatError(f"{c.path}: {it.name} is {len(buf)} bytes, not a whole number of float32")
+            arr = np.frombuffer(buf, "<f4").astype(np.float32)
+            arr = arr.reshape(it.shape) if it.shape is not None else arr
+            plan.append((target, arr))
+        else:
+            plan.append((target, buf))
+    with atomic_outputs([t for t, _ in plan], overwrite=overwrite) as tmps:
+        for tmp, (_, obj) in zip(tmps, plan):
+            with open(tmp, "wb") as fh:
+                if isinstance(obj, np.ndarray):
+                    np.save(fh, obj, allow_pickle=False)
+                else:
+                    fh.write(obj)
+    return [t for t, _ in plan]

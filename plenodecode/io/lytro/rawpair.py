@@ -1,0 +1,167 @@
+"""Headerless Lytro raws with a JSON sidecar: ``MOD_NNNN.RAW`` + ``.TXT`` white images, ``X__frame.raw`` + ``.json``."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from ...errors import FormatError
+from ...types import CameraMetadata, RawCapture
+from .. import packing
+from ..atomic import atomic_outputs, refuse_existing
+from .container import map_file
+from .fields import parse_json
+from .metadata import packed_size_or_error, tags_entry, lytro_metadata, metadata_from_lytro
+
+#: Known sensors: packed size in bytes -> (height, width, bits, endianness).
+KNOWN_SENSORS = {
+    packing.packed_size(3280, 3280, 12): (3280, 3280, 12, "big"),      # F01
+    packing.packed_size(5368, 7728, 10): (5368, 7728, 10, "little"),   # Illum
+}
+
+
+def find_sidecar(path: str | os.PathLike) -> Path | None:
+    """The JSON metadata file that belongs to a headerless Lytro raw.
+
+    ``X.RAW`` -> ``X.TXT``, ``X.txt``, ``X.json`` or ``X.JSON`` (first that exists);
+    this also covers ``IMG_0001__frame.raw`` -> ``IMG_0001__frame.json``.
+
+    Returns
+    -------
+    Path or None
+    """
+    p = Path(path)
+    for ext in (".TXT", ".txt", ".json", ".JSON"):
+        cand = p.with_suffix(ext)
+        if cand != p and cand.is_file():
+            return cand
+    return None
+
+
+def read_sidecar(side: Path) -> Any:
+    """The JSON document of a sidecar (a TXT may have trailing bytes after its last ``}``).
+
+    Raises
+    ------
+    FormatError
+        Unreadable file, or no valid JSON up to the last ``}``.
+    """
+    try:
+        raw = side.read_bytes()
+    except OSError as exc:
+        raise FormatError(f"{side}: cannot read the metadata sidecar: {exc.strerror}") from None
+    end = raw.rfind(b"}")  # a TXT may have trailing bytes after the final '}'
+    if end < 0:
+        raise FormatError(f"{side}: expected a JSON object, found no '}}'; the metadata file is damaged")
+    return parse_json(raw[:end + 1], f"{side}: the metadata sidecar")
+
+
+def read_raw_pair_metadata(path: str | os.PathLike,
+                           ) -> tuple[CameraMetadata, str, np.ndarray, np.ndarray, int, int, int, str]:
+    """Metadata of a headerless raw + sidecar pair, checked against the raw's file size.
+
+    Returns the same tuple as :func:`metadata_from_lytro`; width, height and packing come
+    from the sidecar, or, when it lacks them, from the file size of a known sensor
+    (F01 3280 x 3280 12 bit, Illum 7728 x 5368 10 bit).
+
+    Raises
+    ------
+    FormatError
+        No sidecar, unparsable sidecar, or a raw whose size disagrees with the metadata.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FormatError(f"{p}: no such file")
+    side = find_sidecar(p)
+    if side is None:
+        raise FormatError(f"{p}: no metadata sidecar ({p.stem}.TXT, .txt or .json) beside the raw; put the "
+                          "camera's JSON next to it")
+    doc = read_sidecar(side)
+    if not isinstance(doc, Mapping):
+        raise FormatError(f"{side}: expected a JSON object, found {type(doc).__name__}")
+    size = p.stat().st_size
+    default = KNOWN_SENSORS[size][:2] if size in KNOWN_SENSORS else None
+    result = metadata_from_lytro(doc, None, side, default_size=default)
+    _, _, _, _, w, h, bits, _ = result
+    expected = packed_size_or_error(h, w, bits, str(p))
+    if size != expected:
+        raise FormatError(f"{p}: the raw is {size} bytes but {side.name} declares {w} x {h} at {bits} bit = "
+                          f"{expected} bytes; the pair does not match or the raw is truncated")
+    return result
+
+
+def read_raw_pair(path: str | os.PathLike) -> RawCapture:
+    """Read a headerless Lytro raw with its JSON sidecar.
+
+    Covers ``MOD_NNNN.RAW`` + ``MOD_NNNN.TXT`` white images (F01 12-bit or Illum 10-bit,
+    decided from ``pixelPacking``/``bitsPerPixel``/``width``/``height``; the TXT may have
+    trailing bytes after its last ``}``) and F01 ``X__frame.raw`` + ``X__frame.json``.
+    White images (``modulationFrame`` true) get ``metadata.is_white_image = True``.
+
+    Returns
+    -------
+    RawCapture
+
+    Raises
+    ------
+    FormatError
+        No or unparsable sidecar; raw size disagreeing with the metadata.
+    """
+    p = Path(path)
+    cam, cfa, black, white, w, h, bits, endian = read_raw_pair_metadata(p)
+    with open(p, "rb") as fh:
+        buf = map_file(fh)
+    try:
+        mosaic = packing.unpack(buf, h, w, bits, endian)
+    finally:
+        try:
+            buf.close()
+        except BufferError:  # a view is still alive; the map closes when it is collected
+            pass
+    return RawCapture(mosaic=mosaic, cfa=cfa, black=black, white=white, metadata=cam, path=str(p))
+
+
+def write_raw_pair(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = False) -> tuple[Path, Path]:
+    """Write a white-image style ``MOD_NNNN.RAW`` + ``MOD_NNNN.TXT`` pair.
+
+    Packing follows ``raw.metadata.model``: 'F01' -> 12-bit big-endian, anything else ->
+    Illum 10-bit (written with ``camera.model`` 'B01', as the Illum does for its white
+    images).  The TXT has the ``master.picture.frameArray[0].frame.{metadata,
+    privateMetadata}`` wrapper and the ``modulationFrame`` tag from ``raw.metadata.is_white_image``.
+    The sidecar's extension follows the raw's case (``.RAW`` -> ``.TXT``, ``.raw`` -> ``.txt``).
+
+    Returns
+    -------
+    (raw path, txt path)
+    """
+    p = Path(path)
+    side = p.with_suffix(".txt" if p.suffix.islower() and p.suffix else ".TXT")
+    refuse_existing([p, side], overwrite)
+    f01 = raw.metadata.model == "F01"
+    bits = 12 if f01 else 10
+    meta, private = lytro_metadata(raw, schema="rawdetails", bits=bits)
+    if not f01 and meta["camera"].get("model", "ILLUM") in ("ILLUM", "Illum"):
+        meta["camera"]["model"] = "B01"
+    data = packing.pack(raw.mosaic, bits)
+    doc = {
+        "master": {
+            "version": {"major": 1, "minor": 0, "provisionalDate": "2014-Sep-06"},
+            "picture": {
+                "viewArray": [],
+                "accelerationArray": [],
+                "frameArray": [{"frame": {"privateMetadata": private, "metadata": meta, "imageRef": "unknown"},
+                                "parameters": tags_entry(raw)}],
+                "derivationArray": [],
+            },
+            "thumbnailArray": [],
+        }
+    }
+    text = json.dumps(doc, indent="\t").replace("\n", "\r\n").encode("utf-8")
+    with atomic_outputs([p, side], overwrite=overwrite) as (tmp, tmp_side):
+        tmp.write_bytes(data)
+        tmp_side.write_bytes(text)
+    return p, side
