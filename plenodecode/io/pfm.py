@@ -17,33 +17,40 @@ from .atomic import write_bytes_atomic
 
 
 def read_pfm(path: str | os.PathLike) -> np.ndarray:
-    """Read a PFM file.
+    """Read a PFM file (OpenCV's PFM decoder; the header is checked first for a clear error).
+
+    OpenCV undoes the bottom-up row order and the byte order, and divides the samples by the magnitude
+    of the scale field (1 in the files the HCI toolkit and :func:`write_pfm` write).
 
     Returns
     -------
     ndarray, shape (H, W) or (H, W, 3), float32
-        Rows top-down (the file's bottom-up order is undone).
+        Rows top-down; colour in RGB order.
     """
+    import cv2
+
     p = Path(path)
     try:
         with open(p, "rb") as fh:
             kind = fh.readline().strip()
             dims = fh.readline().split()
-            scale = float(fh.readline().strip())
-            body = fh.read()
+            float(fh.readline().strip())
+            payload = len(fh.read())
         channels = {b"Pf": 1, b"PF": 3}[kind]
         width, height = int(dims[0]), int(dims[1])
     except (KeyError, ValueError, IndexError, OSError) as exc:
         raise FormatError(f"{p}: not a PFM file ({exc.__class__.__name__}: {exc})") from exc
     if not (0 < width <= 1 << 16 and 0 < height <= 1 << 16):
         raise FormatError(f"{p}: PFM declares an impossible size {width}x{height}")
-    n = width * height * channels
-    if len(body) < 4 * n:
-        raise FormatError(f"{p}: PFM payload has {len(body)} bytes, {4 * n} expected for {width}x{height}x{channels}")
-    dtype = np.dtype("<f4") if scale < 0 else np.dtype(">f4")
-    data = np.frombuffer(body, dtype, count=n).astype(np.float32)
-    shape = (height, width) if channels == 1 else (height, width, 3)
-    return np.ascontiguousarray(data.reshape(shape)[::-1])
+    if payload < 4 * width * height * channels:
+        raise FormatError(f"{p}: PFM payload has {payload} bytes, {4 * width * height * channels} expected for "
+                          f"{width}x{height}x{channels}")
+    img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise FormatError(f"{p}: OpenCV could not decode this PFM file")
+    if channels == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    return np.ascontiguousarray(img, np.float32)
 
 
 def write_pfm(path: str | os.PathLike, image: np.ndarray, *, overwrite: bool = False) -> Path:

@@ -146,3 +146,18 @@ def test_gif_and_webp_animations(tmp_path):
         write_animation(g, frames, fps=10)
     with pytest.raises(ValueError, match="fps"):
         write_animation(tmp_path / "b.gif", frames, fps=0)
+
+
+def test_pfm_round_trip_colour_and_byte_orders(tmp_path):
+    """RGB stays RGB, rows top-down, and a big-endian file written by hand reads the same values."""
+    from plenodecode.io.pfm import read_pfm, write_pfm
+
+    rng = np.random.default_rng(7)
+    rgb = rng.normal(size=(6, 5, 3)).astype(np.float32)
+    np.testing.assert_array_equal(read_pfm(write_pfm(tmp_path / "c.pfm", rgb)), rgb)
+    grey = rgb[..., 1].copy()
+    (tmp_path / "be.pfm").write_bytes(b"Pf\n5 6\n1.0\n" + np.ascontiguousarray(grey[::-1], ">f4").tobytes())
+    np.testing.assert_array_equal(read_pfm(tmp_path / "be.pfm"), grey)
+    (tmp_path / "short.pfm").write_bytes(b"Pf\n5 6\n-1.0\n" + b"\0" * 20)
+    with pytest.raises(FormatError, match="payload"):
+        read_pfm(tmp_path / "short.pfm")
