@@ -531,23 +531,73 @@ def render_depth(src: Source, *, method: str | None = None, disparity_range: tup
     return Rendered("depth", (), lf.colour, data=data)
 
 
-def render_total_focus(src: Source, *, patch: float | None = None, sharpness: float = 2.0,
-                       progress: Progress = None) -> Rendered:
+def check_total_focus_patch(grid: LensletGrid, patch: Any) -> None:
+    """Raise ValueError naming ``patch`` unless it is None or every value lies in ``(0, 2 * grid.radius)`` px:
+    a patch is cut from one micro-image, so it is smaller than the micro-image diameter."""
+    import numpy as np
+
+    if patch is None:
+        return
+    p, hi = np.asarray(patch, np.float64), 2.0 * float(grid.radius)
+    if not (np.all(np.isfinite(p)) and np.all(p > 0) and np.all(p < hi)):
+        raise ValueError(f"patch must lie in (0, {hi:.1f}) px (0 < P < the micro-image diameter), got "
+                         f"{patch if p.ndim == 0 else 'an array outside it'}; P = lens pitch / virtual depth")
+
+
+def render_total_focus(src: Source, *, patch: float | Any | None = None, sharpness: float = 2.0,
+                       colour: str = "linear-srgb", progress: Progress = None) -> Rendered:
     """All-in-focus rendering of a focused-plenoptic (Raytrix) raw from its micro-images
     (:func:`plenodecode.decoding.focused.render_total_focus`), devignetted by the calibration's white.
+
+    A colour raw (a CFA, demosaiced within each micro-image) is rendered in camera RGB and, with
+    ``colour='linear-srgb'``, converted as the decoder does: ``srgb = CCM @ diag(gains) @ camera``
+    (:func:`plenodecode.decoding.colour.colour_matrix`); without a CCM in the metadata it stays 'camera'.
+
+    Parameters
+    ----------
+    src : Source
+        A raw with its calibration.
+    patch : float or ndarray (rows, cols), optional
+        Patch size P per lens, px (lens pitch / virtual depth); default estimated per lens.
+    sharpness : float
+        Exponent of the per-lens focus weight (0: plain blending).
+    colour : {'linear-srgb', 'camera'}
+    progress : callable(done, total), optional
+
+    Returns
+    -------
+    Rendered
+        One image ``total_focus`` (Ho, Wo, C) float32, C = 3 for a colour raw; ``data['render']`` the
+        :class:`~plenodecode.decoding.focused.FocusedRender` (patch sizes, focus, scale).
 
     Raises
     ------
     ValueError
-        The input is not a raw (a light field has no micro-images).
+        The input is not a raw (a light field has no micro-images); ``patch`` out of range
+        (:func:`check_total_focus_patch`); an unknown ``colour``.
     """
+    from .decoding.colour import DECODE_COLOURS, apply_matrix, colour_matrix
+
     if src.raw is None:
         raise ValueError("total-focus renders a focused-plenoptic raw; the input is a light field")
+    check_total_focus_patch(src.calibration.grid, patch)
+    if colour not in DECODE_COLOURS:
+        raise ValueError(f"colour must be one of {DECODE_COLOURS}, got {colour!r}")
+    if not src.focused:
+        log.warning("the lenslet grid of %s has no lens types: total focus expects a focused-plenoptic raw",
+                    src.raw.path or "the raw")
     from .decoding.focused import render_total_focus as total_focus
 
     res = total_focus(src.raw, src.calibration.grid, patch=patch, white=src.calibration.white,
                       sharpness=sharpness, progress=progress)
-    return Rendered("total-focus", (("total_focus", res.image),), "camera", data={"render": res})
+    image, state = res.image, "camera"
+    if image.shape[-1] == 3 and colour == "linear-srgb":
+        matrix = colour_matrix(src.raw.metadata)
+        if matrix is None:
+            log.warning("the raw's metadata has no colour matrix (ccm): the total-focus image stays in camera RGB")
+        else:
+            image, state = apply_matrix(image, matrix), "linear-srgb"
+    return Rendered("total-focus", (("total_focus", image),), state, data={"render": res})
 
 
 #: Product name -> ``fn(source, **options) -> Rendered``; the same names in the CLI, batch and Python.
@@ -745,7 +795,7 @@ def write_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | N
 
 __all__ = ["LIGHTFIELD_EXTENSIONS", "IMAGE_EXTENSIONS", "BIT_DEPTHS", "INPUT_READERS", "PRODUCTS", "STACK_UNITS", "Calibration", "Source",
            "Rendered", "input_kind", "is_hci_folder", "is_lightfield_path", "open_input", "choose_calibration",
-           "decode_raw", "open_source", "load_lightfield_input", "render_product", "display_encoding",
-           "default_extension", "write_image_file", "refuse_folder_clash", "staged_folder", "write_product",
+           "decode_raw", "open_source", "load_lightfield_input", "render_product", "check_total_focus_patch",
+           "display_encoding", "default_extension", "write_image_file", "refuse_folder_clash", "staged_folder", "write_product",
            "write_parallax", "write_depth", "write_lightfield", "view_names", "refocus_stem", "focal_stack_names",
            "parallax_frame_names"]

@@ -1,14 +1,47 @@
-"""``plenodecode RAW_OR_LF --refocus ALPHA -o out.png``: decode and refocus in one call (the card's form)."""
+"""``plenodecode RAW_OR_LF --refocus ALPHA -o out.png``: decode and refocus in one call (the card's form).
+
+``--total-focus`` instead renders a focused-plenoptic (Raytrix) raw straight from its micro-images
+(the pipeline's 'total-focus' product): no light field is decoded.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import click
+from click.core import ParameterSource
 
 from .common import (bit_depth_option, calibration_kwargs, check_output, input_options, output_option,
                      overwrite_option, progress_bar, quiet, usage_errors)
 from .refocus import REFOCUS_METHOD_CHOICE
+
+#: The refocusing options that mean nothing to --total-focus (parameter name -> option).
+REFOCUS_ONLY = {"method": "--method", "aperture": "--aperture"}
+
+
+def _given(ctx: click.Context, name: str) -> bool:
+    """True when the option ``name`` was typed on the command line (not its default)."""
+    return ctx.get_parameter_source(name) is ParameterSource.COMMANDLINE
+
+
+def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float | None, slope: float | None,
+                         total_focus: bool, patch: float | None) -> None:
+    """Usage errors (exit 2, one line naming the option) for option combinations that make no sense, before
+    any work: exactly one of ``--refocus`` / ``--slope`` / ``--total-focus``; ``--patch`` only with
+    ``--total-focus``, ``--method`` / ``--aperture`` only without it; ``--total-focus`` needs a raw."""
+    from ..pipeline import input_kind
+
+    if (alpha is not None) + (slope is not None) + bool(total_focus) != 1:
+        raise click.UsageError("pass exactly one of --refocus ALPHA, --slope S and --total-focus")
+    if patch is not None and not total_focus:
+        raise click.UsageError("--patch applies to --total-focus only")
+    if total_focus:
+        for name, option in REFOCUS_ONLY.items():
+            if _given(ctx, name):
+                raise click.UsageError(f"{option} applies to --refocus / --slope, not to --total-focus")
+        if input_kind(input_path) != "raw":
+            raise click.UsageError(f"--total-focus renders a focused-plenoptic raw (Raytrix image + RayCalibData "
+                                   f"XML); {input_path} is a {input_kind(input_path)} input")
 
 
 @click.command("render")
@@ -16,6 +49,11 @@ from .refocus import REFOCUS_METHOD_CHOICE
 @click.option("--refocus", "alpha", type=float, default=None,
               help="Relative film depth alpha (Ng 2005): 1 = focus as captured, > 1 nearer, < 1 farther.")
 @click.option("--slope", type=float, default=None, help="Refocus slope in px per view step instead of alpha.")
+@click.option("--total-focus", "total_focus", is_flag=True,
+              help="Focused-plenoptic (Raytrix) raw: the all-in-focus image tiled from its micro-images.")
+@click.option("--patch", type=click.FloatRange(0, min_open=True), default=None, metavar="P",
+              help="With --total-focus: one patch size for every lens, px (= lens pitch / virtual depth; below the "
+                   "micro-image diameter). Default: measured per lens.")
 @output_option
 @click.option("--method", type=REFOCUS_METHOD_CHOICE, default="shift-sum", show_default=True,
               help="Refocusing method.")
@@ -25,27 +63,34 @@ from .refocus import REFOCUS_METHOD_CHOICE
 @input_options
 @overwrite_option
 @click.pass_context
-def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: float | None, output: Path,
-            method: str, aperture: float, bit_depth: str, calibration: Path | None, white: Path | None,
-            database: Path | None, self_calibrate: bool, overwrite: bool) -> None:
-    """Decode RAW_OR_LF (using the calibration database for raws) and write the photograph refocused at ALPHA.
+def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: float | None, total_focus: bool,
+            patch: float | None, output: Path, method: str, aperture: float, bit_depth: str,
+            calibration: Path | None, white: Path | None, database: Path | None, self_calibrate: bool,
+            overwrite: bool) -> None:
+    """Decode RAW_OR_LF (using the calibration database for raws) and write the photograph refocused at ALPHA,
+    or with --total-focus the all-in-focus image of a focused-plenoptic (Raytrix) raw.
 
     \b
     Examples:
       plenodecode raw.lfr --refocus 1.2 -o out.png
       plenodecode raw.lfr --refocus 0.98 -o far.png --database calib/ --bit-depth 8
       plenodecode photo.zarr --slope 0.5 -o out.png
+      plenodecode raytrix.png --total-focus -o photo.png --white raytrix_white.png
     """
-    from ..pipeline import open_source, render_product, write_product
+    from ..pipeline import check_total_focus_patch, open_source, render_product, write_product
 
-    if (alpha is None) == (slope is None):
-        raise click.UsageError("pass --refocus ALPHA or --slope S (one of them)")
+    check_render_options(ctx, input_path, alpha=alpha, slope=slope, total_focus=total_focus, patch=patch)
     check_output(output, overwrite)
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       **calibration_kwargs(calibration, white, database, self_calibrate))
-    photo = render_product(src, "refocus", alpha=alpha, slope=slope, method=method, aperture=aperture)
+    if total_focus:
+        with usage_errors(param_hint="--patch"):
+            check_total_focus_patch(src.calibration.grid, patch)       # its upper bound is the camera's
+        photo = render_product(src, "total-focus", patch=patch, progress=progress_bar("rendering", ctx))
+    else:
+        photo = render_product(src, "refocus", alpha=alpha, slope=slope, method=method, aperture=aperture)
     with usage_errors():
         write_product(photo, output, bit_depth=int(bit_depth), overwrite=overwrite)
     if not quiet(ctx):
-        what = f"alpha {alpha:g}" if alpha is not None else f"slope {slope:g}"
+        what = "total focus" if total_focus else f"alpha {alpha:g}" if alpha is not None else f"slope {slope:g}"
         click.echo(f"wrote {output} ({what})")

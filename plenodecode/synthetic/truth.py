@@ -2,9 +2,10 @@
 
 :class:`Simulation` holds the scene raw, the white image, the true grid, the disparity map and
 the scene, and renders the ideal decoded light field (:meth:`Simulation.ground_truth_lightfield`).
-:func:`write_simulation` writes a simulation in its camera's real file format (through the
-writers of :mod:`plenodecode.io`) plus ``<name>.truth.json`` / ``<name>.truth.npz``;
-:func:`load_truth` reads the ground truth back as a :class:`Truth`.
+:func:`write_simulation` writes a simulation in its camera's real file format plus
+``<name>.truth.json`` / ``<name>.truth.npz``; :func:`load_truth` reads the ground truth back as a
+:class:`Truth`.  This module builds the documents and arrays; the files are written and read by
+:mod:`plenodecode.io` (the camera formats, and :mod:`plenodecode.io.truth` for the ground truth).
 """
 
 from __future__ import annotations
@@ -18,8 +19,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..errors import FormatError
-from ..io.atomic import atomic_output, refuse_existing, write_text_atomic
+from ..io.atomic import refuse_existing
+from ..io.truth import TRUTH_FORMAT, TRUTH_JSON_SUFFIX, TRUTH_NPZ_SUFFIX, TRUTH_VERSION, read_truth, write_truth
 from ..types import LensletGrid, LightField, RawCapture
 from .presets import Preset, get_preset
 from .scene import Scene, box_radiance
@@ -120,8 +121,6 @@ class Simulation:
 # ---------------------------------------------------------------------------------------
 # writing and reading back
 # ---------------------------------------------------------------------------------------
-TRUTH_FORMAT = "plenodecode.SyntheticTruth"
-TRUTH_VERSION = 1
 #: Presets whose truth npz holds the ground-truth light field by default (small sensors).
 _SMALL_SENSOR_PX = 2_000_000
 
@@ -132,7 +131,7 @@ def simulation_files(preset: str | Preset, name: str = "scene") -> dict[str, str
     if not name or any(c in name for c in "/\\") or name in (".", ".."):
         raise ValueError(f"name must be a plain file stem, got {name!r}")
     names = _raw_names(p, name)
-    names.update({"truth_json": f"{name}.truth.json", "truth_npz": f"{name}.truth.npz"})
+    names.update({"truth_json": name + TRUTH_JSON_SUFFIX, "truth_npz": name + TRUTH_NPZ_SUFFIX})
     return names
 
 
@@ -178,8 +177,9 @@ def write_simulation(sim: Simulation, out_dir: str | os.PathLike, *, name: str =
       focused presets ``lens_type``, ``virtual_depth``, ``total_focus``..., and when
       ``lightfield`` (default: sensors up to 2 Mpx) ``lf_data`` / ``lf_weight``.
 
-    Every file is written to a temporary name and renamed.  Nothing is replaced unless
-    ``overwrite``: existing targets raise FileExistsError before anything is written.
+    The files are written by :mod:`plenodecode.io` (the ground truth by
+    :func:`plenodecode.io.truth.write_truth`), each to a temporary name and renamed.  Nothing is
+    replaced unless ``overwrite``: existing targets raise FileExistsError before anything is written.
 
     Returns
     -------
@@ -190,7 +190,6 @@ def write_simulation(sim: Simulation, out_dir: str | os.PathLike, *, name: str =
     p = sim.preset
     paths = {k: out / v for k, v in simulation_files(p, name).items()}
     refuse_existing(paths.values(), overwrite)
-    out.mkdir(parents=True, exist_ok=True)
     if p.model == "ILLUM" or p.model == "F01":
         from ..io import lytro
 
@@ -216,12 +215,8 @@ def write_simulation(sim: Simulation, out_dir: str | os.PathLike, *, name: str =
         lf = sim.ground_truth_lightfield()
         arrays["lf_data"] = lf.data
         arrays["lf_weight"] = lf.weight
-    with atomic_output(paths["truth_npz"], overwrite=overwrite) as tmp:
-        with open(tmp, "wb") as fh:
-            np.savez_compressed(fh, **arrays)
-    doc = truth_document(sim, {k: v.name for k, v in paths.items()})
-    doc["npz_arrays"] = sorted(arrays)
-    write_text_atomic(paths["truth_json"], json.dumps(doc, indent=1), overwrite=overwrite)
+    write_truth(paths["truth_json"], truth_document(sim, {k: v.name for k, v in paths.items()}), arrays,
+                overwrite=overwrite)
     log.info("wrote synthetic %s capture to %s", p.name, out)
     return paths
 
@@ -260,37 +255,15 @@ class Truth:
 
 
 def load_truth(path: str | os.PathLike) -> Truth:
-    """Read ``<name>.truth.json`` and its ``.truth.npz`` (either path, or a folder holding one).
+    """Read ``<name>.truth.json`` and its ``.truth.npz`` (either path, or a folder holding one) with
+    :func:`plenodecode.io.truth.read_truth`, and rebuild the grid, the scene and the light field.
 
     Raises
     ------
     FormatError
         Missing files, or not a plenodecode synthetic-truth document.
     """
-    p = Path(path)
-    if p.is_dir():
-        found = sorted(p.glob("*.truth.json"))
-        if len(found) != 1:
-            raise FormatError(f"{p}: expected exactly one *.truth.json, found {len(found)}; pass the file itself")
-        p = found[0]
-    if p.name.endswith(".truth.npz"):
-        p = p.with_name(p.name[: -len(".npz")] + ".json")
-    if not p.is_file():
-        raise FormatError(f"{p}: no such ground-truth file; pass the .truth.json written by write_simulation")
-    try:
-        doc = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise FormatError(f"{p}: not readable JSON ({exc}); pass a .truth.json written by write_simulation") from exc
-    if not isinstance(doc, dict) or doc.get("format") != TRUTH_FORMAT:
-        raise FormatError(f"{p}: format is {doc.get('format') if isinstance(doc, dict) else None!r}, expected "
-                          f"{TRUTH_FORMAT!r}; pass a .truth.json written by write_simulation")
-    if int(doc.get("version", 0)) > TRUTH_VERSION:
-        raise FormatError(f"{p}: truth version {doc.get('version')} is newer than {TRUTH_VERSION}; upgrade plenodecode")
-    npz = p.with_name(p.name[: -len(".json")] + ".npz")
-    if not npz.is_file():
-        raise FormatError(f"{npz}: missing; the .truth.json and .truth.npz must stay together")
-    with np.load(npz) as z:
-        arrays = {k: z[k] for k in z.files}
+    doc, arrays, p = read_truth(path)
     grid = LensletGrid.from_dict(doc["grid"])
     lf = None
     if "lf_data" in arrays:
