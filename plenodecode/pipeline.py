@@ -441,7 +441,8 @@ def render_focal_stack(src: Source, *, start: float, stop: float, n: int, units:
 
     The all-in-focus image renders every pixel at the slope of its sharpest slice
     (:func:`~plenodecode.render.allinfocus.all_in_focus_from_stack`): it reuses the stack, where the
-    depth-guided default of the 'all-in-focus' product would estimate depth first (about 3x the time).
+    depth-guided default of the 'all-in-focus' product estimates depth first (a full-size
+    15 x 15 x 434 x 625 light field: 10 s, against 1 s from the stack; bench_allinfocus).
     """
     import numpy as np
 
