@@ -78,8 +78,8 @@ def quality_figures() -> list[Figure]:
             t0 = time.perf_counter()
             img = fn()
             seconds = time.perf_counter() - t0
-            figs.append(Figure(f"aif {name}: {label}", seconds,
-                               note=f"PSNR {psnr(img, truth, inner):5.2f} dB, edge band {psnr(img, truth, band):5.2f} dB"))
+            scores = f"PSNR {psnr(img, truth, inner):5.2f} dB, edge band {psnr(img, truth, band):5.2f} dB"
+            figs.append(Figure(f"aif {name}: {label}", seconds, note=scores))
     return figs
 
 

@@ -35,8 +35,8 @@ import numpy as np
 
 from ..registry import lookup
 from ..types import LightField
-from ._common import aperture_mask, check_lightfield
-from .focalstack import default_slopes, depth_from_focus, focal_stack, refocus_per_pixel
+from ._common import check_lightfield
+from .focalstack import check_per_pixel_args, default_slopes, depth_from_focus, focal_stack, refocus_per_pixel
 from .refocus_methods import REFOCUS_METHODS
 
 log = logging.getLogger(__name__)
@@ -136,17 +136,10 @@ def render_visible(lf: LightField, disparity: np.ndarray, *, confidence: np.ndar
     """
     from ..depth.occlusion import nearest_surface
 
-    check_lightfield(lf)
     nv, nu, ny, nx, nc = lf.shape
-    d = np.ascontiguousarray(disparity, np.float32)
-    if d.shape != (ny, nx) or not np.all(np.isfinite(d)):
-        raise ValueError(f"disparity must be a finite (Y, X) = {(ny, nx)} array, got {d.shape}")
-    flags = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC}.get(interp)
-    if flags is None:
-        raise ValueError(f"interp must be 'linear' or 'cubic', got {interp!r}")
+    d, flags, mask = check_per_pixel_args(lf, disparity, interp, aperture, name="disparity")
     if consistency < 0 or tolerance < 0:
         raise ValueError(f"consistency and tolerance must be >= 0, got {consistency}, {tolerance}")
-    mask = aperture_mask((nv, nu), aperture)
     vc, uc = lf.centre_index
     centre = lf.data[vc, uc].reshape(ny, nx, nc)
     yy, xx = np.mgrid[0:ny, 0:nx].astype(np.float32)

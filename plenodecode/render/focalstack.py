@@ -241,6 +241,22 @@ def depth_from_focus(stack: np.ndarray, slopes: np.ndarray | list[float], *, win
     return slope, conf
 
 
+def check_per_pixel_args(lf: LightField, slope_map: Any, interp: str, aperture: float | np.ndarray, *,
+                         name: str) -> tuple[np.ndarray, int, np.ndarray]:
+    """The checked arguments of a per-pixel rendering: ``(slope map (Y, X) float32 C-contiguous, OpenCV
+    interpolation flag, aperture mask (V, U) float32)``; ValueError names ``name`` for a map that is not a
+    finite (Y, X) array, and a bad ``interp`` ('linear' or 'cubic') or aperture."""
+    check_lightfield(lf)
+    nv, nu, ny, nx, _ = lf.shape
+    d = np.ascontiguousarray(slope_map, np.float32)
+    if d.shape != (ny, nx) or not np.all(np.isfinite(d)):
+        raise ValueError(f"{name} must be a finite (Y, X) = {(ny, nx)} array, got {d.shape}")
+    flags = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC}.get(interp)
+    if flags is None:
+        raise ValueError(f"interp must be 'linear' or 'cubic', got {interp!r}")
+    return d, flags, aperture_mask((nv, nu), aperture)
+
+
 def refocus_per_pixel(lf: LightField, slope_map: np.ndarray, *, aperture: float | np.ndarray = 1.0,
                       interp: str = "linear", progress: Callable[[int, int], None] | None = None) -> np.ndarray:
     """Every pixel refocused at its own slope: ``E(y, x) = mean_{v,u} L_vu(y - d(y,x) a, x - d(y,x) b)``.
@@ -257,15 +273,8 @@ def refocus_per_pixel(lf: LightField, slope_map: np.ndarray, *, aperture: float 
     -------
     ndarray, shape (Y, X, C), float32
     """
-    check_lightfield(lf)
     nv, nu, ny, nx, nc = lf.shape
-    d = np.asarray(slope_map, np.float32)
-    if d.shape != (ny, nx) or not np.all(np.isfinite(d)):
-        raise ValueError(f"slope_map must be a finite (Y, X) = {(ny, nx)} array, got {d.shape}")
-    flags = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC}.get(interp)
-    if flags is None:
-        raise ValueError(f"interp must be 'linear' or 'cubic', got {interp!r}")
-    mask = aperture_mask((nv, nu), aperture)
+    d, flags, mask = check_per_pixel_args(lf, slope_map, interp, aperture, name="slope_map")
     vc, uc = lf.centre_index
     grid = np.mgrid[0:ny, 0:nx].astype(np.float32)
     num = np.zeros((ny, nx, nc), np.float32)
