@@ -440,23 +440,19 @@ def render_focal_stack(src: Source, *, start: float, stop: float, n: int, units:
     image made from them, and ``focal_stack.json`` (slopes, alphas, method, file names).
 
     The all-in-focus image renders every pixel at the slope of its sharpest slice
-    (:func:`~plenodecode.render.focalstack.depth_from_focus`, :func:`~plenodecode.render.focalstack.refocus_per_pixel`).
+    (:func:`~plenodecode.render.allinfocus.all_in_focus_from_stack`): it reuses the stack, where the
+    depth-guided default of the 'all-in-focus' product estimates depth first (a full-size
+    15 x 15 x 434 x 625 light field: 10 s, against 1 s from the stack; bench_allinfocus).
     """
     import numpy as np
 
     from .render import focal_stack, slope_to_alpha
-    from .render.focalstack import depth_from_focus, refocus_per_pixel
+    from .render.allinfocus import all_in_focus_from_stack
 
     lf = src.lightfield
     slopes = lookup(STACK_UNITS, units, param="units")(np.linspace(start, stop, n), lf)
-    order = np.argsort(slopes)
     imgs = focal_stack(lf, slopes, method=method, aperture=aperture, upsample=upsample, progress=progress)
-    slope_map, _ = depth_from_focus(imgs[order], np.asarray(slopes)[order])
-    if upsample > 1:
-        import cv2
-
-        slope_map = cv2.resize(slope_map, (lf.shape[3], lf.shape[2]), interpolation=cv2.INTER_AREA)
-    aif = refocus_per_pixel(lf, slope_map, aperture=aperture)
+    aif = all_in_focus_from_stack(lf, imgs, np.asarray(slopes), aperture=aperture)
     try:
         alphas = [float(a) for a in slope_to_alpha(np.asarray(slopes), lf)]
     except Exception:  # noqa: BLE001 - alphas are informative only; the camera may not be known
@@ -471,13 +467,16 @@ def render_focal_stack(src: Source, *, start: float, stop: float, n: int, units:
                     documents=(("focal_stack.json", document),), data={"slopes": slopes})
 
 
-def render_all_in_focus(src: Source, *, slopes: Sequence[float] | None = None, method: str = "shift-sum",
-                        aperture: float = 1.0, progress: Progress = None) -> Rendered:
-    """An image sharp everywhere (:func:`plenodecode.render.all_in_focus`; default slopes of the light field)."""
+def render_all_in_focus(src: Source, *, method: str = "depth", slopes: Sequence[float] | None = None,
+                        aperture: float = 1.0, progress: Progress = None, **options: Any) -> Rendered:
+    """An image sharp everywhere (:func:`plenodecode.render.all_in_focus`): by default every pixel at the
+    disparity of the 'fast' depth estimate, from the views that see it; ``method='focal-stack'`` (with
+    ``slopes``, default the light field's) the sharpest slice of a focal stack.  ``options`` are the method's
+    (``depth_method``, ``refocus_method``, ...)."""
     from .render import all_in_focus
 
     lf = src.lightfield
-    img = all_in_focus(lf, slopes=slopes, method=method, aperture=aperture, progress=progress)
+    img = all_in_focus(lf, method=method, slopes=slopes, aperture=aperture, progress=progress, **options)
     return Rendered("all-in-focus", (("all_in_focus", img),), lf.colour)
 
 

@@ -6,15 +6,17 @@ depth (1 = focus as captured), converted by :func:`alpha_to_slope` (derivation i
 :mod:`plenodecode.render.alpha`).
 
 Modules: ``refocus_methods`` (:func:`refocus` and the method registry), ``shiftsum``, ``fourier``, ``alpha``,
-``focalstack``, ``perspective``; ``plenodecode.render.refocus`` is the function.
+``focalstack``, ``allinfocus`` (:func:`all_in_focus` and its method registry), ``perspective``;
+``plenodecode.render.refocus`` is the function.
 """
 
 from __future__ import annotations
 
 from ._common import aperture_mask
 from .alpha import REFOCUS_CONSTANTS, alpha_to_slope, refocus_constants, slope_per_alpha_unit, slope_to_alpha
-from .focalstack import (all_in_focus, default_slopes, depth_from_focus, focal_stack, focus_curve, focus_measure,
-                         refocus_per_pixel, sharpest_slope)
+from .allinfocus import ALL_IN_FOCUS_METHODS, all_in_focus
+from .focalstack import (default_slopes, depth_from_focus, focal_stack, focus_curve, focus_measure, refocus_per_pixel,
+                         sharpest_slope)
 from .fourier import FourierRefocuser
 from .perspective import parallax_path, perspective, render_parallax
 from .refocus_methods import REFOCUS_METHODS, refocus
@@ -24,5 +26,5 @@ __all__ = [
     "refocus", "focal_stack", "all_in_focus", "perspective", "parallax_path", "render_parallax",
     "REFOCUS_METHODS", "REFOCUS_CONSTANTS", "alpha_to_slope", "slope_to_alpha", "slope_per_alpha_unit",
     "refocus_constants", "aperture_mask", "shift_sum", "FourierRefocuser", "focus_measure", "focus_curve",
-    "sharpest_slope", "depth_from_focus", "refocus_per_pixel", "default_slopes",
+    "sharpest_slope", "depth_from_focus", "refocus_per_pixel", "default_slopes", "ALL_IN_FOCUS_METHODS",
 ]

@@ -1,9 +1,9 @@
-"""Focal stacks, focus measures, the sharpest slope of a region, and all-in-focus images.
+"""Focal stacks, focus measures, the sharpest slope of a region, and rendering each pixel at its own slope.
 
 The focus measure is the gradient energy (Tenengrad with Sobel derivatives; Krotkov 1988, Subbarao et al.
 1993): a refocused surface is sharpest, i.e. has the most gradient energy, at the slope equal to its disparity.
-All-in-focus images follow Levoy et al. / Ng (2005): either pick, per pixel, the slope of the sharpest slice of a
-focal stack (depth from focus, smoothed), or take a disparity map, and refocus every pixel at its own slope.
+The all-in-focus images built on these (the sharpest slice's slope per pixel, or a disparity map, rendered by
+:func:`refocus_per_pixel`) are in :mod:`plenodecode.render.allinfocus`.
 """
 
 from __future__ import annotations
@@ -241,6 +241,22 @@ def depth_from_focus(stack: np.ndarray, slopes: np.ndarray | list[float], *, win
     return slope, conf
 
 
+def check_per_pixel_args(lf: LightField, slope_map: Any, interp: str, aperture: float | np.ndarray, *,
+                         name: str) -> tuple[np.ndarray, int, np.ndarray]:
+    """The checked arguments of a per-pixel rendering: ``(slope map (Y, X) float32 C-contiguous, OpenCV
+    interpolation flag, aperture mask (V, U) float32)``; ValueError names ``name`` for a map that is not a
+    finite (Y, X) array, and a bad ``interp`` ('linear' or 'cubic') or aperture."""
+    check_lightfield(lf)
+    nv, nu, ny, nx, _ = lf.shape
+    d = np.ascontiguousarray(slope_map, np.float32)
+    if d.shape != (ny, nx) or not np.all(np.isfinite(d)):
+        raise ValueError(f"{name} must be a finite (Y, X) = {(ny, nx)} array, got {d.shape}")
+    flags = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC}.get(interp)
+    if flags is None:
+        raise ValueError(f"interp must be 'linear' or 'cubic', got {interp!r}")
+    return d, flags, aperture_mask((nv, nu), aperture)
+
+
 def refocus_per_pixel(lf: LightField, slope_map: np.ndarray, *, aperture: float | np.ndarray = 1.0,
                       interp: str = "linear", progress: Callable[[int, int], None] | None = None) -> np.ndarray:
     """Every pixel refocused at its own slope: ``E(y, x) = mean_{v,u} L_vu(y - d(y,x) a, x - d(y,x) b)``.
@@ -257,15 +273,8 @@ def refocus_per_pixel(lf: LightField, slope_map: np.ndarray, *, aperture: float 
     -------
     ndarray, shape (Y, X, C), float32
     """
-    check_lightfield(lf)
     nv, nu, ny, nx, nc = lf.shape
-    d = np.asarray(slope_map, np.float32)
-    if d.shape != (ny, nx) or not np.all(np.isfinite(d)):
-        raise ValueError(f"slope_map must be a finite (Y, X) = {(ny, nx)} array, got {d.shape}")
-    flags = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC}.get(interp)
-    if flags is None:
-        raise ValueError(f"interp must be 'linear' or 'cubic', got {interp!r}")
-    mask = aperture_mask((nv, nu), aperture)
+    d, flags, mask = check_per_pixel_args(lf, slope_map, interp, aperture, name="slope_map")
     vc, uc = lf.centre_index
     grid = np.mgrid[0:ny, 0:nx].astype(np.float32)
     num = np.zeros((ny, nx, nc), np.float32)
@@ -283,47 +292,3 @@ def refocus_per_pixel(lf: LightField, slope_map: np.ndarray, *, aperture: float 
         if progress is not None:
             progress(i + 1, len(views))
     return np.where(den[..., None] > 1e-12, num / np.maximum(den, 1e-12)[..., None], 0).astype(np.float32)
-
-
-def all_in_focus(lf: LightField, *, slopes: np.ndarray | list[float] | None = None, depth: np.ndarray | None = None,
-                 method: str = "shift-sum", aperture: float | np.ndarray = 1.0, window: int = 9,
-                 progress: Callable[[int, int], None] | None = None, **kw: Any) -> np.ndarray:
-    """An image sharp everywhere.
-
-    With ``depth`` (a disparity map of the centre view) every pixel is refocused at its own disparity
-    (:func:`refocus_per_pixel`).  Otherwise a focal stack over ``slopes`` (default :func:`default_slopes`) gives
-    each pixel the slope of its sharpest slice (:func:`depth_from_focus`: Tenengrad in a ``window`` box,
-    parabolic refinement, 5x5 median), and that slope map is rendered the same way.
-
-    Parameters
-    ----------
-    lf : LightField
-    slopes : array_like (S,), optional
-    depth : ndarray (Y, X), optional
-        Disparity, spatial samples per view step.
-    method : str
-        Refocus method of the focal stack.
-    aperture : float or ndarray (V, U)
-    window : int
-    progress : callable(done, total), optional
-
-    Returns
-    -------
-    ndarray, shape (Y, X, C), float32
-    """
-    check_lightfield(lf)
-    if depth is not None:
-        if slopes is not None:
-            raise ValueError("pass slopes or depth, not both")
-        return refocus_per_pixel(lf, depth, aperture=aperture, progress=progress)
-    s = default_slopes(lf) if slopes is None else np.sort(np.atleast_1d(np.asarray(slopes, np.float64)).ravel())
-    if s.size < 2:
-        raise ValueError("slopes must hold at least 2 values")
-    total = 2 * s.size
-    stack = focal_stack(lf, s, method=method, aperture=aperture,
-                        progress=None if progress is None else (lambda d, t: progress(d, total)), **kw)
-    slope_map, _ = depth_from_focus(stack, s, window=window)
-    del stack
-    return refocus_per_pixel(lf, slope_map, aperture=aperture,
-                             progress=None if progress is None else
-                             (lambda d, t: progress(s.size + round(d * s.size / t), total)))

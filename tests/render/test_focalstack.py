@@ -49,7 +49,7 @@ def test_depth_from_focus_recovers_both_planes():
 def test_all_in_focus_is_sharp_on_both_planes(method):
     lf, disp = two_planes()
     centre = lf.centre_view()          # the pinhole view: sharp everywhere
-    aif = all_in_focus(lf, slopes=np.linspace(-1.2, 1.4, 27), method=method)
+    aif = all_in_focus(lf, slopes=np.linspace(-1.2, 1.4, 27), method="focal-stack", refocus_method=method)
     bg, fg = _interior(disp, -0.6), _interior(disp, 0.8)
     err_aif = [np.sqrt(np.mean((aif - centre)[m] ** 2)) for m in (bg, fg)]
     assert max(err_aif) < 0.015
