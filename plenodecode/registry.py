@@ -16,6 +16,7 @@ ValueError: method must be one of 'a', 'b'; got 'c'
 from __future__ import annotations
 
 import importlib
+import sys
 from typing import Any, Callable, Mapping, TypeVar
 
 T = TypeVar("T")
@@ -64,4 +65,34 @@ def lazy(module: str, attribute: str) -> Callable[..., Any]:
     return call
 
 
-__all__ = ["lookup", "lazy"]
+def lazy_exports(package: str, exports: Mapping[str, str]) -> tuple[Callable[[str], Any], Callable[[], list[str]]]:
+    """The module-level ``__getattr__`` and ``__dir__`` (PEP 562) of a package whose public names load on first use.
+
+    A package whose modules are heavy (numba, OpenCV) lists its public names with their modules and
+    does ``__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)``: importing the package then imports
+    none of them, and ``from package import name`` works as before.  A name is cached in the package on
+    first access.
+
+    Parameters
+    ----------
+    package : str
+        The package's ``__name__``.
+    exports : mapping of str -> str
+        Public name -> absolute name of the module that defines it.
+    """
+
+    def __getattr__(name: str) -> Any:
+        module = exports.get(name)
+        if module is None:
+            raise AttributeError(f"module {package!r} has no attribute {name!r}")
+        value = getattr(importlib.import_module(module), name)
+        setattr(sys.modules[package], name, value)
+        return value
+
+    def __dir__() -> list[str]:
+        return sorted(set(vars(sys.modules[package])) | set(exports))
+
+    return __getattr__, __dir__
+
+
+__all__ = ["lookup", "lazy", "lazy_exports"]
