@@ -18,7 +18,6 @@ from __future__ import annotations
 from ..registry import lazy_exports
 from ._common import aperture_mask
 from .alpha import REFOCUS_CONSTANTS, alpha_to_slope, refocus_constants, slope_per_alpha_unit, slope_to_alpha
-# imported here, not lazily: importing the submodule ``perspective`` would otherwise shadow the function
 from .perspective import parallax_path, perspective, render_parallax
 from .refocus_methods import REFOCUS_METHODS, refocus
 
