@@ -10,11 +10,9 @@ Importing the package is light: the public functions below are loaded on first u
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
-
 from . import errors
 from .errors import CalibrationError, DecodeError, FormatError, MetadataError, PlenodecodeError
+from .registry import lazy_exports
 from .types import CameraMetadata, LensletGrid, LightField, RawCapture
 
 __version__ = "0.1.0"
@@ -35,19 +33,7 @@ _LAZY = {
     "load_lightfield": "plenodecode.io.lightfield",
 }
 
-
-def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module 'plenodecode' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
-
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 
 __all__ = [
     "__version__", "errors", "PlenodecodeError", "FormatError", "MetadataError", "CalibrationError",

@@ -18,8 +18,9 @@ Layout of ``out_dir``::
 
 All-or-nothing per raw: a task writes into a hidden staging folder ``out_dir/.<name>.<random>.tmp``
 (:func:`plenodecode.io.atomic.atomic_output`) and renames it to ``out_dir/<name>`` only when every product and the ``.done.json`` marker are
-written, so a killed run leaves no output under its final name (stale staging folders are removed by
-the next run).  Two batches must not write into the same ``out_dir`` at the same time.
+written, so a killed run leaves no output under its final name (the next run removes the staging folders
+of runs that no longer live, and leaves those of a live one alone).  Two batches must not write into the
+same ``out_dir`` at the same time.
 
 Resuming: ``.done.json`` holds the task key, the SHA-256 of the input's bytes and of the options
 (:func:`task_key`); a later run with the same key skips the raw, a changed input or option re-runs it
@@ -47,7 +48,9 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
 from .errors import PlenodecodeError
-from .io.atomic import OLD_MARK, TEMP_MARK, atomic_output, discard, is_temporary, write_text_atomic
+from .io.atomic import (OLD_MARK, TEMP_MARK, atomic_output, discard, is_temporary, remove_stale_temporaries,
+                        write_text_atomic)
+from .registry import lookup
 
 log = logging.getLogger(__name__)
 
@@ -111,17 +114,13 @@ class BatchOptions:
         if bad or not outs:
             raise ValueError(f"outputs must be a non-empty subset of {BATCH_OUTPUTS}, got {self.outputs!r}")
         object.__setattr__(self, "outputs", tuple(dict.fromkeys(outs)))
-        if self.lightfield_format not in LIGHTFIELD_NAMES:
-            raise ValueError(f"lightfield_format must be one of {sorted(LIGHTFIELD_NAMES)}, "
-                             f"got {self.lightfield_format!r}")
+        lookup(LIGHTFIELD_NAMES, self.lightfield_format, param="lightfield_format")
         if self.bit_depth not in (8, 16, 32):
             raise ValueError(f"bit_depth must be 8, 16 or 32, got {self.bit_depth!r}")
         if self.depth_method is not None:
             from .depth import DEPTH_METHODS
 
-            if self.depth_method not in DEPTH_METHODS:
-                raise ValueError(f"depth_method must be one of {sorted(DEPTH_METHODS)} or None, "
-                                 f"got {self.depth_method!r}")
+            lookup(DEPTH_METHODS, self.depth_method, param="depth_method")
         object.__setattr__(self, "slope", float(self.slope))
         if self.db_dir is None:
             from .calib.store import DEFAULT_DB
@@ -538,11 +537,19 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
 
 # ------------------------------------------------------------------------------ runners
 def _clean_stale(out: Path) -> None:
-    """Remove the staging folders, replaced folders and temporary files a killed run left in ``out``."""
+    """Remove what killed runs left in ``out``, never what a live run is writing.
+
+    Temporaries and replaced folders of :mod:`plenodecode.io.atomic` (staging folders, summary files) go
+    by :func:`~plenodecode.io.atomic.remove_stale_temporaries`, which knows their owner: a process of this
+    host that no longer runs, or no change for a day.  Hidden leftovers of earlier versions, whose names
+    carry no owner (``.<name>.partial`` and ``.<name>.old`` folders, ``.summary.json...tmp`` files), are
+    removed outright.
+    """
+    remove_stale_temporaries(out)
     for p in out.iterdir():
-        if not p.name.startswith("."):
+        if not p.name.startswith(".") or is_temporary(p):
             continue
-        if p.is_dir() and not p.is_symlink() and (is_temporary(p) or p.name.endswith((STAGING_SUFFIX, OLD_MARK))):
+        if p.is_dir() and not p.is_symlink() and p.name.endswith((STAGING_SUFFIX, OLD_MARK)):
             log.info("removing %s left by an interrupted run", p)
             discard(p)
         elif p.is_file() and p.name.endswith(TEMP_MARK) and p.name[1:].startswith(SUMMARY_FILES):

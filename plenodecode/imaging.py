@@ -2,7 +2,8 @@
 
 Everything here is a pure function of numpy arrays; nothing depends on the light-field types, so any
 layer of the package can use it (``types.py`` stays free of OpenCV: this module imports it, types does not
-import this module).
+import this module).  OpenCV is imported by the two warps only, so the interpolation helpers stay light
+(the CLI reads :data:`INTERPOLATION_TAPS` for its help).
 
 Interpolation kernels (:data:`INTERPOLATION_TAPS`), for a sample at ``x + t`` with ``i = floor(t)``,
 ``f = t - i``:
@@ -24,7 +25,6 @@ View warps follow the disparity convention of ``docs/design.md``: a view ``(v, u
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 
 #: Interpolation kernels of :func:`interpolation_taps`: name -> number of taps.
@@ -100,7 +100,7 @@ def luma(img: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(img[..., 0] if img.shape[-1] == 1 else img @ LUMA_WEIGHTS)
 
 
-def shift_view(img: np.ndarray, d: float, dv: float, du: float, interpolation: int = cv2.INTER_LINEAR) -> np.ndarray:
+def shift_view(img: np.ndarray, d: float, dv: float, du: float, interpolation: int | None = None) -> np.ndarray:
     """One view brought onto the centre view for a constant disparity ``d``.
 
     ``out(y, x) = img(y - d dv, x - d du)`` (``cv2.warpAffine``; samples outside take the nearest edge value).
@@ -112,20 +112,23 @@ def shift_view(img: np.ndarray, d: float, dv: float, du: float, interpolation: i
         Disparity, pixels per view step.
     dv, du : float
         Offset of the view from the centre view, in view steps.
-    interpolation : int
-        OpenCV interpolation flag (``cv2.INTER_LINEAR``, ``cv2.INTER_CUBIC``, ...).
+    interpolation : int, optional
+        OpenCV interpolation flag (``cv2.INTER_LINEAR``, the default, ``cv2.INTER_CUBIC``, ...).
 
     Returns
     -------
     ndarray, shape (Y, X) or (Y, X, C) (OpenCV drops a single channel axis), float32
     """
+    import cv2
+
+    interpolation = cv2.INTER_LINEAR if interpolation is None else interpolation
     h, w = img.shape[:2]
     m = np.array([[1.0, 0.0, -d * du], [0.0, 1.0, -d * dv]], np.float32)
     return cv2.warpAffine(img, m, (w, h), flags=interpolation | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
 
 
 def remap_view(img: np.ndarray, disparity: np.ndarray, dv: float, du: float, grid: tuple[np.ndarray, np.ndarray],
-               interpolation: int = cv2.INTER_CUBIC) -> np.ndarray:
+               interpolation: int | None = None) -> np.ndarray:
     """Per-pixel version of :func:`shift_view`: ``out(y, x) = img(y - d(y, x) dv, x - d(y, x) du)``.
 
     Parameters
@@ -137,13 +140,17 @@ def remap_view(img: np.ndarray, disparity: np.ndarray, dv: float, du: float, gri
         Offset of the view from the centre view, in view steps.
     grid : (yy, xx), ndarray (Y, X) float32 each
         Pixel coordinates, e.g. ``np.mgrid[0:Y, 0:X].astype(np.float32)``.
-    interpolation : int
-        OpenCV interpolation flag; samples outside take the nearest edge value (``cv2.remap``).
+    interpolation : int, optional
+        OpenCV interpolation flag (default ``cv2.INTER_CUBIC``); samples outside take the nearest edge value
+        (``cv2.remap``).
 
     Returns
     -------
     ndarray, shape (Y, X) or (Y, X, C) (OpenCV drops a single channel axis), float32
     """
+    import cv2
+
+    interpolation = cv2.INTER_CUBIC if interpolation is None else interpolation
     yy, xx = grid
     mx = xx - disparity * np.float32(du)
     my = yy - disparity * np.float32(dv)

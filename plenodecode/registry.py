@@ -16,6 +16,8 @@ ValueError: method must be one of 'a', 'b'; got 'c'
 from __future__ import annotations
 
 import importlib
+import sys
+import types
 from typing import Any, Callable, Mapping, TypeVar
 
 T = TypeVar("T")
@@ -64,4 +66,45 @@ def lazy(module: str, attribute: str) -> Callable[..., Any]:
     return call
 
 
-__all__ = ["lookup", "lazy"]
+def lazy_exports(package: str, exports: Mapping[str, str]) -> tuple[Callable[[str], Any], Callable[[], list[str]]]:
+    """The module-level ``__getattr__`` and ``__dir__`` (PEP 562) of a package whose public names load on first use.
+
+    A package whose modules are heavy (numba, OpenCV) lists its public names with their modules and
+    does ``__getattr__, __dir__ = lazy_exports(__name__, _LAZY)``: importing the package then imports
+    none of them, and ``from package import name`` works as before.  A name is cached in the package on
+    first access.  A public name that is also the name of the submodule defining it (``simulate`` in
+    ``plenodecode.synthetic.simulate``) stays the function: when the import system binds the submodule
+    to the package, the package keeps the submodule's attribute of that name instead.
+
+    Parameters
+    ----------
+    package : str
+        The package's ``__name__``; the package must be executing (in ``sys.modules``).
+    exports : mapping of str -> str
+        Public name -> absolute name of the module that defines it.
+    """
+    module = sys.modules[package]
+
+    class LazyPackage(types.ModuleType):
+        def __setattr__(self, name: str, value: Any) -> None:
+            if isinstance(value, types.ModuleType) and exports.get(name) == value.__name__:
+                value = getattr(value, name)
+            super().__setattr__(name, value)
+
+    module.__class__ = LazyPackage
+
+    def __getattr__(name: str) -> Any:
+        source = exports.get(name)
+        if source is None:
+            raise AttributeError(f"module {package!r} has no attribute {name!r}")
+        value = getattr(importlib.import_module(source), name)
+        setattr(module, name, value)
+        return value
+
+    def __dir__() -> list[str]:
+        return sorted(set(vars(module)) | set(exports))
+
+    return __getattr__, __dir__
+
+
+__all__ = ["lookup", "lazy", "lazy_exports"]

@@ -328,6 +328,29 @@ def test_killed_run_leaves_no_partial_output_and_resumes(data, tmp_path):
     assert not [p for p in out.iterdir() if p.name.startswith(".")]
 
 
+def test_a_new_run_removes_leftovers_of_dead_runs_only(data, tmp_path):
+    """Staging folders and summary temporaries of a live run (here: this process) survive a new run in the same
+    folder; those of a finished process and the owner-less leftovers of earlier versions are removed."""
+    from plenodecode.io.atomic import temporary_sibling
+
+    out = tmp_path / "out"
+    out.mkdir()
+    live = [temporary_sibling(out / "scene7", folder=True), temporary_sibling(out / "summary.json")]
+    make = ("from pathlib import Path; from plenodecode.io.atomic import temporary_sibling; "
+            f"out = Path({str(out)!r}); temporary_sibling(out / 'scene8', folder=True); "
+            "temporary_sibling(out / 'index.html')")
+    subprocess.run([sys.executable, "-c", make], check=True)
+    dead = sorted(set(out.iterdir()) - set(live))
+    assert len(dead) == 2
+    legacy = [out / ".scene9.partial", out / ".scene6.old"]
+    for p in legacy:
+        p.mkdir()
+    (out / ".summary.json.tmp").write_text("{}")
+    opts = BatchOptions(outputs=("centre",), db_dir=str(data["db"]))
+    assert run_batch([data["shoot"] / "take1"], out, opts, jobs=1).results[0].status == "done"
+    assert sorted(p for p in out.iterdir() if p.name.startswith(".")) == sorted(live)
+
+
 # ---------------------------------------------------------------------------------- CLI
 def test_cli_runs_reports_and_exits_1_on_failures(data, tmp_path):
     out = tmp_path / "out"

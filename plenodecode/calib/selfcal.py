@@ -42,7 +42,9 @@ import cv2
 import numpy as np
 
 from ..errors import CalibrationError, FormatError, MetadataError
+from ..registry import lookup
 from ..types import LensletGrid, RawCapture
+from . import LATTICES
 from . import centroids as _c
 from . import grid as _g
 
@@ -171,11 +173,12 @@ def _peak_points(img: np.ndarray, est: _c.LatticeEstimate, *, method: str, min_c
     return cen[ok], {"n_peaks": int(len(peaks))}
 
 
-#: Self-calibration methods: name -> function(img, est, *, min_contrast, tick) -> (centres (N, 2), info).
-SELFCAL_METHODS: dict[str, Callable[..., tuple[np.ndarray, dict[str, Any]]]] = {
+#: Self-calibration methods: name -> function(img, est, *, min_contrast, tick) -> (centres (N, 2), info);
+#: in alphabetical order, as the error of an unknown name lists them.
+SELFCAL_METHODS: dict[str, Callable[..., tuple[np.ndarray, dict[str, Any]]]] = dict(sorted({
     "rim": _rim_points,
     **{name: functools.partial(_peak_points, method=name) for name in _c.CENTROID_METHODS},
-}
+}.items()))
 
 
 def calibrate_from_scene(raw: RawCapture | np.ndarray | str | os.PathLike, *, lattice: str = "auto",
@@ -213,11 +216,9 @@ def calibrate_from_scene(raw: RawCapture | np.ndarray | str | os.PathLike, *, la
     ValueError
         Unknown ``method`` or ``lattice``.
     """
-    from . import LATTICES, grid_from_points
+    from .white import grid_from_points
 
-    fn = SELFCAL_METHODS.get(method)
-    if fn is None:
-        raise ValueError(f"method must be one of {sorted(SELFCAL_METHODS)}, got {method!r}")
+    fn = lookup(SELFCAL_METHODS, method, param="method")
     if lattice not in LATTICES:
         raise ValueError(f"lattice must be one of {LATTICES}, got {lattice!r}")
     total = 4

@@ -7,12 +7,8 @@ from pathlib import Path
 import click
 
 from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES
-from ..batch import LIGHTFIELD_NAMES
 from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
-from ..depth import DEPTH_METHODS
-from .common import bit_depth_option, database_option, jobs_option, progress_bar
-
-LIGHTFIELD_FORMATS = tuple(LIGHTFIELD_NAMES)
+from .common import RegistryChoice, bit_depth_option, database_option, jobs_option, progress_bar
 
 
 def _parse_outputs(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
@@ -43,12 +39,12 @@ def _echo_table(summary) -> None:
 @click.option("--outputs", default="centre", show_default=True, callback=_parse_outputs,
               help=f"Comma-separated products per raw: {', '.join(OUTPUT_CHOICES)}.")
 @database_option
-@click.option("--format", "lf_format", type=click.Choice(LIGHTFIELD_FORMATS), default="zarr", show_default=True,
+@click.option("--format", "lf_format", type=RegistryChoice("plenodecode.batch", "LIGHTFIELD_NAMES"), default="zarr", show_default=True,
               help="Format of the 'lightfield' product.")
 @bit_depth_option
 @click.option("--slope", type=float, default=0.0, show_default=True, help="Refocus slope of the 'refocus' product.")
-@click.option("--depth-method", type=click.Choice(list(DEPTH_METHODS)), default=DEFAULT_DEPTH_METHOD,
-              show_default=True, help="Method of the 'depth' product.")
+@click.option("--depth-method", type=RegistryChoice("plenodecode.depth", "DEPTH_METHODS"),
+              default=DEFAULT_DEPTH_METHOD, show_default=True, help="Method of the 'depth' product.")
 @click.option("--overwrite", is_flag=True, help="Redo raws a previous run finished and replace their outputs.")
 @click.pass_context
 def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, database, lf_format, bit_depth, slope,

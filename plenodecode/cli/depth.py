@@ -6,9 +6,9 @@ from pathlib import Path
 
 import click
 
-from ..depth import DEFAULT_METHOD, DEPTH_METHODS
-from .common import (calibration_kwargs, input_options, output_option, overwrite_option, progress_bar, quiet,
-                     usage_errors)
+from ..depth import DEFAULT_METHOD
+from .common import (RegistryChoice, calibration_kwargs, input_options, output_option, overwrite_option,
+                     progress_bar, quiet, usage_errors)
 
 
 def parse_range(text: str | None) -> tuple[float, float] | None:
@@ -30,7 +30,7 @@ def parse_range(text: str | None) -> tuple[float, float] | None:
 @click.command("depth")
 @click.argument("input_path", metavar="RAW_OR_LF", type=click.Path(exists=True, path_type=Path))
 @output_option
-@click.option("--method", type=click.Choice(list(DEPTH_METHODS)), default=DEFAULT_METHOD, show_default=True,
+@click.option("--method", type=RegistryChoice("plenodecode.depth", "DEPTH_METHODS"), default=DEFAULT_METHOD, show_default=True,
               help="'costvolume' = accurate, 'fast' = preview in seconds.")
 @click.option("--metric", is_flag=True, help="Write metric depth (m) instead of disparity (px per view step).")
 @click.option("--ply", type=click.Path(dir_okay=False, path_type=Path), default=None,

@@ -27,7 +27,7 @@ def _describe_container(path: Path) -> list[str]:
 
     c = lytro.read_container(path)
     lines = [f"{path}: Lytro container ({len(c.sections)} sections)"]
-    make = lytro._get(c.metadata, "camera", "make")
+    make = lytro.lookup(c.metadata, "camera", "make")
     lines += _camera_lines(c.model, make if isinstance(make, str) else None, c.serial,
                            " (inferred from the TOC layout)" if c.model_source == "toc layout" else "")
     if c.kind == "raw":
@@ -111,7 +111,7 @@ def _describe_sidecar(path: Path) -> list[str]:
     from ..errors import MetadataError
     from ..io import lytro
 
-    doc = lytro._read_sidecar(path)
+    doc = lytro.read_sidecar(path)
     try:
         if not isinstance(doc, Mapping):
             raise MetadataError(f"expected a JSON object, found {type(doc).__name__}")

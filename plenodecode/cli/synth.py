@@ -6,15 +6,14 @@ from pathlib import Path
 
 import click
 
-from .common import check_output, overwrite_option, progress_bar
+from .common import RegistryChoice, check_output, overwrite_option, progress_bar
 
-#: kept in sync with plenodecode.synthetic.PRESETS (checked by the tests); listed here
-#: so that ``--help`` does not import numba
-PRESET_NAMES = ("illum", "illum-mini", "f01", "f01-mini", "square", "raytrix")
+#: The simulated cameras, for the PRESET argument (:mod:`plenodecode.synthetic.presets` imports no numba).
+PRESET_CHOICE = RegistryChoice("plenodecode.synthetic.presets", "PRESETS")
 
 
 @click.command("synth")
-@click.argument("preset", type=click.Choice(PRESET_NAMES))
+@click.argument("preset", type=PRESET_CHOICE)
 @click.option("-o", "--output", "out_dir", type=click.Path(path_type=Path, file_okay=False), required=True,
               help="Output folder (created if missing).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,

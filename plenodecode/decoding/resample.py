@@ -28,6 +28,7 @@ import numpy as np
 from numba import njit
 
 from ..imaging import INTERPOLATION_TAPS, interpolation_taps
+from ..registry import lookup
 from ..types import LensletGrid
 
 
@@ -51,8 +52,7 @@ def row_taps(grid: LensletGrid, *, method: str = "cubic") -> tuple[np.ndarray, n
     w : ndarray, shape (2, X, T), float32
         Tap weights (sum to 1).
     """
-    if method not in RESAMPLE_METHODS:
-        raise ValueError(f"resample method must be one of {sorted(RESAMPLE_METHODS)}, got {method!r}")
+    lookup(RESAMPLE_METHODS, method, param="resample method")
     s = grid.decoded_sampling()
     cols = grid.shape[1]
     x = np.arange(s["X"], dtype=np.float64)

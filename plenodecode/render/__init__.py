@@ -8,19 +8,30 @@ depth (1 = focus as captured), converted by :func:`alpha_to_slope` (derivation i
 Modules: ``refocus_methods`` (:func:`refocus` and the method registry), ``shiftsum``, ``fourier``, ``alpha``,
 ``focalstack``, ``allinfocus`` (:func:`all_in_focus` and its method registry), ``perspective``;
 ``plenodecode.render.refocus`` is the function.
+
+Importing this package is light (no numba, no OpenCV): the names of the compiled modules (``shiftsum``,
+``fourier``, ``focalstack``, ``allinfocus``) load on first access, and :data:`REFOCUS_METHODS` holds lazy
+entries, so the CLI can list the methods for its help.
 """
 
 from __future__ import annotations
 
+from ..registry import lazy_exports
 from ._common import aperture_mask
 from .alpha import REFOCUS_CONSTANTS, alpha_to_slope, refocus_constants, slope_per_alpha_unit, slope_to_alpha
-from .allinfocus import ALL_IN_FOCUS_METHODS, all_in_focus
-from .focalstack import (default_slopes, depth_from_focus, focal_stack, focus_curve, focus_measure, refocus_per_pixel,
-                         sharpest_slope)
-from .fourier import FourierRefocuser
 from .perspective import parallax_path, perspective, render_parallax
 from .refocus_methods import REFOCUS_METHODS, refocus
-from .shiftsum import shift_sum
+
+#: public name -> module that defines it (imported on first access: numba kernels or OpenCV)
+_LAZY = {
+    **dict.fromkeys(["all_in_focus", "ALL_IN_FOCUS_METHODS"], "plenodecode.render.allinfocus"),
+    **dict.fromkeys(["default_slopes", "depth_from_focus", "focal_stack", "focus_curve",
+                     "focus_measure", "refocus_per_pixel", "sharpest_slope"], "plenodecode.render.focalstack"),
+    "FourierRefocuser": "plenodecode.render.fourier",
+    "shift_sum": "plenodecode.render.shiftsum",
+}
+
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 
 __all__ = [
     "refocus", "focal_stack", "all_in_focus", "perspective", "parallax_path", "render_parallax",

@@ -11,32 +11,22 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ..registry import lazy, lookup
 from ..types import LightField
 from ._common import check_lightfield
 from .alpha import alpha_to_slope, split_constants
-from .shiftsum import shift_sum
-
-
-def _fourier_slice(lf: LightField, slopes: float | np.ndarray, **kw: Any) -> np.ndarray:
-    """Registry entry of 'fourier-slice' (imports :mod:`plenodecode.render.fourier` on first use)."""
-    from .fourier import fourier_slice
-
-    return fourier_slice(lf, slopes, **kw)
-
 
 #: Refocusing methods: name -> ``fn(lf, slopes, *, aperture, upsample, progress, **kw) -> (S, Y', X', C)``.
+#: Both modules compile numba kernels, so the entries import them on their first call.
 REFOCUS_METHODS: dict[str, Callable[..., np.ndarray]] = {
-    "shift-sum": shift_sum,
-    "fourier-slice": _fourier_slice,
+    "shift-sum": lazy("plenodecode.render.shiftsum", "shift_sum"),
+    "fourier-slice": lazy("plenodecode.render.fourier", "fourier_slice"),
 }
 
 
 def get_method(method: str) -> Callable[..., np.ndarray]:
     """The function of a refocus method; ValueError listing the valid names otherwise."""
-    try:
-        return REFOCUS_METHODS[method]
-    except (KeyError, TypeError):
-        raise ValueError(f"method must be one of {', '.join(REFOCUS_METHODS)}, got {method!r}") from None
+    return lookup(REFOCUS_METHODS, method, param="method")
 
 
 def refocus(lf: LightField, *, slope: float | None = None, alpha: float | None = None, method: str = "shift-sum",

@@ -32,16 +32,26 @@ Modules, each importing only those listed before it: :mod:`.presets` (the simula
 kernels), :mod:`.scene` (planes, textures, radiance), :mod:`.sensor` (disk response,
 vignetting, noise, rendering the mosaic), :mod:`.truth` (:class:`Simulation`, ground-truth
 files), :mod:`.focused` (the focused camera), :mod:`.simulate` (:func:`simulate`,
-:func:`simulate_white`).
+:func:`simulate_white`).  Importing the package loads only :mod:`.presets`; the other names load on first
+access.
 """
 
-from .kernels import SUBSAMPLES
-from .lattice import assign_pixels, make_grid, raytrix_lens_types
+from ..registry import lazy_exports
 from .presets import PRESETS, Preset, get_preset
-from .scene import Plane, Scene, default_scene
-from .sensor import BAND_ROWS, disk_profile, disk_response, vignetting
-from .simulate import simulate, simulate_white
-from .truth import Simulation, Truth, load_truth, simulation_files, truth_document, write_simulation
+
+#: public name -> module that defines it (imported on first access: the forward model compiles numba kernels
+#: and uses OpenCV, while the presets stay light for the CLI's help)
+_LAZY = {
+    "SUBSAMPLES": "plenodecode.synthetic.kernels",
+    **dict.fromkeys(["assign_pixels", "make_grid", "raytrix_lens_types"], "plenodecode.synthetic.lattice"),
+    **dict.fromkeys(["Plane", "Scene", "default_scene"], "plenodecode.synthetic.scene"),
+    **dict.fromkeys(["BAND_ROWS", "disk_profile", "disk_response", "vignetting"], "plenodecode.synthetic.sensor"),
+    **dict.fromkeys(["simulate", "simulate_white"], "plenodecode.synthetic.simulate"),
+    **dict.fromkeys(["Simulation", "Truth", "load_truth", "simulation_files", "truth_document", "write_simulation"],
+                    "plenodecode.synthetic.truth"),
+}
+
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 
 __all__ = ["Preset", "PRESETS", "get_preset", "make_grid", "raytrix_lens_types", "assign_pixels", "disk_profile",
            "disk_response", "vignetting", "simulate_white", "Simulation", "simulate", "write_simulation",

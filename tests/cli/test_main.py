@@ -1,5 +1,8 @@
 """The command line as a whole: every command listed, documented with an example, consistent exit codes."""
 
+import subprocess
+import sys
+
 import pytest
 from click.testing import CliRunner
 
@@ -52,3 +55,17 @@ def test_database_option_has_one_spelling_in_the_help():
         out = CliRunner().invoke(cli, [command, "--help"]).output
         assert "--database" in out and "--white-dir" not in out, command
         assert f"[default: ./{DEFAULT_DB}]" in " ".join(out.split()), command
+
+
+@pytest.mark.parametrize("name", list(COMMANDS))
+def test_command_help_imports_neither_numba_nor_opencv(name):
+    """Help is read often and must come fast: building it imports no compiled-kernel or OpenCV module
+    (registries are read through light modules; a fresh interpreter, so nothing is imported already)."""
+    code = ("import sys\n"
+            "from click.testing import CliRunner\n"
+            "from plenodecode.cli.main import cli\n"
+            f"res = CliRunner().invoke(cli, [{name!r}, '--help'])\n"
+            "assert res.exit_code == 0, res.output\n"
+            "print(sorted({m.split('.')[0] for m in sys.modules} & {'numba', 'cv2'}))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]", f"plenodecode {name} --help imports {out.strip()}"

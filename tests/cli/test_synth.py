@@ -9,9 +9,9 @@ def test_cli_synth_writes_files_and_refuses_to_overwrite(tmp_path):
     from click.testing import CliRunner
 
     from plenodecode.cli.main import cli
-    from plenodecode.cli.synth import PRESET_NAMES
+    from plenodecode.cli.synth import PRESET_CHOICE
 
-    assert set(PRESET_NAMES) == set(syn.PRESETS)
+    assert set(PRESET_CHOICE.choices) == set(syn.PRESETS)
     args = ["synth", "f01-mini", "-o", str(tmp_path), "--seed", "3", "--offset", "0.25", "-0.4",
             "--shape", "96", "128", "--no-noise"]
     res = CliRunner().invoke(cli, args)

@@ -28,10 +28,6 @@ from .lfp import extract_contents, read_lytro, write_lfp, write_lfr
 from .metadata import lytro_metadata, metadata_from_lytro
 from .rawpair import find_sidecar, read_raw_pair, read_raw_pair_metadata, read_sidecar, write_raw_pair
 
-# plenodecode.cli.info calls these by their names in the former single module io/lytro.py
-_get = lookup
-_read_sidecar = read_sidecar
-
 __all__ = [
     "Section", "ContentItem", "LytroContainer", "read_container", "read_lytro", "metadata_from_lytro",
     "find_sidecar", "read_raw_pair", "read_raw_pair_metadata", "write_container", "write_lfr", "write_lfp",

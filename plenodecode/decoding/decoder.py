@@ -1,0 +1,308 @@
+"""The decoder: raw lenslet mosaic + LensletGrid -> LightField ``(V, U, Y, X, C)`` (:func:`decode`).
+
+The pipeline and the output size it produces are described in :mod:`plenodecode.decoding`.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from typing import Callable
+
+import numpy as np
+
+from ..errors import CalibrationError, DecodeError
+from ..registry import lookup
+from ..types import LensletGrid, LightField, LightFieldGeometry, RawCapture
+from . import colour as _colour
+from . import devignette as _dv
+from .demosaic import DEMOSAIC_METHODS
+from .demosaic import demosaic as _demosaic
+from .devignette import DEFAULT_FLOOR, normalise, relative_white, repair_hot_pixels
+from .resample import RESAMPLE_METHODS, hex_to_rect, output_shape
+from .slice import lens_labels, plan_bands, safe_radius, sample_lenses, view_offsets
+
+log = logging.getLogger(__name__)
+
+#: default demosaicing method of :func:`decode`
+DEFAULT_DEMOSAIC = "malvar"
+
+
+def _as_plane(img, name: str, raw: RawCapture):
+    """Validate a white or dark image; returns (array, black, white levels) or raises."""
+    if img is None:
+        return None
+    if isinstance(img, RawCapture):
+        arr, black, white = img.mosaic, img.black, img.white
+    elif isinstance(img, np.ndarray):
+        arr, black, white = img, raw.black, raw.white
+    else:
+        raise ValueError(f"{name} must be a RawCapture or an ndarray, got {type(img).__name__}")
+    if arr.ndim != 2 or arr.shape != raw.shape:
+        raise DecodeError(f"{name} image must have the raw's size {raw.shape[0]}x{raw.shape[1]}, "
+                          f"found {'x'.join(map(str, arr.shape))}; pass the {name} frame of this camera")
+    if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
+        raise DecodeError(f"{name} image must be finite, found NaN or inf values; repair or replace the {name} frame")
+    if arr.dtype.kind not in "uif":
+        raise ValueError(f"{name} must be numeric, got dtype {arr.dtype}")
+    return arr, black, white
+
+
+class _Scratch:
+    """Per-thread work buffers reused from band to band.
+
+    Fresh multi-megabyte arrays are page-faulted on first touch (and numpy asks the kernel for
+    huge pages, whose compaction can stall); reusing one buffer per name and thread keeps that
+    cost to the first band.
+    """
+
+    def __init__(self) -> None:
+        self._local = threading.local()
+
+    def get(self, name: str, shape: tuple[int, ...], dtype) -> np.ndarray:
+        bufs = self._local.__dict__.setdefault("bufs", {})
+        dtype = np.dtype(dtype)
+        n = int(np.prod(shape)) * dtype.itemsize
+        buf = bufs.get(name)
+        if buf is None or buf.size < n:
+            buf = np.empty(n, np.uint8)
+            bufs[name] = buf
+        return buf[:n].view(dtype).reshape(shape)
+
+
+def _check_views(n_views: int | None, grid: LensletGrid) -> int:
+    if n_views is None:
+        return grid.n_views()
+    if not isinstance(n_views, (int, np.integer)) or n_views < 1 or n_views % 2 == 0:
+        raise ValueError(f"n_views must be a positive odd integer, got {n_views!r}")
+    return int(n_views)
+
+
+def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray | None = None,
+           dark: RawCapture | np.ndarray | None = None, demosaic: str = DEFAULT_DEMOSAIC,
+           colour: str = "linear-srgb", n_views: int | None = None, hot_pixels: bool = True,
+           resample: str = "cubic", floor: float = DEFAULT_FLOOR, workers: int | None = None,
+           progress: Callable[[int, int], None] | None = None) -> LightField:
+    """Decode a raw lenslet image into a 4D light field.
+
+    Parameters
+    ----------
+    raw : RawCapture
+        The scene raw (uint16 mosaic with its levels and metadata).
+    grid : LensletGrid
+        Lenslet grid of this camera (same sensor size).
+    white : RawCapture or ndarray (H, W), optional
+        White image taken with the same zoom/focus: devignetting and the sample weights.  A bare
+        uint16 array uses the raw's levels; a float array is taken as already normalised.  Without a
+        white, nothing is devignetted and the weight is the lenslet disk of ``grid.radius``.
+    dark : RawCapture or ndarray (H, W), optional
+        Dark frame in sensor units, subtracted from raw and white pixel by pixel instead of the black
+        level (microscopes).
+    demosaic : str
+        Key of :data:`DEMOSAIC_METHODS` (ignored for monochrome sensors).
+    colour : {'linear-srgb', 'camera'}
+        'linear-srgb' applies white balance and the camera's colour matrix; when the metadata has no
+        colour matrix the light field stays in camera colour and a warning is logged.
+    n_views : int, optional
+        Views per angular axis (odd); default ``grid.n_views()``.
+    hot_pixels : bool
+        Repair hot pixels (:func:`plenodecode.decoding.devignette.repair_hot_pixels`).
+    resample : str
+        Hex -> rect kernel, key of :data:`plenodecode.decoding.resample.RESAMPLE_METHODS`.
+    floor : float
+        Pixels receiving less than ``floor`` of their lens's peak white are treated as missing.
+    workers : int, optional
+        Threads (default: all cores).
+    progress : callable(done, total), optional
+        Called after each band of lens rows.
+
+    Returns
+    -------
+    LightField
+        ``data`` (V, U, Y, X, C) float32 (C = 3, or 1 for monochrome), ``weight`` (V, U, Y, X)
+        float32 in [0, 1], linear; sizes as in the module docstring.
+
+    Raises
+    ------
+    CalibrationError
+        The grid was fitted on another sensor size.
+    DecodeError
+        White or dark frame of the wrong size or with NaNs.
+    """
+    return decode_timed(raw, grid, white=white, dark=dark, demosaic=demosaic, colour=colour, n_views=n_views,
+                        hot_pixels=hot_pixels, resample=resample, floor=floor, workers=workers,
+                        progress=progress, timings=None)
+
+
+def decode_timed(raw: RawCapture, grid: LensletGrid, *, timings: dict[str, float] | None, **kw) -> LightField:
+    """:func:`decode` that also adds each stage's thread CPU seconds (summed over bands) to ``timings``.
+
+    For benchmarks: keys 'levels', 'hot pixels', 'labels', 'white', 'demosaic', 'slice', 'hex->rect',
+    plus 'total cpu' and 'wall'.  ``timings=None`` times nothing.
+    """
+    return _decode(raw, grid, timings=timings, **kw)
+
+
+def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosaic: str = DEFAULT_DEMOSAIC,
+            colour: str = "linear-srgb", n_views=None, hot_pixels: bool = True, resample: str = "cubic",
+            floor: float = DEFAULT_FLOOR, workers=None, progress=None, timings=None) -> LightField:
+    t_wall, t_cpu = time.perf_counter(), time.process_time()
+    if not isinstance(raw, RawCapture):
+        raise ValueError(f"raw must be a RawCapture, got {type(raw).__name__}")
+    if not isinstance(grid, LensletGrid):
+        raise ValueError(f"grid must be a LensletGrid, got {type(grid).__name__}")
+    if tuple(grid.sensor_shape) != tuple(raw.shape):
+        raise CalibrationError(
+            f"the lenslet grid was fitted on a {grid.sensor_shape[0]}x{grid.sensor_shape[1]} sensor but the raw is "
+            f"{raw.shape[0]}x{raw.shape[1]}; pass the grid calibrated from this camera's white images")
+    lookup(DEMOSAIC_METHODS, demosaic, param="demosaic")
+    if colour not in _colour.DECODE_COLOURS:
+        raise ValueError(f"colour must be one of {_colour.DECODE_COLOURS}, got {colour!r}")
+    lookup(RESAMPLE_METHODS, resample, param="resample")
+    if not 0.0 < floor < 1.0:
+        raise ValueError(f"floor must be in (0, 1), got {floor}")
+    if workers is not None and workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    nv = _check_views(n_views, grid)
+    white_p = _as_plane(white, "white", raw)
+    dark_p = _as_plane(dark, "dark", raw)
+    if white_p is None:
+        log.warning("no white image: the raw is not devignetted; weights come from the lenslet disk radius")
+
+    cfa = raw.cfa
+    nch = 1 if cfa is None else 3
+    matrix = None
+    colour_state = "camera"
+    if nch == 3 and colour == "linear-srgb":
+        matrix = _colour.colour_matrix(raw.metadata)
+        if matrix is None:
+            log.warning("the raw's metadata has no colour matrix (ccm): the light field stays in camera RGB")
+        else:
+            colour_state = "linear-srgb"
+    elif nch == 1 and colour == "linear-srgb":
+        colour_state = "camera"
+
+    ny, nx = output_shape(grid)
+    h, w = raw.shape
+    cols = grid.shape[1]
+    centres = grid.centres_2d()
+    offsets = view_offsets(grid, nv)
+    # Voronoi circumradius: pitch / sqrt(3) on a hex lattice, pitch / sqrt(2) on a square one
+    reach = (0.6 if grid.lattice == "hex" else 0.72) * max(grid.pitch, grid.row_spacing) + 1.0
+    inner_r = safe_radius(grid)
+    window = int(round(grid.pitch)) + 2
+    bands = plan_bands(grid, max_pixels=1_500_000, margin=4)
+
+    data = np.empty((nv, nv, ny, nx, nch), np.float32)
+    weight = np.empty((nv, nv, ny, nx), np.float32)
+
+    scratch = _Scratch()
+    black = np.asarray(raw.black)
+    level = np.asarray(raw.white)
+
+    lock = threading.Lock()
+
+    def tick(name: str, t0: float) -> float:
+        t1 = time.thread_time()
+        if timings is not None:
+            with lock:
+                timings[name] = timings.get(name, 0.0) + (t1 - t0)
+        return t1
+
+    def run_band(band) -> int:
+        r0, r1 = band.r0, band.r1
+        t = time.thread_time()
+        if r1 <= r0:                     # lens rows entirely off the sensor
+            data[:, :, band.i0:band.i1] = 0.0
+            weight[:, :, band.i0:band.i1] = 0.0
+            return 0
+        shape = (r1 - r0, w)
+        buf = scratch.get
+        dark_b = None if dark_p is None else dark_p[0][r0:r1]
+        x = normalise(raw.mosaic[r0:r1], black, level, dark=dark_b, out=buf("x", shape, np.float32))
+        t = tick("levels", t)
+        n_hot = 0
+        if hot_pixels:
+            x, n_hot = repair_hot_pixels(x, out=buf("x_fixed", shape, np.float32), flags=buf("hot", shape, np.bool_))
+        t = tick("hot pixels", t)
+        ext = centres[band.e0:band.e1] - np.array([r0, 0.0])
+        labels, dist = lens_labels(ext, shape, reach, out=(buf("labels", shape, np.int32),
+                                                           buf("dist", shape, np.float32)))
+        t = tick("labels", t)
+        rel = buf("rel", shape, np.float32)
+        if white_p is not None:
+            arr, wb, ww = white_p
+            if arr.dtype.kind == "f":
+                wn = arr[r0:r1].astype(np.float32)
+            else:
+                wn = normalise(arr[r0:r1], wb, ww, dark=dark_b, out=buf("white", shape, np.float32))
+            if hot_pixels:
+                wn, _ = repair_hot_pixels(wn, out=buf("white_fixed", shape, np.float32),
+                                          flags=buf("hot", shape, np.bool_))
+            relative_white(wn, cfa, window=window, out=rel)
+            x = _dv.devignette(x, wn, rel, floor=floor, out=buf("ratio", shape, np.float32))
+        else:
+            np.subtract(np.float32(grid.radius + 0.5), dist, out=rel)
+            np.clip(rel, 0.0, 1.0, out=rel)
+            x[rel < floor] = np.nan
+        t = tick("white", t)
+        interior = buf("interior", shape, np.bool_)
+        np.less(dist, np.float32(inner_r - 3.0), out=interior)     # 5x5 window inside the own cell
+        interior[:2], interior[-2:], interior[:, :2], interior[:, -2:] = False, False, False, False
+        img = _demosaic(x, cfa, method=demosaic, labels=labels, interior=interior,
+                        out=buf("rgb", (*shape, nch), np.float32))
+        t = tick("demosaic", t)
+        own = centres[band.i0:band.i1] - np.array([r0, 0.0])
+        nr = band.i1 - band.i0
+        samples, sw = sample_lenses(img, rel, labels, own, offsets, first_label=(band.i0 - band.e0) * cols,
+                                    label_cols=cols, matrix=matrix, safe_radius=inner_r,
+                                    out=(buf("samples", (nv, nv, nr, cols, nch), np.float32),
+                                         buf("sample_w", (nv, nv, nr, cols), np.float32)))
+        t = tick("slice", t)
+        hex_to_rect(samples, sw, grid, first_row=band.i0, method=resample,
+                    out=data[:, :, band.i0:band.i1], out_weight=weight[:, :, band.i0:band.i1])
+        tick("hex->rect", t)
+        return n_hot
+
+    # bands write disjoint output rows; the numba kernels and OpenCV release the GIL
+    n_workers = min(workers or os.cpu_count() or 1, len(bands))
+    n_hot = 0
+    if n_workers == 1:
+        for k, b in enumerate(bands):
+            n_hot += run_band(b)
+            if progress is not None:
+                progress(k + 1, len(bands))
+    else:
+        with ThreadPoolExecutor(max_workers=n_workers) as pool:
+            futures = [pool.submit(run_band, b) for b in bands]
+            for k, fut in enumerate(as_completed(futures)):
+                n_hot += fut.result()
+                if progress is not None:
+                    progress(k + 1, len(bands))
+    if n_hot:
+        log.info("repaired %d hot pixels", n_hot)
+    if timings is not None:
+        timings["total cpu"] = timings.get("total cpu", 0.0) + time.process_time() - t_cpu
+        timings["wall"] = timings.get("wall", 0.0) + time.perf_counter() - t_wall
+
+    s = grid.decoded_sampling()
+    geometry = LightFieldGeometry.from_camera(raw.metadata, grid.to_dict(), spatial_step_px=float(s["step"]),
+                                              view_step_px=1.0, source=raw.path)
+    provenance = {
+        "decoded_sampling": {k: float(v) for k, v in s.items()},
+        "n_views": nv,
+        "lattice": grid.lattice,
+        "colour_matrix": None if matrix is None else np.asarray(matrix).tolist(),
+        "demosaic": demosaic if nch == 3 else None,
+        "resample": resample,
+        "devignetted": white_p is not None,
+        "dark_subtracted": dark_p is not None,
+        "hot_pixels_repaired": int(n_hot),
+    }
+    return LightField(data=data, weight=weight, colour=colour_state, metadata=provenance, geometry=geometry)
+
+
+__all__ = ["decode", "decode_timed", "DEMOSAIC_METHODS", "RESAMPLE_METHODS", "DEFAULT_DEMOSAIC"]
