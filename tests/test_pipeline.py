@@ -72,6 +72,23 @@ def test_commands_and_batch_write_the_same_bytes(shoot, tmp_path):
     assert (single / "views" / f"view_{vc:02d}_{uc:02d}.png").read_bytes() == (batch / "centre.png").read_bytes()
 
 
+def test_float_outputs_are_the_same_bytes_too(shoot, tmp_path):
+    """--bit-depth 32: the refocused photograph and the centre view are linear float EXRs, identical from both."""
+    raw, db = shoot["raw"], shoot["db"]
+    single = tmp_path / "single"
+    run("-q", "refocus", raw, "--slope", SLOPE, "--database", db, "--bit-depth", 32, "-o", single / "refocus.exr")
+    run("-q", "views", raw, "--database", db, "--bit-depth", 32, "--ext", "exr", "-o", single / "views")
+    run("-q", "batch", raw, "-o", tmp_path / "batch", "--jobs", 1, "--database", db, "--slope", SLOPE,
+        "--outputs", "centre,refocus", "--bit-depth", 32)
+    batch = tmp_path / "batch" / raw.stem
+    assert (single / "refocus.exr").read_bytes() == (batch / "refocus_s+0.30.exr").read_bytes()
+    views = sorted((single / "views").glob("view_*.exr"))
+    centre = views[len(views) // 2]
+    assert (single / "views" / centre.name).read_bytes() == (batch / "centre.exr").read_bytes()
+    photo = read_image(batch / "refocus_s+0.30.exr")
+    assert photo.dtype == np.float32 and float(photo.max()) > 0.05    # linear, not display-encoded 16-bit
+
+
 def test_camera_rgb_light_fields_are_encoded_alike(shoot, tmp_path, monkeypatch):
     """A light field in camera RGB: batch used to write it without the sRGB encoding, the commands with it."""
     real = pipeline.decode_raw

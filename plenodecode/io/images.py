@@ -193,6 +193,9 @@ def write_image(path: str | os.PathLike, image: np.ndarray, *, bit_depth: int, o
         spec.attribute("oiio:ColorSpace", "sRGB")
     # samples are stored as given: a 4th (or 2nd) channel is data, never premultiplied into the others
     spec.attribute("oiio:UnassociatedAlpha", 1)
+    # no write-time stamp (OpenImageIO stamps EXR and TIFF with the clock otherwise): the same image gives the
+    # same bytes, so outputs can be compared and a batch can be resumed; pass attributes={"DateTime": ...} to set one
+    spec.attribute("DateTime", "")
     for key, value in (attributes or {}).items():
         spec.attribute(key, value)
     with atomic_output(p, overwrite=overwrite, suffix=p.suffix) as tmp:

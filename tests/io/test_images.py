@@ -161,3 +161,15 @@ def test_pfm_round_trip_colour_and_byte_orders(tmp_path):
     (tmp_path / "short.pfm").write_bytes(b"Pf\n5 6\n-1.0\n" + b"\0" * 20)
     with pytest.raises(FormatError, match="payload"):
         read_pfm(tmp_path / "short.pfm")
+
+
+@pytest.mark.parametrize("name", ["a.exr", "a.tif", "a.png"])
+def test_the_same_image_gives_the_same_bytes(tmp_path, name):
+    """No write-time stamp: two writes a second apart are byte-identical."""
+    import time
+
+    img = np.random.default_rng(3).random((5, 6, 3)).astype(np.float32)
+    bits = 16
+    first = write_image(tmp_path / "1" / name, img, bit_depth=bits).read_bytes()
+    time.sleep(1.1)
+    assert write_image(tmp_path / "2" / name, img, bit_depth=bits).read_bytes() == first
