@@ -259,7 +259,7 @@ def lightfield_page_data(lf: LightField, *, n_slices: int = DEFAULT_SLICES, view
 
 _STYLE = """
 .lf-viewer{display:flex;flex-wrap:wrap;gap:20px;align-items:flex-start}
-.lf-main{flex:3 1 480px;min-width:280px}.lf-side{flex:1 1 240px;min-width:200px}
+.lf-main{flex:3 1 480px;min-width:280px}.lf-side{flex:1 1 240px;min-width:200px;max-width:360px}
 .lf-frame{position:relative;line-height:0}
 .lf-frame img,.lf-side img{width:100%;height:auto;display:block;user-select:none;-webkit-user-drag:none}
 #lf-photo{cursor:crosshair;touch-action:none}#lf-depth{cursor:crosshair}
@@ -426,8 +426,8 @@ def lightfield_page_html(lf: LightField, *, title: str | None = None, **kw: Any)
     viewer = (
         f'<style>{_STYLE}</style>'
         f'<div id="lf-viewer" class="lf-viewer" data-mode="focus">'
-        f'<div class="lf-main"><div id="lf-status" role="status">loading</div>'
-        f'<div class="lf-frame" style="max-width:{UPSCALE_LIMIT * width}px">'
+        f'<div class="lf-main" style="max-width:{max(UPSCALE_LIMIT * width, 480)}px">'
+        f'<div id="lf-status" role="status">loading</div><div class="lf-frame">'
         f'<img id="lf-photo" alt="refocused photograph" draggable="false" src="{data["slices"][data["start"]]}">'
         f'<div id="lf-marker"></div></div>'
         f'<label class="muted" for="lf-slider">focal stack</label>'
