@@ -19,6 +19,8 @@ every image inlined as a ``data:`` URI (8-bit sRGB JPEG; the depth map PNG), and
   dragging from the middle to an edge of the image reaches the outermost views;
 * the slider steps through the slices.
 
+The page opens on the slice nearest to slope 0 (the focus as captured).
+
 The current slice, its slope and (when the camera constants are known, :mod:`plenodecode.render.alpha`)
 Ng's alpha are shown as text.  The state is also kept in ``data-*`` attributes of ``#lf-viewer``
 (``data-mode`` 'focus' or 'view', ``data-slice``, ``data-slope``, ``data-view`` "v,u", ``data-disparity``)
@@ -397,8 +399,9 @@ _SCRIPT = r"""
 
 
 def _json_for_script(data: dict[str, Any]) -> str:
-    """JSON that is safe inside ``<script type="application/json">`` (no ``</`` can close the element)."""
-    return json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
+    """JSON that is safe inside ``<script type="application/json">``: every ``<`` is written ``\\u003c``, so no
+    ``</script>`` or ``<!--`` can end the element (``JSON.parse`` reads it back as ``<``)."""
+    return json.dumps(data, separators=(",", ":")).replace("<", "\\u003c")
 
 
 def lightfield_page_html(lf: LightField, *, title: str | None = None, **kw: Any) -> str:

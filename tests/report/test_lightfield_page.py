@@ -49,8 +49,7 @@ def page(tmp_path_factory):
     assert res.exit_code == 0, res.output
     assert "wrote" in res.output and out.is_file()
     html = out.read_text(encoding="utf-8")
-    data = json.loads(re.search(r'<script type="application/json" id="lf-data">(.*?)</script>', html, re.S)
-                      .group(1).replace("<\\/", "</"))
+    data = json.loads(re.search(r'<script type="application/json" id="lf-data">(.*?)</script>', html, re.S).group(1))
     return {"path": out, "html": html, "data": data, "lf": lf}
 
 
