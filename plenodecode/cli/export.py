@@ -1,4 +1,4 @@
-"""``plenodecode export``: convert a saved light field to another format."""
+"""``plenodecode export``: convert a saved light field to another format, or write its interactive page."""
 
 from __future__ import annotations
 
@@ -7,15 +7,52 @@ from pathlib import Path
 import click
 
 from ..pipeline import IMAGE_EXTENSIONS
-from .common import (RegistryChoice, bit_depth_option, lightfield_output_format, output_option, overwrite_option,
-                     progress_bar)
+from ..registry import lazy
+from .common import (RegistryChoice, bit_depth_option, check_output, lightfield_output_format, output_option,
+                     overwrite_option, progress_bar)
+
+#: Exports that are pages for people, not light fields (they never load back; their extensions are
+#: :data:`plenodecode.io.lightfield.PAGE_EXTENSIONS`): name -> ``write(lf, path, *, overwrite, progress)``.
+PAGE_FORMATS = {"html": lazy("plenodecode.report.lightfield_page", "write_lightfield_page")}
+
+
+class ExportFormatChoice(RegistryChoice):
+    """The names of :data:`plenodecode.io.lightfield.LIGHTFIELD_FORMATS` and of :data:`PAGE_FORMATS`."""
+
+    def __init__(self) -> None:
+        super().__init__("plenodecode.io.lightfield", "LIGHTFIELD_FORMATS")
+
+    @property
+    def choices(self) -> tuple[str, ...]:  # type: ignore[override]
+        return tuple(sorted((*super().choices, *PAGE_FORMATS)))
+
+
+def _page_format(output: Path, fmt: str | None, overwrite: bool) -> str | None:
+    """The page format ``output`` is written in (``--format``, else its extension), or None for a light field."""
+    from ..io.lightfield import PAGE_EXTENSIONS
+
+    name = fmt if fmt is not None else PAGE_EXTENSIONS.get(output.suffix.lower())
+    if name in PAGE_FORMATS:
+        check_output(output, overwrite)
+        return name
+    return None
+
+
+def _page_options_unused(ctx: click.Context, name: str, image_type: str | None, srgb: bool) -> None:
+    """A page is always 8-bit sRGB: the options of light-field formats are usage errors with it."""
+    given = [opt for opt, used in (("--bit-depth", ctx.get_parameter_source("bit_depth")
+                                    == click.core.ParameterSource.COMMANDLINE),
+                                   ("--image-type", image_type is not None), ("--srgb", srgb)) if used]
+    if given:
+        verb = "does" if len(given) == 1 else "do"
+        raise click.UsageError(f"{' and '.join(given)} {verb} not apply to the {name} page (its images are always "
+                               "8-bit sRGB)")
 
 
 @click.command("export")
 @click.argument("lf_in", type=click.Path(exists=True, path_type=Path))
 @output_option
-@click.option("--format", "fmt", type=RegistryChoice("plenodecode.io.lightfield", "LIGHTFIELD_FORMATS", sort=True),
-              default=None,
+@click.option("--format", "fmt", type=ExportFormatChoice(), default=None,
               help="Output format (default: from OUTPUT's extension; a path without one is a views folder).")
 @bit_depth_option
 @click.option("--image-type", type=click.Choice(IMAGE_EXTENSIONS), default=None,
@@ -34,24 +71,36 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
       mat    OUT.mat    LFToolbox LF (j,i,l,k,c) uint16 with the weight channel
       npy    OUT.npy    float32 array (+ OUT.weight.npy, OUT.json)
       eslf   OUT.png    Stanford ESLF mosaic (+ OUT.json with the view counts)
+      html   OUT.html   one self-contained interactive page: click to refocus (focal
+                        stack + depth map), drag to change the viewpoint; not a light field
 
     \b
     Examples:
       plenodecode export photo.zarr -o photo.mat
       plenodecode export photo.zarr -o views/ --format views --bit-depth 8 --srgb
+      plenodecode export photo.zarr -o photo.html --format html
     """
     from ..io.lightfield import load_lightfield, save_lightfield
 
-    name = lightfield_output_format(output, fmt, overwrite)
+    page = _page_format(output, fmt, overwrite)
+    if page is not None:
+        _page_options_unused(ctx, page, image_type, srgb)
+        name = page
+    else:
+        name = lightfield_output_format(output, fmt, overwrite)
     lf = load_lightfield(lf_in)
     try:
-        out = save_lightfield(lf, output, format=name, bit_depth=int(bit_depth), overwrite=overwrite,
-                              progress=progress_bar(f"writing {name}", ctx), encode_srgb=srgb,
-                              image_ext=f".{image_type}" if image_type else None)
+        if page is not None:
+            out = PAGE_FORMATS[page](lf, output, overwrite=overwrite, progress=progress_bar(f"writing {page}", ctx))
+        else:
+            out = save_lightfield(lf, output, format=name, bit_depth=int(bit_depth), overwrite=overwrite,
+                                  progress=progress_bar(f"writing {name}", ctx), encode_srgb=srgb,
+                                  image_ext=f".{image_type}" if image_type else None)
     except FileExistsError as exc:
         raise click.UsageError(f"{exc}; pass --overwrite") from exc
     except ValueError as exc:
         raise click.UsageError(str(exc)) from exc
     if not (ctx.obj or {}).get("quiet"):
         V, U, Y, X, C = lf.shape
-        click.echo(f"wrote {out} ({name}: {V}x{U} views of {Y}x{X}x{C}, colour {'srgb' if srgb else lf.colour})")
+        colour = "srgb" if srgb or page is not None else lf.colour
+        click.echo(f"wrote {out} ({name}: {V}x{U} views of {Y}x{X}x{C}, colour {colour})")

@@ -445,6 +445,15 @@ LIGHTFIELD_FORMATS: dict[str, LightFieldFormat] = {
 }
 _FOLDER_FORMATS = ("zarr", "views")
 _FILE_FORMATS = {".mat": "mat", ".npy": "npy", ".png": "eslf", ".tif": "eslf", ".tiff": "eslf", ".zarr": "zarr"}
+#: Exports that are pages for people, not light fields: extension -> the ``plenodecode export --format`` name
+#: (writers: ``plenodecode.cli.export.PAGE_FORMATS``).  They never load back and are not in
+#: :data:`LIGHTFIELD_FORMATS`, so no command that writes a light field picks them from a name.
+PAGE_EXTENSIONS = {".html": "html", ".htm": "html"}
+
+
+def _page_error(p: Path) -> str:
+    return (f"{p.name}: an HTML page is an export, not a light field; `plenodecode export LF -o {p.name} "
+            "--format html` writes one from a saved light field LF")
 
 
 def _check_format(name: str) -> LightFieldFormat:
@@ -463,7 +472,8 @@ def detect_format(path: str | os.PathLike) -> str:
     Raises
     ------
     ValueError
-        No format matches.
+        No format matches; or the path is an HTML page (:data:`PAGE_EXTENSIONS`), an export that is not a
+        light field.
     """
     p = Path(path)
     if p.is_dir():
@@ -474,6 +484,8 @@ def detect_format(path: str | os.PathLike) -> str:
     ext = p.suffix.lower()
     if ext in _FILE_FORMATS:
         return _FILE_FORMATS[ext]
+    if ext in PAGE_EXTENSIONS:
+        raise ValueError(_page_error(p))
     if ext == "" and not p.is_file():
         return "views"
     raise ValueError(f"path {p.name!r}: cannot tell the light-field format; pass format= one of "
@@ -577,5 +589,5 @@ def load_lightfield(path: str | os.PathLike, *, view: tuple[int, int] | None = N
     return _check_format(name).load(p, view=view)
 
 
-__all__ = ["LIGHTFIELD_FORMATS", "LightFieldFormat", "save_lightfield", "load_lightfield", "detect_format",
-           "eslf_from_lightfield", "lightfield_from_eslf", "ESLF_DEFAULT_VIEWS"]
+__all__ = ["LIGHTFIELD_FORMATS", "PAGE_EXTENSIONS", "LightFieldFormat", "save_lightfield", "load_lightfield",
+           "detect_format", "eslf_from_lightfield", "lightfield_from_eslf", "ESLF_DEFAULT_VIEWS"]
