@@ -27,7 +27,7 @@ LATTICES = ("auto", "hex", "square")
 _LAZY = {
     "calibrate": "plenodecode.calib.white",
     "calibrate_image": "plenodecode.calib.white",
-    "grid_from_points": "plenodecode.calib.white",
+    "grid_from_points": "plenodecode.calib.grid",
     "check_not_dark": "plenodecode.calib.white",
     "scene_likeness": "plenodecode.calib.white",
     "DARK_LEVEL": "plenodecode.calib.white",

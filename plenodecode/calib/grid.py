@@ -20,7 +20,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numba
 import numpy as np
@@ -28,6 +28,9 @@ from scipy import ndimage
 
 from ..errors import CalibrationError
 from ..types import LensletGrid
+
+if TYPE_CHECKING:
+    from .centroids import LatticeEstimate
 
 log = logging.getLogger(__name__)
 
@@ -588,5 +591,54 @@ def grid_from_fit(fit: LatticeFit, points: np.ndarray, sensor_shape: tuple[int, 
     )
 
 
+def grid_from_points(points: np.ndarray, est: "LatticeEstimate", sensor_shape: tuple[int, int], *,
+                     scale: float = 1.0, shift: float = 0.0, refine: bool = True, refine_window: int = 5,
+                     info: dict[str, Any] | None = None) -> LensletGrid:
+    """Robust lattice fit of measured disk centres and the grid covering the sensor.
+
+    Parameters
+    ----------
+    points : ndarray (N, 2) float64
+        Measured centres in image pixels; sensor position = ``scale * p + shift``.
+    est : LatticeEstimate
+        Lattice vectors in image pixels (:func:`~plenodecode.calib.centroids.estimate_lattice_vectors`).
+    sensor_shape : (H, W)
+    scale, shift : float
+        2 and 0.5 for a 2x2-binned image, else 1 and 0.
+    refine, refine_window : see :func:`plenodecode.calib.white.calibrate_image`.
+    info : dict, optional
+        Provenance stored in ``grid.info``.
+
+    Returns
+    -------
+    LensletGrid
+
+    Raises
+    ------
+    CalibrationError
+        Fewer than ~5 % of the lenses on the fitted lattice, or an RMS residual above a quarter pitch.
+    """
+    pts = np.asarray(points, np.float64) * scale + shift
+    H, W = sensor_shape
+    pitch_s = est.pitch * scale
+    # a lens within ~one pitch of the border misses neighbours inside the estimator's window
+    edge = 1.0 * pitch_s
+    away = (pts[:, 0] > edge) & (pts[:, 1] > edge) & (pts[:, 0] < H - 1 - edge) & (pts[:, 1] < W - 1 - edge)
+    fit = fit_lattice(pts, est.v1 * scale, est.v2 * scale, est.lattice, fit_mask=away)
+    meta = dict(info or {})
+    meta.update({"autocorrelation_score": est.score})
+    grid = grid_from_fit(fit, pts, (H, W), measured_mask=away, refine=refine, refine_window=refine_window,
+                            info=meta)
+    n_on = grid.info["n_lenses"]
+    frac = fit.inlier.sum() / max(1, n_on)
+    if fit.inlier.sum() < max(6, 0.05 * n_on):
+        raise CalibrationError(f"only {int(fit.inlier.sum())} of ~{n_on} lenses were found on the fitted lattice; "
+                               "expected a white image with visible lenslet disks")
+    if fit.rms > 0.25 * fit.pitch:
+        raise CalibrationError(f"the lattice fit is poor (RMS residual {fit.rms:.2f} px at pitch {fit.pitch:.2f} px); "
+                               "expected a regular lenslet pattern")
+    return grid.replace(info={**grid.info, "fraction_fit": float(frac)})
+
+
 __all__ = ["LatticeFit", "index_points", "fit_lattice", "refit_grid", "lens_block", "block_index", "smooth_deviations",
-           "grid_from_fit"]
+           "grid_from_fit", "grid_from_points"]

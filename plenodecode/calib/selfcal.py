@@ -216,7 +216,6 @@ def calibrate_from_scene(raw: RawCapture | np.ndarray | str | os.PathLike, *, la
     ValueError
         Unknown ``method`` or ``lattice``.
     """
-    from .white import grid_from_points
 
     fn = lookup(SELFCAL_METHODS, method, param="method")
     if lattice not in LATTICES:
@@ -237,7 +236,7 @@ def calibrate_from_scene(raw: RawCapture | np.ndarray | str | os.PathLike, *, la
     pts, extra = fn(img, est, min_contrast=min_contrast, tick=tick)
     info.update(extra)
     info.update({"self_calibrated": True, "method": method, "lattice_requested": lattice})
-    grid = grid_from_points(pts, est, img.shape, refine=refine, info=info)
+    grid = _g.grid_from_points(pts, est, img.shape, refine=refine, info=info)
     tick(4)
     return grid
 

@@ -3,7 +3,7 @@
 :func:`calibrate` runs :mod:`.centroids` (Bayer collapse, devignetting, lattice vectors from the
 autocorrelation, sub-pixel disk centres) and :mod:`.grid` (robust lattice fit, grid extent,
 per-lens refinement); :func:`calibrate_image` is its core on an already flattened image and
-:func:`grid_from_points` the lattice fit of measured centres (also used by :mod:`.selfcal`).
+:func:`~plenodecode.calib.grid.grid_from_points` is the lattice fit of measured centres.
 """
 
 from __future__ import annotations
@@ -136,59 +136,10 @@ def calibrate_image(img: np.ndarray, sensor_shape: tuple[int, int], *, scale: fl
     tick(3)
     meta = dict(info or {})
     meta.update({"method": method, "n_peaks": int(len(peaks)), "lattice_requested": lattice})
-    grid = grid_from_points(cen[ok], est, sensor_shape, scale=scale, shift=shift, refine=refine,
+    grid = _g.grid_from_points(cen[ok], est, sensor_shape, scale=scale, shift=shift, refine=refine,
                             refine_window=refine_window, info=meta)
     tick(5)
     return grid
-
-
-def grid_from_points(points: np.ndarray, est: _c.LatticeEstimate, sensor_shape: tuple[int, int], *,
-                     scale: float = 1.0, shift: float = 0.0, refine: bool = True, refine_window: int = 5,
-                     info: dict[str, Any] | None = None) -> LensletGrid:
-    """Robust lattice fit of measured disk centres and the grid covering the sensor.
-
-    Parameters
-    ----------
-    points : ndarray (N, 2) float64
-        Measured centres in image pixels; sensor position = ``scale * p + shift``.
-    est : LatticeEstimate
-        Lattice vectors in image pixels (:func:`~plenodecode.calib.centroids.estimate_lattice_vectors`).
-    sensor_shape : (H, W)
-    scale, shift : float
-        2 and 0.5 for a 2x2-binned image, else 1 and 0.
-    refine, refine_window : see :func:`calibrate_image`.
-    info : dict, optional
-        Provenance stored in ``grid.info``.
-
-    Returns
-    -------
-    LensletGrid
-
-    Raises
-    ------
-    CalibrationError
-        Fewer than ~5 % of the lenses on the fitted lattice, or an RMS residual above a quarter pitch.
-    """
-    pts = np.asarray(points, np.float64) * scale + shift
-    H, W = sensor_shape
-    pitch_s = est.pitch * scale
-    # a lens within ~one pitch of the border misses neighbours inside the estimator's window
-    edge = 1.0 * pitch_s
-    away = (pts[:, 0] > edge) & (pts[:, 1] > edge) & (pts[:, 0] < H - 1 - edge) & (pts[:, 1] < W - 1 - edge)
-    fit = _g.fit_lattice(pts, est.v1 * scale, est.v2 * scale, est.lattice, fit_mask=away)
-    meta = dict(info or {})
-    meta.update({"autocorrelation_score": est.score})
-    grid = _g.grid_from_fit(fit, pts, (H, W), measured_mask=away, refine=refine, refine_window=refine_window,
-                            info=meta)
-    n_on = grid.info["n_lenses"]
-    frac = fit.inlier.sum() / max(1, n_on)
-    if fit.inlier.sum() < max(6, 0.05 * n_on):
-        raise CalibrationError(f"only {int(fit.inlier.sum())} of ~{n_on} lenses were found on the fitted lattice; "
-                               "expected a white image with visible lenslet disks")
-    if fit.rms > 0.25 * fit.pitch:
-        raise CalibrationError(f"the lattice fit is poor (RMS residual {fit.rms:.2f} px at pitch {fit.pitch:.2f} px); "
-                               "expected a regular lenslet pattern")
-    return grid.replace(info={**grid.info, "fraction_fit": float(frac)})
 
 
 def _camera_info(raw: RawCapture) -> dict[str, Any]:
@@ -294,4 +245,4 @@ def calibrate(white: WhiteInput, *, lattice: str = "auto", pitch_hint: float | N
     return grid.replace(info={**grid.info, "scene_likeness": likeness, "warnings": warnings})
 
 
-__all__ = ["calibrate", "calibrate_image", "grid_from_points", "check_not_dark", "scene_likeness", "DARK_LEVEL"]
+__all__ = ["calibrate", "calibrate_image", "check_not_dark", "scene_likeness", "DARK_LEVEL"]

@@ -14,6 +14,7 @@ import cv2
 import numba
 import numpy as np
 
+from ...decoding.devignette import normalise
 from ...types import RawCapture
 
 log = logging.getLogger(__name__)
@@ -108,22 +109,6 @@ def _levels_bin2(m, k, offset):  # pragma: no cover - compiled
         for j in range(w2):
             out[i, j] = (np.float32(r0[2 * j]) * k00 + np.float32(r0[2 * j + 1]) * k01
                          + np.float32(r1[2 * j]) * k10 + np.float32(r1[2 * j + 1]) * k11) - offset
-    return out
-
-
-@numba.njit(cache=True, parallel=True, fastmath=True)
-def _levels_full(m, black, scale):  # pragma: no cover - compiled
-    """``(m - black[r % 2, c % 2]) * scale[r % 2, c % 2]`` per pixel, float32."""
-    h, w = m.shape
-    out = np.empty((h, w), np.float32)
-    for i in numba.prange(h):
-        b0, b1 = black[i % 2, 0], black[i % 2, 1]
-        s0, s1 = scale[i % 2, 0], scale[i % 2, 1]
-        for j in range(0, w - 1, 2):
-            out[i, j] = (np.float32(m[i, j]) - b0) * s0
-            out[i, j + 1] = (np.float32(m[i, j + 1]) - b1) * s1
-        if w % 2:
-            out[i, w - 1] = (np.float32(m[i, w - 1]) - b0) * s0
     return out
 
 
@@ -234,7 +219,7 @@ def flatten_white(raw: RawCapture, *, equalise: bool = True, binning: int = 1,
         offset = np.float32(float((raw.black * scale).sum() / 4.0))
         out = _levels_bin2(m, k, offset)
         return fix_hot_pixels(out, threshold=0.05) if hot_pixels else out
-    out = _levels_full(m, raw.black.astype(np.float32), scale.astype(np.float32))
+    out = normalise(m, raw.black, raw.white, gains=gains)
     if hot_pixels:
         out = fix_hot_pixels(out)
     return cv2.sepFilter2D(out, cv2.CV_32F, _BINOMIAL, _BINOMIAL, borderType=cv2.BORDER_REFLECT)
