@@ -29,7 +29,7 @@ from ..errors import FormatError, MetadataError
 from ..types import CFA_PATTERNS, CameraMetadata, RawCapture
 from .atomic import atomic_outputs, refuse_existing
 from .images import read_image
-from .mosaic_levels import MosaicOptions, bare_mosaic_cfa, bare_mosaic_levels, linearise_srgb, srgb_decode
+from .mosaic_levels import KNOWN_SENSORS, MosaicOptions, bare_mosaic_cfa, bare_mosaic_levels, linearise_srgb, srgb_decode
 
 log = logging.getLogger(__name__)
 #: Sensor noise compresses poorly: the fastest zlib level costs ~1-2 % in size and saves a lot of time.
@@ -212,13 +212,14 @@ def read_pgm(path: str | os.PathLike) -> tuple[np.ndarray, int]:
 
 
 def _single_channel(img: np.ndarray, p: Path) -> np.ndarray:
-    """A mosaic's one channel: 2-D as is; a 3- or 4-channel image whose colour channels agree within one code
-    (a grey mosaic saved as RGB, e.g. through a JPEG encoder) as its first channel."""
+    """A mosaic's one channel: 2-D as is; a 3-channel JPEG whose channels agree within one code (a grey
+    mosaic that an encoder stored as YCbCr colour) as its first channel."""
     if img.ndim == 2:
         return img
-    colour = img[:, :, :3].astype(np.int32)
-    if img.shape[2] in (3, 4) and int(np.abs(colour - colour[:, :, :1]).max()) <= 1:
-        return img[:, :, 0]
+    if p.suffix.lower() in (".jpg", ".jpeg") and img.shape[2] == 3:
+        colour = img.astype(np.int16)
+        if int(np.abs(colour - colour[:, :, :1]).max()) <= 1:
+            return img[:, :, 0]
     raise FormatError(f"{p}: a single-channel mosaic is expected, found {img.shape[2]} channels; "
                       "demosaiced images are not raws (convert to the sensor mosaic first)")
 
@@ -240,23 +241,40 @@ def _read_image_mosaic(p: Path, options: MosaicOptions) -> RawCapture:
     side = find_sidecar(p)
     if side is None:
         if factor != 1.0:       # levels given in the file's float units
-            options = replace(options, black=None if options.black is None else options.black * factor,
-                              white=None if options.white is None else options.white * factor)
+            options = replace(options,
+                              black_level=None if options.black_level is None else options.black_level * factor,
+                              white_level=None if options.white_level is None else options.white_level * factor)
         return _bare_mosaic(p, mosaic, 8 if img.dtype == np.uint8 else 16, default_white, options)
     sc = read_sidecar(side)
     black = np.zeros((2, 2)) if sc["black"] is None else sc["black"] * factor
     white = np.full((2, 2), default_white) if sc["white"] is None else sc["white"] * factor
-    if (sc["black"] is None and options.black is None) or (sc["white"] is None and options.white is None):
+    if (sc["black"] is None and options.black_level is None) or (sc["white"] is None and options.white_level is None):
         log.warning("%s: sidecar gives no %s; using black 0 / white %g", side,
                     "black" if sc["black"] is None else "white", default_white)
-    black = black if options.black is None else np.full((2, 2), options.black * factor)
-    white = white if options.white is None else np.full((2, 2), options.white * factor)
+    black = black if options.black_level is None else np.full((2, 2), options.black_level * factor)
+    white = white if options.white_level is None else np.full((2, 2), options.white_level * factor)
     cfa = sc["cfa"] if options.cfa is None else (None if options.cfa == "mono" else options.cfa)
-    if options.encoding == "srgb":
+    if options.input_encoding == "srgb":
         mosaic, black, white = _linearise(mosaic, black, white, default_white)
     if np.any(white <= black):
         raise MetadataError(f"{side}: white level {white.tolist()} must exceed black level {black.tolist()}")
     return RawCapture(mosaic, cfa, black, white, sc["metadata"], str(p))
+
+
+def is_known_sensor_image(path: str | os.PathLike) -> bool:
+    """True for an image file whose size (from its header only) is a known lenslet sensor's
+    (:data:`~.mosaic_levels.KNOWN_SENSORS`) and which has one channel (or three: a grey mosaic saved as RGB)."""
+    try:
+        import OpenImageIO as oiio
+
+        inp = oiio.ImageInput.open(str(path))
+        if inp is None:
+            return False
+        spec = inp.spec()
+        inp.close()
+    except Exception:  # noqa: BLE001 - a probe: anything unreadable is not a mosaic
+        return False
+    return (spec.height, spec.width) in KNOWN_SENSORS and spec.nchannels in (1, 3)
 
 
 def is_bare_mosaic(raw: RawCapture) -> bool:
@@ -283,10 +301,10 @@ def _bare_mosaic(p: Path, mosaic: np.ndarray, bits: int, full_scale: float, opti
         raise MetadataError(f"{p}: white level {white:g} must exceed black level {black:g}; "
                             "pass --black-level and --white-level")
     black2, white2 = np.full((2, 2), black), np.full((2, 2), white)
-    if options.encoding == "srgb":
+    if options.input_encoding == "srgb":
         mosaic, black2, white2 = _linearise(mosaic, black2, white2, full_scale)
         log.warning("%s: values display-encoded (--input-encoding srgb): inverse sRGB transfer applied", p.name)
-    extra = {BARE_MOSAIC_KEY: {"cfa_from": cfa_from, "levels_from": levels_from, "encoding": options.encoding,
+    extra = {BARE_MOSAIC_KEY: {"cfa_from": cfa_from, "levels_from": levels_from, "encoding": options.input_encoding,
                                "file_black": black, "file_white": white, "file_full_scale": full_scale}}
     return RawCapture(mosaic, cfa, black2, white2, CameraMetadata(extra=extra), str(p))
 
@@ -464,7 +482,7 @@ def read_generic(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None
         :mod:`.mosaic_levels` (``--cfa``, else the sensor known by the size, else monochrome; given
         levels, else the known sensor's, else the black level estimated from the gaps between
         micro-images), each choice said in one warning line, and ``metadata.extra[BARE_MOSAIC_KEY]``
-        records them.  ``mosaic.encoding == 'srgb'``: samples and levels get the inverse sRGB transfer
+        records them.  ``mosaic.input_encoding == 'srgb'``: samples and levels get the inverse sRGB transfer
         function (stored as linear 16-bit).  Float images in [0, 1] are stored as ``rint(x * 65535)``
         and their levels scaled alike.
     Raws (any other extension)
@@ -533,5 +551,5 @@ def write_mosaic(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = 
     return p
 
 
-__all__ = ["read_generic", "MosaicOptions", "BARE_MOSAIC_KEY", "is_bare_mosaic", "write_mosaic", "read_pgm", "find_sidecar", "read_sidecar", "sidecar_document",
+__all__ = ["read_generic", "MosaicOptions", "BARE_MOSAIC_KEY", "is_bare_mosaic", "is_known_sensor_image", "write_mosaic", "read_pgm", "find_sidecar", "read_sidecar", "sidecar_document",
            "ccm_from_xyz_to_camera", "json_safe", "MOSAIC_EXTENSIONS"]

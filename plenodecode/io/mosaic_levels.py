@@ -49,10 +49,12 @@ class MosaicOptions:
     cfa : str or None
         A Bayer pattern of :data:`~plenodecode.types.CFA_PATTERNS`, 'mono', or None (sidecar, known
         sensor, else monochrome).
-    black, white : float or None
+    black_level, white_level : float or None
         Levels in the units of the stored samples (before any sRGB decoding); ``white > black >= 0``.
-    encoding : {'linear', 'srgb'}
+    input_encoding : {'linear', 'srgb'}
         'srgb': the samples are display-encoded and get the inverse sRGB transfer function.
+
+    The names are those of the CLI options (``--black-level``) and of :class:`plenodecode.batch.BatchOptions`.
 
     Raises
     ------
@@ -61,24 +63,24 @@ class MosaicOptions:
     """
 
     cfa: str | None = None
-    black: float | None = None
-    white: float | None = None
-    encoding: str = "linear"
+    black_level: float | None = None
+    white_level: float | None = None
+    input_encoding: str = "linear"
 
     def __post_init__(self) -> None:
         if self.cfa is not None and self.cfa not in CFA_CHOICES:
             raise ValueError(f"cfa must be one of {CFA_CHOICES} or None, got {self.cfa!r}")
-        if self.encoding not in INPUT_ENCODINGS:
-            raise ValueError(f"encoding must be one of {INPUT_ENCODINGS}, got {self.encoding!r}")
-        for name in ("black", "white"):
+        if self.input_encoding not in INPUT_ENCODINGS:
+            raise ValueError(f"input_encoding must be one of {INPUT_ENCODINGS}, got {self.input_encoding!r}")
+        for name in ("black_level", "white_level"):
             value = getattr(self, name)
             if value is not None:
                 value = float(value)
                 if not np.isfinite(value) or value < 0:
                     raise ValueError(f"{name} must be a finite level >= 0, got {getattr(self, name)!r}")
                 object.__setattr__(self, name, value)
-        if self.black is not None and self.white is not None and self.white <= self.black:
-            raise ValueError(f"white ({self.white:g}) must exceed black ({self.black:g})")
+        if self.black_level is not None and self.white_level is not None and self.white_level <= self.black_level:
+            raise ValueError(f"white_level ({self.white_level:g}) must exceed black_level ({self.black_level:g})")
 
     @property
     def given(self) -> bool:
@@ -261,16 +263,16 @@ def bare_mosaic_levels(mosaic: np.ndarray, bits: int, full_scale: float,
     if known is not None:
         black, white, how = known
     else:
-        estimated = None if options.black is not None else estimate_black_level(mosaic)
+        estimated = None if options.black_level is not None else estimate_black_level(mosaic)
         black, white = (0.0 if estimated is None else estimated), full
         how = ("black estimated from the gaps between micro-images" if estimated is not None
                else "no dark gaps found to estimate the black level from, black 0") + f", white = full scale {full:g}"
-    if options.black is not None or options.white is not None:
-        black = black if options.black is None else options.black
-        white = white if options.white is None else options.white
-        given = [f"{name} {value:g}" for name, value in (("--black-level", options.black),
-                                                          ("--white-level", options.white)) if value is not None]
-        how = " and ".join(given) + ("" if options.black is not None and options.white is not None else f"; {how}")
+    if options.black_level is not None or options.white_level is not None:
+        black = black if options.black_level is None else options.black_level
+        white = white if options.white_level is None else options.white_level
+        given = [f"{name} {value:g}" for name, value in (("--black-level", options.black_level),
+                                                          ("--white-level", options.white_level)) if value is not None]
+        how = " and ".join(given) + ("" if options.black_level is not None and options.white_level is not None else f"; {how}")
     return black, white, how
 
 
