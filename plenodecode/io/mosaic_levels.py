@@ -36,6 +36,8 @@ INPUT_ENCODINGS = ("linear", "srgb")
 DARK_WINDOW = 5
 #: Share of the dark spots, the darkest, whose median is the black level (:func:`estimate_black_level`).
 DARK_SHARE = 0.1
+#: The black estimate must not exceed this percentile of the image, else there were no dark gaps.
+GAP_PERCENTILE = 5.0
 #: Smallest mosaic (pixels) whose black level is estimated: smaller images hold too few micro-images.
 MIN_ESTIMATE_PIXELS = 64 * 64
 
@@ -176,9 +178,9 @@ def estimate_black_level(mosaic: np.ndarray) -> float | None:
     Returns
     -------
     float or None
-        None when the mosaic is smaller than :data:`MIN_ESTIMATE_PIXELS`, or the estimate is not nearer
-        the image's 1st percentile than its median (no dark gaps: not a lenslet mosaic, or one with
-        overlapping micro-images).
+        None when the mosaic is smaller than :data:`MIN_ESTIMATE_PIXELS`, or the estimate is above the
+        image's :data:`GAP_PERCENTILE`-th percentile (no dark gaps: not a lenslet mosaic, or one with
+        overlapping micro-images; on lenslet mosaics it lies at or below the 1st percentile).
     """
     import cv2
 
@@ -190,8 +192,7 @@ def estimate_black_level(mosaic: np.ndarray) -> float | None:
     spots = s <= cv2.erode(s, np.ones((DARK_WINDOW, DARK_WINDOW), np.uint8), borderType=cv2.BORDER_REFLECT)
     smooth, raw = s[spots], x[spots]
     black = float(np.median(raw[smooth <= np.quantile(smooth, DARK_SHARE)]))
-    low, mid = np.percentile(x[::3, ::3], [1.0, 50.0])
-    if black - low > 0.5 * (mid - low):
+    if black > float(np.percentile(x[::3, ::3], GAP_PERCENTILE)):
         return None
     return black
 
