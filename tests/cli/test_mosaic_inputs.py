@@ -165,3 +165,22 @@ def test_real_f01_jpeg_decodes_as_typed(tmp_path, monkeypatch, name):
     assert raw.cfa == "BGGR" and 10.0 <= float(raw.black[0, 0]) <= 16.0
     assert float(raw.white[0, 0]) == 255.0
     print(f"{name}: decode {seconds:.1f} s")
+
+
+def test_readme_real_data_commands_run_as_written(tmp_path, monkeypatch):
+    """The F01 commands of the README's 'Real data' section, from a scratch folder (the data path made absolute)."""
+    import re
+    import shlex
+    from pathlib import Path
+
+    data = shared_path("lytro-f01-lenslet-jpg")
+    text = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    section = text.split("## Real data", 1)[1].split("\n## ", 1)[0]
+    lines = [ln.strip() for ln in re.search(r"```\n(.*?)```", section, flags=re.S).group(1).splitlines() if ln.strip()]
+    assert lines and all(ln.startswith("plenodecode ") for ln in lines)
+    monkeypatch.chdir(tmp_path)
+    for line in lines:
+        args = shlex.split(line.replace("../shared/data/lytro-f01-lenslet-jpg", str(data)))[1:]
+        res = CliRunner().invoke(cli, args, catch_exceptions=False)
+        assert res.exit_code == 0, (line, res.output)
+    assert len(list((tmp_path / "IMG_1_views").glob("*.png"))) == 81
