@@ -6,7 +6,8 @@
   (lf-microscopy-antleg), calibrated from its radiometry frame, decoded with white and dark frames:
   the centre view and every third view of the 27 x 27 (a 9 x 9 grid).
 * ``f01_img1_centre.png`` / ``f01_img1_views.png``: the real Lytro F01 mosaic IMG_1.jpg (Tao et al.),
-  self-calibrated from the scene (no white image), decoded to 9 x 9 views; the views grid shows every
+  decoded by the workflow of ``plenodecode decode IMG_1.jpg`` (CFA and levels by the sensor size,
+  self-calibrated from the scene, no white image) to 9 x 9 views; the views grid shows every
   second view (5 x 5) at half size.
 * ``r42_total_focus.png``: the Raytrix R42 crop rendered all-in-focus (focused plenoptic).
 
@@ -55,13 +56,12 @@ def main() -> None:
     args = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     from plenodecode.calib import calibrate
-    from plenodecode.calib.selfcal import calibrate_from_scene
     from plenodecode.decoding import decode
     from plenodecode.decoding.focused import render_total_focus
     from plenodecode.io import read_raw
-    from plenodecode.io.images import read_image, write_image
+    from plenodecode.io.images import write_image
     from plenodecode.io.raytrix import grid_from_raycalib, parse_raycalib, read_raytrix_rgb
-    from plenodecode.types import CameraMetadata, RawCapture
+    from plenodecode.pipeline import load_lightfield_input
 
     OUT.mkdir(parents=True, exist_ok=True)
 
@@ -76,12 +76,9 @@ def main() -> None:
     save("antleg_centre.png", display(lf.centre_view()))
     save("antleg_views.png", display(view_grid(lf.data, 3)))
 
-    # real F01 mosaic saved as JPEG: self-calibrated grid, no white, no colour metadata
-    p = DATA / "lytro-f01-lenslet-jpg" / "IMG_1.jpg"
-    img = read_image(p)
-    mosaic = (img if img.ndim == 2 else img[..., 0]).astype(np.uint16)
-    f01 = RawCapture(mosaic, "BGGR", 0, 255, CameraMetadata(make="Lytro", model="F01"), path=str(p))
-    lf = decode(f01, calibrate_from_scene(f01))
+    # real F01 mosaic saved as JPEG: what `plenodecode decode IMG_1.jpg -o IMG_1.zarr` decodes (the README's
+    # commands): CFA and levels by the sensor size, self-calibrated grid, no white, no colour metadata
+    lf = load_lightfield_input(DATA / "lytro-f01-lenslet-jpg" / "IMG_1.jpg")
     save("f01_img1_centre.png", display(lf.centre_view(), grey_world=True))
     import cv2
 

@@ -60,8 +60,9 @@ Progress = Callable[[int, int], None] | None
 RAW_SUFFIXES = (".lfr", ".lfp", ".dng", ".cr2", ".cr3", ".nef", ".arw", ".raf", ".orf", ".rw2")
 #: Headerless Lytro raws: taken when their JSON sidecar (.TXT/.json) is beside them.
 PAIR_SUFFIXES = (".raw",)
-#: Image mosaics: taken when a plenodecode mosaic sidecar or a Raytrix calibration XML is beside them.
-MOSAIC_SUFFIXES = (".png", ".tif", ".tiff", ".exr", ".pgm")
+#: Image mosaics: taken when a plenodecode mosaic sidecar or a Raytrix calibration XML is beside them, or, without
+#: either, when the image has the size of a known lenslet sensor (:func:`plenodecode.io.generic.is_known_sensor_image`).
+MOSAIC_SUFFIXES = (".png", ".tif", ".tiff", ".exr", ".pgm", ".jpg", ".jpeg")
 #: Outputs a batch can produce per raw (the CLI's --outputs choices): the decoded light field, and products of
 #: :data:`plenodecode.pipeline.PRODUCTS` under the same names (their options: :class:`BatchOptions`).
 BATCH_OUTPUTS = ("lightfield", "views", "centre", "refocus", "depth", "all-in-focus", "total-focus")
@@ -99,6 +100,10 @@ class BatchOptions:
         Refocus slope of the 'refocus' output (px per view step, design.md).
     depth_method : str or None
         Method of the 'depth' output (None: the library's default).
+    cfa, black_level, white_level, input_encoding :
+        How to read image mosaics without a sidecar (the CLI options of the same names;
+        :class:`plenodecode.io.mosaic_levels.MosaicOptions`): 'mono' or a Bayer pattern, levels in the file's
+        units, 'linear' or 'srgb'.  None / 'linear': found out per file.
     """
 
     outputs: tuple[str, ...] = ("centre",)
@@ -107,6 +112,10 @@ class BatchOptions:
     bit_depth: int = 16
     slope: float = 0.0
     depth_method: str | None = None
+    cfa: str | None = None
+    black_level: float | None = None
+    white_level: float | None = None
+    input_encoding: str = "linear"
 
     def __post_init__(self) -> None:
         outs = tuple(self.outputs) if not isinstance(self.outputs, str) else (self.outputs,)
@@ -122,6 +131,9 @@ class BatchOptions:
 
             lookup(DEPTH_METHODS, self.depth_method, param="depth_method")
         object.__setattr__(self, "slope", float(self.slope))
+        mosaic = self.mosaic_options()          # checks the four mosaic options (ValueError naming the option)
+        object.__setattr__(self, "black_level", mosaic.black_level)
+        object.__setattr__(self, "white_level", mosaic.white_level)
         if self.db_dir is None:
             from .calib.store import DEFAULT_DB
 
@@ -140,7 +152,17 @@ class BatchOptions:
         for option, product in (("slope", "refocus"), ("depth_method", "depth"), ("lightfield_format", "lightfield")):
             if product not in self.outputs:
                 d.pop(option)
+        for option, default in (("cfa", None), ("black_level", None), ("white_level", None),
+                                ("input_encoding", "linear")):
+            if d[option] == default:     # keys of runs before these options existed stay valid
+                d.pop(option)
         return d
+
+    def mosaic_options(self) -> Any:
+        """The mosaic options as :class:`plenodecode.io.mosaic_levels.MosaicOptions` (ValueError naming a bad one)."""
+        from .io.mosaic_levels import MosaicOptions
+
+        return MosaicOptions(self.cfa, self.black_level, self.white_level, self.input_encoding)
 
 
 @dataclass(frozen=True)
@@ -229,8 +251,18 @@ def _is_raw_candidate(p: Path) -> bool:
 
         return lytro.find_sidecar(p) is not None
     if suffix in MOSAIC_SUFFIXES:
-        return _is_mosaic_with_sidecar(p)
+        from .io.generic import find_sidecar, is_known_sensor_image
+
+        return _is_mosaic_with_sidecar(p) or (find_sidecar(p) is None and is_known_sensor_image(p))
     return False
+
+
+def needs_no_database(p: Path) -> bool:
+    """True for an image mosaic with neither sidecar nor Raytrix XML: it is self-calibrated, never looked up."""
+    from .io import generic, raytrix
+
+    return (p.suffix.lower() in MOSAIC_SUFFIXES and generic.find_sidecar(p) is None
+            and raytrix.find_calibration_xml(p) is None)
 
 
 def _walk(folder: Path, exclude: set[Path]) -> list[Path]:
@@ -250,8 +282,11 @@ def find_raws(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os
     """Every raw file under ``inputs``.
 
     Files are taken as given.  Folders are searched recursively for Lytro containers
-    (``.lfr``/``.lfp``), camera raws and DNG, headerless ``.raw`` files with their JSON sidecar, and
-    image mosaics with a plenodecode sidecar or a Raytrix XML.  Skipped: white images
+    (``.lfr``/``.lfp``), camera raws and DNG, headerless ``.raw`` files with their JSON sidecar,
+    image mosaics with a plenodecode sidecar or a Raytrix XML, and images without a sidecar only when
+    their size is that of a known lenslet sensor (3280 x 3280 Lytro F01, 7728 x 5368 Illum; read from the
+    header), so a folder of ordinary pictures yields nothing; any other sidecar-less mosaic is decoded
+    when named as a file.  Skipped: white images
     (``MOD_*``, or a mosaic whose sidecar says ``is_white_image``), the synthetic generator's ground
     truth (``*.truth.*``), sidecars, hidden files and folders, folders in ``exclude`` (e.g. the
     batch's own output folder) and batch output folders.
@@ -424,7 +459,7 @@ def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: Ba
         _set_threads(threads)
         from .io import read_raw
 
-        raw = read_raw(src)
+        raw = read_raw(src, mosaic=options.mosaic_options())
         # the folder is staged under a temporary name and replaces ``target`` (checked above) only when complete
         with atomic_output(target, overwrite=True, folder=True) as staging:
             products = _write_products(raw, staging, options, threads=threads)

@@ -30,11 +30,14 @@ import os
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Callable, Iterator, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterator, Mapping, Sequence
 
 from .errors import CalibrationError
 from .registry import lazy, lookup
 from .types import LensletGrid, LightField, RawCapture
+
+if TYPE_CHECKING:
+    from .io.mosaic_levels import MosaicOptions
 
 log = logging.getLogger(__name__)
 
@@ -103,10 +106,10 @@ def _read_lightfield(p: Path) -> LightField:
     return load_lightfield(p)
 
 
-def _read_raw(p: Path) -> RawCapture:
+def _read_raw(p: Path, mosaic: MosaicOptions | None = None) -> RawCapture:
     from .io import read_raw
 
-    return read_raw(p)
+    return read_raw(p, mosaic=mosaic)
 
 
 #: Input kind -> reader ``fn(path) -> LightField | RawCapture``.
@@ -115,15 +118,18 @@ INPUT_READERS: dict[str, Callable[[Path], LightField | RawCapture]] = {
 }
 
 
-def open_input(path: str | os.PathLike) -> LightField | RawCapture:
+def open_input(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None) -> LightField | RawCapture:
     """Read any supported input.
 
     Parameters
     ----------
     path : path-like
         A raw (anything :func:`plenodecode.io.read_raw` reads: Lytro containers, ``.RAW`` + ``.TXT``, Raytrix
-        image + ``RayCalibData`` XML, DNG / camera raws, mosaics with a JSON sidecar), a saved light field
-        (:func:`plenodecode.io.lightfield.load_lightfield`) or an HCI scene folder with its ``parameters.cfg``.
+        image + ``RayCalibData`` XML, DNG / camera raws, image mosaics (JPEG/PNG/TIFF) with or without a JSON
+        sidecar), a saved light field (:func:`plenodecode.io.lightfield.load_lightfield`) or an HCI scene folder
+        with its ``parameters.cfg``.
+    mosaic : MosaicOptions, optional
+        How to read an image mosaic (CFA, levels, value encoding); raws only.
 
     Returns
     -------
@@ -135,7 +141,8 @@ def open_input(path: str | os.PathLike) -> LightField | RawCapture:
         Unreadable input.
     """
     p = Path(path)
-    return INPUT_READERS[input_kind(p)](p)
+    kind = input_kind(p)
+    return _read_raw(p, mosaic) if kind == "raw" else INPUT_READERS[kind](p)
 
 
 # -------------------------------------------------------------------------------------------- calibration
@@ -186,7 +193,7 @@ def _from_database(raw: RawCapture, db: Path) -> Calibration:
 def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None,
                        white: str | os.PathLike | RawCapture | None = None,
                        database: str | os.PathLike | None = None, self_calibrate: bool = False,
-                       progress: Progress = None) -> Calibration:
+                       mosaic: MosaicOptions | None = None, progress: Progress = None) -> Calibration:
     """The calibration of ``raw``, chosen by one policy (first that applies).
 
     1. ``grid`` (a grid JSON written by ``plenodecode calibrate``); ``white``, when given, devignettes;
@@ -197,6 +204,10 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
     5. with ``self_calibrate``: the grid found in the scene itself
        (:func:`~plenodecode.calib.selfcal.calibrate_from_scene`), no devignetting.
 
+    An image mosaic read without a sidecar (:func:`plenodecode.io.generic.is_bare_mosaic`) has no camera
+    identity to look up, so it skips the database and, with no grid and no white image, is self-calibrated
+    (said in one warning line); a camera raw without a database entry still needs ``self_calibrate``.
+
     The choice is logged in one info line (:meth:`Calibration.describe`).
 
     Parameters
@@ -206,6 +217,8 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
     database : path-like, optional
     self_calibrate : bool
         Fall back to self-calibration when nothing above applies (instead of raising).
+    mosaic : MosaicOptions, optional
+        How to read ``white`` when it is an image mosaic (as for the raw).
     progress : callable(done, total), optional
         Progress of an on-the-spot calibration.
 
@@ -219,8 +232,9 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
         Nothing usable; the message says which option to pass.
     """
     from .calib import store
+    from .io.generic import is_bare_mosaic
 
-    white_raw = _read_raw(Path(white)) if isinstance(white, (str, os.PathLike)) else white
+    white_raw = _read_raw(Path(white), mosaic) if isinstance(white, (str, os.PathLike)) else white
     db = Path(database) if database is not None else Path(store.DEFAULT_DB)
     if grid is not None:
         cal = Calibration(_grid_from_file(grid), white_raw, "grid file",
@@ -234,6 +248,10 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
         from .calib.selfcal import calibrate_raytrix
 
         cal = Calibration(calibrate_raytrix(raw), None, "camera", "(Raytrix RayCalibData)")
+    elif is_bare_mosaic(raw):
+        log.warning("%s: no white image and no camera identity for the database: the lenslet grid comes from "
+                    "self-calibration of the scene", Path(raw.path or "mosaic").name)
+        cal = _self_calibration(raw, progress)
     else:
         cal = _database_or_scene(raw, db, self_calibrate=self_calibrate, progress=progress)
     log.info("%s", cal.describe())
@@ -257,8 +275,13 @@ def _database_or_scene(raw: RawCapture, db: Path, *, self_calibrate: bool, progr
             f"no calibration for {name} (camera {raw.metadata.model or '?'} {raw.metadata.serial or '?'}): "
             f"no calibration database in {db}; pass --database DIR, --calibration grid.json, "
             "--white WHITE_IMAGE or --self-calibrate")
+    return _self_calibration(raw, progress)
+
+
+def _self_calibration(raw: RawCapture, progress: Progress) -> Calibration:
     from .calib.selfcal import calibrate_from_scene
 
+    name = Path(raw.path).name if raw.path else "this raw"
     return Calibration(calibrate_from_scene(raw, progress=progress), None, "self-calibration", f"from {name}")
 
 
@@ -325,16 +348,17 @@ def decode_raw(raw: RawCapture, calibration: Calibration, *, progress: Progress 
 
 def open_source(path: str | os.PathLike, *, grid: str | os.PathLike | None = None,
                 white: str | os.PathLike | None = None, database: str | os.PathLike | None = None,
-                self_calibrate: bool = False, decode_options: Mapping[str, Any] | None = None,
-                progress: Progress = None) -> Source:
+                self_calibrate: bool = False, mosaic: MosaicOptions | None = None,
+                decode_options: Mapping[str, Any] | None = None, progress: Progress = None) -> Source:
     """:func:`open_input`, then for a raw :func:`choose_calibration`; the decoding waits for first use.
 
-    The calibration options apply to raws only.
+    The calibration and ``mosaic`` options apply to raws only.
     """
-    item = open_input(path)
+    item = open_input(path, mosaic=mosaic)
     if isinstance(item, LightField):
         return Source(lightfield=item)
-    cal = choose_calibration(item, grid=grid, white=white, database=database, self_calibrate=self_calibrate)
+    cal = choose_calibration(item, grid=grid, white=white, database=database, self_calibrate=self_calibrate,
+                             mosaic=mosaic)
     return Source(raw=item, calibration=cal, decode_options=decode_options, progress=progress)
 
 

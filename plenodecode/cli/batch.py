@@ -8,7 +8,8 @@ import click
 
 from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES
 from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
-from .common import RegistryChoice, bit_depth_option, database_option, jobs_option, progress_bar
+from .common import (RegistryChoice, bit_depth_option, current_mosaic_options, database_option, jobs_option,
+                     mosaic_options, progress_bar)
 
 
 def _parse_outputs(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
@@ -39,7 +40,9 @@ def _echo_table(summary) -> None:
 @click.option("--outputs", default="centre", show_default=True, callback=_parse_outputs,
               help=f"Comma-separated products per raw: {', '.join(OUTPUT_CHOICES)}.")
 @database_option
-@click.option("--format", "lf_format", type=RegistryChoice("plenodecode.batch", "LIGHTFIELD_NAMES"), default="zarr", show_default=True,
+@mosaic_options
+@click.option("--format", "lf_format", type=RegistryChoice("plenodecode.batch", "LIGHTFIELD_NAMES"), default="zarr",
+              show_default=True,
               help="Format of the 'lightfield' product.")
 @bit_depth_option
 @click.option("--slope", type=float, default=0.0, show_default=True, help="Refocus slope of the 'refocus' product.")
@@ -52,7 +55,8 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
     """Decode every raw under INPUTS and write the chosen outputs per raw into OUTPUT/<name>/.
 
     Each raw is matched to its camera's calibration in the database (by serial, zoom and
-    focus).  Bad files are reported, not fatal; the run ends with a table, summary.json and
+    focus); image mosaics without a sidecar (taken from folders only at a known lenslet sensor's
+    size, 3280 x 3280 or 7728 x 5368) are self-calibrated.  Bad files are reported, not fatal; the run ends with a table, summary.json and
     index.html, and exits 1 when any raw failed.  Run it again to resume: raws already done
     with the same input bytes and options are skipped.
 
@@ -61,15 +65,12 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
       plenodecode batch shoot/ -o decoded/ --outputs centre,refocus,depth --jobs 2
       plenodecode batch shoot/ -o decoded/ --scheduler tcp://10.0.0.5:8786
     """
-    from ..batch import BatchOptions, check_summary_files, find_raws, run_batch, write_summary
+    from ..batch import BatchOptions, check_summary_files, find_raws, needs_no_database, run_batch, write_summary
     from ..calib.store import DEFAULT_DB
 
     if jobs is not None and jobs < 1:
         raise click.BadParameter(f"must be >= 1, got {jobs}", param_hint="--jobs")
     db_dir = database or Path(DEFAULT_DB)
-    if not db_dir.is_dir():
-        raise click.BadParameter(f"{db_dir} is not a folder; build the database with `plenodecode calibrate "
-                                 "--database`", param_hint="--database")
     if not overwrite:
         try:
             check_summary_files(out_dir)
@@ -78,8 +79,14 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
     files = find_raws(inputs, exclude=[out_dir])
     if not files:
         raise click.UsageError(f"no raws found under {', '.join(map(str, inputs))}")
+    if not db_dir.is_dir() and not all(needs_no_database(f) for f in files):
+        raise click.BadParameter(f"{db_dir} is not a folder; build the database with `plenodecode calibrate "
+                                 "--database`", param_hint="--database")
+    mosaic = current_mosaic_options()
     options = BatchOptions(outputs=outputs, db_dir=str(db_dir), lightfield_format=lf_format,
-                           bit_depth=int(bit_depth), slope=slope, depth_method=depth_method)
+                           bit_depth=int(bit_depth), slope=slope, depth_method=depth_method, cfa=mosaic.cfa,
+                           black_level=mosaic.black_level, white_level=mosaic.white_level,
+                           input_encoding=mosaic.input_encoding)
     try:
         summary = run_batch(files, out_dir, options, jobs=jobs, scheduler=scheduler, overwrite=overwrite,
                             progress=progress_bar(f"decoding {len(files)} raws", ctx))

@@ -8,6 +8,7 @@ through :class:`RegistryChoice`, which imports them only when a command's help o
 from __future__ import annotations
 
 import contextlib
+import functools
 import importlib
 import os
 import sys
@@ -61,11 +62,57 @@ database_option = click.option("--database", "--white-dir", "database", cls=Data
                                help="Calibration database of raws (white images and fitted grids).")
 
 
+#: ``ctx.meta`` key of the checked :class:`~plenodecode.io.mosaic_levels.MosaicOptions` of a command.
+MOSAIC_META = "plenodecode.mosaic_options"
+
+
+def mosaic_options(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """How to read an image mosaic (JPEG/PNG/TIFF) without a sidecar: ``--cfa``, ``--black-level``,
+    ``--white-level``, ``--input-encoding`` (see :mod:`plenodecode.io.mosaic_levels`).
+
+    The values are checked together before the command runs (a bad one is a usage error naming its option)
+    and handed to the command as one :class:`~plenodecode.io.mosaic_levels.MosaicOptions` through
+    ``ctx.meta`` (:func:`current_mosaic_options`), so the commands' own signatures do not change.
+    """
+    @functools.wraps(fn)
+    def checked(*args: Any, cfa: str | None, black_level: float | None, white_level: float | None,
+                input_encoding: str, **kwargs: Any) -> Any:
+        if black_level is not None and white_level is not None and white_level <= black_level:
+            raise click.BadParameter(f"must exceed --black-level {black_level:g}, got {white_level:g}",
+                                     param_hint="--white-level")
+        from ..io.mosaic_levels import MosaicOptions
+
+        click.get_current_context().meta[MOSAIC_META] = MosaicOptions(cfa, black_level, white_level, input_encoding)
+        return fn(*args, **kwargs)
+
+    checked = click.option("--input-encoding", type=RegistryChoice("plenodecode.io.mosaic_levels", "INPUT_ENCODINGS"), default="linear", show_default=True,
+                           help="Image mosaics: 'srgb' if the values are display-encoded (inverse sRGB first).")(checked)
+    checked = click.option("--white-level", type=click.FloatRange(min=0, min_open=True), default=None,
+                           help="Image mosaics: white (clipping) level in the file's units [default: the sidecar's, "
+                                "the known camera's, else the full scale].")(checked)
+    checked = click.option("--black-level", type=click.FloatRange(min=0), default=None,
+                           help="Image mosaics: black level in the file's units [default: the sidecar's, the known "
+                                "camera's, else estimated from the gaps between micro-images].")(checked)
+    return click.option("--cfa", type=RegistryChoice("plenodecode.io.mosaic_levels", "CFA_CHOICES"), default=None,
+                        help="Image mosaics: colour filter pattern, or 'mono' [default: the sidecar's, else by the "
+                             "size of a known sensor (3280 x 3280 Lytro F01: BGGR; 7728 x 5368 Illum: GRBG), "
+                             "else monochrome].")(checked)
+
+
+def current_mosaic_options() -> Any:
+    """The :class:`~plenodecode.io.mosaic_levels.MosaicOptions` of the running command (None outside one)."""
+    ctx = click.get_current_context(silent=True)
+    return None if ctx is None else ctx.meta.get(MOSAIC_META)
+
+
 def input_options(fn: Callable[..., Any]) -> Callable[..., Any]:
-    """The calibration options of every command that reads a raw: ``--calibration/-g``, ``--white/-w``,
-    ``--database`` and ``--self-calibrate`` (see :func:`plenodecode.pipeline.choose_calibration`)."""
+    """The input options of every command that reads a raw: the calibration (``--calibration/-g``,
+    ``--white/-w``, ``--database``, ``--self-calibrate``; see :func:`plenodecode.pipeline.choose_calibration`)
+    and how to read an image mosaic (:func:`mosaic_options`)."""
+    fn = mosaic_options(fn)
     fn = click.option("--self-calibrate", "self_calibrate", is_flag=True,
-                      help="Raws without any other calibration: find the lenslet grid in the scene itself.")(fn)
+                      help="Raws without any other calibration: find the lenslet grid in the scene itself "
+                           "(automatic for image mosaics without a sidecar).")(fn)
     fn = database_option(fn)
     fn = click.option("--white", "-w", "white", type=click.Path(exists=True, dir_okay=False, path_type=Path),
                       default=None, help="White image of the same zoom/focus: devignetting (and the grid, if no "
@@ -78,8 +125,10 @@ def input_options(fn: Callable[..., Any]) -> Callable[..., Any]:
 
 def calibration_kwargs(calibration: Path | None, white: Path | None, database: Path | None,
                        self_calibrate: bool) -> dict[str, Any]:
-    """The command's calibration options as keywords of :func:`plenodecode.pipeline.open_source`."""
-    return {"grid": calibration, "white": white, "database": database, "self_calibrate": self_calibrate}
+    """The command's input options as keywords of :func:`plenodecode.pipeline.open_source` (and of
+    :func:`~plenodecode.pipeline.choose_calibration`): the calibration, and ``mosaic`` (:func:`current_mosaic_options`)."""
+    return {"grid": calibration, "white": white, "database": database, "self_calibrate": self_calibrate,
+            "mosaic": current_mosaic_options()}
 
 
 @contextlib.contextmanager

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import click
 
-from .common import (RegistryChoice, bit_depth_option, input_options, lightfield_output_format, output_option,
-                     overwrite_option, progress_bar, quiet, usage_errors)
+from .common import (RegistryChoice, bit_depth_option, calibration_kwargs, input_options, lightfield_output_format,
+                     output_option, overwrite_option, progress_bar, quiet, usage_errors)
 
 log = logging.getLogger(__name__)
 
@@ -39,13 +39,14 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
 
     The lenslet grid comes from --calibration, from --white (calibrated on the fly), from the camera's
     own calibration (Raytrix XML), or from the calibration database (--database, default ./calib) by
-    camera serial, zoom and focus.
+    camera serial, zoom and focus; an image mosaic without a sidecar is self-calibrated.
 
     \b
     Examples:
       plenodecode decode scene.lfr --database calib/ -o scene.zarr
       plenodecode decode scene.lfr -g grid.json -w MOD_0000.RAW -o views/ --format views --bit-depth 8
       plenodecode decode lf.png -w white.png --dark dark.tif -o lf.mat
+      plenodecode decode IMG_1.jpg -o lf.zarr
     """
     from ..io import read_raw
     from ..pipeline import choose_calibration, decode_raw, write_lightfield
@@ -55,8 +56,9 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
     if n_views is not None and (n_views < 1 or n_views % 2 == 0):
         raise click.BadParameter("must be a positive odd number", param_hint="--views")
     name = lightfield_output_format(output, fmt, overwrite)
-    raw = read_raw(raw_path)
-    cal = choose_calibration(raw, grid=calibration, white=white, database=database, self_calibrate=self_calibrate)
+    inputs = calibration_kwargs(calibration, white, database, self_calibrate)
+    raw = read_raw(raw_path, mosaic=inputs["mosaic"])
+    cal = choose_calibration(raw, **inputs)
     lf = decode_raw(raw, cal, dark=read_raw(dark) if dark is not None else None, demosaic=demosaic, colour=colour,
                     n_views=n_views, hot_pixels=not no_hot_pixels, progress=progress_bar("decoding", ctx))
     with usage_errors():

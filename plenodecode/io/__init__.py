@@ -8,8 +8,13 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from typing import TYPE_CHECKING
+
 from ..errors import FormatError
 from ..types import RawCapture
+
+if TYPE_CHECKING:
+    from .mosaic_levels import MosaicOptions
 
 #: First bytes of a Lytro LFP/LFR container.
 LYTRO_MAGIC = b"\x89LFP\r\n\x1a\n"
@@ -17,13 +22,18 @@ LYTRO_MAGIC = b"\x89LFP\r\n\x1a\n"
 LYTRO_PAIR_EXTENSIONS = (".raw",)
 
 
-def read_raw(path: str | os.PathLike) -> RawCapture:
+def read_raw(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None) -> RawCapture:
     """Read any supported raw file into a :class:`RawCapture`.
 
     Dispatch: Lytro container by magic (``.lfp``/``.lfr`` of any case); a headerless
     ``.RAW`` with a ``.TXT``/``.json`` metadata sidecar (Lytro white images and frames);
-    a PNG/TIFF/BMP with a ``RayCalibData`` XML beside it (Raytrix); other images with a
-    JSON sidecar (plain 16-bit mosaics); anything else through rawpy (DNG, camera raws).
+    a PNG/TIFF/BMP with a ``RayCalibData`` XML beside it (Raytrix); other images (PNG, TIFF,
+    JPEG, EXR, PGM), with or without a JSON sidecar, as mosaics; anything else through rawpy
+    (DNG, camera raws).
+
+    ``mosaic`` (:class:`~plenodecode.io.mosaic_levels.MosaicOptions`: CFA, levels, value encoding)
+    applies to image mosaics (:func:`plenodecode.io.generic.read_generic`); the other readers take
+    what their files say.
 
     Raises
     ------
@@ -45,7 +55,7 @@ def read_raw(path: str | os.PathLike) -> RawCapture:
 
     if raytrix.find_calibration_xml(p) is not None:
         return raytrix.read_raytrix(p)
-    return generic.read_generic(p)
+    return generic.read_generic(p, mosaic=mosaic)
 
 
 __all__ = ["read_raw", "LYTRO_MAGIC"]

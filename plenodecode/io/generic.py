@@ -19,6 +19,7 @@ import logging
 import math
 import os
 import struct
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -28,17 +29,20 @@ from ..errors import FormatError, MetadataError
 from ..types import CFA_PATTERNS, CameraMetadata, RawCapture
 from .atomic import atomic_outputs, refuse_existing
 from .images import read_image
+from .mosaic_levels import KNOWN_SENSORS, MosaicOptions, bare_mosaic_cfa, bare_mosaic_levels, linearise_srgb, srgb_decode
 
 log = logging.getLogger(__name__)
 #: Sensor noise compresses poorly: the fastest zlib level costs ~1-2 % in size and saves a lot of time.
 _FAST_PNG = {"png:compressionLevel": 1}
 
 #: Extensions read through OpenImageIO as mosaics; everything else goes to rawpy.
-MOSAIC_EXTENSIONS = (".png", ".tif", ".tiff", ".exr", ".pgm", ".pnm", ".bmp")
+MOSAIC_EXTENSIONS = (".png", ".tif", ".tiff", ".exr", ".pgm", ".pnm", ".bmp", ".jpg", ".jpeg")
 #: Extensions :func:`write_mosaic` writes (16-bit).
 MOSAIC_WRITE_EXTENSIONS = (".png", ".tif", ".tiff")
 SIDECAR_FORMAT = "plenodecode.mosaic"
 SIDECAR_VERSION = 1
+#: ``metadata.extra`` key of a mosaic read without a sidecar: how its CFA and levels were chosen.
+BARE_MOSAIC_KEY = "bare_mosaic"
 
 
 # ----------------------------------------------------------------------------- sidecar
@@ -207,17 +211,27 @@ def read_pgm(path: str | os.PathLike) -> tuple[np.ndarray, int]:
     return img.astype(np.uint16 if maxval > 255 else np.uint8), maxval
 
 
-def _read_image_mosaic(p: Path) -> RawCapture:
+def _single_channel(img: np.ndarray, p: Path) -> np.ndarray:
+    """A mosaic's one channel: 2-D as is; a 3-channel JPEG whose channels agree within one code (a grey
+    mosaic that an encoder stored as YCbCr colour) as its first channel."""
+    if img.ndim == 2:
+        return img
+    if p.suffix.lower() in (".jpg", ".jpeg") and img.shape[2] == 3:
+        colour = img.astype(np.int16)
+        if int(np.abs(colour - colour[:, :, :1]).max()) <= 1:
+            return img[:, :, 0]
+    raise FormatError(f"{p}: a single-channel mosaic is expected, found {img.shape[2]} channels; "
+                      "demosaiced images are not raws (convert to the sensor mosaic first)")
+
+
+def _read_image_mosaic(p: Path, options: MosaicOptions) -> RawCapture:
     maxval = None
     with open(p, "rb") as fh:
         is_p5 = fh.read(2) == b"P5"
     if is_p5:
         img, maxval = read_pgm(p)
     else:
-        img = read_image(p)
-    if img.ndim != 2:
-        raise FormatError(f"{p}: a single-channel mosaic is expected, found {img.shape[2]} channels; "
-                          "demosaiced images are not raws (convert to the sensor mosaic first)")
+        img = _single_channel(read_image(p), p)
     mosaic, factor = _to_uint16(img, p)
     if maxval is not None:
         default_white = float(maxval)
@@ -226,19 +240,73 @@ def _read_image_mosaic(p: Path) -> RawCapture:
         default_white = 65535.0 if factor != 1.0 else float(2**bits - 1)
     side = find_sidecar(p)
     if side is None:
-        log.warning("%s: no JSON sidecar; reading it as a monochrome mosaic with black 0 and white %g",
-                    p, default_white)
-        return RawCapture(mosaic, None, np.zeros((2, 2)), np.full((2, 2), default_white),
-                          CameraMetadata(), str(p))
+        if factor != 1.0:       # levels given in the file's float units
+            options = replace(options,
+                              black_level=None if options.black_level is None else options.black_level * factor,
+                              white_level=None if options.white_level is None else options.white_level * factor)
+        return _bare_mosaic(p, mosaic, 8 if img.dtype == np.uint8 else 16, default_white, options)
     sc = read_sidecar(side)
     black = np.zeros((2, 2)) if sc["black"] is None else sc["black"] * factor
     white = np.full((2, 2), default_white) if sc["white"] is None else sc["white"] * factor
-    if sc["black"] is None or sc["white"] is None:
+    if (sc["black"] is None and options.black_level is None) or (sc["white"] is None and options.white_level is None):
         log.warning("%s: sidecar gives no %s; using black 0 / white %g", side,
                     "black" if sc["black"] is None else "white", default_white)
+    black = black if options.black_level is None else np.full((2, 2), options.black_level * factor)
+    white = white if options.white_level is None else np.full((2, 2), options.white_level * factor)
+    cfa = sc["cfa"] if options.cfa is None else (None if options.cfa == "mono" else options.cfa)
+    if options.input_encoding == "srgb":
+        mosaic, black, white = _linearise(mosaic, black, white, default_white)
     if np.any(white <= black):
         raise MetadataError(f"{side}: white level {white.tolist()} must exceed black level {black.tolist()}")
-    return RawCapture(mosaic, sc["cfa"], black, white, sc["metadata"], str(p))
+    return RawCapture(mosaic, cfa, black, white, sc["metadata"], str(p))
+
+
+def is_known_sensor_image(path: str | os.PathLike) -> bool:
+    """True for an image file whose size (from its header only) is a known lenslet sensor's
+    (:data:`~.mosaic_levels.KNOWN_SENSORS`) and which has one channel (or three: a grey mosaic saved as RGB)."""
+    try:
+        import OpenImageIO as oiio
+
+        inp = oiio.ImageInput.open(str(path))
+        if inp is None:
+            return False
+        spec = inp.spec()
+        inp.close()
+    except Exception:  # noqa: BLE001 - a probe: anything unreadable is not a mosaic
+        return False
+    return (spec.height, spec.width) in KNOWN_SENSORS and spec.nchannels in (1, 3)
+
+
+def is_bare_mosaic(raw: RawCapture) -> bool:
+    """True for a raw read from an image mosaic without a sidecar (no camera identity, levels chosen by rule)."""
+    return BARE_MOSAIC_KEY in raw.metadata.extra
+
+
+def _linearise(mosaic: np.ndarray, black: np.ndarray, white: np.ndarray,
+               full_scale: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Display-encoded mosaic and levels -> linear 16-bit (:func:`~.mosaic_levels.linearise_srgb`)."""
+    def level(v: np.ndarray) -> np.ndarray:
+        return 65535.0 * srgb_decode(np.asarray(v, np.float64) / full_scale)
+
+    return linearise_srgb(mosaic, full_scale), level(black), level(white)
+
+
+def _bare_mosaic(p: Path, mosaic: np.ndarray, bits: int, full_scale: float, options: MosaicOptions) -> RawCapture:
+    """A mosaic without a sidecar, read by the rules of :mod:`.mosaic_levels`; each choice logged in one line."""
+    cfa, cfa_from = bare_mosaic_cfa(mosaic.shape, options)
+    black, white, levels_from = bare_mosaic_levels(mosaic, bits, full_scale, options)
+    log.warning("%s: no JSON sidecar; CFA %s (%s)", p.name, cfa or "none, monochrome", cfa_from)
+    log.warning("%s: black %.4g, white %.4g of %g (%s)", p.name, black, white, full_scale, levels_from)
+    if white <= black:
+        raise MetadataError(f"{p}: white level {white:g} must exceed black level {black:g}; "
+                            "pass --black-level and --white-level")
+    black2, white2 = np.full((2, 2), black), np.full((2, 2), white)
+    if options.input_encoding == "srgb":
+        mosaic, black2, white2 = _linearise(mosaic, black2, white2, full_scale)
+        log.warning("%s: values display-encoded (--input-encoding srgb): inverse sRGB transfer applied", p.name)
+    extra = {BARE_MOSAIC_KEY: {"cfa_from": cfa_from, "levels_from": levels_from, "encoding": options.input_encoding,
+                               "file_black": black, "file_white": white, "file_full_scale": full_scale}}
+    return RawCapture(mosaic, cfa, black2, white2, CameraMetadata(extra=extra), str(p))
 
 
 # ----------------------------------------------------------------------------- rawpy
@@ -403,14 +471,20 @@ def _cfa_names(cfa: str) -> list[list[str]]:
 
 
 # ----------------------------------------------------------------------------- public
-def read_generic(path: str | os.PathLike) -> RawCapture:
-    """Read a mosaic image (PNG/TIFF/EXR/PGM + JSON sidecar) or a DNG / camera raw (rawpy).
+def read_generic(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None) -> RawCapture:
+    """Read a mosaic image (PNG/TIFF/JPEG/EXR/PGM, with or without a JSON sidecar) or a DNG / camera raw (rawpy).
 
     Image mosaics
-        Read with OpenImageIO (binary PGM by :func:`read_pgm`, white = MAXVAL).  The sidecar (see the module docstring) gives the CFA, the
-        levels and the metadata.  Without a sidecar a single-channel image is read as
-        monochrome with black 0 and white ``2**bits - 1`` (a warning is logged).  Float
-        images in [0, 1] are stored as ``rint(x * 65535)`` and their levels scaled alike.
+        Read with OpenImageIO (binary PGM by :func:`read_pgm`, white = MAXVAL); a grey mosaic saved
+        with three equal channels is read as one.  The sidecar (see the module docstring) gives the
+        CFA, the levels and the metadata; ``mosaic`` (the CLI's ``--cfa``, ``--black-level``,
+        ``--white-level``) overrides them.  Without a sidecar the CFA and levels follow
+        :mod:`.mosaic_levels` (``--cfa``, else the sensor known by the size, else monochrome; given
+        levels, else the known sensor's, else the black level estimated from the gaps between
+        micro-images), each choice said in one warning line, and ``metadata.extra[BARE_MOSAIC_KEY]``
+        records them.  ``mosaic.input_encoding == 'srgb'``: samples and levels get the inverse sRGB transfer
+        function (stored as linear 16-bit).  Float images in [0, 1] are stored as ``rint(x * 65535)``
+        and their levels scaled alike.
     Raws (any other extension)
         ``raw_image_visible`` from rawpy; the CFA from ``raw_pattern`` and ``color_desc``
         (2x2 Bayer only); ``black_level_per_channel``; ``white_level`` (per channel when
@@ -434,7 +508,10 @@ def read_generic(path: str | os.PathLike) -> RawCapture:
     if not p.is_file():
         raise FormatError(f"{p}: no such file; check the path")
     if p.suffix.lower() in MOSAIC_EXTENSIONS:
-        return _read_image_mosaic(p)
+        return _read_image_mosaic(p, mosaic or MosaicOptions())
+    if mosaic is not None and mosaic.given:
+        log.warning("%s: --cfa, --black-level, --white-level and --input-encoding apply to image mosaics; "
+                    "ignored for this camera raw", p.name)
     return _rawpy_capture(p)
 
 
@@ -474,5 +551,5 @@ def write_mosaic(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = 
     return p
 
 
-__all__ = ["read_generic", "write_mosaic", "read_pgm", "find_sidecar", "read_sidecar", "sidecar_document",
+__all__ = ["read_generic", "MosaicOptions", "BARE_MOSAIC_KEY", "is_bare_mosaic", "is_known_sensor_image", "write_mosaic", "read_pgm", "find_sidecar", "read_sidecar", "sidecar_document",
            "ccm_from_xyz_to_camera", "json_safe", "MOSAIC_EXTENSIONS"]
