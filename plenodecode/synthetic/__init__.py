@@ -38,7 +38,7 @@ files), :mod:`.focused` (the focused camera), :mod:`.simulate` (:func:`simulate`
 from .kernels import SUBSAMPLES
 from .lattice import assign_pixels, make_grid, raytrix_lens_types
 from .presets import PRESETS, Preset, get_preset
-from .scene import Plane, Scene, default_scene
+from .scene import Plane, Scene, default_scene, dot_chart
 from .sensor import BAND_ROWS, disk_profile, disk_response, vignetting
 from .simulate import simulate, simulate_white
 from .truth import Simulation, Truth, load_truth, simulation_files, truth_document, write_simulation
@@ -46,4 +46,4 @@ from .truth import Simulation, Truth, load_truth, simulation_files, truth_docume
 __all__ = ["Preset", "PRESETS", "get_preset", "make_grid", "raytrix_lens_types", "assign_pixels", "disk_profile",
            "disk_response", "vignetting", "simulate_white", "Simulation", "simulate", "write_simulation",
            "simulation_files", "truth_document", "Truth", "load_truth", "SUBSAMPLES", "BAND_ROWS",
-           "Plane", "Scene", "default_scene"]
+           "Plane", "Scene", "default_scene", "dot_chart"]
