@@ -20,11 +20,18 @@ that sampled the scene next to it, so detail that a single view aliases comes ba
 y factor depends only on ``v``, its x factor only on ``u``, so the sums are the compiled shift-and-add of
 :mod:`plenodecode.render.shiftsum` with these taps, once per output phase ``(j mod k, i mod k)``.
 
-Only surfaces near the refocus slope gain.  Known defect: away from it each output phase averages a different
-subset of views, and their disagreement shows as a faint pattern of period ``k`` in the blur (visible on the default
-generated scene refocused at 0.9); blending towards bicubic where the views disagree is not done yet.
-the gain over bicubic upsampling, measured against exact ground truth, is in ``bench/bench_superres.py`` and the
-README (refocus section).
+Only surfaces near the refocus slope gain.  Away from it each output phase averages a different subset of views,
+and their disagreement would show as a pattern of period ``k`` in the blur.  So the fused detail is kept only where
+the views agree with it (:func:`in_focus_gain`, photo-consistency)::
+
+    out = B + g (F - B),     B = Keys upsampling of the 1x photograph,  g in [0, 1]
+
+``g`` compares how well the fused photograph ``F`` and the 1x photograph predict every view's samples at their
+own positions: 1 where ``F`` explains them much better (in focus, detail the views alias), 0 where neither does
+(out of focus: the views disagree by their parallax).  A linear fix cannot do this: giving every phase the same
+views with the same weight is interpolating each view (``shift_sum(upsample=k)``), which loses most of the gain.
+The gain over bicubic upsampling and the pattern's energy, measured against exact ground truth, are in
+``bench/bench_superres.py`` and the README (refocus section).
 """
 
 from __future__ import annotations
@@ -32,11 +39,12 @@ from __future__ import annotations
 import logging
 from typing import Callable
 
+import cv2
 import numpy as np
 
 from ..types import LightField
 from ._common import aperture_mask, check_lightfield, check_slopes
-from .shiftsum import sum_shifted_views
+from .shiftsum import shift_sum, sum_shifted_views
 
 log = logging.getLogger(__name__)
 
@@ -48,6 +56,10 @@ _GAIN_GAP = 0.75
 #: Keys' free parameter of the fusion kernel: OpenCV's (and Photoshop's) bicubic value, so that where the views
 #: sample the same points (h = 1) the result is OpenCV's bicubic upsampling of the 1x photograph.
 KEYS_A = -0.75
+#: Gaussian window (lenslet px) over which the views' agreement with a photograph is averaged.
+_CONSISTENCY_SIGMA = 1.0
+#: Residual ratio ``R_F / R_B`` below which the fused detail is kept whole, above which it is dropped.
+_RHO = (0.5, 0.85)
 
 
 def _keys(t: np.ndarray, a: float = KEYS_A) -> np.ndarray:
@@ -149,15 +161,131 @@ def _fuse_phase(lf: LightField, vmask: np.ndarray, taps_y: tuple[np.ndarray, np.
     return fused
 
 
+def _resample_rows(img: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """``img`` (N, ...) sampled at the rows ``positions`` (M,) float64 by Keys' kernel (:data:`KEYS_A`), rows
+    outside taking the edge value: (M, ...) float32."""
+    first, w = scaled_keys_taps(positions, 1.0)
+    out = np.zeros((len(positions),) + img.shape[1:], np.float32)
+    for r in range(4):
+        rows = np.clip(first + r, 0, img.shape[0] - 1)
+        out += w[:, r].reshape((-1,) + (1,) * (img.ndim - 1)) * img[rows]
+    return out
+
+
+def keys_upsample(img: np.ndarray, k: int) -> np.ndarray:
+    """Keys (OpenCV bicubic, ``a =`` :data:`KEYS_A`) interpolation of ``img`` (Y, X, C) at ``(j / k, i / k)``,
+    edges replicated: (k Y, k X, C) float32."""
+    ny, nx = img.shape[:2]
+    rows = _resample_rows(np.asarray(img, np.float32), np.arange(k * ny) / k)
+    return _resample_rows(rows.swapaxes(0, 1), np.arange(k * nx) / k).swapaxes(0, 1)
+
+
+def _view_residuals(lf: LightField, s: float, images: list[tuple[np.ndarray, int]]) -> np.ndarray:
+    """Squared differences between every view and each image sampled at the view's positions.
+
+    ``r[v, u, y, x, n] = sum_c (L_vu(y, x, c) - I_n(k_n (y + s a), k_n (x + s b), c))^2`` with ``I_n`` sampled by
+    Keys' kernel on its grid of ``k_n`` samples per lenslet pixel.
+
+    Parameters
+    ----------
+    lf : LightField
+        ``data`` (V, U, Y, X, C).
+    s : float
+        Refocus slope.
+    images : list of (ndarray (k Y, k X, C) float32, int k)
+
+    Returns
+    -------
+    ndarray, shape (V, U, Y, X, len(images)), float32
+    """
+    nv, nu, ny, nx, _ = lf.shape
+    vc, uc = lf.centre_index
+    out = np.empty((nv, nu, ny, nx, len(images)), np.float32)
+    for n, (img, k) in enumerate(images):
+        for v in range(nv):
+            rows = _resample_rows(img, k * (np.arange(ny) + s * (v - vc)))                 # (Y, k X, C)
+            for u in range(nu):
+                pred = _resample_rows(rows.swapaxes(0, 1), k * (np.arange(nx) + s * (u - uc))).swapaxes(0, 1)
+                out[v, u, ..., n] = np.square(lf.data[v, u] - pred).sum(axis=-1)
+    return out
+
+
+def in_focus_gain(lf: LightField, s: float, fused: np.ndarray, photo: np.ndarray, vmask: np.ndarray) -> np.ndarray:
+    """Where the fused detail is real: 1 where the views agree with the fused photograph much better than with the
+    1x photograph, 0 where both explain them equally (out of focus), on the 1x grid.
+
+    Every view's sample is compared with both photographs at its own position ``P = (y + s a, x + s b)``
+    (:func:`_view_residuals`); the squared residuals are gathered at ``P`` like a refocused photograph (weighted
+    by ``m w``, bilinear) and averaged over a Gaussian window of :data:`_CONSISTENCY_SIGMA` px::
+
+        R_F = G * E_s[(L - F(P))^2],   R_B = G * E_s[(L - E(P))^2],   rho = R_F / R_B
+        g = 1 for rho <= rho_0,  0 for rho >= rho_1,  smoothstep between  (:data:`_RHO`)
+
+    In focus the fused photograph ``F`` predicts every view up to the noise while the 1x photograph ``E`` misses
+    the detail the views alias (``rho`` small; with noise ``rho ~ noise / (noise + detail)``, a Wiener-like
+    test).  Out of focus the views disagree by their parallax and neither explains them (``rho`` near 1): the
+    fused detail there is the difference between the subsets of views each output phase averages, and is dropped.
+
+    Parameters
+    ----------
+    lf : LightField
+        ``data`` (V, U, Y, X, C) float32, optional ``weight`` (V, U, Y, X).
+    s : float
+        Refocus slope.
+    fused : ndarray (k Y, k X, C) float32
+        Normalised-convolution photograph.
+    photo : ndarray (Y, X, C) float32
+        Photograph refocused at ``s`` on the lenslet grid.
+    vmask : ndarray (V, U) float32
+        Aperture weights.
+
+    Returns
+    -------
+    ndarray, shape (Y, X), float32, in [0, 1]
+    """
+    k = fused.shape[0] // photo.shape[0]
+    res = _view_residuals(lf, s, [(fused, k), (photo, 1)])
+    r = np.concatenate([shift_sum(LightField(res[..., n:n + 1], lf.weight), s, aperture=vmask, interp="linear")[0]
+                        for n in range(2)], axis=-1).astype(np.float64)
+    r = cv2.GaussianBlur(r, (0, 0), _CONSISTENCY_SIGMA, borderType=cv2.BORDER_REPLICATE)
+    rho = r[..., 0] / np.maximum(r[..., 1], 1e-20)
+    t = np.clip((_RHO[1] - rho) / (_RHO[1] - _RHO[0]), 0.0, 1.0)
+    return (t * t * (3 - 2 * t)).astype(np.float32)
+
+
+def _fuse_samples(lf: LightField, s: np.ndarray, k: int, vmask: np.ndarray, h: np.ndarray,
+                  progress: Callable[[int, int], None] | None = None) -> np.ndarray:
+    """The normalised convolution of every view's samples on the ``k``-times finer grid with kernel scales
+    ``h`` (S, 2): (S, k Y, k X, C)."""
+    nv, nu, ny, nx, nc = lf.shape
+    vc, uc = lf.centre_index
+    a = np.arange(nv, dtype=np.float64) - vc
+    b = np.arange(nu, dtype=np.float64) - uc
+    if k > 1 and np.any(h.max(axis=1) >= _GAIN_GAP):
+        log.info("upsample: at slope(s) %s the views sample nearly the same points (phase gap >= %.2f px), so the "
+                 "%dx photograph is close to bicubic upsampling there", np.round(s[h.max(axis=1) >= _GAIN_GAP], 3),
+                 _GAIN_GAP, k)
+    out = np.empty((len(s), k * ny, k * nx, nc), np.float32)
+    for py in range(k):
+        by, wy = scaled_keys_taps(py / k - s[:, None] * a[None, :], h[:, :1])      # (S, V), (S, V, 4)
+        for px in range(k):
+            bx, wx = scaled_keys_taps(px / k - s[:, None] * b[None, :], h[:, 1:])  # (S, U), (S, U, 4)
+            out[:, py::k, px::k] = _fuse_phase(lf, vmask, (by, wy), (bx, wx))
+            if progress is not None:
+                progress(py * k + px + 1, k * k + 1)
+    return out
+
+
 def fuse_views(lf: LightField, slopes: float | np.ndarray, *, upsample: int = 2,
                aperture: float | np.ndarray = 1.0,
                progress: Callable[[int, int], None] | None = None) -> np.ndarray:
     """Refocused photographs on a ``k``-times finer grid, fused from every view's samples at their true positions.
 
     Normalised convolution of the samples ``L_vu(y, x)`` placed at ``(y + s a, x + s b)`` with Keys' kernel
-    stretched to the phase gap ``h`` of the views (module docstring)::
+    stretched to the phase gap ``h`` of the views, kept where the views agree with it (module docstring)::
 
         F_s(j / k, i / k) = sum K_h(q - P) m w L / sum K_h(q - P) m w
+        out = B + g (F - B),      B = Keys upsampling of the 1x photograph,  g = :func:`in_focus_gain`
 
     Parameters
     ----------
@@ -170,7 +298,7 @@ def fuse_views(lf: LightField, slopes: float | np.ndarray, *, upsample: int = 2,
     aperture : float or ndarray (V, U)
         See :func:`plenodecode.render.aperture_mask`.
     progress : callable(done, total), optional
-        Called after each of the ``k * k`` output phases.
+        Called after each of the ``k * k`` output phases and after the blend.
 
     Returns
     -------
@@ -182,24 +310,18 @@ def fuse_views(lf: LightField, slopes: float | np.ndarray, *, upsample: int = 2,
     if k < 1 or k != upsample:
         raise ValueError(f"upsample must be a positive integer, got {upsample}")
     vmask = aperture_mask(lf.shape[:2], aperture)
-    nv, nu, ny, nx, nc = lf.shape
-    vc, uc = lf.centre_index
-    a = np.arange(nv, dtype=np.float64) - vc
-    b = np.arange(nu, dtype=np.float64) - uc
     h = kernel_scales(lf, s, k, vmask)
-    if k > 1 and np.any(h.max(axis=1) >= _GAIN_GAP):
-        log.info("upsample: at slope(s) %s the views sample nearly the same points (phase gap >= %.2f px), so the "
-                 "%dx photograph is close to bicubic upsampling there", np.round(s[h.max(axis=1) >= _GAIN_GAP], 3),
-                 _GAIN_GAP, k)
-    out = np.empty((len(s), k * ny, k * nx, nc), np.float32)
-    for py in range(k):
-        by, wy = scaled_keys_taps(py / k - s[:, None] * a[None, :], h[:, :1])      # (S, V), (S, V, 4)
-        for px in range(k):
-            bx, wx = scaled_keys_taps(px / k - s[:, None] * b[None, :], h[:, 1:])  # (S, U), (S, U, 4)
-            out[:, py::k, px::k] = _fuse_phase(lf, vmask, (by, wy), (bx, wx))
-            if progress is not None:
-                progress(py * k + px + 1, k * k)
+    out = _fuse_samples(lf, s, k, vmask, h, progress)
+    sharp = np.flatnonzero(h.min(axis=1) < 1.0)           # h = 1 on both axes: the fusion is the bicubic
+    if k > 1 and sharp.size:
+        photos = shift_sum(lf, s[sharp], aperture=vmask)
+        for n, i in enumerate(sharp):
+            base = keys_upsample(photos[n], k)
+            gain = keys_upsample(in_focus_gain(lf, float(s[i]), out[i], photos[n], vmask)[..., None], k)
+            out[i] = base + np.clip(gain, 0.0, 1.0) * (out[i] - base)
+    if progress is not None:
+        progress(k * k + 1, k * k + 1)
     return out
 
 
-__all__ = ["fuse_views", "kernel_scales", "phase_gap", "scaled_keys_taps"]
+__all__ = ["fuse_views", "in_focus_gain", "keys_upsample", "kernel_scales", "phase_gap", "scaled_keys_taps"]
