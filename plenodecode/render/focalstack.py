@@ -50,7 +50,9 @@ def focal_stack(lf: LightField, slopes: np.ndarray | list[float], *, method: str
         Spatial samples per view step.
     method : str
         A key of :data:`plenodecode.render.REFOCUS_METHODS`.  'shift-sum' computes every slice in one pass
-        over the light field; 'fourier-slice' computes one 4D transform (or reuses ``refocuser=``).
+        over the light field; 'fourier-slice' computes one 4D transform (or reuses ``refocuser=``).  With
+        'shift-sum' and ``upsample > 1`` (and no ``interp``) the views are fused at their sub-pixel positions
+        (:func:`plenodecode.render.superres.fuse_views`).
     aperture, upsample, **kw
         As :func:`plenodecode.render.refocus`.
     progress : callable(done, total), optional
@@ -63,6 +65,10 @@ def focal_stack(lf: LightField, slopes: np.ndarray | list[float], *, method: str
     check_lightfield(lf)
     s = check_slopes(slopes)
     fn = get_method(method)
+    if method == "shift-sum" and upsample != 1 and not kw:
+        from .superres import fuse_views
+
+        fn = fuse_views
     return fn(lf, s, aperture=aperture, upsample=upsample, progress=progress, **kw)
 
 

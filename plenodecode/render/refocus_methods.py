@@ -2,7 +2,8 @@
 
 Methods: 'shift-sum' (:mod:`plenodecode.render.shiftsum`, direct, bicubic by default) and 'fourier-slice'
 (:mod:`plenodecode.render.fourier`, Ng 2005).  The alpha <-> slope conversion is in
-:mod:`plenodecode.render.alpha`.
+:mod:`plenodecode.render.alpha`.  ``refocus(..., upsample=k)`` with 'shift-sum' fuses the views' samples onto the
+finer grid (:func:`plenodecode.render.superres.fuse_views`) instead of interpolating each view.
 """
 
 from __future__ import annotations
@@ -51,7 +52,13 @@ def refocus(lf: LightField, *, slope: float | None = None, alpha: float | None =
     aperture : float or ndarray (V, U)
         Synthetic aperture: a radius in (0, 1] (1 = all views) or a mask over the views (:func:`aperture_mask`).
     upsample : int
-        Spatial upsampling factor.
+        Spatial upsampling factor ``k``: output sample ``(j, i)`` is the photograph at ``(j / k, i / k)``.  With
+        'shift-sum' the views' samples are fused at their true positions ``(y + s a, x + s b)``
+        (:func:`~plenodecode.render.superres.fuse_views`): surfaces at the refocus slope come out sharper than
+        bicubic upsampling of the 1x photograph when ``|slope|`` is a few tenths of a pixel per view or more (the
+        views then sample between each other's pixels; README, refocus section); at slope 0 every view samples the
+        same points and the result is bicubic upsampling (one INFO log line says so).  'fourier-slice' zero-pads
+        the spectrum (band-limited interpolation).
     progress : callable(done, total), optional
     **kw
         Refocus constants, then method options (shift-sum: ``interp``; fourier-slice: ``refocuser`` or
@@ -70,6 +77,13 @@ def refocus(lf: LightField, *, slope: float | None = None, alpha: float | None =
     elif const:
         raise ValueError(f"camera constants {sorted(const)} only apply with alpha")
     fn = get_method(method)
+    if method == "shift-sum" and upsample != 1:
+        if opts:
+            raise ValueError(f"options {sorted(opts)} do not apply to shift-sum with upsample > 1 (the views are "
+                             "fused with Keys' kernel, not interpolated)")
+        from .superres import fuse_views
+
+        fn = fuse_views
     return fn(lf, float(slope), aperture=aperture, upsample=upsample, progress=progress, **opts)[0]
 
 

@@ -393,8 +393,44 @@ def _shift_sum_phase(lf: LightField, slopes: np.ndarray, vmask: np.ndarray, inte
 
     The tiles are computed in ``chunks`` parallel calls, ``step()`` after each.
     """
-    nv, nu, ny, nx, nc = lf.shape
+    nv, nu = lf.shape[:2]
     vc, uc = lf.centre_index
+    a = np.arange(nv, dtype=np.float64) - vc
+    b = np.arange(nu, dtype=np.float64) - uc
+    by, wy = interpolation_taps(offset[0] - slopes[:, None] * a[None, :], interp)       # (S, V), (S, V, T)
+    bx, wx = interpolation_taps(offset[1] - slopes[:, None] * b[None, :], interp)       # (S, U), (S, U, T)
+    return sum_shifted_views(lf, vmask, (by, wy), (bx, wx), chunks, step)
+
+
+def sum_shifted_views(lf: LightField, vmask: np.ndarray, taps_y: tuple[np.ndarray, np.ndarray],
+                      taps_x: tuple[np.ndarray, np.ndarray], chunks: int = 1,
+                      step: Callable[[], None] = lambda: None) -> np.ndarray:
+    """The compiled shift-and-add with given separable taps, weight-normalised (see the module docstring).
+
+    ``out[s, y, x] = sum_{v,u,t,r} m_vu w_vu L_vu(y + by[s,v] + t, x + bx[s,u] + r) wy[s,v,t] wx[s,u,r]``
+    divided by the same sum without ``L`` when ``lf.weight`` is set, else multiplied by ``1 / sum(m)`` (so taps
+    that sum to 1 per view give the plain mean).  Rows and columns outside a view take its edge value.
+
+    Parameters
+    ----------
+    lf : LightField
+        ``data`` (V, U, Y, X, C) float32, optional ``weight`` (V, U, Y, X).
+    vmask : ndarray (V, U) float32
+        Aperture weights ``m``.
+    taps_y : (by, wy)
+        ``by`` (S, V) int64 first source row offset, ``wy`` (S, V, T) float32 weights (T = 2 or 4).
+    taps_x : (bx, wx)
+        ``bx`` (S, U) int64, ``wx`` (S, U, T) float32, likewise along x.
+    chunks : int
+        The tiles are computed in ``chunks`` parallel calls, ``step()`` after each.
+
+    Returns
+    -------
+    ndarray, shape (S, Y, X, C), float32
+    """
+    nv, nu, ny, nx, nc = lf.shape
+    by, wy = taps_y
+    bx, wx = taps_x
     data = lf.data
     if not (data.flags.c_contiguous and data.dtype == np.float32):
         log.debug("shift-sum: copying a non-contiguous or non-float32 light field")
@@ -402,12 +438,10 @@ def _shift_sum_phase(lf: LightField, slopes: np.ndarray, vmask: np.ndarray, inte
     data = data.reshape(nv, nu, ny, nx * nc)
     has_w = lf.weight is not None
     weight = np.ascontiguousarray(lf.weight, np.float32) if has_w else np.zeros((0, 0, 0, 0), np.float32)
-    a = np.arange(nv, dtype=np.float64) - vc
-    b = np.arange(nu, dtype=np.float64) - uc
-    bx, wx = interpolation_taps(offset[1] - slopes[:, None] * b[None, :], interp)       # (S, U), (S, U, T)
-    by, wy = interpolation_taps(offset[0] - slopes[:, None] * a[None, :], interp)       # (S, V), (S, V, T)
+    by, bx = np.ascontiguousarray(by, np.int64), np.ascontiguousarray(bx, np.int64)
+    wy, wx = np.ascontiguousarray(wy, np.float32), np.ascontiguousarray(wx, np.float32)
     tx0, tx1 = _nonzero_taps(wx)
-    ns = len(slopes)
+    ns = by.shape[0]
     cp = nc + (1 if has_w else 0)
     # tile columns: narrow ones along the left and right borders, where shifted reads leave the image (copied
     # with edges replicated), _COLS wide ones inside (read in place when no weight)

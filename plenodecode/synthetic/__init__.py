@@ -44,7 +44,7 @@ from .presets import PRESETS, Preset, get_preset
 _LAZY = {
     "SUBSAMPLES": "plenodecode.synthetic.kernels",
     **dict.fromkeys(["assign_pixels", "make_grid", "raytrix_lens_types"], "plenodecode.synthetic.lattice"),
-    **dict.fromkeys(["Plane", "Scene", "default_scene"], "plenodecode.synthetic.scene"),
+    **dict.fromkeys(["Plane", "Scene", "default_scene", "dot_chart"], "plenodecode.synthetic.scene"),
     **dict.fromkeys(["BAND_ROWS", "disk_profile", "disk_response", "vignetting"], "plenodecode.synthetic.sensor"),
     **dict.fromkeys(["simulate", "simulate_white"], "plenodecode.synthetic.simulate"),
     **dict.fromkeys(["Simulation", "Truth", "load_truth", "simulation_files", "truth_document", "write_simulation"],
@@ -56,4 +56,4 @@ __getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 __all__ = ["Preset", "PRESETS", "get_preset", "make_grid", "raytrix_lens_types", "assign_pixels", "disk_profile",
            "disk_response", "vignetting", "simulate_white", "Simulation", "simulate", "write_simulation",
            "simulation_files", "truth_document", "Truth", "load_truth", "SUBSAMPLES", "BAND_ROWS",
-           "Plane", "Scene", "default_scene"]
+           "Plane", "Scene", "default_scene", "dot_chart"]

@@ -117,6 +117,46 @@ class Simulation:
         }
         return LightField(data=data, weight=weight, colour="linear-srgb", metadata=meta)
 
+    def ground_truth_photograph(self, scale: int = 1, *, progress: Progress = None) -> np.ndarray:
+        """The centre view of the ideal light field sampled ``scale`` times finer: the exact photograph of a
+        fronto-parallel scene refocused at its disparity, at any resolution.
+
+        ``out[j, i, c]`` is the mean over the 1 x 1 px box in ``o`` centred at ``o = 0`` of the linear-sRGB
+        radiance ``L(o, y, x)`` at decoded ``(y, x) = (j / scale, i / scale)``, the rule of
+        :meth:`ground_truth_lightfield` (``scale = 1`` gives its centre view).  When every plane has the same
+        disparity ``d`` this is the photograph refocused at slope ``d``: view ``(v, u)`` at
+        ``P - d (v - vc, u - uc)`` averages ``T(P + d o')`` over the same box for every view.  Elsewhere it is
+        the centre view (all-in-focus, pinhole at the centre of the aperture).
+
+        Parameters
+        ----------
+        scale : int
+            Samples per decoded pixel (>= 1).
+        progress : callable(done, total), optional
+            Called after each channel.
+
+        Returns
+        -------
+        ndarray, shape (scale Y, scale X, C), float32
+        """
+        if self.preset.focused:
+            raise ValueError("ground_truth_photograph is defined for unfocused presets; a focused (Raytrix) "
+                             "simulation has truth['total_focus'] instead")
+        k = int(scale)
+        if k < 1 or k != scale:
+            raise ValueError(f"scale must be a positive integer, got {scale!r}")
+        smp = self.grid.decoded_sampling()
+        ny, nx = int(smp["Y"]), int(smp["X"])
+        c = self.textures.srgb.shape[1]
+        yy = (np.arange(k * ny, dtype=np.float64) / k)[:, None]
+        xx = (np.arange(k * nx, dtype=np.float64) / k)[None, :]
+        out = np.empty((k * ny, k * nx, c), np.float32)
+        for ch in range(c):
+            out[..., ch] = box_radiance(self.textures, yy, xx, 0.0, 0.0, ch, space="srgb")
+            if progress is not None:
+                progress(ch + 1, c)
+        return out
+
 
 # ---------------------------------------------------------------------------------------
 # writing and reading back
