@@ -525,7 +525,8 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
         parts.append(H.section("Lattice on the image", H.figure_html(
             _overlay_figure(grid, m), f"{detected}blue circles: grid centres, at the corners and the centre")))
         if len(m["centres"]):
-            what = "disk rims fitted at each lens, as self-calibration measures them" \
+            what = ("disk rims fitted at every lens as self-calibration measures them, lenses the fit rejected "
+                    "included; the RMS line is over the fit's inliers") \
                 if kind == "self-calibration" else "disks of the white image"
             parts.append(H.section("Residuals", H.figure_html(_residual_figure(grid, m, j.rms),
                                                                 f"detected minus grid centre ({what})")))
