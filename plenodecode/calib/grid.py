@@ -34,6 +34,70 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
+#: ``grid.info["source_kind"]``: how a grid was obtained, set by each calibration path -> what it is, in words.
+SOURCE_KINDS: dict[str, str] = {
+    "white-image": "fitted to white image(s)",
+    "self-calibration": "self-calibration from a scene (no white image)",
+    "camera-file": "the camera's own calibration file (Raytrix RayCalibData XML), used as given",
+    "grid-file": "a grid given as is, e.g. a grid JSON (no record of how it was made)",
+}
+#: Side, in lenses, of the blocks over which :func:`residual_statistics` averages residuals.
+MISFIT_BLOCK = 5
+
+
+def residual_statistics(residuals: np.ndarray, lens_ij: np.ndarray, *, block: int = MISFIT_BLOCK) -> dict[str, Any]:
+    """Statistics of the residuals of measured centres against a lattice (the inlier lenses).
+
+    * ``rms_px``: RMS distance between the measured centres and the lattice,
+      ``sqrt(mean |r_k|^2)``;
+    * ``sigma_px``: robust per-axis sigma from the median distance (``median |r| = 1.1774 sigma``
+      for a 2-D Gaussian), so ``rms / (sqrt(2) sigma)`` is ~1 for noise-like residuals;
+    * ``local_misfit_px``: the part of the residuals common to blocks of ``block x block``
+      lenses, i.e. how far the lattice sits from the centres locally, detection noise removed:
+      ``sqrt( sum_b n_b (|mean_b|^2 - s_w^2 / n_b) / sum_b n_b )`` over blocks of >= 5 lenses,
+      with ``s_w^2`` the pooled within-block variance (both axes).  Measured on generated
+      scenes, it reads a shifted or scaled lattice's true error 1:1 and bounds a fitted one's
+      from above (scene bias common to nearby lenses also enters it).
+
+    Parameters
+    ----------
+    residuals : ndarray (N, 2) float64
+        Measured minus lattice centre, px.
+    lens_ij : ndarray (N, 2) int
+        Lens index of each residual (any integer lattice indices).
+    block : int
+
+    Returns
+    -------
+    dict
+        ``rms_px``, ``sigma_px``, ``local_misfit_px`` (float, NaN without data) and ``n`` (int).
+    """
+    r = np.asarray(residuals, np.float64).reshape(-1, 2)
+    out: dict[str, Any] = {"n": int(len(r)), "rms_px": float("nan"), "sigma_px": float("nan"),
+                           "local_misfit_px": float("nan")}
+    if not len(r):
+        return out
+    d = np.hypot(r[:, 0], r[:, 1])
+    out["rms_px"] = float(np.sqrt(np.mean(d ** 2)))
+    out["sigma_px"] = float(np.median(d) / 1.1774)
+    _, inv, cnt = np.unique(np.asarray(lens_ij) // block, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.ravel()
+    mean = np.stack([np.bincount(inv, r[:, a]) for a in (0, 1)], axis=1) / cnt[:, None]
+    within = float(np.sum((r - mean[inv]) ** 2)) / max(1, int(np.sum(cnt - 1)))
+    use = cnt >= 5
+    if use.any():
+        common = np.sum(cnt[use] * (np.sum(mean[use] ** 2, axis=1) - within / cnt[use])) / np.sum(cnt[use])
+        out["local_misfit_px"] = float(np.sqrt(max(0.0, common)))
+    return out
+
+
+def inner_lens_count(grid: LensletGrid, margin: float = 1.0) -> int:
+    """Lenses of ``grid`` whose centre lies more than ``margin`` pitches inside the sensor."""
+    c = grid.centres()
+    H, W = grid.sensor_shape
+    m = margin * grid.pitch
+    return int(np.sum((c[:, 0] > m) & (c[:, 1] > m) & (c[:, 0] < H - 1 - m) & (c[:, 1] < W - 1 - m)))
+
 
 @dataclass(frozen=True)
 class LatticeFit:
@@ -573,8 +637,10 @@ def grid_from_fit(fit: LatticeFit, points: np.ndarray, sensor_shape: tuple[int, 
     inside = mask & (ij[:, 0] >= 0) & (ij[:, 0] < rows) & (ij[:, 1] >= 0) & (ij[:, 1] < cols)
     detected = np.zeros((rows, cols), bool)
     detected[ij[inside, 0], ij[inside, 1]] = True
+    stats = residual_statistics(fit.residuals[mask], fit.indices[mask])
     meta = dict(info or {})
     meta.update({
+        "fit_local_misfit_px": stats["local_misfit_px"],
         "n_lenses": int(rows * cols),
         "n_detected": int(fit.stats.get("n_points", len(points))),
         "n_fit": int(fit.inlier.sum()),
@@ -628,7 +694,7 @@ def grid_from_points(points: np.ndarray, est: "LatticeEstimate", sensor_shape: t
     meta = dict(info or {})
     meta.update({"autocorrelation_score": est.score})
     grid = grid_from_fit(fit, pts, (H, W), measured_mask=away, refine=refine, refine_window=refine_window,
-                            info=meta)
+                         info=meta)
     n_on = grid.info["n_lenses"]
     frac = fit.inlier.sum() / max(1, n_on)
     if fit.inlier.sum() < max(6, 0.05 * n_on):
@@ -637,8 +703,11 @@ def grid_from_points(points: np.ndarray, est: "LatticeEstimate", sensor_shape: t
     if fit.rms > 0.25 * fit.pitch:
         raise CalibrationError(f"the lattice fit is poor (RMS residual {fit.rms:.2f} px at pitch {fit.pitch:.2f} px); "
                                "expected a regular lenslet pattern")
-    return grid.replace(info={**grid.info, "fraction_fit": float(frac)})
+    n_inner = inner_lens_count(grid)
+    found = int((fit.inlier & away).sum())
+    return grid.replace(info={**grid.info, "fraction_fit": float(frac), "n_lenses_inner": n_inner,
+                              "fraction_found": float(min(1.0, found / max(1, n_inner)))})
 
 
-__all__ = ["LatticeFit", "index_points", "fit_lattice", "refit_grid", "lens_block", "block_index", "smooth_deviations",
+__all__ = ["SOURCE_KINDS", "MISFIT_BLOCK", "residual_statistics", "inner_lens_count", "LatticeFit", "index_points", "fit_lattice", "refit_grid", "lens_block", "block_index", "smooth_deviations",
            "grid_from_fit", "grid_from_points"]

@@ -56,9 +56,9 @@ Progress = Callable[[int, int], None] | None
 IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".exr")
 
 
-def _scene_image(raw: RawCapture | np.ndarray | str | os.PathLike) -> tuple[np.ndarray, dict[str, Any],
-                                                                              float | None]:
-    """Flattened image, provenance and a pitch hint from a raw, an array or a path."""
+def scene_image(raw: RawCapture | np.ndarray | str | os.PathLike) -> tuple[np.ndarray, dict[str, Any],
+                                                                             float | None]:
+    """Flattened image (H, W) float32, provenance and a pitch hint from a raw, an array or a path."""
     if isinstance(raw, (str, os.PathLike)):
         from ..io import read_raw
         p = Path(raw)
@@ -162,6 +162,32 @@ def _rim_points(img: np.ndarray, est: _c.LatticeEstimate, *, min_contrast: float
     return pts[ok], info
 
 
+def scene_centres(image: np.ndarray, grid: LensletGrid) -> tuple[np.ndarray, np.ndarray]:
+    """Disk centres of a scene measured at every lens of a grid by the 'rim' method (for reports).
+
+    Circles of the grid's rim radius (``grid.info['rim_radius_px']``, else
+    ``RIM_START_FRACTION * pitch``) are fitted to the lit rims, started at the grid centres
+    (:func:`~plenodecode.calib.centroids.refine_rims`), as the self-calibration measured them.
+
+    Parameters
+    ----------
+    image : ndarray (H, W) float32
+        Flattened scene (:func:`~plenodecode.calib.centroids.flatten_white`).
+    grid : LensletGrid
+
+    Returns
+    -------
+    centres : ndarray (N, 2) float64
+        Sensor ``(row, col)`` of the disks measured.
+    lens : ndarray (N,) int64
+        Flat index into ``grid.centres()`` of the lens each was started from.
+    """
+    radius = float(grid.info.get("rim_radius_px") or RIM_START_FRACTION * grid.pitch)
+    gy, gx = _c.rim_gradients(image, grid.pitch)
+    pts, ok = _c.refine_rims(gy, gx, grid.centres(), radius)
+    return pts[ok], np.flatnonzero(ok)
+
+
 def _peak_points(img: np.ndarray, est: _c.LatticeEstimate, *, method: str, min_contrast: float,
                  tick: Callable[[int], None]) -> tuple[np.ndarray, dict[str, Any]]:
     """Disk centres of a scene as intensity peaks (the white-image estimators)."""
@@ -206,7 +232,8 @@ def calibrate_from_scene(raw: RawCapture | np.ndarray | str | os.PathLike, *, la
     Returns
     -------
     LensletGrid
-        ``info['self_calibrated']`` is True; the 'rim' method adds ``rim_radius_px`` and the
+        ``info['source_kind']`` is 'self-calibration' (``info['self_calibrated']`` True); the
+        fit statistics are those of :func:`~plenodecode.calib.grid.grid_from_points`; the 'rim' method adds ``rim_radius_px`` and the
         centre scatter of each radius tried (``rim_radius_scan``).
 
     Raises
@@ -226,7 +253,7 @@ def calibrate_from_scene(raw: RawCapture | np.ndarray | str | os.PathLike, *, la
         if progress is not None:
             progress(k, total)
 
-    img, info, hint = _scene_image(raw)
+    img, info, hint = scene_image(raw)
     if float(np.percentile(img[::7, ::7], 99.9)) <= 0.0:
         raise CalibrationError("the scene is black: no lenslet disk is lit, so the grid cannot be found; "
                                "use a white image or a brighter exposure")
@@ -235,7 +262,8 @@ def calibrate_from_scene(raw: RawCapture | np.ndarray | str | os.PathLike, *, la
     tick(1)
     pts, extra = fn(img, est, min_contrast=min_contrast, tick=tick)
     info.update(extra)
-    info.update({"self_calibrated": True, "method": method, "lattice_requested": lattice})
+    info.update({"source_kind": "self-calibration", "self_calibrated": True, "method": method,
+                 "lattice_requested": lattice})
     grid = _g.grid_from_points(pts, est, img.shape, refine=refine, info=info)
     tick(4)
     return grid
@@ -423,7 +451,8 @@ def calibrate_raytrix(raw: RawCapture, cal: Any = None, *, refine: bool = False,
     Returns
     -------
     LensletGrid
-        With ``lens_type`` from the XML's three lens types.
+        With ``lens_type`` from the XML's three lens types; ``info['source_kind']`` is
+        'camera-file' (with ``info['refit']`` when refined).
 
     Raises
     ------
@@ -436,7 +465,8 @@ def calibrate_raytrix(raw: RawCapture, cal: Any = None, *, refine: bool = False,
         grid = rx.grid_from_raycalib(calib, raw.shape)
     except MetadataError as exc:
         raise CalibrationError(f"the RayCalibData cannot be used: {exc}") from exc
-    info = {**grid.info, "source": raw.path, "serial": raw.metadata.serial, "camera_model": raw.metadata.model}
+    info = {**grid.info, "source_kind": "camera-file", "source": raw.path, "serial": raw.metadata.serial,
+            "camera_model": raw.metadata.model}
     grid = grid.replace(info=info)
     if refine:
         img = _c.flatten_white(raw, equalise=raw.cfa is not None)
@@ -444,5 +474,5 @@ def calibrate_raytrix(raw: RawCapture, cal: Any = None, *, refine: bool = False,
     return grid
 
 
-__all__ = ["calibrate_from_scene", "calibrate_raytrix", "refine_grid", "IMAGE_EXTENSIONS", "SELFCAL_METHODS",
-           "RIM_FRACTIONS"]
+__all__ = ["calibrate_from_scene", "calibrate_raytrix", "scene_centres", "scene_image", "refine_grid",
+           "IMAGE_EXTENSIONS", "SELFCAL_METHODS", "RIM_FRACTIONS"]

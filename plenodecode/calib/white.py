@@ -182,8 +182,8 @@ def calibrate(white: WhiteInput, *, lattice: str = "auto", pitch_hint: float | N
     Returns
     -------
     LensletGrid
-        ``info`` holds the source, camera serial/model, zoom/focus steps, lens counts and fit
-        statistics.
+        ``info`` holds ``source_kind`` 'white-image' (:data:`~plenodecode.calib.grid.SOURCE_KINDS`),
+        the source(s), camera serial/model, zoom/focus steps, lens counts and fit statistics.
 
     Raises
     ------
@@ -230,7 +230,7 @@ def calibrate(white: WhiteInput, *, lattice: str = "auto", pitch_hint: float | N
     if binning == 2:
         est = _c.LatticeEstimate(est.lattice, est.pitch / 2, est.rotation, est.v1 / 2, est.v2 / 2, est.score)
     info = _camera_info(raws[0])
-    info["n_whites"] = len(raws)
+    info.update({"source_kind": "white-image", "n_whites": len(raws)})
     if len(raws) > 1:
         info["sources"] = [r.path for r in raws]
     info["binning"] = int(binning)

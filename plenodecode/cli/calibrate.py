@@ -32,7 +32,8 @@ def _write_text(path: Path, text: str) -> None:
                    "matching white image is written to -o.")
 @click.option("--for", "for_raw", type=click.Path(exists=True, path_type=Path, dir_okay=False), default=None,
               help="With --database: pick the white image for this raw (same serial, nearest zoom/focus).")
-@click.option("--scene", is_flag=True, help="Self-calibrate from a scene raw or image (no white image).")
+@click.option("--scene", "--self-calibrate", "scene", is_flag=True,
+              help="Self-calibrate from a scene raw or image (no white image).")
 @click.option("--refine", is_flag=True, help="Raytrix: refine the RayCalibData grid on the image.")
 @overwrite_option
 @click.pass_context
@@ -94,9 +95,10 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
         white = list(inputs)
     for msg in grid.info.get("warnings", []):
         click.echo(f"warning: {msg}", err=True)
+    from ..report.calibration import rms_text
     _write_text(output, grid.to_json())
     click.echo(f"grid  {output}  ({grid.lattice}, pitch {grid.pitch:.4f} px, rotation {grid.rotation:.6f} rad, "
-               f"{grid.shape[0]}x{grid.shape[1]} lenses, RMS {grid.residual_rms or 0:.3f} px)")
+               f"{grid.shape[0]}x{grid.shape[1]} lenses, RMS {rms_text(grid)})")
     if report is not None:
         from ..report.calibration import write_calibration_report
         write_calibration_report(grid, white, report, overwrite=overwrite)

@@ -1,9 +1,21 @@
-"""Calibration report: one self-contained HTML page to judge a fitted lenslet grid.
+"""Calibration report: one self-contained HTML page to judge a lenslet grid by what its source can show.
 
-Contents: the fitted parameters; zoomed overlays of the detected disk centres and the lattice at
-the sensor centre and at each corner; a map and a histogram of the residuals (measured centre
-minus grid centre); the vignetting profile (mean white level against the distance from the
-sensor centre); and warnings (lenses not found, high residuals, a scene used as a white).
+The header names the grid's source (``grid.info['source_kind']``, one of
+:data:`plenodecode.calib.grid.SOURCE_KINDS`) and gives a verdict -- good, check or bad -- from
+rules stated on the page:
+
+* **white image(s)** (and grids of unknown origin checked against white images): the RMS and
+  the disks of the white image measured against the grid (lenses more than 0.5 px off, disks
+  near no lens, lenses without a disk);
+* **self-calibration**: what a scene can show -- the RMS compared with the spread that
+  scene-based centre detection has, the local misfit of the lattice and the fraction of lenses
+  found (:data:`SELFCAL_RULES`, thresholds measured on generated scenes);
+* **the camera's own calibration file** (Raytrix XML) used as given: no residual judgement, the
+  grid is drawn on the image only (and a refit on the image, when asked for, is reported as such).
+
+One RMS figure, :data:`RMS_DEFINITION`, is used on the page and by ``plenodecode calibrate``
+(:func:`rms_text`).  Further contents: fitted parameters, zoomed overlays at the sensor centre and
+corners, residual map and histogram, and (white images) the vignetting profile.
 """
 
 from __future__ import annotations
@@ -11,6 +23,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -22,19 +35,76 @@ from . import html as H
 
 log = logging.getLogger(__name__)
 
-#: Residual (px) above which a lens counts as badly placed in the warnings.
+#: The one RMS figure of a calibration, shown on the report and in the CLI's summary line.
+RMS_DEFINITION = ("RMS: root-mean-square distance between the measured micro-image centres and the fitted "
+                  "lattice, px, over the inlier lenses")
+#: Verdicts, from best to worst.
+LEVELS = ("good", "check", "bad")
+#: Residual (px) above which a lens of a white image counts as off the grid.
 HIGH_RESIDUAL_PX = 0.5
-#: Fraction of fully visible lenses without a detected disk above which a warning is shown.
+#: Fraction of the white image's disks allowed to be off the grid by more than HIGH_RESIDUAL_PX.
+HIGH_RESIDUAL_FRACTION = 0.01
+#: Fraction of fully visible lenses without a detected disk above which a white image is flagged.
 MISSING_WARN_FRACTION = 0.02
+#: White images: RMS (px) up to which a fit is good / to check (sample white images fit at 0.03-0.04 px).
+WHITE_RMS_PX = (0.1, 0.25)
+#: Self-calibration rules: quantity -> (good up to / from, check up to / from), see SELFCAL_BASIS.
+SELFCAL_RULES = {
+    "rms_pitch": (0.08, 0.125),        # RMS / pitch, at most
+    "misfit_pitch": (0.05, 0.10),      # local misfit / pitch, at most
+    "found": (0.5, 0.2),               # fraction of the inner lenses found, at least
+}
+#: How the self-calibration thresholds were derived (printed on the report).
+SELFCAL_BASIS = (
+    "Thresholds measured on generated scenes with known grids (f01-mini and illum-mini, 3 seeds each, "
+    "with and without noise, and as 8-bit JPEG q80): the fitted grids were 0.002-0.013 px from the truth "
+    "while the detections scattered with RMS 0.005-0.016 pitch (RMS / (sqrt 2 x robust sigma) 1.06-1.15: "
+    "noise-like), local misfit 0.003-0.008 pitch, 88-98 % of the lenses found; the real F01 JPEGs give RMS "
+    "0.04-0.05 pitch, local misfit 0.02-0.035 pitch, 80-86 % found.  Grids moved off the fit by a known "
+    "amount (0.3 px shift, 0.1 % and 0.3 % pitch, 1 mrad rotation) read local misfits equal to their true "
+    "RMS error (0.30, 0.52, 1.57, 0.52 px).  RMS up to 0.08 pitch keeps the 4-sigma inlier cut "
+    "(4 RMS / sqrt 2 = 0.23 pitch) inside the 0.25-pitch window in which a centre is assigned to a lens.")
 
 
-def _measure(grid: LensletGrid, white: RawCapture | Sequence[RawCapture]) -> dict[str, Any]:
-    """Flattened white, detected centres and their residuals against the grid."""
+@dataclass(frozen=True)
+class Check:
+    """One judged quantity of a report: what, its value, the rule, and the level reached."""
+
+    quantity: str
+    value: str
+    rule: str
+    level: str
+    note: str = ""
+
+
+def _level(value: float, good: float, check: float, *, higher_is_better: bool = False) -> str:
+    if not math.isfinite(value):
+        return "check"
+    if higher_is_better:
+        return "good" if value >= good else "check" if value >= check else "bad"
+    return "good" if value <= good else "check" if value <= check else "bad"
+
+
+def source_kind(grid: LensletGrid) -> str:
+    """The grid's ``info['source_kind']``; 'grid-file' when it carries none (a grid of unknown origin)."""
+    from ..calib.grid import SOURCE_KINDS
+    kind = grid.info.get("source_kind")
+    return kind if kind in SOURCE_KINDS else "grid-file"
+
+
+def rms_text(grid: LensletGrid) -> str:
+    """The one RMS figure as shown by the report and ``plenodecode calibrate`` (:data:`RMS_DEFINITION`)."""
+    if source_kind(grid) == "camera-file" and "refit" not in grid.info:
+        return "n/a (grid used as given)"
+    return "n/a" if grid.residual_rms is None else f"{grid.residual_rms:.3f} px"
+
+
+def _white_measure(grid: LensletGrid, raws: Sequence[RawCapture]) -> dict[str, Any]:
+    """Flattened white, disks detected as for a white image and their residuals against the grid."""
     from scipy.spatial import cKDTree
 
     from ..calib import centroids as C
 
-    raws = [white] if isinstance(white, RawCapture) else list(white)
     img = None
     for r in raws:
         f = C.flatten_white(r, equalise=r.cfa is not None)
@@ -60,8 +130,29 @@ def _measure(grid: LensletGrid, white: RawCapture | Sequence[RawCapture]) -> dic
     if len(all_peaks):
         dp, ip = cKDTree(centres).query(all_peaks.astype(np.float64))
         found[ip[dp < 0.3 * grid.pitch]] = True
-    return {"img": img, "centres": cen, "residuals": res, "assigned": assigned, "grid_centres": centres,
+    return {"img": img, "centres": cen, "residuals": res, "assigned": assigned, "lens": idx, "grid_centres": centres,
             "full": full, "found": found}
+
+
+def _scene_measure(grid: LensletGrid, raws: Sequence[RawCapture]) -> dict[str, Any]:
+    """Flattened scene and its disks measured by their rims at every lens (as self-calibration does)."""
+    from ..calib.selfcal import scene_centres, scene_image
+
+    img = scene_image(raws[0])[0]
+    centres = grid.centres()
+    cen, lens = scene_centres(img, grid)
+    res = cen - centres[lens]
+    return {"img": img, "centres": cen, "residuals": res, "assigned": np.ones(len(cen), bool), "lens": lens,
+            "grid_centres": centres}
+
+
+def _image_measure(grid: LensletGrid, raws: Sequence[RawCapture]) -> dict[str, Any]:
+    """The image and the grid, no detection (grids used as given)."""
+    from ..calib import centroids as C
+
+    img = C.flatten_white(raws[0], equalise=raws[0].cfa is not None) if raws else None
+    return {"img": img, "centres": np.zeros((0, 2)), "residuals": np.zeros((0, 2)), "assigned": np.zeros(0, bool),
+            "lens": np.zeros(0, int), "grid_centres": grid.centres()}
 
 
 def _overlay_figure(grid: LensletGrid, m: dict[str, Any]) -> Any:
@@ -98,7 +189,7 @@ def _overlay_figure(grid: LensletGrid, m: dict[str, Any]) -> Any:
     return fig
 
 
-def _residual_figure(grid: LensletGrid, m: dict[str, Any]) -> Any:
+def _residual_figure(grid: LensletGrid, m: dict[str, Any], rms: float | None) -> Any:
     import matplotlib
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
@@ -114,8 +205,9 @@ def _residual_figure(grid: LensletGrid, m: dict[str, Any]) -> Any:
                         reduce_C_function=np.mean, cmap="viridis", vmin=0, vmax=top)
         fig.colorbar(hb, ax=ax0, label="mean |residual| (px)")
         ax1.hist(mag, bins=60, range=(0, max(top * 1.5, 0.05)), color="#4477aa")
-        ax1.axvline(float(np.sqrt(np.mean(mag ** 2))), color="k", ls="--", lw=1, label="RMS")
-        ax1.legend(fontsize=8)
+        if rms is not None:
+            ax1.axvline(rms, color="k", ls="--", lw=1, label="RMS")
+            ax1.legend(fontsize=8)
     ax0.set_xlim(0, w)
     ax0.set_ylim(h, 0)
     ax0.set_aspect("equal")
@@ -169,39 +261,214 @@ def _vignetting_figure(m: dict[str, Any]) -> Any:
     return fig
 
 
-def calibration_warnings(grid: LensletGrid, m: dict[str, Any]) -> list[str]:
-    """Human-readable warnings about a calibration (missing lenses, high residuals, bad input)."""
-    out = [str(w) for w in grid.info.get("warnings", [])]
+def _judge_white(grid: LensletGrid, m: dict[str, Any], kind: str) -> tuple[list[Check], float | None]:
+    """Checks of a grid against white image(s); returns them and the RMS (recorded, else measured here)."""
+    from ..calib.grid import residual_statistics
+
+    checks: list[Check] = []
+    a = m["assigned"]
+    n_det = len(a)
+    mag = np.hypot(*m["residuals"][a].T) if a.sum() else np.zeros(0)
+    rms = grid.residual_rms if kind == "white-image" else None
+    how = "of the fit"
+    if rms is None and len(mag):
+        ij = np.stack(np.unravel_index(m["lens"][a], grid.shape), axis=1)
+        inl = mag < max(4.0 * float(np.median(mag)) / 1.1774, 1e-3)
+        rms = residual_statistics(m["residuals"][a][inl], ij[inl])["rms_px"]
+        how = "measured here against the white image"
+    if rms is not None:
+        checks.append(Check("RMS", f"{rms:.3f} px ({how})",
+                            f"good <= {WHITE_RMS_PX[0]} px, check <= {WHITE_RMS_PX[1]} px (white images)",
+                            _level(rms, *WHITE_RMS_PX),
+                            "" if rms <= WHITE_RMS_PX[0] else f"RMS residual {rms:.3f} px is high for a white "
+                                                              f"image (expected < {WHITE_RMS_PX[0]} px)"))
+    if not n_det:
+        checks.append(Check("disks detected", "0", "a white image shows every lens's disk", "bad",
+                            "no lens disk could be detected in the white image"))
+        return checks, rms
+    near = a.mean()
+    checks.append(Check("detected disks near a grid lens", f"{near:.1%} of {n_det}",
+                        "good >= 99 %, check >= 90 % (within 0.3 pitch)", _level(near, 0.99, 0.90,
+                                                                                 higher_is_better=True),
+                        "" if near >= 0.99 else f"{n_det - int(a.sum())} of {n_det} disks of the white image "
+                                                 "lie near no grid lens: the grid does not match this white image"))
+    if len(mag):
+        high = float(np.mean(mag > HIGH_RESIDUAL_PX))
+        ok = high <= HIGH_RESIDUAL_FRACTION
+        checks.append(Check(f"lenses more than {HIGH_RESIDUAL_PX} px off", f"{high:.1%}",
+                            f"good <= {HIGH_RESIDUAL_FRACTION:.0%}", "good" if ok else "bad",
+                            "" if ok else f"{int(np.sum(mag > HIGH_RESIDUAL_PX))} lenses ({high:.1%}) are more than "
+                                          f"{HIGH_RESIDUAL_PX} px from the grid; check the residual map for "
+                                          "distortion or a wrong white image"))
     full = m["full"]
     missing = full & ~m["found"]
-    if full.sum() and missing.sum() / full.sum() > MISSING_WARN_FRACTION:
-        out.append(f"{int(missing.sum())} of {int(full.sum())} fully visible lenses ({missing.sum() / full.sum():.1%}) "
-                   "show no detectable disk (dust, dead lenses or dark corners); the lattice places them")
-    a = m["assigned"]
-    if a.sum():
-        mag = np.hypot(*m["residuals"][a].T)
-        high = mag > HIGH_RESIDUAL_PX
-        if high.mean() > 0.01:
-            out.append(f"{int(high.sum())} lenses ({high.mean():.1%}) are more than {HIGH_RESIDUAL_PX} px from the "
-                       "grid; check the residual map for distortion or a wrong white image")
-        rms = float(np.sqrt(np.mean(mag ** 2)))
-        if rms > 0.1:
-            out.append(f"RMS residual {rms:.3f} px is high for a white image (expected < 0.1 px)")
-    else:
-        out.append("no lens disk could be detected in the white image")
-    return out
+    frac = float(missing.sum() / full.sum()) if full.sum() else 0.0
+    ok = frac <= MISSING_WARN_FRACTION
+    checks.append(Check("fully visible lenses without a disk", f"{int(missing.sum())} of {int(full.sum())} "
+                        f"({frac:.1%})", f"good <= {MISSING_WARN_FRACTION:.0%}", "good" if ok else "check",
+                        "" if ok else f"{int(missing.sum())} of {int(full.sum())} fully visible lenses ({frac:.1%}) "
+                                      "show no detectable disk (dust, dead lenses or dark corners); the lattice "
+                                      "places them"))
+    return checks, rms
 
 
-def write_calibration_report(grid: LensletGrid, white: Any, path: str | os.PathLike, *,
-                             overwrite: bool = False, title: str | None = None) -> Path:
-    """Write one self-contained HTML report of a calibration.
+def _judge_selfcal(grid: LensletGrid) -> list[Check]:
+    """Checks of a self-calibrated grid from its fit statistics (``grid.info``)."""
+    inf = grid.info
+    p = grid.pitch
+    checks = []
+    rms = grid.residual_rms
+    if rms is not None:
+        sigma = inf.get("fit_sigma_px")
+        tail = f"; RMS / (sqrt 2 x robust sigma) = {rms / (math.sqrt(2) * sigma):.2f}, ~1 when noise-like" \
+            if sigma else ""
+        g, c = SELFCAL_RULES["rms_pitch"]
+        lv = _level(rms / p, g, c)
+        checks.append(Check("RMS", f"{rms:.3f} px = {rms / p:.3f} pitch{tail}",
+                            f"good <= {g} pitch, check <= {c} pitch (expected spread of scene-based centres)", lv,
+                            "" if lv == "good" else f"the detected centres scatter by {rms / p:.3f} pitch about the "
+                                                    "lattice, more than scene-based detection does"))
+    mis = inf.get("fit_local_misfit_px")
+    if mis is not None and math.isfinite(mis):
+        g, c = SELFCAL_RULES["misfit_pitch"]
+        lv = _level(mis / p, g, c)
+        checks.append(Check(f"local misfit (blocks of 5 x 5 lenses, detection noise removed)",
+                            f"{mis:.3f} px = {mis / p:.3f} pitch", f"good <= {g} pitch, check <= {c} pitch", lv,
+                            "" if lv == "good" else f"the lattice sits {mis:.2f} px off the detected centres "
+                                                    "locally: check the residual map"))
+    found = inf.get("fraction_found")
+    if found is not None:
+        g, c = SELFCAL_RULES["found"]
+        lv = _level(found, g, c, higher_is_better=True)
+        checks.append(Check("lenses found (inliers, of the lenses a pitch inside the sensor)",
+                            f"{found:.1%} of {inf.get('n_lenses_inner')}", f"good >= {g:.0%}, check >= {c:.0%}", lv,
+                            "" if lv == "good" else f"only {found:.0%} of the lenses were found in the scene (dark "
+                                                    "or featureless regions); the lattice is extrapolated there"))
+    return checks
+
+
+@dataclass(frozen=True)
+class Judgement:
+    """The verdict of a calibration report.
+
+    Attributes
+    ----------
+    verdict : 'good', 'check', 'bad', or 'as given' (nothing judged)
+    checks : list of Check
+    warnings : list of str
+        The grid's own warnings and one line per check below 'good'.
+    rms : float or None
+        The one RMS figure (:data:`RMS_DEFINITION`), px.
+    rms_origin : str
+        'fit' (recorded by the calibration) or 'report' (measured against the images given).
+    """
+
+    verdict: str
+    checks: list[Check]
+    warnings: list[str]
+    rms: float | None
+    rms_origin: str
+
+
+def judge_calibration(grid: LensletGrid, m: dict[str, Any] | None = None) -> Judgement:
+    """Verdict of a calibration by what its source can show.
 
     Parameters
     ----------
     grid : LensletGrid
-        The fitted grid.
-    white : RawCapture, path or sequence of them
-        The white image(s) the grid was fitted on.
+    m : dict, optional
+        White-image measurement (only for white images and grids of unknown origin).
+
+    Returns
+    -------
+    Judgement
+    """
+    kind = source_kind(grid)
+    warnings = [str(w) for w in grid.info.get("warnings", [])]
+    rms, origin = grid.residual_rms, "fit"
+    if kind == "camera-file":
+        return Judgement("as given", [], warnings, rms if "refit" in grid.info else None, "fit")
+    if kind == "self-calibration":
+        checks = _judge_selfcal(grid)
+    elif m is not None and "found" in m:
+        checks, rms = _judge_white(grid, m, kind)
+        origin = "fit" if kind == "white-image" and grid.residual_rms is not None else "report"
+    else:
+        checks = []
+    warnings += [c.note for c in checks if c.level != "good" and c.note]
+    levels = [c.level for c in checks] + (["check"] if grid.info.get("warnings") else [])
+    verdict = max(levels, key=LEVELS.index) if levels else "as given"
+    return Judgement(verdict, checks, warnings, rms, origin)
+
+
+def _files(paths: Sequence[Any]) -> str:
+    names = [str(q) for q in paths if q]
+    return ", ".join(names) if names else "(given in memory)"
+
+
+def source_line(grid: LensletGrid, raws: Sequence[RawCapture], grid_path: Path | None = None) -> str:
+    """One line naming where the grid comes from (the report's subtitle)."""
+    from ..calib.grid import SOURCE_KINDS
+
+    kind = source_kind(grid)
+    inf = grid.info
+    files = inf.get("sources") or ([inf["source"]] if inf.get("source") else [r.path for r in raws])
+    if kind in ("white-image", "self-calibration"):
+        line = f"{SOURCE_KINDS[kind]}: {_files(files)}"
+    elif kind == "camera-file":
+        line = f"{SOURCE_KINDS[kind]}: the RayCalibData of {_files(files)}"
+        if "refit" in inf:
+            line += f", refitted on the image ({inf['refit'].get('method', '?')})"
+    else:
+        line = f"{SOURCE_KINDS[kind]}" if grid_path is None else f"grid JSON {grid_path} (no record of how it was made)"
+        if raws:
+            line += f"; checked against {_files([r.path for r in raws])}"
+    if grid_path is not None and kind != "grid-file":
+        line = f"grid JSON {grid_path}, {line}"
+    return "source: " + line
+
+
+def _params(grid: LensletGrid) -> list[tuple[str, str]]:
+    inf = grid.info
+    rows = [
+        ("lattice", grid.lattice),
+        ("pitch (along rows)", f"{grid.pitch:.5f} px"),
+        ("row spacing", f"{grid.row_spacing:.5f} px ({grid.row_spacing / grid.pitch:.5f} x pitch)"),
+        ("rotation", f"{grid.rotation:.6f} rad ({math.degrees(grid.rotation):.4f} deg)"),
+        ("origin (lens 0, 0)", f"row {grid.origin[0]:.3f}, col {grid.origin[1]:.3f}"),
+        ("odd row shift", f"{grid.odd_row_shift:+.1f} pitch"),
+        ("lenses (rows x cols)", f"{grid.shape[0]} x {grid.shape[1]} = {grid.shape[0] * grid.shape[1]}"),
+        ("sensor (H x W)", f"{grid.sensor_shape[0]} x {grid.sensor_shape[1]}"),
+        ("disk radius", f"{grid.radius:.3f} px"),
+        ("refined lenses", str(int(np.isfinite(grid.refined[..., 0]).sum())) if grid.refined is not None else "0"),
+        ("source kind", source_kind(grid)),
+    ]
+    if grid.lens_type is not None:
+        types, counts = np.unique(np.asarray(grid.lens_type), return_counts=True)
+        rows.append(("lens types", ", ".join(f"type {t}: {c}" for t, c in zip(types, counts))))
+    if "refit" in inf:
+        rf = inf["refit"]
+        rows.append(("refit on the image", ", ".join(f"{k} {v}" for k, v in rf.items() if k != "change")))
+    for key in ("camera_model", "serial", "zoom_step", "focus_step", "n_whites", "method", "binning", "rim_radius_px",
+                "n_detected", "n_fit"):
+        if inf.get(key) is not None:
+            v = inf[key]
+            rows.append((key.replace("_", " "), f"{v:.3f}" if isinstance(v, float) else str(v)))
+    return rows
+
+
+def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, path: str | os.PathLike, *,
+                             overwrite: bool = False, title: str | None = None) -> Path:
+    """Write one self-contained HTML report of a calibration, judged by what its source can show.
+
+    Parameters
+    ----------
+    grid : LensletGrid or path of a grid JSON
+        The grid; its ``info['source_kind']`` (:data:`plenodecode.calib.grid.SOURCE_KINDS`) chooses
+        how it is judged (module docstring); a grid without one is checked against ``white``.
+    white : RawCapture, path, sequence of them, or None
+        The images the grid came from: white image(s), the scene of a self-calibration, or the
+        Raytrix image (drawn under its grid).
     path : path
         Output ``.html`` (written to a temporary name, then renamed).
     overwrite : bool
@@ -220,48 +487,57 @@ def write_calibration_report(grid: LensletGrid, white: Any, path: str | os.PathL
     p = check_destination(path, overwrite)
     from ..calib import _as_raws
 
-    raws = _as_raws(white)
-    m = _measure(grid, raws)
-    a = m["assigned"]
-    mag = np.hypot(*m["residuals"][a].T) if a.sum() else np.zeros(0)
-    inf = grid.info
-    params = [
-        ("lattice", grid.lattice),
-        ("pitch (along rows)", f"{grid.pitch:.5f} px"),
-        ("row spacing", f"{grid.row_spacing:.5f} px ({grid.row_spacing / grid.pitch:.5f} x pitch)"),
-        ("rotation", f"{grid.rotation:.6f} rad ({math.degrees(grid.rotation):.4f} deg)"),
-        ("origin (lens 0, 0)", f"row {grid.origin[0]:.3f}, col {grid.origin[1]:.3f}"),
-        ("odd row shift", f"{grid.odd_row_shift:+.1f} pitch"),
-        ("lenses (rows x cols)", f"{grid.shape[0]} x {grid.shape[1]} = {grid.shape[0] * grid.shape[1]}"),
-        ("sensor (H x W)", f"{grid.sensor_shape[0]} x {grid.sensor_shape[1]}"),
-        ("disk radius", f"{grid.radius:.3f} px"),
-        ("fit RMS residual", "n/a" if grid.residual_rms is None else f"{grid.residual_rms:.4f} px"),
-        ("refined lenses", str(int(np.isfinite(grid.refined[..., 0]).sum())) if grid.refined is not None else "0"),
-        ("disks detected (report)", f"{int(a.sum())} ({int(m['found'][m['full']].sum())} of "
-                                    f"{int(m['full'].sum())} fully visible lenses)"),
-        ("residual RMS / 95th pct (report)",
-         f"{float(np.sqrt(np.mean(mag ** 2))) if len(mag) else float('nan'):.4f} / "
-         f"{float(np.percentile(mag, 95)) if len(mag) else float('nan'):.4f} px"),
-    ]
-    for key in ("camera_model", "serial", "zoom_step", "focus_step", "source", "n_whites", "method", "binning"):
-        if inf.get(key) is not None:
-            params.append((key.replace("_", " "), str(inf[key])))
-    warnings = calibration_warnings(grid, m)
-    notes = H.notes_html(warnings) if warnings else H.notes_html(["no problems found"], kind="ok")
-    parts = [
-        H.section("Warnings", notes),
-        H.section("Fitted parameters", H.table_html(params, header=("parameter", "value"))),
-        H.section("Detected centres and lattice",
-                  H.figure_html(_overlay_figure(grid, m), "red +: detected disk centres; blue circles: grid centres "
-                                                          "(refined where measured), at the corners and the centre")),
-        H.section("Residuals", H.figure_html(_residual_figure(grid, m), "detected minus grid centre, every lens")),
-        H.section("Vignetting", H.figure_html(_vignetting_figure(m), "mean normalised white level against radius")),
-    ]
-    src = inf.get("source") or (raws[0].path if raws else None) or "(given in memory)"
-    doc = H.page(title or "plenodecode calibration report", parts, subtitle=f"white image: {src}")
+    grid_path = None
+    if not isinstance(grid, LensletGrid):
+        grid_path = Path(grid)
+        grid = LensletGrid.from_json(grid_path.read_text())
+    raws = [] if white is None else _as_raws(white)
+    kind = source_kind(grid)
+    m = None
+    if raws:
+        m = (_scene_measure if kind == "self-calibration" and grid.info.get("method") == "rim" else
+             _image_measure if kind == "camera-file" else _white_measure)(grid, raws)
+    j = judge_calibration(grid, m)
+    rms = rms_text(grid) if j.rms_origin == "fit" else f"{j.rms:.3f} px (measured against the images given)"
+    head = f"verdict: {j.verdict}; RMS {rms}"
+    box = H.notes_html([head], kind="ok" if j.verdict in ("good", "as given") else "warn")
+    notes = (H.notes_html(j.warnings) if j.warnings else "" if j.verdict == "as given" else
+             H.notes_html(["no problems found"], kind="ok"))
+    if kind == "camera-file":
+        how = ("The camera's own calibration is used as given: plenodecode did not measure it, so there is no "
+               "residual or off-grid judgement; the figure draws the grid on the image for a visual check."
+               + (" The refit on the image is the one measurement made (see the parameters)." if "refit" in grid.info
+                  else ""))
+        judged = f"<p>{H.escape(how)}</p>"
+    else:
+        rows = [(c.quantity, c.value, c.rule, c.level) for c in j.checks]
+        judged = (H.table_html(rows, header=("quantity", "value", "rule", "level")) if rows else
+                  "<p>No image to check the grid against.</p>")
+        judged += f'<p class="muted">{H.escape(RMS_DEFINITION)}.</p>'
+        if kind == "self-calibration":
+            judged += (f'<p class="muted">Self-calibration is judged by what a scene can show: the scatter of the '
+                       f"detected centres about the lattice, the lattice's local misfit, and the lenses found. "
+                       f"{H.escape(SELFCAL_BASIS)}</p>")
+    parts = [H.section("Verdict", box, notes), H.section("How this grid is judged", judged),
+             H.section("Grid parameters (as given)" if kind == "camera-file" else "Fitted parameters", H.table_html(_params(grid), header=("parameter", "value")))]
+    if m is not None and m["img"] is not None:
+        detected = "red +: detected disk centres; " if len(m["centres"]) else ""
+        parts.append(H.section("Lattice on the image", H.figure_html(
+            _overlay_figure(grid, m), f"{detected}blue circles: grid centres, at the corners and the centre")))
+        if len(m["centres"]):
+            what = ("disk rims fitted at every lens as self-calibration measures them, lenses the fit rejected "
+                    "included; the RMS line is over the fit's inliers") \
+                if kind == "self-calibration" else "disks of the white image"
+            parts.append(H.section("Residuals", H.figure_html(_residual_figure(grid, m, j.rms),
+                                                                f"detected minus grid centre ({what})")))
+        if kind not in ("self-calibration", "camera-file"):
+            parts.append(H.section("Vignetting", H.figure_html(_vignetting_figure(m),
+                                                                 "mean normalised white level against radius")))
+    doc = H.page(title or "plenodecode calibration report", parts, subtitle=source_line(grid, raws, grid_path))
     out = H.write_html(p, doc, overwrite=overwrite)
     log.info("calibration report written to %s", out)
     return out
 
 
-__all__ = ["write_calibration_report", "calibration_warnings", "vignetting_profile"]
+__all__ = ["write_calibration_report", "judge_calibration", "source_kind", "source_line", "rms_text",
+           "vignetting_profile", "Check", "Judgement", "RMS_DEFINITION", "SELFCAL_RULES", "SELFCAL_BASIS", "LEVELS"]
