@@ -8,7 +8,7 @@ import click
 
 from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES
 from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
-from .common import RegistryChoice, bit_depth_option, database_option, jobs_option, progress_bar
+from .common import FINITE, RegistryChoice, bit_depth_option, database_option, jobs_option, progress_bar
 
 
 def _parse_outputs(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
@@ -42,7 +42,7 @@ def _echo_table(summary) -> None:
 @click.option("--format", "lf_format", type=RegistryChoice("plenodecode.batch", "LIGHTFIELD_NAMES"), default="zarr", show_default=True,
               help="Format of the 'lightfield' product.")
 @bit_depth_option
-@click.option("--slope", type=float, default=0.0, show_default=True, help="Refocus slope of the 'refocus' product.")
+@click.option("--slope", type=FINITE, default=0.0, show_default=True, help="Refocus slope of the 'refocus' product.")
 @click.option("--depth-method", type=RegistryChoice("plenodecode.depth", "DEPTH_METHODS"),
               default=DEFAULT_DEPTH_METHOD, show_default=True, help="Method of the 'depth' product.")
 @click.option("--overwrite", is_flag=True, help="Redo raws a previous run finished and replace their outputs.")
@@ -64,8 +64,6 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
     from ..batch import BatchOptions, check_summary_files, find_raws, run_batch, write_summary
     from ..calib.store import DEFAULT_DB
 
-    if jobs is not None and jobs < 1:
-        raise click.BadParameter(f"must be >= 1, got {jobs}", param_hint="--jobs")
     db_dir = database or Path(DEFAULT_DB)
     if not db_dir.is_dir():
         raise click.BadParameter(f"{db_dir} is not a folder; build the database with `plenodecode calibrate "
