@@ -409,12 +409,10 @@ def refocus_stem(*, slope: float | None = None, alpha: float | None = None) -> s
 def render_refocus(src: Source, *, slope: float | None = None, alpha: float | None = None,
                    at: tuple[float, float] | None = None, distance_m: float | None = None, at_method: str = "depth",
                    method: str = "shift-sum", aperture: float = 1.0, upsample: int = 1) -> Rendered:
-    """One photograph focused by ``slope``, ``alpha``, a point ``at = (y, x)`` or ``distance_m`` (exactly one;
-    :func:`plenodecode.render.refocus_methods.focus_slope`); outside the refocusable range
-    (:func:`plenodecode.render.alpha.refocus_range_units`) it is still rendered, with a one-line warning.
-    ``data``: the chosen 'slope', 'alpha', 'method', 'aperture' and 'range' (a ``RefocusRange``)."""
-    from .render import refocus
-    from .render.alpha import refocus_range_units
+    """One photograph focused by one of ``slope``, ``alpha``, ``at = (y, x)``, ``distance_m`` (:func:`~plenodecode.
+    render.refocus_methods.focus_slope`); outside :func:`~plenodecode.render.alpha.refocus_range_units` it is
+    still rendered, with a one-line warning.  ``data``: 'slope' (chosen), 'alpha', 'method', 'aperture', 'range'."""
+    from .render import refocus, refocus_range_units
     from .render.refocus_methods import focus_slope
 
     lf = src.lightfield
