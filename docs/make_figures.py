@@ -10,6 +10,10 @@
   self-calibrated from the scene, no white image) to 9 x 9 views; the views grid shows every
   second view (5 x 5) at half size.
 * ``r42_total_focus.png``: the Raytrix R42 crop rendered all-in-focus (focused plenoptic).
+* ``refocus_modes.png``: the bundled sample ``sample_raws/illum-mini/scene.lfr`` (calibration database
+  ``calib/``) through :mod:`plenodecode.pipeline`, as the commands render it: refocused near (alpha 1.015),
+  far (alpha 0.992), by a click on the slanted plane (``--focus-at 0.25,0.5``) and all-in-focus, side by side.
+  ``--only refocus`` makes just this one (it needs no shared data).
 
 Display only: values are scaled by their 99.5th percentile and sRGB-encoded; the F01 JPEG has no
 colour metadata, so its camera RGB is grey-world balanced for the picture.
@@ -50,9 +54,30 @@ def view_grid(data: np.ndarray, step: int, gap: int = 2) -> np.ndarray:
     return out
 
 
+def refocus_modes() -> np.ndarray:
+    """Near, far, by click and all-in-focus photographs of the bundled Illum sample, rendered by the pipeline
+    products the commands use, at 3x (nearest) with a 4 px gap: (Y, 4 X + gaps, 3) in [0, 1], linear."""
+    from plenodecode.pipeline import open_source, render_product
+
+    src = open_source(ROOT / "sample_raws" / "illum-mini" / "scene.lfr", database=ROOT / "calib")
+    shape = src.lightfield.shape
+    click = (0.5 * (shape[2] - 1), 0.25 * (shape[3] - 1))            # --focus-at 0.25,0.5: the slanted plane
+    panels = [render_product(src, "refocus", alpha=1.015).images[0][1],
+              render_product(src, "refocus", alpha=0.992).images[0][1],
+              render_product(src, "refocus", at=click).images[0][1],
+              render_product(src, "all-in-focus").images[0][1]]
+    scale = 1.0 / max(float(np.percentile(np.stack(panels), 99.5)), 1e-9)
+    panels = [np.clip(p * scale, 0, 1).repeat(3, 0).repeat(3, 1) for p in panels]
+    y, x = int(round(click[0] * 3)), int(round(click[1] * 3))
+    panels[2][y - 4:y + 5, x - 1:x + 2] = panels[2][y - 1:y + 2, x - 4:x + 5] = (1.0, 1.0, 0.0)   # the click
+    gap = np.ones((panels[0].shape[0], 4, 3), np.float32)
+    return np.concatenate([panels[0], gap, panels[1], gap, panels[2], gap, panels[3]], axis=1)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--overwrite", action="store_true")
+    ap.add_argument("--only", choices=["refocus"], default=None, help="Make one figure only.")
     args = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     from plenodecode.calib import calibrate
@@ -68,6 +93,10 @@ def main() -> None:
     def save(name: str, img: np.ndarray) -> None:
         write_image(OUT / name, img, bit_depth=8, overwrite=args.overwrite, encode_srgb=True)
         print("wrote", OUT / name)
+
+    save("refocus_modes.png", refocus_modes())
+    if args.only:
+        return
 
     # light-field microscope: square grid, white (radiometry) and dark frames
     d = DATA / "lf-microscopy-antleg"

@@ -36,6 +36,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import math
 import multiprocessing
 import os
 import socket
@@ -97,7 +98,12 @@ class BatchOptions:
     bit_depth : {8, 16, 32}
         Image outputs: 8/16-bit sRGB-encoded PNG, or 32 = linear float EXR.
     slope : float
-        Refocus slope of the 'refocus' output (px per view step, design.md).
+        Refocus slope of the 'refocus' output (px per view step, design.md), unless ``alpha`` or ``distance_m``.
+    alpha : float or None
+        Ng's relative film depth of the 'refocus' output instead of ``slope`` (the same name as
+        :func:`plenodecode.render.refocus` and ``--alpha``).
+    distance_m : float or None
+        Focus distance (m) of the 'refocus' output instead of ``slope`` (needs the focus distance in the metadata).
     depth_method : str or None
         Method of the 'depth' output (None: the library's default).
     cfa, black_level, white_level, input_encoding :
@@ -116,6 +122,8 @@ class BatchOptions:
     black_level: float | None = None
     white_level: float | None = None
     input_encoding: str = "linear"
+    alpha: float | None = None
+    distance_m: float | None = None
 
     def __post_init__(self) -> None:
         outs = tuple(self.outputs) if not isinstance(self.outputs, str) else (self.outputs,)
@@ -134,6 +142,14 @@ class BatchOptions:
         mosaic = self.mosaic_options()          # checks the four mosaic options (ValueError naming the option)
         object.__setattr__(self, "black_level", mosaic.black_level)
         object.__setattr__(self, "white_level", mosaic.white_level)
+        if not math.isfinite(self.slope):
+            raise ValueError(f"slope must be a finite number, got {self.slope}")
+        if self.alpha is not None and self.distance_m is not None:
+            raise ValueError("pass at most one of alpha and distance_m (they replace slope)")
+        for name in ("alpha", "distance_m"):
+            value = getattr(self, name)
+            if value is not None and not (float(value) > 0 and math.isfinite(float(value))):
+                raise ValueError(f"{name} must be a finite number > 0, got {value}")
         if self.db_dir is None:
             from .calib.store import DEFAULT_DB
 
@@ -149,9 +165,10 @@ class BatchOptions:
         d = asdict(self)
         d["outputs"] = list(self.outputs)
         d["db_dir"] = str(Path(self.db_dir).resolve())
-        for option, product in (("slope", "refocus"), ("depth_method", "depth"), ("lightfield_format", "lightfield")):
-            if product not in self.outputs:
-                d.pop(option)
+        for option, product in (("slope", "refocus"), ("depth_method", "depth"), ("lightfield_format", "lightfield"),
+                                ("alpha", "refocus"), ("distance_m", "refocus")):
+            if product not in self.outputs or (option in ("alpha", "distance_m") and d[option] is None):
+                d.pop(option)      # unset alpha / distance_m keep the keys of earlier versions
         for option, default in (("cfa", None), ("black_level", None), ("white_level", None),
                                 ("input_encoding", "linear")):
             if d[option] == default:     # keys of runs before these options existed stay valid
@@ -518,7 +535,11 @@ def _colour_mapped(values: Any) -> Any:
 
 def _image_product_options(product: str, options: BatchOptions) -> dict[str, Any]:
     """Options of an image product of :data:`plenodecode.pipeline.PRODUCTS` taken from ``options``."""
-    return {"slope": options.slope} if product == "refocus" else {}
+    if product != "refocus":
+        return {}
+    if options.alpha is not None:
+        return {"alpha": options.alpha}
+    return {"distance_m": options.distance_m} if options.distance_m is not None else {"slope": options.slope}
 
 
 def _write_products(raw: Any, folder: Path, options: BatchOptions, *,

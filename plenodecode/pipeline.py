@@ -431,14 +431,24 @@ def refocus_stem(*, slope: float | None = None, alpha: float | None = None) -> s
 
 
 def render_refocus(src: Source, *, slope: float | None = None, alpha: float | None = None,
+                   at: tuple[float, float] | None = None, distance_m: float | None = None, at_method: str = "depth",
                    method: str = "shift-sum", aperture: float = 1.0, upsample: int = 1) -> Rendered:
-    """One photograph refocused at ``slope`` or ``alpha`` (:func:`plenodecode.render.refocus`)."""
-    from .render import refocus
+    """One photograph focused by one of ``slope``, ``alpha``, ``at = (y, x)``, ``distance_m`` (:func:`~plenodecode.
+    render.refocus_methods.focus_slope`); outside :func:`~plenodecode.render.alpha.refocus_range_units` it is
+    still rendered, with a one-line warning.  ``data``: 'slope' (chosen), 'alpha', 'method', 'aperture', 'range'."""
+    from .render import refocus, refocus_range_units
+    from .render.refocus_methods import focus_slope
 
     lf = src.lightfield
-    img = refocus(lf, slope=slope, alpha=alpha, method=method, aperture=aperture, upsample=upsample)
-    return Rendered("refocus", ((refocus_stem(slope=slope, alpha=alpha), img),), lf.colour,
-                    data={"slope": slope, "alpha": alpha, "method": method, "aperture": aperture})
+    chosen = focus_slope(lf, slope=slope, alpha=alpha, at=at, distance_m=distance_m, at_method=at_method)
+    span = refocus_range_units(lf)
+    if not span.contains(chosen):
+        log.warning("slope %.3g px/view%s is outside the refocusable range (%s): nothing in it can be sharp",
+                    chosen, "" if alpha is None else f" (alpha {alpha:g})", span.describe())
+    img = refocus(lf, slope=chosen, method=method, aperture=aperture, upsample=upsample)
+    stem = refocus_stem(alpha=alpha) if alpha is not None else refocus_stem(slope=chosen)
+    return Rendered("refocus", ((stem, img),), lf.colour,
+                    data={"slope": chosen, "alpha": alpha, "method": method, "aperture": aperture, "range": span})
 
 
 def focal_stack_names(n: int, ext: str) -> list[str]:
@@ -449,6 +459,9 @@ def focal_stack_names(n: int, ext: str) -> list[str]:
 def _slopes_as_given(values: Any, lf: LightField) -> Any:
     return values
 
+
+#: Most slices of one focal stack (a larger count is refused before any work).
+MAX_STACK_SLICES = 512
 
 #: Units of a focal stack's START and STOP -> ``fn(values, lf) -> slopes`` (px per view step).
 STACK_UNITS: dict[str, Callable[..., Any]] = {
@@ -473,6 +486,8 @@ def render_focal_stack(src: Source, *, start: float, stop: float, n: int, units:
     from .render import focal_stack, slope_to_alpha
     from .render.allinfocus import all_in_focus_from_stack
 
+    if not 2 <= int(n) <= MAX_STACK_SLICES:
+        raise ValueError(f"a focal stack has 2 to {MAX_STACK_SLICES} slices, got {n}")
     lf = src.lightfield
     slopes = lookup(STACK_UNITS, units, param="units")(np.linspace(start, stop, n), lf)
     imgs = focal_stack(lf, slopes, method=method, aperture=aperture, upsample=upsample, progress=progress)
@@ -816,7 +831,7 @@ def write_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | N
                                 progress=progress, encode_srgb=display and display_encoding(lf.colour, bit_depth)))
 
 
-__all__ = ["LIGHTFIELD_EXTENSIONS", "IMAGE_EXTENSIONS", "BIT_DEPTHS", "INPUT_READERS", "PRODUCTS", "STACK_UNITS", "Calibration", "Source",
+__all__ = ["LIGHTFIELD_EXTENSIONS", "IMAGE_EXTENSIONS", "BIT_DEPTHS", "MAX_STACK_SLICES", "INPUT_READERS", "PRODUCTS", "STACK_UNITS", "Calibration", "Source",
            "Rendered", "input_kind", "is_hci_folder", "is_lightfield_path", "open_input", "choose_calibration",
            "decode_raw", "open_source", "load_lightfield_input", "render_product", "check_total_focus_patch",
            "display_encoding", "default_extension", "write_image_file", "refuse_folder_clash", "staged_folder", "write_product",

@@ -104,6 +104,22 @@ def test_task_key_depends_on_bytes_and_options(tmp_path):
     assert k != task_key(a, opt)
 
 
+def test_refocus_by_alpha_or_distance_replaces_the_slope(tmp_path):
+    from plenodecode.batch import _image_product_options
+
+    raw = tmp_path / "a.lfr"
+    raw.write_bytes(b"123")
+    opt = BatchOptions(outputs=("refocus",), db_dir=str(tmp_path))
+    assert "alpha" not in opt.as_key_dict() and "distance_m" not in opt.as_key_dict()   # earlier keys unchanged
+    assert task_key(raw, opt) != task_key(raw, replace(opt, alpha=1.01))
+    assert _image_product_options("refocus", opt) == {"slope": 0.0}
+    assert _image_product_options("refocus", replace(opt, alpha=1.01)) == {"alpha": 1.01}
+    assert _image_product_options("refocus", replace(opt, distance_m=2.0)) == {"distance_m": 2.0}
+    for bad in ({"alpha": 0.0}, {"distance_m": float("inf")}, {"slope": float("nan")}, {"alpha": 1.0, "distance_m": 2.0}):
+        with pytest.raises(ValueError):
+            BatchOptions(outputs=("refocus",), **bad)
+
+
 def test_options_validate_arguments():
     with pytest.raises(ValueError, match="outputs"):
         BatchOptions(outputs=("centre", "thumbnail"))

@@ -8,7 +8,7 @@ import click
 
 from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES
 from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
-from .common import (RegistryChoice, bit_depth_option, current_mosaic_options, database_option, jobs_option,
+from .common import (FINITE, RegistryChoice, bit_depth_option, current_mosaic_options, database_option, jobs_option,
                      mosaic_options, progress_bar)
 
 
@@ -45,7 +45,7 @@ def _echo_table(summary) -> None:
               show_default=True,
               help="Format of the 'lightfield' product.")
 @bit_depth_option
-@click.option("--slope", type=float, default=0.0, show_default=True, help="Refocus slope of the 'refocus' product.")
+@click.option("--slope", type=FINITE, default=0.0, show_default=True, help="Refocus slope of the 'refocus' product.")
 @click.option("--depth-method", type=RegistryChoice("plenodecode.depth", "DEPTH_METHODS"),
               default=DEFAULT_DEPTH_METHOD, show_default=True, help="Method of the 'depth' product.")
 @click.option("--overwrite", is_flag=True, help="Redo raws a previous run finished and replace their outputs.")
@@ -68,8 +68,6 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
     from ..batch import BatchOptions, check_summary_files, find_raws, needs_no_database, run_batch, write_summary
     from ..calib.store import DEFAULT_DB
 
-    if jobs is not None and jobs < 1:
-        raise click.BadParameter(f"must be >= 1, got {jobs}", param_hint="--jobs")
     db_dir = database or Path(DEFAULT_DB)
     if not overwrite:
         try:

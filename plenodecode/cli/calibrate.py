@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from ..io.atomic import write_text_atomic
-from .common import RegistryChoice, check_output, overwrite_option, progress_bar
+from .common import POSITIVE, RegistryChoice, check_output, overwrite_option, progress_bar
 
 
 def _write_text(path: Path, text: str) -> None:
@@ -24,7 +24,7 @@ def _write_text(path: Path, text: str) -> None:
               help="Also write a self-contained HTML calibration report.")
 @click.option("--lattice", type=RegistryChoice("plenodecode.calib", "LATTICES"), default="auto", show_default=True,
               help="Lenslet lattice type.")
-@click.option("--pitch", "pitch_hint", type=float, default=None,
+@click.option("--pitch", "pitch_hint", type=POSITIVE, default=None,
               help="Approximate lens pitch in px (a hint; default from metadata or the image).")
 @click.option("--database", type=click.Path(path_type=Path, file_okay=False), default=None,
               help="Calibration database folder: WHITE folders of MOD_NNNN.RAW/.TXT pairs are indexed into it and "

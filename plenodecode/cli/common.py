@@ -10,10 +10,11 @@ from __future__ import annotations
 import contextlib
 import functools
 import importlib
+import math
 import os
 import sys
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Iterator, Mapping
 
 import click
 
@@ -155,7 +156,7 @@ output_option = click.option("-o", "--output", "output", type=click.Path(path_ty
 overwrite_option = click.option("--overwrite", is_flag=True, help="Replace existing outputs.")
 bit_depth_option = click.option("--bit-depth", type=click.Choice([str(b) for b in BIT_DEPTHS]), default="16", show_default=True,
                                 help="Bits per sample of image outputs (32 = float).")
-jobs_option = click.option("--jobs", "-j", type=int, default=None,
+jobs_option = click.option("--jobs", "-j", type=click.IntRange(min=1), default=None,
                            help="Worker processes (default: all cores).")
 
 
@@ -213,3 +214,101 @@ def progress_bar(label: str, ctx: click.Context | None = None) -> Callable[[int,
 def default_jobs() -> int:
     """All cores."""
     return os.cpu_count() or 1
+
+
+# ----------------------------------------------------------------------------------------- numeric options
+class FiniteFloat(click.FloatRange):
+    """A :class:`click.FloatRange` that also refuses nan and inf (``FloatRange`` lets nan through every bound).
+
+    A bad value is a usage error naming the option, raised while the command line is parsed, before any work.
+    """
+
+    name = "finite float"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        number = click.FLOAT.convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number.", param, ctx)
+        return super().convert(number, param, ctx)
+
+
+#: Any finite number (slopes, rotations, offsets).
+FINITE = FiniteFloat()
+#: A finite number > 0 (lengths, distances, alphas, rates).
+POSITIVE = FiniteFloat(min=0, min_open=True)
+#: A finite number >= 0.
+NON_NEGATIVE = FiniteFloat(min=0)
+
+
+def parse_focus_at(text: str | None) -> tuple[float, float, bool] | None:
+    """``--focus-at X,Y`` -> ``(x, y, fractional)``; None for None.
+
+    The rule: fractions of the width and height (0-1) when both numbers are at most 1 and both are written with
+    a decimal point (``0.5,0.25``); otherwise pixels of the centre view (``40,12``, ``12.5,3``).
+
+    Raises
+    ------
+    click.BadParameter
+        Naming ``--focus-at``: not two finite numbers >= 0.
+    """
+    if text is None:
+        return None
+    parts = [p.strip() for p in str(text).split(",")]
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        x, y = float(parts[0]), float(parts[1])
+    except ValueError:
+        raise click.BadParameter(f"expected X,Y (pixels of the centre view, or fractions 0.0-1.0), got {text!r}",
+                                 param_hint="--focus-at") from None
+    if not (math.isfinite(x) and math.isfinite(y) and x >= 0 and y >= 0):
+        raise click.BadParameter(f"X and Y must be finite and >= 0, got {text!r}", param_hint="--focus-at")
+    return x, y, all("." in p for p in parts) and x <= 1 and y <= 1
+
+
+def focus_point(at: tuple[float, float, bool] | None, shape: tuple[int, ...]) -> tuple[float, float] | None:
+    """A parsed ``--focus-at`` as ``(y, x)`` samples of a light field of ``shape`` (V, U, Y, X, C): fractions
+    ``f`` map to ``f (size - 1)``; a point outside the picture is a usage error naming ``--focus-at``."""
+    from ..render.refocus_methods import check_point
+
+    if at is None:
+        return None
+    x, y, fractional = at
+    point = (y * (shape[2] - 1), x * (shape[3] - 1)) if fractional else (y, x)
+    with usage_errors(param_hint="--focus-at"):
+        return check_point(point, shape[2:4])
+
+
+def focus_options(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """``--focus-at X,Y``, ``--no-depth`` and ``--focus-distance METRES``: the ways besides slope and alpha of
+    saying where a photograph is focused (:func:`plenodecode.render.refocus_methods.focus_slope`)."""
+    fn = click.option("--focus-distance", "distance_m", type=POSITIVE, default=None, metavar="METRES",
+                      help="Focus at this distance (needs the focus distance in the metadata: Lytro, HCI "
+                           "parameters.cfg, generated scenes).")(fn)
+    fn = click.option("--no-depth", "no_depth", is_flag=True,
+                      help="With --focus-at: pick the sharpest slice of a small focal stack instead of the depth map.")(fn)
+    fn = click.option("--focus-at", "focus_at", metavar="X,Y", default=None,
+                      callback=lambda ctx, param, value: parse_focus_at(value),
+                      help="Focus on what is at column X, row Y of the centre view (pixels; fractions of the size "
+                           "when both are written 0.x).")(fn)
+    return fn
+
+
+def check_focus_options(given: Mapping[str, Any], no_depth: bool) -> None:
+    """Exactly one of the focus options in ``given`` (option name -> value or None) was typed, and
+    ``--no-depth`` only with ``--focus-at``; a usage error (exit 2) naming them otherwise."""
+    typed = [name for name, value in given.items() if value is not None and value is not False]
+    if len(typed) != 1:
+        raise click.UsageError(f"pass exactly one of {', '.join(given)}"
+                               + (f" (got {' and '.join(typed)})" if typed else ""))
+    if no_depth and given.get("--focus-at") is None:
+        raise click.UsageError("--no-depth applies to --focus-at only")
+
+
+def describe_focus(rendered_data: Mapping[str, Any]) -> str:
+    """``'alpha 1.015 = slope +0.90 px/view; refocusable alpha 0.9814-1.0194 = ...'`` for the report line of a
+    refocused photograph (``Rendered.data`` of the 'refocus' product)."""
+    what = f"slope {rendered_data['slope']:+.3f} px/view"
+    if rendered_data.get("alpha") is not None:
+        what = f"alpha {rendered_data['alpha']:g} = {what}"
+    return f"{what}; refocusable {rendered_data['range'].describe()}"

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import click
 
 from ..depth import DEFAULT_METHOD
-from .common import (RegistryChoice, calibration_kwargs, input_options, output_option, overwrite_option,
+from .common import (POSITIVE, RegistryChoice, calibration_kwargs, input_options, output_option, overwrite_option,
                      progress_bar, quiet, usage_errors)
 
 
@@ -22,6 +23,8 @@ def parse_range(text: str | None) -> tuple[float, float] | None:
         lo, hi = float(parts[0]), float(parts[1])
     except ValueError:
         raise click.BadParameter(f"expected LO:HI (e.g. -3.5:3), got {text!r}", param_hint="--disparity-range") from None
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise click.BadParameter(f"LO and HI must be finite, got {text!r}", param_hint="--disparity-range")
     if not lo < hi:
         raise click.BadParameter(f"LO must be below HI, got {text!r}", param_hint="--disparity-range")
     return lo, hi
@@ -37,7 +40,7 @@ def parse_range(text: str | None) -> tuple[float, float] | None:
               help="Also write a coloured point cloud (needs the camera geometry, as --metric).")
 @click.option("--disparity-range", "disparity_range", metavar="LO:HI", default=None,
               help="Search range in px per view step (default: from the metadata, else estimated).")
-@click.option("--focus-distance", "focus_distance", type=click.FloatRange(min=0, min_open=True), default=None,
+@click.option("--focus-distance", "focus_distance", type=POSITIVE, default=None,
               help="Distance of the plane in focus (m), for --metric/--ply when the metadata lacks it.")
 @input_options
 @overwrite_option

@@ -1,4 +1,5 @@
-"""``plenodecode info FILE...``: describe raws and Lytro containers without decoding them."""
+"""``plenodecode info FILE...``: describe raws and Lytro containers without decoding them, and saved light fields
+(shape, colour, camera constants); both with the refocusable range (:mod:`plenodecode.render.alpha`)."""
 
 from __future__ import annotations
 
@@ -84,7 +85,48 @@ def _lens_lines(cam) -> list[str]:
     pitch = cam.lenslet_pitch_px()
     if pitch:
         parts.append(f"lenslet pitch {pitch:.3f} px")
-    return [f"  lens     {', '.join(parts)}"] if parts else []
+    return ([f"  lens     {', '.join(parts)}"] if parts else []) + _raw_refocus_lines(cam)
+
+
+def _raw_refocus_lines(cam) -> list[str]:
+    """The refocusable range of a Lytro raw from its metadata alone: hex lenslets (row spacing = pitch *
+    sqrt(3) / 2, the decoder's spatial step) and one view per sensor pixel; nothing for other cameras, whose
+    lattice is known only after calibration (``plenodecode info`` on the decoded light field says it)."""
+    import math
+
+    from ..render.alpha import refocus_range_units
+    from ..types import LightFieldGeometry
+
+    pitch = cam.lenslet_pitch_px()
+    if (cam.make or "").lower() != "lytro" or not pitch or cam.is_white_image:
+        return []
+    geometry = LightFieldGeometry.from_camera(cam, {"pitch": pitch}, spatial_step_px=pitch * math.sqrt(3) / 2,
+                                              view_step_px=1.0)
+    return [f"  refocus  {refocus_range_units(geometry).describe()} (from the metadata, hex lenslets)"]
+
+
+def _describe_lightfield(path: Path) -> list[str]:
+    """A saved light field or an HCI scene folder: shape, colour, camera constants, refocusable range."""
+    from ..pipeline import open_input
+    from ..render.alpha import refocus_range_units
+
+    lf = open_input(path)
+    g = lf.geometry
+    lines = [f"{path}: light field {' x '.join(map(str, lf.shape))} (V, U, Y, X, C), colour {lf.colour}"]
+    if g.hci is not None:
+        lines.append("  camera   HCI scene (pinhole views, parameters.cfg)")
+    elif g.camera is not None:
+        lines += _camera_lines(g.camera.model, g.camera.make, g.camera.serial)
+    if g.spatial_step_px:
+        lines.append(f"  sampling {g.spatial_step_px:.3f} px per spatial sample, {g.view_step_px or 1:g} px per view")
+    consts = [f"f = {g.focal_length_m * 1e3:.2f} mm" if g.focal_length_m else "",
+              f"f/{g.f_number:.2f}" if g.f_number else "",
+              f"lens pitch {g.lens_pitch_m * 1e6:.2f} um" if g.lens_pitch_m else "",
+              f"focus {g.focus_distance_m:.3g} m" if g.focus_distance_m else ""]
+    if any(consts):
+        lines.append(f"  lens     {', '.join(c for c in consts if c)}")
+    lines.append(f"  refocus  {refocus_range_units(lf).describe()}")
+    return lines
 
 
 def _raw_metadata_lines(title: str, metadata: tuple, kind: str) -> list[str]:
@@ -148,7 +190,10 @@ def describe(path: Path) -> list[str]:
     """Lines that ``plenodecode info`` prints for one file."""
     from ..io import LYTRO_MAGIC
     from ..io import lytro
+    from ..pipeline import is_lightfield_path
 
+    if path.exists() and is_lightfield_path(path):
+        return _describe_lightfield(path)
     if not path.is_file():
         raise FormatError(f"{path}: no such file" if not path.exists() else f"{path}: is not a file")
     with open(path, "rb") as fh:
@@ -165,14 +210,17 @@ def describe(path: Path) -> list[str]:
 @click.command("info")
 @click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path))
 def info(files: tuple[Path, ...]) -> None:
-    """Describe raws and containers: camera, serial, kind, image sizes, sections.
+    """Describe raws and containers: camera, serial, kind, image sizes, sections, and
+    the refocusable range (alpha, slope, metres when the geometry allows).
 
     Works on Lytro .lfp/.LFP/.lfr containers (raw or processed), MOD_NNNN.RAW + .TXT
-    white images (or their .TXT/.json metadata alone), and any raw plenodecode reads.
+    white images (or their .TXT/.json metadata alone), any raw plenodecode reads, and
+    saved light fields and HCI scene folders.
 
     \b
     Example:
       plenodecode info IMG_0001.lfr MOD_0000.RAW demo.LFP
+      plenodecode info lf.zarr
     """
     for i, path in enumerate(files):
         if i:

@@ -2,7 +2,7 @@
 
 Commands live in one module each (``plenodecode.cli.<name>``, attribute ``command``) and
 are imported only when run, so ``plenodecode --help`` stays fast.  A first argument that
-is not a command but a file (``plenodecode raw.lfr --refocus 1.2``) runs ``render``.
+is not a command but a file (``plenodecode raw.lfr --refocus 1.015``) runs ``render``.
 
 Exit codes: 0 success, 1 data error (one line on stderr; traceback with ``-v``), 2 usage error.
 """
@@ -76,7 +76,7 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
 
     \b
     Example:
-      plenodecode raw.lfr --refocus 1.2 -o photo.png
+      plenodecode raw.lfr --refocus 1.015 -o photo.png
     """
     ctx.ensure_object(dict)
     ctx.obj["verbose"] = verbose

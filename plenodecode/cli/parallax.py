@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from ..pipeline import parallax_frame_names
-from .common import (bit_depth_option, calibration_kwargs, check_folder_output, check_output, input_options,
+from .common import (NON_NEGATIVE, POSITIVE, bit_depth_option, calibration_kwargs, check_folder_output, check_output, input_options,
                      output_option, overwrite_option, progress_bar, quiet, usage_errors)
 from .views import INTERP_CHOICE
 
@@ -17,9 +17,9 @@ from .views import INTERP_CHOICE
 @output_option
 @click.option("--frames", "n_frames", type=click.IntRange(min=1), default=24, show_default=True,
               help="Number of viewpoints on the circle.")
-@click.option("--radius", type=click.FloatRange(min=0), default=None,
+@click.option("--radius", type=NON_NEGATIVE, default=None,
               help="Circle radius in view steps (default: 3/4 of the view grid's half-size).")
-@click.option("--fps", type=click.FloatRange(min=0, min_open=True), default=12.0, show_default=True,
+@click.option("--fps", type=POSITIVE, default=12.0, show_default=True,
               help="Frames per second of the animation.")
 @click.option("--frames-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Folder of the numbered frames (default: OUTPUT's name + '_frames').")

@@ -1,4 +1,5 @@
-"""``plenodecode refocus``: a refocused photograph (slope or alpha), or a focal stack with an all-in-focus image."""
+"""``plenodecode refocus``: a refocused photograph (slope, alpha, a point or a distance), or a focal stack with an
+all-in-focus image."""
 
 from __future__ import annotations
 
@@ -6,16 +7,20 @@ from pathlib import Path
 
 import click
 
-from ..pipeline import IMAGE_EXTENSIONS, STACK_UNITS, focal_stack_names
-from .common import (RegistryChoice, bit_depth_option, calibration_kwargs, check_folder_output, check_output,
-                     input_options, output_option, overwrite_option, progress_bar, quiet, usage_errors)
+import math
+
+from ..pipeline import IMAGE_EXTENSIONS, MAX_STACK_SLICES, STACK_UNITS, focal_stack_names
+from .common import (FINITE, POSITIVE, FiniteFloat, RegistryChoice, bit_depth_option, calibration_kwargs,
+                     check_focus_options, check_folder_output, check_output, describe_focus, focus_options,
+                     focus_point, input_options, output_option, overwrite_option, progress_bar, quiet, usage_errors)
 
 #: The refocus methods of the library, for ``--method`` (imported when the command needs them).
 REFOCUS_METHOD_CHOICE = RegistryChoice("plenodecode.render", "REFOCUS_METHODS")
 
 
-def parse_stack(text: str) -> tuple[float, float, int]:
-    """``'START:STOP:N'`` -> (start, stop, n); BadParameter otherwise."""
+def parse_stack(text: str, units: str = "slope") -> tuple[float, float, int]:
+    """``'START:STOP:N'`` -> (start, stop, n): finite START and STOP (> 0 in ``units='alpha'``), 2 <= N <=
+    :data:`~plenodecode.pipeline.MAX_STACK_SLICES`; BadParameter naming ``--focal-stack`` otherwise."""
     parts = text.split(":")
     try:
         if len(parts) != 3:
@@ -24,17 +29,22 @@ def parse_stack(text: str) -> tuple[float, float, int]:
     except ValueError:
         raise click.BadParameter(f"expected START:STOP:N (e.g. -1.5:1.5:30), got {text!r}",
                                  param_hint="--focal-stack") from None
-    if n < 2:
-        raise click.BadParameter(f"N must be at least 2, got {n}", param_hint="--focal-stack")
+    if not 2 <= n <= MAX_STACK_SLICES:
+        raise click.BadParameter(f"N must be 2 to {MAX_STACK_SLICES}, got {n}", param_hint="--focal-stack")
+    if not (math.isfinite(start) and math.isfinite(stop)):
+        raise click.BadParameter(f"START and STOP must be finite, got {text!r}", param_hint="--focal-stack")
+    if units == "alpha" and not (start > 0 and stop > 0):
+        raise click.BadParameter(f"alphas must be > 0 (--stack-units alpha), got {text!r}", param_hint="--focal-stack")
     return start, stop, n
 
 
 @click.command("refocus")
 @click.argument("input_path", metavar="RAW_OR_LF", type=click.Path(exists=True, path_type=Path))
 @output_option
-@click.option("--slope", type=float, default=None, help="Refocus slope, px per view step (= the disparity in focus).")
-@click.option("--alpha", type=float, default=None,
+@click.option("--slope", type=FINITE, default=None, help="Refocus slope, px per view step (= the disparity in focus).")
+@click.option("--alpha", "--refocus", "alpha", type=POSITIVE, default=None,
               help="Relative film depth (Ng 2005; 1 = as captured); needs the camera constants in the metadata.")
+@focus_options
 @click.option("--focal-stack", "stack", metavar="START:STOP:N", default=None,
               help="Write N photographs from START to STOP (slopes, or alphas with --stack-units alpha) and an "
                    "all-in-focus image into the OUTPUT folder.")
@@ -42,7 +52,7 @@ def parse_stack(text: str) -> tuple[float, float, int]:
               help="Units of START and STOP.")
 @click.option("--method", type=REFOCUS_METHOD_CHOICE, default="shift-sum", show_default=True,
               help="Refocusing method.")
-@click.option("--aperture", type=click.FloatRange(0, 1, min_open=True), default=1.0, show_default=True,
+@click.option("--aperture", type=FiniteFloat(0, 1, min_open=True), default=1.0, show_default=True,
               help="Synthetic aperture radius as a fraction of the view grid (1 = all views); smaller = more "
                    "depth of field.")
 @click.option("--upsample", type=click.IntRange(1, 8), default=1, show_default=True,
@@ -55,42 +65,44 @@ def parse_stack(text: str) -> tuple[float, float, int]:
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, output: Path, slope: float | None, alpha: float | None,
-            stack: str | None, stack_units: str, method: str, aperture: float, upsample: int, ext: str,
+            focus_at: tuple[float, float, bool] | None, no_depth: bool, distance_m: float | None, stack: str | None, stack_units: str, method: str, aperture: float, upsample: int, ext: str,
             bit_depth: str, calibration: Path | None, white: Path | None, database: Path | None,
             self_calibrate: bool, overwrite: bool) -> None:
     """Refocus RAW_OR_LF (a raw, a saved light field or an HCI scene folder).
 
-    One photograph: --slope S or --alpha A, written to OUTPUT (.png, .tif, .exr).
+    One photograph: --slope S, --alpha A, --focus-at X,Y or --focus-distance M, written to
+    OUTPUT (.png, .tif, .exr); outside the refocusable range it is written with a warning.
     A focal stack: --focal-stack START:STOP:N writes OUTPUT/slice_000.png ...,
     OUTPUT/all_in_focus.png and OUTPUT/focal_stack.json (the slopes and alphas).
 
     \b
     Examples:
       plenodecode refocus photo.zarr --slope 0.8 -o near.png
-      plenodecode refocus raw.lfr --alpha 1.02 --aperture 0.4 -o deep_dof.png --database calib/
+      plenodecode refocus raw.lfr --alpha 1.01 --aperture 0.4 -o deep_dof.png --database calib/
+      plenodecode refocus photo.zarr --focus-at 120,80 -o click.png
       plenodecode refocus photo.zarr --focal-stack -1.5:1.5:30 -o stack/ --method fourier-slice
     """
     from ..pipeline import open_source, render_product, write_product
 
-    chosen = sum(x is not None for x in (slope, alpha, stack))
-    if chosen != 1:
-        raise click.UsageError("pass exactly one of --slope, --alpha and --focal-stack")
+    check_focus_options({"--slope": slope, "--alpha": alpha, "--focus-at": focus_at, "--focus-distance": distance_m,
+                         "--focal-stack": stack}, no_depth)
     if stack is None:
         check_output(output, overwrite)
     else:
-        start, stop, n = parse_stack(stack)
+        start, stop, n = parse_stack(stack, stack_units)
         names = focal_stack_names(n, ext)
         check_folder_output(output, names, overwrite)
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     if stack is None:
-        photo = render_product(src, "refocus", slope=slope, alpha=alpha, method=method, aperture=aperture,
+        photo = render_product(src, "refocus", slope=slope, alpha=alpha, distance_m=distance_m,
+                               at=focus_point(focus_at, src.lightfield.shape),
+                               at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture,
                                upsample=upsample)
         with usage_errors():
             write_product(photo, output, bit_depth=int(bit_depth), overwrite=overwrite)
         if not quiet(ctx):
-            what = f"slope {slope:g}" if slope is not None else f"alpha {alpha:g}"
-            click.echo(f"wrote {output} ({what}, {method}, aperture {aperture:g})")
+            click.echo(f"wrote {output} ({describe_focus(photo.data)}; {method}, aperture {aperture:g})")
         return
     rendered = render_product(src, "focal-stack", start=start, stop=stop, n=n, units=stack_units, method=method,
                               aperture=aperture, upsample=upsample, progress=progress_bar("focal stack", ctx))

@@ -11,8 +11,9 @@ from pathlib import Path
 import click
 from click.core import ParameterSource
 
-from .common import (bit_depth_option, calibration_kwargs, check_output, input_options, output_option,
-                     overwrite_option, progress_bar, quiet, usage_errors)
+from .common import (FINITE, POSITIVE, FiniteFloat, bit_depth_option, calibration_kwargs, check_focus_options, check_output,
+                     describe_focus, focus_options, focus_point, input_options, output_option, overwrite_option,
+                     progress_bar, quiet, usage_errors)
 from .refocus import REFOCUS_METHOD_CHOICE
 
 #: The refocusing options that mean nothing to --total-focus (parameter name -> option).
@@ -25,14 +26,16 @@ def _given(ctx: click.Context, name: str) -> bool:
 
 
 def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float | None, slope: float | None,
-                         total_focus: bool, patch: float | None) -> None:
+                         total_focus: bool, patch: float | None, focus_at: object = None,
+                         distance_m: float | None = None, no_depth: bool = False) -> None:
     """Usage errors (exit 2, one line naming the option) for option combinations that make no sense, before
-    any work: exactly one of ``--refocus`` / ``--slope`` / ``--total-focus``; ``--patch`` only with
-    ``--total-focus``, ``--method`` / ``--aperture`` only without it; ``--total-focus`` needs a raw."""
+    any work: exactly one of ``--refocus`` / ``--slope`` / ``--focus-at`` / ``--focus-distance`` /
+    ``--total-focus``; ``--patch`` only with ``--total-focus``, ``--method`` / ``--aperture`` only without it;
+    ``--total-focus`` needs a raw."""
     from ..pipeline import input_kind
 
-    if (alpha is not None) + (slope is not None) + bool(total_focus) != 1:
-        raise click.UsageError("pass exactly one of --refocus ALPHA, --slope S and --total-focus")
+    check_focus_options({"--refocus ALPHA": alpha, "--slope S": slope, "--focus-at X,Y": focus_at,
+                         "--focus-distance M": distance_m, "--total-focus": total_focus or None}, no_depth)
     if patch is not None and not total_focus:
         raise click.UsageError("--patch applies to --total-focus only")
     if total_focus:
@@ -46,40 +49,46 @@ def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float |
 
 @click.command("render")
 @click.argument("input_path", metavar="RAW_OR_LF", type=click.Path(exists=True, path_type=Path))
-@click.option("--refocus", "alpha", type=float, default=None,
-              help="Relative film depth alpha (Ng 2005): 1 = focus as captured, > 1 nearer, < 1 farther.")
-@click.option("--slope", type=float, default=None, help="Refocus slope in px per view step instead of alpha.")
+@click.option("--refocus", "--alpha", "alpha", type=POSITIVE, default=None,
+              help="Relative film depth alpha (Ng 2005): 1 = focus as captured, > 1 nearer, < 1 farther; the "
+                   "refocusable range is printed (about 0.98-1.02 for a Lytro Illum).")
+@click.option("--slope", type=FINITE, default=None, help="Refocus slope in px per view step instead of alpha.")
+@focus_options
 @click.option("--total-focus", "total_focus", is_flag=True,
               help="Focused-plenoptic (Raytrix) raw: the all-in-focus image tiled from its micro-images.")
-@click.option("--patch", type=click.FloatRange(0, min_open=True), default=None, metavar="P",
+@click.option("--patch", type=POSITIVE, default=None, metavar="P",
               help="With --total-focus: one patch size for every lens, px (= lens pitch / virtual depth; below the "
                    "micro-image diameter). Default: measured per lens.")
 @output_option
 @click.option("--method", type=REFOCUS_METHOD_CHOICE, default="shift-sum", show_default=True,
               help="Refocusing method.")
-@click.option("--aperture", type=click.FloatRange(0, 1, min_open=True), default=1.0, show_default=True,
+@click.option("--aperture", type=FiniteFloat(0, 1, min_open=True), default=1.0, show_default=True,
               help="Synthetic aperture radius (1 = all views).")
 @bit_depth_option
 @input_options
 @overwrite_option
 @click.pass_context
-def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: float | None, total_focus: bool,
+def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: float | None,
+            focus_at: tuple[float, float, bool] | None, no_depth: bool, distance_m: float | None, total_focus: bool,
             patch: float | None, output: Path, method: str, aperture: float, bit_depth: str,
             calibration: Path | None, white: Path | None, database: Path | None, self_calibrate: bool,
             overwrite: bool) -> None:
-    """Decode RAW_OR_LF (using the calibration database for raws) and write the photograph refocused at ALPHA,
-    or with --total-focus the all-in-focus image of a focused-plenoptic (Raytrix) raw.
+    """Decode RAW_OR_LF (using the calibration database for raws) and write the photograph refocused at ALPHA
+    (or --slope, --focus-at, --focus-distance), or with --total-focus the all-in-focus image of a
+    focused-plenoptic (Raytrix) raw.  Outside the refocusable range the photograph is written with a warning.
 
     \b
     Examples:
-      plenodecode raw.lfr --refocus 1.2 -o out.png
+      plenodecode raw.lfr --refocus 1.015 -o out.png
+      plenodecode raw.lfr --focus-at 0.7,0.5 -o click.png
       plenodecode raw.lfr --refocus 0.98 -o far.png --database calib/ --bit-depth 8
       plenodecode photo.zarr --slope 0.5 -o out.png
       plenodecode raytrix.png --total-focus -o photo.png --white raytrix_white.png
     """
     from ..pipeline import check_total_focus_patch, open_source, render_product, write_product
 
-    check_render_options(ctx, input_path, alpha=alpha, slope=slope, total_focus=total_focus, patch=patch)
+    check_render_options(ctx, input_path, alpha=alpha, slope=slope, total_focus=total_focus, patch=patch,
+                         focus_at=focus_at, distance_m=distance_m, no_depth=no_depth)
     check_output(output, overwrite)
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       **calibration_kwargs(calibration, white, database, self_calibrate))
@@ -88,9 +97,10 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
             check_total_focus_patch(src.calibration.grid, patch)       # its upper bound is the camera's
         photo = render_product(src, "total-focus", patch=patch, progress=progress_bar("rendering", ctx))
     else:
-        photo = render_product(src, "refocus", alpha=alpha, slope=slope, method=method, aperture=aperture)
+        photo = render_product(src, "refocus", alpha=alpha, slope=slope, distance_m=distance_m,
+                               at=focus_point(focus_at, src.lightfield.shape),
+                               at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture)
     with usage_errors():
         write_product(photo, output, bit_depth=int(bit_depth), overwrite=overwrite)
     if not quiet(ctx):
-        what = "total focus" if total_focus else f"alpha {alpha:g}" if alpha is not None else f"slope {slope:g}"
-        click.echo(f"wrote {output} ({what})")
+        click.echo(f"wrote {output} ({'total focus' if total_focus else describe_focus(photo.data)})")

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from .common import RegistryChoice, check_output, overwrite_option, progress_bar
+from .common import FINITE, POSITIVE, RegistryChoice, check_output, overwrite_option, progress_bar
 
 #: The simulated cameras, for the PRESET argument (:mod:`plenodecode.synthetic.presets` imports no numba).
 PRESET_CHOICE = RegistryChoice("plenodecode.synthetic.presets", "PRESETS")
@@ -18,11 +18,11 @@ PRESET_CHOICE = RegistryChoice("plenodecode.synthetic.presets", "PRESETS")
               help="Output folder (created if missing).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="Seed of the scene textures and the noise.")
-@click.option("--pitch", type=float, default=None, help="Lens pitch in px (default: the preset's).")
-@click.option("--rotation", type=float, default=None, help="Grid rotation in rad (default: the preset's).")
-@click.option("--offset", type=(float, float), default=None, metavar="ROW COL",
+@click.option("--pitch", type=POSITIVE, default=None, help="Lens pitch in px (default: the preset's).")
+@click.option("--rotation", type=FINITE, default=None, help="Grid rotation in rad (default: the preset's).")
+@click.option("--offset", type=(FINITE, FINITE), default=None, metavar="ROW COL",
               help="Sub-pixel shift of the lattice from the sensor centre, px.")
-@click.option("--shape", type=(int, int), default=None, metavar="H W", help="Sensor size override.")
+@click.option("--shape", type=(click.IntRange(min=1), click.IntRange(min=1)), default=None, metavar="H W", help="Sensor size override.")
 @click.option("--name", default="scene", show_default=True, help="File stem of the scene raw and truth files.")
 @click.option("--no-noise", is_flag=True, help="No shot/read noise and no hot pixels.")
 @click.option("--lightfield/--no-lightfield", default=None,

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from ..pipeline import IMAGE_EXTENSIONS
-from .common import (RegistryChoice, bit_depth_option, calibration_kwargs, check_output, input_options,
+from .common import (NON_NEGATIVE, RegistryChoice, bit_depth_option, calibration_kwargs, check_output, input_options,
                      output_option, overwrite_option, progress_bar, quiet, usage_errors)
 
 #: Angular interpolation kernels of perspective views, for ``--interp``.
@@ -17,7 +17,7 @@ INTERP_CHOICE = RegistryChoice("plenodecode.render.perspective", "PERSPECTIVE_IN
 @click.command("views")
 @click.argument("input_path", metavar="RAW_OR_LF", type=click.Path(exists=True, path_type=Path))
 @output_option
-@click.option("--view", "view", type=(float, float), default=None, metavar="V U",
+@click.option("--view", "view", type=(NON_NEGATIVE, NON_NEGATIVE), default=None, metavar="V U",
               help="One perspective view at (fractional) view indices V U, written to OUTPUT (a file).")
 @click.option("--interp", type=INTERP_CHOICE, default="linear", show_default=True,
               help="Interpolation between neighbouring views for fractional positions.")

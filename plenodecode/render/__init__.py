@@ -18,7 +18,8 @@ from __future__ import annotations
 
 from ..registry import lazy_exports
 from ._common import aperture_mask
-from .alpha import REFOCUS_CONSTANTS, alpha_to_slope, refocus_constants, slope_per_alpha_unit, slope_to_alpha
+from .alpha import (REFOCUS_CONSTANTS, alpha_to_slope, distance_to_slope, refocus_constants, refocus_range,
+                    refocus_range_units, slope_per_alpha_unit, slope_to_alpha, slope_to_distance)
 from .perspective import parallax_path, perspective, render_parallax
 from .refocus_methods import REFOCUS_METHODS, refocus
 
@@ -36,6 +37,7 @@ __getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 __all__ = [
     "refocus", "focal_stack", "all_in_focus", "perspective", "parallax_path", "render_parallax",
     "REFOCUS_METHODS", "REFOCUS_CONSTANTS", "alpha_to_slope", "slope_to_alpha", "slope_per_alpha_unit",
-    "refocus_constants", "aperture_mask", "shift_sum", "FourierRefocuser", "focus_measure", "focus_curve",
+    "refocus_constants", "refocus_range", "refocus_range_units", "distance_to_slope", "slope_to_distance",
+    "aperture_mask", "shift_sum", "FourierRefocuser", "focus_measure", "focus_curve",
     "sharpest_slope", "depth_from_focus", "refocus_per_pixel", "default_slopes", "ALL_IN_FOCUS_METHODS",
 ]

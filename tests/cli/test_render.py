@@ -179,3 +179,42 @@ def test_raw_is_decoded_then_refocused(tmp_path):
     (tmp_path / "empty").mkdir()
     res = run(files["raw"], "--refocus", 1.0, "-o", tmp_path / "x.png", "--white-dir", tmp_path / "empty")
     assert res.exit_code == 1 and "--calibration" in res.output and not (tmp_path / "x.png").exists()
+
+
+def test_alpha_outside_the_refocusable_range_writes_and_warns_in_one_line(tmp_path, caplog):
+    src = save_npy(tmp_path, small_lf())
+    out = tmp_path / "flat.png"
+    with caplog.at_level("WARNING"):
+        res = run(src, "--refocus", 1.2, "-o", out)
+    assert res.exit_code == 0, res.output
+    assert out.is_file()
+    warnings = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(warnings) == 1 and "\n" not in warnings[0], warnings
+    assert "outside the refocusable range" in warnings[0] and "alpha 0.98" in warnings[0] and "slope" in warnings[0]
+    # inside the range: no warning, and the report line shows the range
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        res = run(src, "--alpha", 1.01, "-o", tmp_path / "ok.png")
+    assert res.exit_code == 0 and not [r for r in caplog.records if r.levelname == "WARNING"]
+    assert "refocusable alpha 0.98" in res.output
+
+
+def test_focus_at_pixels_and_fractions(tmp_path):
+    lf = small_lf(colour="linear-srgb")
+    src = save_npy(tmp_path, lf)
+    for text, point in (("0.5,0.5", (6.5, 8.5)), ("8,6", (6.0, 8.0))):
+        out = tmp_path / f"at_{text}.exr"
+        res = run("refocus", src, "--focus-at", text, "--bit-depth", 32, "-o", out)
+        assert res.exit_code == 0, res.output
+        np.testing.assert_allclose(read_image(out), refocus(lf, at=point), atol=1e-6)
+    res = run("refocus", src, "--focus-at", "100,2", "-o", tmp_path / "x.png")          # outside the picture
+    assert res.exit_code == 2 and "--focus-at" in res.output and not (tmp_path / "x.png").exists()
+    res = run("refocus", src, "--slope", 0, "--no-depth", "-o", tmp_path / "x.png")
+    assert res.exit_code == 2 and "--no-depth" in res.output
+
+
+def test_info_on_a_light_field_shows_the_refocusable_range(tmp_path):
+    src = save_npy(tmp_path, small_lf())
+    res = run("info", src)
+    assert res.exit_code == 0, res.output
+    assert "5 x 5 x 14 x 18 x 3" in res.output and "refocus  alpha 0.98" in res.output

@@ -110,3 +110,61 @@ def test_refocus_by_alpha_is_refocus_by_the_converted_slope():
     np.testing.assert_array_equal(refocus(lf, alpha=a), refocus(lf, slope=alpha_to_slope(a, lf)))
     with pytest.raises(ValueError, match="only apply with alpha"):
         refocus(lf, slope=0.3, f_number=2.0)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# the refocusable range
+# ----------------------------------------------------------------------------------------------------------
+def test_refocusable_range_is_the_lens_footprint_over_the_pixel_footprint():
+    from plenodecode.render.alpha import refocus_range, refocus_range_units
+
+    lf = camera_lf()
+    lo, hi = refocus_range(lf)
+    # hex grid: pitch / row spacing = 2 / sqrt(3) samples per view step (view step = 1 sensor pixel)
+    assert hi == pytest.approx(2 / math.sqrt(3), rel=1e-9) and lo == -hi
+    r = refocus_range_units(lf)
+    np.testing.assert_allclose(r.alpha, slope_to_alpha(np.array([lo, hi]), lf), rtol=1e-12)
+    assert 0.981 < r.alpha[0] < 0.982 and 1.019 < r.alpha[1] < 1.020
+    assert r.distance_m is None                         # no focus distance in the metadata
+    assert r.contains(1.0) and not r.contains(alpha_to_slope(1.2, lf))
+    # a square grid (pitch = spatial step) with two views per sensor pixel: view_step_px * 1
+    square = camera_lf(spatial_step_px=PITCH_PX, view_step_px=0.5, calibration={"pitch": PITCH_PX})
+    assert refocus_range(square) == pytest.approx((-0.5, 0.5))
+    # no sampling metadata: the decoder's default of one sample per view step
+    bare = LightField(np.zeros((3, 3, 4, 4, 1), np.float32))
+    assert refocus_range(bare) == (-1.0, 1.0)
+
+
+def test_refocusable_range_in_metres_and_distance_round_trip():
+    from plenodecode.render.alpha import distance_to_slope, refocus_range_units, slope_to_distance
+
+    lf = camera_lf(focus_distance_m=1.2)
+    r = refocus_range_units(lf)
+    near, far = r.distance_m
+    assert near < 1.2 < far
+    assert slope_to_distance(r.slope[1], lf) == pytest.approx(near) and "m" in r.describe()
+    for z in (0.6, 1.2, 3.0):
+        assert slope_to_distance(distance_to_slope(z, lf), lf) == pytest.approx(z, rel=1e-9)
+    assert distance_to_slope(1.2, lf) == pytest.approx(0.0, abs=1e-12)
+    assert distance_to_slope(0.8, lf) > 0                  # nearer than the focus: positive disparity
+    with pytest.raises(ValueError, match="distance_m"):
+        distance_to_slope(float("nan"), lf)
+
+
+def test_hci_pinhole_views_use_the_scene_disparities():
+    from plenodecode.render.alpha import refocus_range
+    from plenodecode.types import HCIParameters, LightFieldGeometry
+
+    def scene(hci):
+        return LightField(np.zeros((9, 9, 40, 60, 3), np.float32), None, "srgb", geometry=LightFieldGeometry(hci=hci))
+
+    assert refocus_range(scene(HCIParameters(baseline_mm=100.0, disparity_range=(-1.5, 2.5)))) == (-1.5, 2.5)
+    without = scene(HCIParameters(baseline_mm=100.0))
+    assert refocus_range(without) == pytest.approx((-40 / 16, 40 / 16))   # min(Y, X) / (4 * 4 views)
+
+
+def test_alpha_must_be_finite_and_positive():
+    lf = camera_lf()
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="alpha"):
+            alpha_to_slope(bad, lf)

@@ -420,3 +420,67 @@ def test_bad_arguments_name_the_parameter():
         refocus(lf, slope=0.1, interp="sinc")
     with pytest.raises(ValueError, match="lf"):
         refocus(lf.data, slope=0.1)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# focus at a point of the picture, or at a distance
+# ----------------------------------------------------------------------------------------------------------
+#: Three fronto-parallel planes of a generated Illum scene (57 x 72 decoded): (a point inside, disparity).
+PLANES = (((28, 14), 0.3), ((28, 57), 0.8), ((28, 40), -0.6))
+
+
+@functools.lru_cache(maxsize=1)
+def generated_scene():
+    """The generator's exact light field and the decoded raw of background (-0.6), rectangle (0.3), disk (0.8)."""
+    import plenodecode as pd
+    from plenodecode.synthetic.scene import Plane
+
+    scene = [Plane(d0=-0.6, support=("all",), depth_order=2, texture_seed=1),
+             Plane(d0=0.3, support=("rect", 8, 4, 48, 24), depth_order=1, texture_seed=2),
+             Plane(d0=0.8, support=("disk", 28, 57, 10), depth_order=0, texture_seed=3)]
+    sim = pd.simulate("illum-mini", seed=0, noise=False, shape=(700, 900), scene=scene)
+    return sim.ground_truth_lightfield(), pd.decode(sim.raw, sim.grid, white=sim.white)
+
+
+@pytest.mark.parametrize("which", ["truth", "decoded"])
+def test_focus_at_a_point_of_each_plane_chooses_its_disparity(which):
+    from plenodecode.render.refocus_methods import slope_at
+
+    lf = generated_scene()[which == "decoded"]
+    for point, disparity in PLANES:
+        assert slope_at(lf, point) == pytest.approx(disparity, abs=0.03), point        # depth map, 7 x 7 median
+        # without depth: the sharpest slice of a small focal stack (biased a little by the neighbouring planes)
+        assert slope_at(lf, point, at_method="sharpness") == pytest.approx(disparity, abs=0.06), point
+    y, x = PLANES[1][0]
+    np.testing.assert_array_equal(refocus(lf, at=(y, x)), refocus(lf, slope=slope_at(lf, (y, x))))
+
+
+def test_focus_distance_gives_the_plane_at_that_distance():
+    from dataclasses import replace
+
+    from plenodecode.render.alpha import slope_to_distance
+    from plenodecode.render.refocus_methods import focus_slope
+
+    truth, _ = generated_scene()
+    lf = truth.replace(geometry=replace(truth.geometry, focus_distance_m=1.5))
+    for _, disparity in PLANES:
+        z = slope_to_distance(disparity, lf)
+        assert focus_slope(lf, distance_m=z) == pytest.approx(disparity, abs=1e-9)
+    disk_z = slope_to_distance(0.8, lf)
+    assert disk_z < 1.5                                   # the front disk is nearer than the focus plane
+    np.testing.assert_array_equal(refocus(lf, distance_m=disk_z), refocus(lf, slope=focus_slope(lf, distance_m=disk_z)))
+    with pytest.raises(MetadataError, match="focus"):
+        refocus(truth, distance_m=1.0)                    # no focus distance in its geometry
+
+
+def test_focus_arguments_are_checked():
+    lf, _ = two_planes(n=3, shape=(10, 12))
+    with pytest.raises(ValueError, match="exactly one"):
+        refocus(lf, slope=0.1, at=(2, 3))
+    for bad in (float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="slope"):
+            refocus(lf, slope=bad)
+    with pytest.raises(ValueError, match="at = "):
+        refocus(lf, at=(20, 3))
+    with pytest.raises(ValueError, match="at_method"):
+        refocus(lf, at=(2, 3), at_method="guess")
