@@ -161,3 +161,13 @@ def test_pfm_round_trip_colour_and_byte_orders(tmp_path):
     (tmp_path / "short.pfm").write_bytes(b"Pf\n5 6\n-1.0\n" + b"\0" * 20)
     with pytest.raises(FormatError, match="payload"):
         read_pfm(tmp_path / "short.pfm")
+
+
+def test_srgb_encode_matches_colour_science():
+    """The numpy sRGB encoding equals colour-science's ``cctf_encoding(L, function='sRGB')`` (the reference)."""
+    import colour
+
+    lin = np.concatenate([np.linspace(-0.2, 1.5, 2001), [0.0, 0.0031308, 0.0031309, 1.0]]).astype(np.float32)
+    lin = lin.reshape(-1, 5)
+    expect = np.asarray(colour.cctf_encoding(lin, function="sRGB"), np.float32)
+    np.testing.assert_array_equal(srgb_encode(lin), expect)
