@@ -83,16 +83,6 @@ def measure_commands() -> list[tuple[str, Run, Run]]:
     return rows
 
 
-def _cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return "unknown CPU"
-
-
 def run() -> list[Figure]:
     figures = []
     for name, cold, warm in measure_commands():
@@ -104,7 +94,7 @@ def run() -> list[Figure]:
 
 
 if __name__ == "__main__":
-    from bench import print_table
+    from bench import machine, print_table
 
-    print(f"{_cpu_model()}, {os.cpu_count()} cores", file=sys.stderr)
+    print(machine())
     print_table(run())

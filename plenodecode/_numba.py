@@ -36,12 +36,12 @@ KERNEL_GROUPS: dict[str, str] = {
 
 #: group -> CPU seconds its kernels take to compile (2-core AMD EPYC, numba 0.68; ``bench/bench_coldstart.py``)
 COMPILE_SECONDS: dict[str, float] = {
-    "synthetic": 4.0,
-    "calibration": 10.0,
-    "total-focus": 5.0,
-    "decode": 8.0,
-    "refocus": 12.0,
-    "depth": 5.0,
+    "synthetic": 5.0,
+    "calibration": 15.0,
+    "total-focus": 4.0,
+    "decode": 10.0,
+    "refocus": 14.0,
+    "depth": 4.0,
 }
 
 _state: dict[str, Any] = {"notify": None, "announced": set(), "listening": False}
