@@ -24,8 +24,9 @@ system-deps:
 	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; \
 	  else echo "note: chromium not installed and not root; browser tests will be skipped"; fi; }
 
-# The main job on the bundled sample raws: decode (calibration from calib/), refocus, depth, index page.
+# The main job on the bundled sample raws (after compiling the numba kernels once, with progress): decode (calibration from calib/), refocus, depth, index page.
 demo: $(STAMP)
+	$(VENV)/bin/plenodecode warmup
 	$(VENV)/bin/plenodecode info sample_raws/illum-mini/scene.lfr
 	$(VENV)/bin/plenodecode batch sample_raws -o demo_out \
 	    --outputs lightfield,centre,refocus,depth --database calib

@@ -9,6 +9,7 @@ process's resident size.
 from __future__ import annotations
 
 import gc
+import os
 import time
 import tracemalloc
 from dataclasses import dataclass
@@ -50,6 +51,20 @@ def measure(fn: Callable[[], Any], *, repeat: int = 1, memory: bool = True) -> t
         tracemalloc.stop()
         peak = peak_b / 2**20
     return result, best, peak
+
+
+def machine() -> str:
+    """``'AMD EPYC, 2 cores'``: the CPU model (``/proc/cpuinfo``) and the processor count, for the table's header."""
+    model = "unknown CPU"
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    model = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return f"{model}, {os.cpu_count()} cores"
 
 
 def print_table(figures: list[Figure]) -> None:

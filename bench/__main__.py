@@ -7,7 +7,7 @@ import pkgutil
 import sys
 from pathlib import Path
 
-from . import print_table
+from . import machine, print_table
 
 
 def main(argv: list[str]) -> None:
@@ -19,6 +19,7 @@ def main(argv: list[str]) -> None:
     for name in names:
         print(f"# {name}", file=sys.stderr, flush=True)
         figures.extend(importlib.import_module(f"bench.{name}").run())
+    print(machine())
     print_table(figures)
 
 

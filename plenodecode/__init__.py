@@ -10,12 +10,15 @@ Importing the package is light: the public functions below are loaded on first u
 
 from __future__ import annotations
 
-from . import errors
+from . import _numba, errors
 from .errors import CalibrationError, DecodeError, FormatError, MetadataError, PlenodecodeError
 from .registry import lazy_exports
 from .types import CameraMetadata, LensletGrid, LightField, RawCapture
 
 __version__ = "0.1.0"
+
+# compiled kernels are cached in the user's cache directory, never inside the installed package
+_numba.use_user_cache()
 
 #: public name -> module that defines it (imported on first access)
 _LAZY = {

@@ -22,10 +22,10 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-import numba
 import numpy as np
 from scipy import ndimage
 
+from .._numba import njit
 from ..errors import CalibrationError
 from ..types import LensletGrid
 
@@ -156,7 +156,7 @@ def _model(x: np.ndarray, s: float, n: np.ndarray, m: np.ndarray) -> np.ndarray:
     return np.stack([o_r + a * cs + b * sn, o_c - a * sn + b * cs], axis=-1)
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _normal_equations(x, s, pts, n, m):  # pragma: no cover - compiled
     o_r, o_c, th, p, rs = x[0], x[1], x[2], x[3], x[4]
     sn, cs = math.sin(th), math.cos(th)
@@ -292,7 +292,7 @@ def index_points(points: np.ndarray, v1: np.ndarray, v2: np.ndarray, *, seed: np
     return r.astype(np.int64), ok, np.stack([o, b1, b2])
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _affine_normal_equations(pts, dist, radius, o, inv, tol):  # pragma: no cover - compiled
     """Normal equations of the affine lattice fit over the points within ``radius`` whose
     fractional lattice coordinates ``inv @ (p - o)`` are within ``tol`` of integers ``(n, m)``:
@@ -351,7 +351,7 @@ def _dedupe(nm: np.ndarray, ok: np.ndarray, dist: np.ndarray) -> np.ndarray:
     return out
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _nearest_per_cell(cell, dist, idx, n_cells):  # pragma: no cover - compiled
     """For each occupied cell, the ``idx`` of its entry with the smallest ``dist`` (first on ties)."""
     best = np.full(n_cells, -1, np.int64)

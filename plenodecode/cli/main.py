@@ -15,7 +15,7 @@ import sys
 
 import click
 
-from .. import __version__
+from .. import __version__, _numba
 from ..errors import PlenodecodeError
 
 #: command name -> (module, one-line description shown by --help)
@@ -31,6 +31,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "parallax": ("plenodecode.cli.parallax", "Write a parallax animation (circle of viewpoints)."),
     "depth": ("plenodecode.cli.depth", "Estimate disparity / metric depth and write PFM, EXR, PNG, PLY."),
     "batch": ("plenodecode.cli.batch", "Decode and render many raws, locally or on a Dask cluster."),
+    "warmup": ("plenodecode.cli.warmup", "Compile every numba kernel now (first run after installing)."),
 }
 
 
@@ -83,6 +84,8 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
     ctx.obj["quiet"] = quiet
     level = logging.ERROR if quiet else (logging.DEBUG if verbose > 1 else logging.INFO if verbose else logging.WARNING)
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+    # a command that meets kernels missing from the cache says so on stderr, one line per group
+    _numba.set_compile_notice(None if quiet else lambda message: click.echo(message, err=True))
 
 
 def main() -> None:  # pragma: no cover - console entry

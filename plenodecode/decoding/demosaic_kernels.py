@@ -7,7 +7,8 @@ described in :mod:`plenodecode.decoding.demosaic`; :func:`bilinear_kernel` runs 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from .._numba import njit
 
 #: LLVM fast-math flags without 'nnan'/'ninf': NaN marks missing pixels and must stay testable
 FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}

@@ -20,8 +20,8 @@ import logging
 
 import cv2
 import numpy as np
-from numba import njit
 
+from .._numba import njit
 from ..types import cfa_channel_map
 
 log = logging.getLogger(__name__)

@@ -39,8 +39,8 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from numba import njit
 
+from .._numba import njit
 from ..errors import CalibrationError, DecodeError
 from ..types import LensletGrid, RawCapture
 from .slice import view_offsets

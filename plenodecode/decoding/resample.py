@@ -25,8 +25,8 @@ if one of the two nearest lenses is missing the sample falls back to the linear 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from .._numba import njit
 from ..imaging import INTERPOLATION_TAPS, interpolation_taps
 from ..registry import lookup
 from ..types import LensletGrid
@@ -70,7 +70,13 @@ def row_taps(grid: LensletGrid, *, method: str = "cubic") -> tuple[np.ndarray, n
     return np.stack(idx_all), np.stack(w_all)
 
 
-@njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
+# One signature, the destinations in any layout: the decoder passes a band of rows of the whole light field
+# (strided) or, for a raw of one band, the whole of it (contiguous); without it each layout compiles once.
+_RESAMPLE_SIGNATURE = ("void(f4[:, :, :, :, ::1], f4[:, :, :, ::1], i8[::1], i8[:, :, ::1], f4[:, :, ::1], b1[:, ::1], "
+                       "i8[:, :, ::1], f4[:, :, ::1], f4[:, :, :, :, :], f4[:, :, :, :])")
+
+
+@njit(_RESAMPLE_SIGNATURE, cache=True, nogil=True, fastmath=True, error_model="numpy")
 def _resample_rows(samples, sweight, parity, idx, wts, contig, lidx, lwts, out, out_w):  # pragma: no cover - numba
     nv, nu, nr, nc, nch = samples.shape
     nx, nt = idx.shape[1], idx.shape[2]

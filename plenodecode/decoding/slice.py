@@ -20,8 +20,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from .._numba import njit
 from ..types import LensletGrid
 
 #: Half-size (in units of the lens pitch) of the box searched around each lens when labelling

@@ -10,8 +10,9 @@ Both read cost volumes with the labels last, (Y, X, L) float32, the layout of
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
+from .._numba import njit
 from .cost import Progress
 
 

@@ -17,8 +17,8 @@ from typing import Any
 
 import cv2
 import numpy as np
-from numba import njit
 
+from .._numba import njit
 from ..imaging import luma
 from .cost import half_plane_cost_volume, worker_threads
 from .views import Views

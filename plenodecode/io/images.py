@@ -78,21 +78,27 @@ def to_unit_float(image: np.ndarray) -> np.ndarray:
     raise ValueError(f"image must be uint8, uint16 or floating point, got dtype {a.dtype}")
 
 
+def _srgb_oetf(linear: np.ndarray) -> np.ndarray:
+    """``12.92 L`` for ``L <= 0.0031308``, else ``1.055 sign(L) |L|**(1/2.4) - 0.055``; float64 in, float32 out."""
+    x = np.asarray(linear, np.float64)
+    curve = 1.055 * (np.sign(x) * np.abs(x) ** (1.0 / 2.4)) - 0.055
+    return np.where(x <= 0.0031308, x * 12.92, curve).astype(np.float32)
+
+
 def srgb_encode(linear: np.ndarray) -> np.ndarray:
     """sRGB transfer function (IEC 61966-2-1) of linear values, float32.
 
-    ``V = 12.92 L`` for ``L <= 0.0031308``, else ``1.055 L**(1/2.4) - 0.055``, evaluated by
-    ``colour.cctf_encoding(L, function='sRGB')``.  Large arrays are encoded in slabs along the
-    first axis, so the float64 temporaries of colour-science stay small.
+    ``V = 12.92 L`` for ``L <= 0.0031308``, else ``1.055 L**(1/2.4) - 0.055``, evaluated in float64
+    as ``colour.cctf_encoding(L, function='sRGB')`` does (the test compares the two) without importing
+    colour-science, whose import pulls in matplotlib (seconds).  Large arrays are encoded in slabs
+    along the first axis, so the float64 temporaries stay small.
     """
-    import colour
-
     a = np.asarray(linear, np.float32)
     if a.ndim < 2 or a.size <= 1 << 22:
-        return np.asarray(colour.cctf_encoding(a, function="sRGB"), np.float32)
+        return _srgb_oetf(a)
     out = np.empty(a.shape, np.float32)
     for k in range(a.shape[0]):
-        out[k] = colour.cctf_encoding(a[k], function="sRGB")
+        out[k] = _srgb_oetf(a[k])
     return out
 
 

@@ -31,8 +31,9 @@ from typing import Any, Callable
 import numpy as np
 import scipy.fft
 import scipy.special
-from numba import njit, prange
+from numba import prange
 
+from .._numba import njit
 from ..types import LightField
 from ._common import aperture_mask, check_lightfield
 

@@ -30,8 +30,9 @@ from typing import Callable
 
 import numba
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
+from .._numba import njit
 from ..imaging import INTERPOLATION_TAPS, interpolation_taps
 from ..types import LightField
 from ._common import aperture_mask, check_lightfield, check_slopes

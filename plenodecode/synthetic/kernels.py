@@ -15,13 +15,15 @@ import math
 import numba
 import numpy as np
 
+from .._numba import njit
+
 #: Sub-sample offsets (px, in the lattice frame) of the rule that averages over a pixel box:
 #: 2 x 2 Gauss-Legendre points, exact for polynomials up to degree 3 per axis.  The kernels
 #: take it as their ``sub`` argument.
 SUBSAMPLES = np.array([-0.5 / math.sqrt(3.0), 0.5 / math.sqrt(3.0)])
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _bilinear(tex, k, c, py, px, y0, x0, scale):
     hr = tex.shape[2]
     wr = tex.shape[3]
@@ -38,7 +40,7 @@ def _bilinear(tex, k, c, py, px, y0, x0, scale):
     return top * (1.0 - wy) + bot * wy
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _coverage(kd, prm, k, py, px, width):
     """Alpha of plane k's support at texture point (py, px): smoothstep of the signed distance."""
     if kd == 0:
@@ -60,7 +62,7 @@ def _coverage(kd, prm, k, py, px, width):
     return t * t * (3.0 - 2.0 * t)
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _ray(y, x, a, b, c, tex, y0, x0, scale, d0, gy, gx, kind, prm, width):
     """Radiance of channel c along the ray of lattice offset (a, b) at decoded (y, x).
 
@@ -84,7 +86,7 @@ def _ray(y, x, a, b, c, tex, y0, x0, scale, d0, gy, gx, kind, prm, width):
     return acc
 
 
-@numba.njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True)
 def box_radiance_kernel(y, x, oa, ob, ch, sub, tex, y0, x0, scale, d0, gy, gx, kind, prm, width, out):
     """Mean radiance over the box in o (product rule ``sub`` x ``sub``) of each ray (flat arrays)."""
     n = y.size
@@ -99,7 +101,7 @@ def box_radiance_kernel(y, x, oa, ob, ch, sub, tex, y0, x0, scale, d0, gy, gx, k
         out[i] = acc * norm
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _disk(r, radius, edge, falloff):
     t = (r - (radius - 0.5 * edge)) / edge
     if t <= 0.0:
@@ -112,7 +114,7 @@ def _disk(r, radius, edge, falloff):
     return max(f, 0.0) * e
 
 
-@numba.njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True)
 def sensor_band_kernel(r0, out, origin_r, origin_c, cos_t, sin_t, pitch, rs, shift, hexagonal, a0, b0, step,
                  radius, edge, falloff, sub, vig_cy, vig_cx, vig_k, exposure, chmap,
                  with_scene, tex, y0, x0, scale, d0, gy, gx, kind, prm, width):

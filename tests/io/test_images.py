@@ -173,3 +173,13 @@ def test_the_same_image_gives_the_same_bytes(tmp_path, name):
     first = write_image(tmp_path / "1" / name, img, bit_depth=bits).read_bytes()
     time.sleep(1.1)
     assert write_image(tmp_path / "2" / name, img, bit_depth=bits).read_bytes() == first
+
+
+def test_srgb_encode_matches_colour_science():
+    """The numpy sRGB encoding equals colour-science's ``cctf_encoding(L, function='sRGB')`` (the reference)."""
+    import colour
+
+    lin = np.concatenate([np.linspace(-0.2, 1.5, 2001), [0.0, 0.0031308, 0.0031309, 1.0]]).astype(np.float32)
+    lin = lin.reshape(-1, 5)
+    expect = np.asarray(colour.cctf_encoding(lin, function="sRGB"), np.float32)
+    np.testing.assert_array_equal(srgb_encode(lin), expect)

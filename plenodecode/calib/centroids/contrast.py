@@ -13,6 +13,8 @@ import cv2
 import numba
 import numpy as np
 
+from ..._numba import njit
+
 
 def _blur_1d_moments(n: int, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Zero-padded 1-D Gaussian blurs of ``1``, ``t``, ``t^2`` over ``t = 0..n-1`` (centred), and ``t``."""
@@ -25,7 +27,7 @@ def _blur_1d_moments(n: int, sigma: float) -> tuple[np.ndarray, np.ndarray, np.n
     return conv[0], conv[1], conv[2], t
 
 
-@numba.njit(cache=True, fastmath=True, inline="always")
+@njit(cache=True, fastmath=True, inline="always")
 def _geometric_moments(r1, ry, ryy, ty, c1, cx, cxx, tx):  # pragma: no cover - compiled
     """``(g1, m0y, m0x, myy, mxx, mxy)``: the Gaussian moments ``G * 1, G * (y' - y), G * (x' - x), ...`` of
     one pixel from the separable 1-D blurs of its row (``r1, ry, ryy, ty``) and column (``c1, cx, cxx, tx``)."""
@@ -36,7 +38,7 @@ def _geometric_moments(r1, ry, ryy, ty, c1, cx, cxx, tx):  # pragma: no cover - 
     return r1 * c1, ay * c1, r1 * ax, ayy * c1, r1 * axx, ay * ax
 
 
-@numba.njit(cache=True, parallel=True, fastmath=True)
+@njit(cache=True, parallel=True, fastmath=True)
 def _local_linear_level(r1, ry, ryy, ty, c1, cx, cxx, tx, s0, sy, sx):  # pragma: no cover - compiled
     """``beta0`` of the 3x3 normal equations of :func:`local_mean` per pixel (Cramer's rule).
 

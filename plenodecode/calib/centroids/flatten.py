@@ -14,6 +14,7 @@ import cv2
 import numba
 import numpy as np
 
+from ..._numba import njit
 from ...decoding.devignette import normalise
 from ...types import RawCapture
 
@@ -53,7 +54,7 @@ def cfa_gains(raw: RawCapture, *, sample_step: int = 7) -> np.ndarray:
     return lev.mean() / lev
 
 
-@numba.njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True)
 def _hot_row(up, mid, dn, threshold, flag):  # pragma: no cover - compiled
     """``flag[j]`` = ``mid[j]`` leaves the range of its 8 neighbours (clamped at the row ends) by
     more than ``threshold`` plus half that range; branch-free over the interior so that it vectorises."""
@@ -74,7 +75,7 @@ def _hot_row(up, mid, dn, threshold, flag):  # pragma: no cover - compiled
         flag[j] = (mid[j] > mx + margin) | (mid[j] < mn - margin)
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def _fix_hot(img, threshold):  # pragma: no cover - compiled
     """Kernel of :func:`fix_hot_pixels`: neighbours clamped at the border (= OpenCV's reflect at 1 px)."""
     h, w = img.shape
@@ -97,7 +98,7 @@ def _fix_hot(img, threshold):  # pragma: no cover - compiled
     return out, bad_rows.sum()
 
 
-@numba.njit(cache=True, parallel=True, fastmath=True)
+@njit(cache=True, parallel=True, fastmath=True)
 def _levels_bin2(m, k, offset):  # pragma: no cover - compiled
     """``sum over the 2x2 tile of m * k[r % 2, c % 2] - offset`` per tile, float32."""
     h2, w2 = m.shape[0] // 2, m.shape[1] // 2

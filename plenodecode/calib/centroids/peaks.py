@@ -17,6 +17,8 @@ import cv2
 import numba
 import numpy as np
 
+from ..._numba import njit
+
 
 def smoothing_sigma(pitch: float) -> float:
     """Gaussian sigma (px) matched to a lenslet disk of radius ~0.47 pitch: ``0.25 * pitch``."""
@@ -74,7 +76,7 @@ def window_maxima(g: np.ndarray, half: int, margin: int) -> np.ndarray:
     return mask
 
 
-@numba.njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True)
 def _window_contrast_at(g, rr, cc, half):  # pragma: no cover - compiled
     """Kernel of :func:`window_contrast`: visits only the windows of the listed pixels."""
     h, w = g.shape

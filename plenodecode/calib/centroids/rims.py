@@ -18,6 +18,7 @@ import cv2
 import numba
 import numpy as np
 
+from ..._numba import njit
 from .contrast import devignette
 
 
@@ -54,7 +55,7 @@ def rim_gradients(img: np.ndarray, pitch: float, *, sigma: float = 1.0) -> tuple
     return gy, gx
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _splat_votes(gy, gx, radius, threshold):  # pragma: no cover - compiled
     h, w = gy.shape
     acc = np.zeros((h, w), np.float32)
@@ -99,7 +100,7 @@ def rim_votes(gy: np.ndarray, gx: np.ndarray, radius: float, *, min_gradient: fl
     return _splat_votes(np.ascontiguousarray(gy), np.ascontiguousarray(gx), float(radius), thr)
 
 
-@numba.njit(cache=True, parallel=True, fastmath=True)
+@njit(cache=True, parallel=True, fastmath=True)
 def _rim_fit(gy, gx, start, radius, band, n_iter, relax, tol):  # pragma: no cover - compiled
     n = start.shape[0]
     h, w = gy.shape

@@ -12,6 +12,7 @@ from typing import Callable
 import numba
 import numpy as np
 
+from ..._numba import njit
 from ...registry import lookup
 from .peaks import smooth_for_peaks
 
@@ -20,7 +21,7 @@ from .peaks import smooth_for_peaks
 NEWTON_TOL = 0.05
 
 
-@numba.njit(cache=True, inline="always")
+@njit(cache=True, inline="always")
 def _gauss_row(out, d0, inv2s2):  # pragma: no cover - compiled
     """``out[t] = exp(-(d0 + t)^2 inv2s2)`` by the recurrence ``g(d + 1) = g(d) exp(-(2d + 1) inv2s2)``
     (three exponentials per row instead of one per tap)."""
@@ -33,7 +34,7 @@ def _gauss_row(out, d0, inv2s2):  # pragma: no cover - compiled
         r *= q
 
 
-@numba.njit(cache=True, parallel=True, fastmath=True)
+@njit(cache=True, parallel=True, fastmath=True)
 def _newton_dog_peaks(img, start, sigma_w, sigma_b, n_iter, tol):  # pragma: no cover - compiled
     n = start.shape[0]
     h, w = img.shape

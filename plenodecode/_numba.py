@@ -1,0 +1,140 @@
+"""Where numba keeps the compiled kernels, and a one-line notice when a command compiles some.
+
+numba's on-disk cache (``cache=True``) lands by default in a ``__pycache__`` folder beside each module,
+that is inside the installed package.  :func:`use_user_cache` points it at a user cache directory instead
+(``$NUMBA_CACHE_DIR`` when set, else ``$XDG_CACHE_HOME/plenodecode/numba``, ``~/.cache/plenodecode/numba``
+without XDG); ``plenodecode/__init__.py`` calls it, so it runs before any kernel module imports numba.
+
+Every kernel module decorates its kernels with :func:`njit` (``numba.njit`` with ``cache=True``).  The first
+time a process compiles a kernel that is not in the cache (numba's ``numba:compile`` event, raised only on a
+cache miss), the callback set by :func:`set_compile_notice` (the CLI: one line on stderr) or, without one,
+the log receives ``"compiling decode kernels (first run only, ~6 s)..."``, once per group of kernels.
+
+Importing this module is light: numba is imported by :func:`njit`, that is by the kernel modules.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+from pathlib import Path
+from typing import Any, Callable
+
+
+log = logging.getLogger(__name__)
+
+#: module prefix -> group of kernels named in the compile notice and by ``plenodecode warmup``
+KERNEL_GROUPS: dict[str, str] = {
+    "plenodecode.synthetic": "synthetic",
+    "plenodecode.calib": "calibration",
+    "plenodecode.decoding.focused": "total-focus",
+    "plenodecode.decoding": "decode",
+    "plenodecode.render": "refocus",
+    "plenodecode.depth": "depth",
+}
+
+#: group -> CPU seconds its kernels take to compile (2-core AMD EPYC, numba 0.68; ``bench/bench_coldstart.py``)
+COMPILE_SECONDS: dict[str, float] = {
+    "synthetic": 5.0,
+    "calibration": 15.0,
+    "total-focus": 4.0,
+    "decode": 10.0,
+    "refocus": 14.0,
+    "depth": 4.0,
+}
+
+_state: dict[str, Any] = {"notify": None, "announced": set(), "listening": False}
+
+
+def default_cache_dir() -> Path:
+    """``$XDG_CACHE_HOME/plenodecode/numba`` (``~/.cache/plenodecode/numba`` when XDG_CACHE_HOME is unset)."""
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "plenodecode" / "numba"
+
+
+def use_user_cache() -> str:
+    """Make numba cache compiled kernels in the user cache directory; return that directory.
+
+    ``$NUMBA_CACHE_DIR`` wins when set; otherwise it is set to :func:`default_cache_dir` (so worker
+    processes inherit it).  When numba was imported before plenodecode its configuration is updated too;
+    kernels decorated after this call use the directory.
+    """
+    path = os.environ.get("NUMBA_CACHE_DIR") or str(default_cache_dir())
+    os.environ["NUMBA_CACHE_DIR"] = path
+    numba = sys.modules.get("numba")
+    if numba is not None and getattr(numba, "config", None) is not None and not numba.config.CACHE_DIR:
+        numba.config.CACHE_DIR = path
+    return path
+
+
+def group_of(module: str) -> str | None:
+    """The kernel group of a module name (longest matching prefix of :data:`KERNEL_GROUPS`), or None."""
+    best = None
+    for prefix, group in KERNEL_GROUPS.items():
+        if (module == prefix or module.startswith(prefix + ".")) and (best is None or len(prefix) > len(best[0])):
+            best = (prefix, group)
+    return best[1] if best else None
+
+
+def compile_message(group: str) -> str:
+    """``'compiling decode kernels (first run only, ~8 s)...'``."""
+    seconds = COMPILE_SECONDS.get(group)
+    estimate = f", ~{seconds:.0f} s" if seconds else ""
+    return f"compiling {group} kernels (first run only{estimate})..."
+
+
+def set_compile_notice(notify: Callable[[str], None] | None) -> None:
+    """Send the compile notice to ``notify(message)`` (None: to the log, at INFO)."""
+    _state["notify"] = notify
+
+
+def _announce(module: str) -> None:
+    group = group_of(module) or "plenodecode"
+    if group in _state["announced"]:
+        return
+    _state["announced"].add(group)
+    message = compile_message(group)
+    notify = _state["notify"]
+    if notify is not None:
+        notify(message)
+    else:
+        log.info(message)
+
+
+def _listen() -> None:
+    """Register (once) a listener of numba's ``numba:compile`` event, which numba raises on a cache miss."""
+    if _state["listening"]:
+        return
+    from numba.core import event
+
+    class _CompileNotice(event.Listener):
+        def on_start(self, ev: Any) -> None:
+            dispatcher = ev.data.get("dispatcher") if isinstance(ev.data, dict) else None
+            func = getattr(dispatcher, "py_func", None)
+            module = getattr(func, "__module__", "") or ""
+            if module.startswith("plenodecode"):
+                _announce(module)
+
+        def on_end(self, ev: Any) -> None:
+            pass
+
+    event.register("numba:compile", _CompileNotice())
+    _state["listening"] = True
+
+
+def njit(*args: Any, **options: Any) -> Any:
+    """``numba.njit`` with ``cache=True`` (in :func:`use_user_cache`'s directory) and the compile notice.
+
+    Used as ``@njit`` or ``@njit(parallel=True, ...)``, like numba's.
+    """
+    use_user_cache()
+    _listen()
+    import numba
+
+    options.setdefault("cache", True)
+    return numba.njit(*args, **options)
+
+
+__all__ = ["KERNEL_GROUPS", "COMPILE_SECONDS", "default_cache_dir", "use_user_cache", "group_of",
+           "compile_message", "set_compile_notice", "njit"]
