@@ -89,6 +89,20 @@ def test_float_outputs_are_the_same_bytes_too(shoot, tmp_path):
     assert photo.dtype == np.float32 and float(photo.max()) > 0.05    # linear, not display-encoded 16-bit
 
 
+def test_batch_refocus_by_alpha_matches_the_one_liner(shoot, tmp_path):
+    """--refocus ALPHA means the same in `plenodecode RAW` and in `plenodecode batch`: the same file bytes."""
+    raw, db = shoot["raw"], shoot["db"]
+    run("-q", raw, "--refocus", "1.005", "--database", db, "-o", tmp_path / "one.png")
+    run("-q", "batch", raw, "-o", tmp_path / "batch", "--jobs", 1, "--database", db, "--outputs", "refocus",
+        "--refocus", "1.005")
+    written = sorted((tmp_path / "batch" / raw.stem).glob("refocus*.png"))
+    assert len(written) == 1
+    assert written[0].read_bytes() == (tmp_path / "one.png").read_bytes()
+    res = CliRunner().invoke(cli, ["batch", str(raw), "-o", str(tmp_path / "b2"), "--database", str(db),
+                                   "--alpha", "1.0", "--focus-distance", "2"])
+    assert res.exit_code == 2 and "--focus-distance" in res.output and not (tmp_path / "b2").exists()
+
+
 def test_camera_rgb_light_fields_are_encoded_alike(shoot, tmp_path, monkeypatch):
     """A light field in camera RGB: batch used to write it without the sRGB encoding, the commands with it."""
     real = pipeline.decode_raw

@@ -8,8 +8,8 @@ import click
 
 from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES
 from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
-from .common import (FINITE, RegistryChoice, bit_depth_option, current_mosaic_options, database_option, jobs_option,
-                     mosaic_options, progress_bar)
+from .common import (FINITE, POSITIVE, RegistryChoice, bit_depth_option, current_mosaic_options, database_option,
+                     jobs_option, mosaic_options, progress_bar)
 
 
 def _parse_outputs(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
@@ -46,12 +46,16 @@ def _echo_table(summary) -> None:
               help="Format of the 'lightfield' product.")
 @bit_depth_option
 @click.option("--slope", type=FINITE, default=0.0, show_default=True, help="Refocus slope of the 'refocus' product.")
+@click.option("--alpha", "--refocus", "alpha", type=POSITIVE, default=None,
+              help="Refocus the 'refocus' product at Ng's relative film depth ALPHA instead of --slope.")
+@click.option("--focus-distance", "distance_m", type=POSITIVE, default=None, metavar="METRES",
+              help="Refocus the 'refocus' product at this distance (m) instead of --slope (cameras with geometry).")
 @click.option("--depth-method", type=RegistryChoice("plenodecode.depth", "DEPTH_METHODS"),
               default=DEFAULT_DEPTH_METHOD, show_default=True, help="Method of the 'depth' product.")
 @click.option("--overwrite", is_flag=True, help="Redo raws a previous run finished and replace their outputs.")
 @click.pass_context
 def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, database, lf_format, bit_depth, slope,
-            depth_method, overwrite) -> None:
+            alpha, distance_m, depth_method, overwrite) -> None:
     """Decode every raw under INPUTS and write the chosen outputs per raw into OUTPUT/<name>/.
 
     Each raw is matched to its camera's calibration in the database (by serial, zoom and
@@ -68,6 +72,8 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
     from ..batch import BatchOptions, check_summary_files, find_raws, needs_no_database, run_batch, write_summary
     from ..calib.store import DEFAULT_DB
 
+    if alpha is not None and distance_m is not None:
+        raise click.UsageError("pass at most one of --alpha and --focus-distance (each replaces --slope)")
     db_dir = database or Path(DEFAULT_DB)
     if not overwrite:
         try:
@@ -82,7 +88,8 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
                                  "--database`", param_hint="--database")
     mosaic = current_mosaic_options()
     options = BatchOptions(outputs=outputs, db_dir=str(db_dir), lightfield_format=lf_format,
-                           bit_depth=int(bit_depth), slope=slope, depth_method=depth_method, cfa=mosaic.cfa,
+                           bit_depth=int(bit_depth), slope=slope, alpha=alpha, distance_m=distance_m,
+                           depth_method=depth_method, cfa=mosaic.cfa,
                            black_level=mosaic.black_level, white_level=mosaic.white_level,
                            input_encoding=mosaic.input_encoding)
     try:
