@@ -217,18 +217,20 @@ def calibration_xml_for(path: str | os.PathLike, xml: str | os.PathLike | None =
     Raises
     ------
     MetadataError
-        ``xml`` is not a RayCalibData document; or no XML of the image's stem and several RayCalibData
-        XMLs in its folder (ambiguous: the message lists them and names ``--raytrix-xml``), unless the
-        image has a plenodecode JSON sidecar (then it is a mosaic of its own).
+        ``xml`` is not a RayCalibData document, or ``path`` is no image; or no XML of the image's stem and
+        several RayCalibData XMLs in its folder (ambiguous: the message lists them and names ``--raytrix-xml``).
     """
     p = Path(path)
     if xml is not None:
+        if p.suffix.lower() not in RAYTRIX_IMAGE_EXTENSIONS:
+            raise MetadataError(f"{p.name}: --raytrix-xml applies to Raytrix images "
+                                f"({', '.join(RAYTRIX_IMAGE_EXTENSIONS)}); this is not one")
         if not is_raycalib_xml(xml):
             raise MetadataError(f"{xml}: not a RayCalibData XML (no <RayCalibData> element); pass the calibration "
                                 "RxLive exported with the image as --raytrix-xml")
         return Path(xml)
     found = find_calibration_xml(p)
-    if found is not None or p.suffix.lower() not in RAYTRIX_IMAGE_EXTENSIONS or find_sidecar(p) is not None:
+    if found is not None or p.suffix.lower() not in RAYTRIX_IMAGE_EXTENSIONS:
         return found
     several = _calibrations_in_folder(p.parent)
     if len(several) > 1:
