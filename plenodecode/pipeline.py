@@ -10,7 +10,7 @@ five steps, each implemented once here::
                               the choice is logged in one info line
     Source                    an opened input; a raw is decoded on first use of ``Source.lightfield``
     render_product(src, name) a product of :data:`PRODUCTS` (centre, views, refocus, focal-stack, all-in-focus,
-                              parallax, depth, total-focus) -> :class:`Rendered`
+                              parallax, depth, total-focus, focused-refocus) -> :class:`Rendered`
     write_product(r, output)  display encoding, bit depth, file names, atomic rename, overwrite checks
 
 Display encoding (one rule, :func:`display_encoding`): images of a linear light field (colour state
