@@ -10,7 +10,7 @@ five steps, each implemented once here::
                               the choice is logged in one info line
     Source                    an opened input; a raw is decoded on first use of ``Source.lightfield``
     render_product(src, name) a product of :data:`PRODUCTS` (centre, views, refocus, focal-stack, all-in-focus,
-                              parallax, depth, total-focus) -> :class:`Rendered`
+                              parallax, depth, total-focus, focused-refocus) -> :class:`Rendered`
     write_product(r, output)  display encoding, bit depth, file names, atomic rename, overwrite checks
 
 Display encoding (one rule, :func:`display_encoding`): images of a linear light field (colour state
@@ -106,19 +106,35 @@ def _read_lightfield(p: Path) -> LightField:
     return load_lightfield(p)
 
 
-def _read_raw(p: Path, mosaic: MosaicOptions | None = None) -> RawCapture:
-    from .io import read_raw
+def open_raw(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None,
+             raytrix_xml: str | os.PathLike | None = None) -> RawCapture:
+    """Read a raw (:func:`plenodecode.io.read_raw`); a Raytrix image with ``raytrix_xml`` or the RayCalibData XML
+    :func:`plenodecode.io.raytrix.calibration_xml_for` finds beside it (same stem, or the only one in the folder).
 
+    Raises
+    ------
+    MetadataError
+        ``raytrix_xml`` is no RayCalibData, or several XMLs beside the image and none of its stem.
+    FormatError
+        Unreadable raw.
+    """
+    from .io import raytrix, read_raw
+
+    p = Path(path)
+    xml = raytrix.calibration_xml_for(p, raytrix_xml) if p.is_file() else None
+    if xml is not None:
+        return raytrix.read_raytrix(p, xml=xml)
     return read_raw(p, mosaic=mosaic)
 
 
 #: Input kind -> reader ``fn(path) -> LightField | RawCapture``.
 INPUT_READERS: dict[str, Callable[[Path], LightField | RawCapture]] = {
-    "hci": _read_hci, "lightfield": _read_lightfield, "raw": _read_raw,
+    "hci": _read_hci, "lightfield": _read_lightfield, "raw": open_raw,
 }
 
 
-def open_input(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None) -> LightField | RawCapture:
+def open_input(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None,
+               raytrix_xml: str | os.PathLike | None = None) -> LightField | RawCapture:
     """Read any supported input.
 
     Parameters
@@ -130,6 +146,8 @@ def open_input(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None) 
         with its ``parameters.cfg``.
     mosaic : MosaicOptions, optional
         How to read an image mosaic (CFA, levels, value encoding); raws only.
+    raytrix_xml : path-like, optional
+        The RayCalibData XML of a Raytrix image, when it is not the one beside it (:func:`open_raw`).
 
     Returns
     -------
@@ -142,7 +160,7 @@ def open_input(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None) 
     """
     p = Path(path)
     kind = input_kind(p)
-    return _read_raw(p, mosaic) if kind == "raw" else INPUT_READERS[kind](p)
+    return open_raw(p, mosaic=mosaic, raytrix_xml=raytrix_xml) if kind == "raw" else INPUT_READERS[kind](p)
 
 
 # -------------------------------------------------------------------------------------------- calibration
@@ -234,7 +252,7 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
     from .calib import store
     from .io.generic import is_bare_mosaic
 
-    white_raw = _read_raw(Path(white), mosaic) if isinstance(white, (str, os.PathLike)) else white
+    white_raw = open_raw(white, mosaic=mosaic) if isinstance(white, (str, os.PathLike)) else white
     db = Path(database) if database is not None else Path(store.DEFAULT_DB)
     if grid is not None:
         cal = Calibration(_grid_from_file(grid), white_raw, "grid file",
@@ -334,6 +352,7 @@ class Source:
 def decode_raw(raw: RawCapture, calibration: Calibration, *, progress: Progress = None,
                **decode_options: Any) -> LightField:
     """Decode ``raw`` with ``calibration`` (:func:`plenodecode.decoding.decode`; devignetted by its white).
+    A Raytrix RGB export is decoded channel by channel from its linear sRGB values (colour 'linear-srgb').
 
     Returns
     -------
@@ -341,20 +360,32 @@ def decode_raw(raw: RawCapture, calibration: Calibration, *, progress: Progress 
         ``data`` (V, U, Y, X, C) float32.
     """
     from .decoding import decode
+    from .io.raytrix import is_rgb_export, rgb_export_channels
 
     log.info("decoding %s", raw.path)
-    return decode(raw, calibration.grid, white=calibration.white, progress=progress, **decode_options)
+    if not is_rgb_export(raw):
+        return decode(raw, calibration.grid, white=calibration.white, progress=progress, **decode_options)
+    # a Raytrix RGB export (already demosaiced, sRGB): its linear channels decoded one by one, stacked as C = 3
+    import numpy as np
+
+    white = calibration.white
+    whites = rgb_export_channels(white) if white is not None and is_rgb_export(white) else [white] * 3
+    planes = [decode(plane, calibration.grid, white=w, progress=progress, **decode_options)
+              for plane, w in zip(rgb_export_channels(raw), whites)]
+    state = "camera" if decode_options.get("colour") == "camera" else "linear-srgb"
+    return planes[0].replace(data=np.concatenate([lf.data for lf in planes], axis=-1), colour=state)
 
 
 def open_source(path: str | os.PathLike, *, grid: str | os.PathLike | None = None,
                 white: str | os.PathLike | None = None, database: str | os.PathLike | None = None,
                 self_calibrate: bool = False, mosaic: MosaicOptions | None = None,
+                raytrix_xml: str | os.PathLike | None = None,
                 decode_options: Mapping[str, Any] | None = None, progress: Progress = None) -> Source:
     """:func:`open_input`, then for a raw :func:`choose_calibration`; the decoding waits for first use.
 
-    The calibration and ``mosaic`` options apply to raws only.
+    The calibration, ``mosaic`` and ``raytrix_xml`` options apply to raws only.
     """
-    item = open_input(path, mosaic=mosaic)
+    item = open_input(path, mosaic=mosaic, raytrix_xml=raytrix_xml)
     if isinstance(item, LightField):
         return Source(lightfield=item)
     cal = choose_calibration(item, grid=grid, white=white, database=database, self_calibrate=self_calibrate,
@@ -582,6 +613,52 @@ def check_total_focus_patch(grid: LensletGrid, patch: Any) -> None:
                          f"{patch if p.ndim == 0 else 'an array outside it'}; P = lens pitch / virtual depth")
 
 
+def _focused_input(src: Source, what: str) -> tuple[Any, Any, str]:
+    """What a focused-plenoptic renderer reads: ``(image, white, colour state)``.
+
+    A Raytrix RGB export (:func:`plenodecode.io.raytrix.is_rgb_export`: its RawCapture holds the luminance)
+    is read again in colour, linear sRGB (:func:`~plenodecode.io.raytrix.read_raytrix_linear_rgb`), and so is
+    its white image when that is an export too (else the white's normalised mosaic divides every channel);
+    any other raw is rendered from its mosaic (demosaiced within the micro-images), in camera RGB.
+    ``src`` holds a raw; ``what`` names the product in the warning for a grid without lens types.
+    """
+    if not src.focused:
+        log.warning("the lenslet grid of %s has no lens types: %s expects a focused-plenoptic raw",
+                    src.raw.path or "the raw", what)
+    from .io.raytrix import is_rgb_export, read_raytrix_linear_rgb
+
+    white = src.calibration.white
+    if not is_rgb_export(src.raw):
+        return src.raw, white, "camera"
+    if white is not None:
+        from .decoding.devignette import normalise
+
+        white = read_raytrix_linear_rgb(white.path) if is_rgb_export(white) else \
+            normalise(white.mosaic, white.black, white.white)
+    return read_raytrix_linear_rgb(src.raw.path), white, "linear-srgb"
+
+
+def _camera_to_srgb(image: Any, state: str, raw: RawCapture, colour: str) -> tuple[Any, str]:
+    """A focused rendering in camera RGB converted as the decoder does, ``srgb = CCM @ diag(gains) @ camera``
+    (:func:`plenodecode.decoding.colour.colour_matrix`), when ``colour='linear-srgb'`` and the metadata has a CCM."""
+    from .decoding.colour import apply_matrix, colour_matrix
+
+    if image.shape[-1] != 3 or state != "camera" or colour != "linear-srgb":
+        return image, state
+    matrix = colour_matrix(raw.metadata)
+    if matrix is None:
+        log.warning("the raw's metadata has no colour matrix (ccm): the focused rendering stays in camera RGB")
+        return image, state
+    return apply_matrix(image, matrix), "linear-srgb"
+
+
+def _check_colour(colour: str) -> None:
+    from .decoding.colour import DECODE_COLOURS
+
+    if colour not in DECODE_COLOURS:
+        raise ValueError(f"colour must be one of {DECODE_COLOURS}, got {colour!r}")
+
+
 def render_total_focus(src: Source, *, patch: float | Any | None = None, sharpness: float = 2.0,
                        colour: str = "linear-srgb", progress: Progress = None) -> Rendered:
     """All-in-focus rendering of a focused-plenoptic (Raytrix) raw from its micro-images
@@ -590,6 +667,7 @@ def render_total_focus(src: Source, *, patch: float | Any | None = None, sharpne
     A colour raw (a CFA, demosaiced within each micro-image) is rendered in camera RGB and, with
     ``colour='linear-srgb'``, converted as the decoder does: ``srgb = CCM @ diag(gains) @ camera``
     (:func:`plenodecode.decoding.colour.colour_matrix`); without a CCM in the metadata it stays 'camera'.
+    A Raytrix RGB export is rendered from its colour image, linear sRGB (:func:`_focused_input`).
 
     Parameters
     ----------
@@ -614,28 +692,50 @@ def render_total_focus(src: Source, *, patch: float | Any | None = None, sharpne
         The input is not a raw (a light field has no micro-images); ``patch`` out of range
         (:func:`check_total_focus_patch`); an unknown ``colour``.
     """
-    from .decoding.colour import DECODE_COLOURS, apply_matrix, colour_matrix
-
     if src.raw is None:
         raise ValueError("total-focus renders a focused-plenoptic raw; the input is a light field")
     check_total_focus_patch(src.calibration.grid, patch)
-    if colour not in DECODE_COLOURS:
-        raise ValueError(f"colour must be one of {DECODE_COLOURS}, got {colour!r}")
-    if not src.focused:
-        log.warning("the lenslet grid of %s has no lens types: total focus expects a focused-plenoptic raw",
-                    src.raw.path or "the raw")
+    _check_colour(colour)
+    image, white, state = _focused_input(src, "total focus")
     from .decoding.focused import render_total_focus as total_focus
 
-    res = total_focus(src.raw, src.calibration.grid, patch=patch, white=src.calibration.white,
-                      sharpness=sharpness, progress=progress)
-    image, state = res.image, "camera"
-    if image.shape[-1] == 3 and colour == "linear-srgb":
-        matrix = colour_matrix(src.raw.metadata)
-        if matrix is None:
-            log.warning("the raw's metadata has no colour matrix (ccm): the total-focus image stays in camera RGB")
-        else:
-            image, state = apply_matrix(image, matrix), "linear-srgb"
-    return Rendered("total-focus", (("total_focus", image),), state, data={"render": res})
+    res = total_focus(image, src.calibration.grid, patch=patch, white=white, sharpness=sharpness, progress=progress)
+    out, state = _camera_to_srgb(res.image, state, src.raw, colour)
+    return Rendered("total-focus", (("total_focus", out),), state, data={"render": res})
+
+
+def virtual_depth_stem(virtual_depth: float) -> str:
+    """File stem of a focused raw refocused at a virtual depth: ``refocus_v2.50``."""
+    return f"refocus_v{virtual_depth:.2f}"
+
+
+def render_focused_refocus(src: Source, *, virtual_depth: float, colour: str = "linear-srgb") -> Rendered:
+    """A focused-plenoptic (Raytrix) raw refocused at ``virtual_depth``
+    (:func:`plenodecode.decoding.focused.render_at_virtual_depth`: patches of ``lens pitch / virtual_depth`` px,
+    the lens types in focus there weighted most), in colour as :func:`render_total_focus`.
+
+    Returns
+    -------
+    Rendered
+        One image ``refocus_v<V>`` (Ho, Wo, C) float32; ``data['render']`` the FocusedRender.
+
+    Raises
+    ------
+    ValueError
+        A light-field input; ``virtual_depth`` outside the camera's range
+        (:func:`plenodecode.decoding.focused.check_virtual_depth`); an unknown ``colour``.
+    """
+    from .decoding.focused import check_virtual_depth, render_at_virtual_depth
+
+    if src.raw is None:
+        raise ValueError("a refocus at a virtual depth renders a focused-plenoptic raw; the input is a light field")
+    check_virtual_depth(src.calibration.grid, virtual_depth)
+    _check_colour(colour)
+    image, white, state = _focused_input(src, "a refocus at a virtual depth")
+    res = render_at_virtual_depth(image, src.calibration.grid, virtual_depth, white=white)
+    out, state = _camera_to_srgb(res.image, state, src.raw, colour)
+    return Rendered("focused-refocus", ((virtual_depth_stem(virtual_depth), out),), state,
+                    data={"render": res, "virtual_depth": virtual_depth})
 
 
 #: Product name -> ``fn(source, **options) -> Rendered``; the same names in the CLI, batch and Python.
@@ -648,6 +748,7 @@ PRODUCTS: dict[str, Callable[..., Rendered]] = {
     "parallax": render_parallax,
     "depth": render_depth,
     "total-focus": render_total_focus,
+    "focused-refocus": render_focused_refocus,
 }
 
 
@@ -833,7 +934,7 @@ def write_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | N
 
 __all__ = ["LIGHTFIELD_EXTENSIONS", "IMAGE_EXTENSIONS", "BIT_DEPTHS", "MAX_STACK_SLICES", "INPUT_READERS", "PRODUCTS", "STACK_UNITS", "Calibration", "Source",
            "Rendered", "input_kind", "is_hci_folder", "is_lightfield_path", "open_input", "choose_calibration",
-           "decode_raw", "open_source", "load_lightfield_input", "render_product", "check_total_focus_patch",
+           "decode_raw", "open_raw", "open_source", "virtual_depth_stem", "load_lightfield_input", "render_product", "check_total_focus_patch",
            "display_encoding", "default_extension", "write_image_file", "refuse_folder_clash", "staged_folder", "write_product",
            "write_parallax", "write_depth", "write_lightfield", "view_names", "refocus_stem", "focal_stack_names",
            "parallax_frame_names"]

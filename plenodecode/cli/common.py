@@ -106,11 +106,35 @@ def current_mosaic_options() -> Any:
     return None if ctx is None else ctx.meta.get(MOSAIC_META)
 
 
+#: ``ctx.meta`` key of the ``--raytrix-xml`` file of a command.
+RAYTRIX_XML_META = "plenodecode.raytrix_xml"
+
+
+def _check_raytrix_xml(ctx: click.Context, param: click.Parameter, value: Path | None) -> Path | None:
+    """``--raytrix-xml``: a RayCalibData document (else a usage error naming the option), kept in ``ctx.meta``."""
+    if value is not None:
+        from ..io.raytrix import is_raycalib_xml
+
+        if not is_raycalib_xml(value):
+            raise click.BadParameter(f"{value} is not a RayCalibData XML (no <RayCalibData> element); pass the "
+                                     "calibration RxLive exported with the image", ctx=ctx, param=param)
+    ctx.meta[RAYTRIX_XML_META] = value
+    return value
+
+
+raytrix_xml_option = click.option(
+    "--raytrix-xml", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None, expose_value=False,
+    callback=_check_raytrix_xml, metavar="FILE",
+    help="Raytrix images: the RayCalibData XML [default: X.xml beside X.png, else the only XML in its folder].")
+
+
 def input_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     """The input options of every command that reads a raw: the calibration (``--calibration/-g``,
-    ``--white/-w``, ``--database``, ``--self-calibrate``; see :func:`plenodecode.pipeline.choose_calibration`)
-    and how to read an image mosaic (:func:`mosaic_options`)."""
+    ``--white/-w``, ``--database``, ``--self-calibrate``; see :func:`plenodecode.pipeline.choose_calibration`),
+    the RayCalibData XML of a Raytrix image (``--raytrix-xml``) and how to read an image mosaic
+    (:func:`mosaic_options`)."""
     fn = mosaic_options(fn)
+    fn = raytrix_xml_option(fn)
     fn = click.option("--self-calibrate", "self_calibrate", is_flag=True,
                       help="Raws without any other calibration: find the lenslet grid in the scene itself "
                            "(automatic for image mosaics without a sidecar).")(fn)
@@ -126,10 +150,12 @@ def input_options(fn: Callable[..., Any]) -> Callable[..., Any]:
 
 def calibration_kwargs(calibration: Path | None, white: Path | None, database: Path | None,
                        self_calibrate: bool) -> dict[str, Any]:
-    """The command's input options as keywords of :func:`plenodecode.pipeline.open_source` (and of
-    :func:`~plenodecode.pipeline.choose_calibration`): the calibration, and ``mosaic`` (:func:`current_mosaic_options`)."""
+    """The command's input options as keywords of :func:`plenodecode.pipeline.open_source`: the calibration,
+    ``mosaic`` (:func:`current_mosaic_options`) and ``raytrix_xml`` (``--raytrix-xml``); without ``raytrix_xml``
+    they are those of :func:`~plenodecode.pipeline.choose_calibration`."""
+    ctx = click.get_current_context(silent=True)
     return {"grid": calibration, "white": white, "database": database, "self_calibrate": self_calibrate,
-            "mosaic": current_mosaic_options()}
+            "mosaic": current_mosaic_options(), "raytrix_xml": None if ctx is None else ctx.meta.get(RAYTRIX_XML_META)}
 
 
 @contextlib.contextmanager
@@ -139,7 +165,8 @@ def usage_errors(param_hint: str | None = None) -> Iterator[None]:
     try:
         yield
     except FileExistsError as exc:
-        raise click.UsageError(f"{exc}; pass --overwrite" if "--overwrite" not in str(exc) else str(exc)) from exc
+        text = str(exc).replace("overwrite=True", "--overwrite")       # the library's keyword, as the CLI spells it
+        raise click.UsageError(f"{text}; pass --overwrite" if "--overwrite" not in text else text) from exc
     except ValueError as exc:
         if param_hint is not None:
             raise click.BadParameter(str(exc), param_hint=param_hint) from exc

@@ -30,16 +30,21 @@ log = logging.getLogger(__name__)
 @click.option("--colour", type=RegistryChoice("plenodecode.decoding.colour", "DECODE_COLOURS"), default="linear-srgb",
               show_default=True, help="Colour of the output: white balance + colour matrix, or camera RGB.")
 @click.option("--no-hot-pixels", is_flag=True, help="Do not repair hot pixels.")
+@click.option("--views-anyway", is_flag=True,
+              help="Focused-plenoptic (Raytrix) raws: cut views from the micro-images even so (the camera gives "
+                   "pictures per lens, not views; 'plenodecode render RAW --total-focus' renders it).")
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path | None, white: Path | None,
             database: Path | None, self_calibrate: bool, dark: Path | None, fmt: str | None, bit_depth: str,
-            demosaic: str, n_views: int | None, colour: str, no_hot_pixels: bool, overwrite: bool) -> None:
+            demosaic: str, n_views: int | None, colour: str, no_hot_pixels: bool, views_anyway: bool,
+            overwrite: bool) -> None:
     """Decode RAW into a 4D light field (V, U, Y, X, C) and write it to OUTPUT.
 
     The lenslet grid comes from --calibration, from --white (calibrated on the fly), from the camera's
     own calibration (Raytrix XML), or from the calibration database (--database, default ./calib) by
-    camera serial, zoom and focus; an image mosaic without a sidecar is self-calibrated.
+    camera serial, zoom and focus; an image mosaic without a sidecar is self-calibrated.  A focused-plenoptic
+    (Raytrix) raw is refused (exit 2) unless --views-anyway: render it with 'plenodecode render RAW --total-focus'.
 
     \b
     Examples:
@@ -49,7 +54,7 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
       plenodecode decode IMG_1.jpg -o lf.zarr
     """
     from ..io import read_raw
-    from ..pipeline import choose_calibration, decode_raw, write_lightfield
+    from ..pipeline import choose_calibration, decode_raw, open_raw, write_lightfield
 
     if database is not None and (calibration is not None or white is not None):
         raise click.UsageError("--database cannot be combined with --calibration or --white")
@@ -57,8 +62,12 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
         raise click.BadParameter("must be a positive odd number", param_hint="--views")
     name = lightfield_output_format(output, fmt, overwrite)
     inputs = calibration_kwargs(calibration, white, database, self_calibrate)
-    raw = read_raw(raw_path, mosaic=inputs["mosaic"])
+    raw = open_raw(raw_path, mosaic=inputs["mosaic"], raytrix_xml=inputs.pop("raytrix_xml"))
     cal = choose_calibration(raw, **inputs)
+    if cal.grid.lens_type is not None and not views_anyway:
+        raise click.UsageError(f"{raw_path.name} is a focused-plenoptic (Raytrix) raw: its micro-images are small "
+                               f"pictures, not a light field of views; render it with 'plenodecode render {raw_path} "
+                               "--total-focus -o photo.png' (or pass --views-anyway)")
     lf = decode_raw(raw, cal, dark=read_raw(dark) if dark is not None else None, demosaic=demosaic, colour=colour,
                     n_views=n_views, hot_pixels=not no_hot_pixels, progress=progress_bar("decoding", ctx))
     with usage_errors():

@@ -25,6 +25,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "calibrate": ("plenodecode.cli.calibrate", "Fit the lenslet grid from white images; build a calibration database."),
     "decode": ("plenodecode.cli.decode", "Decode a raw into a 4D light field and write it."),
     "export": ("plenodecode.cli.export", "Convert a saved light field to another format."),
+    "extract": ("plenodecode.cli.extract", "Write the JPEGs, depth maps and H.264 streams embedded in a Lytro file."),
     "refocus": ("plenodecode.cli.refocus", "Refocus a raw or light field (slope or alpha), or write a focal stack."),
     "render": ("plenodecode.cli.render", "Decode and refocus in one call: plenodecode RAW --refocus ALPHA."),
     "views": ("plenodecode.cli.views", "Write sub-aperture or perspective views."),

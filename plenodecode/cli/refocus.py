@@ -38,6 +38,43 @@ def parse_stack(text: str, units: str = "slope") -> tuple[float, float, int]:
     return start, stop, n
 
 
+#: Options of a light-field refocus that mean nothing to --virtual-depth (parameter name -> option).
+LIGHT_FIELD_ONLY = {"slope": "--slope", "alpha": "--alpha", "stack": "--focal-stack", "method": "--method",
+                    "aperture": "--aperture", "upsample": "--upsample"}
+
+
+def refocus_at_virtual_depth(ctx: click.Context, input_path: Path, output: Path, virtual_depth: float, *,
+                             inputs: dict, bit_depth: int, overwrite: bool) -> None:
+    """``--virtual-depth V``: a focused-plenoptic (Raytrix) raw refocused at virtual depth V (the pipeline's
+    'focused-refocus' product), with every check before any work: no light-field refocus option typed, a raw
+    input, the output free, V within the camera's range (from its RayCalibData lens types)."""
+    from click.core import ParameterSource
+
+    from ..decoding.focused import check_virtual_depth
+    from ..pipeline import input_kind, open_source, render_product, write_product
+
+    for name, option in LIGHT_FIELD_ONLY.items():
+        if ctx.get_parameter_source(name) is ParameterSource.COMMANDLINE:
+            raise click.UsageError(f"{option} refocuses a light field; --virtual-depth renders a focused-plenoptic "
+                                   "raw: pass one of them")
+    if input_kind(input_path) != "raw":
+        raise click.UsageError(f"--virtual-depth renders a focused-plenoptic raw (Raytrix image + RayCalibData XML); "
+                               f"{input_path} is a {input_kind(input_path)} input")
+    check_output(output, overwrite)
+    src = open_source(input_path, **inputs)
+    if not src.focused:
+        raise click.UsageError(f"--virtual-depth renders a focused-plenoptic raw (a grid with lens types, Raytrix); "
+                               f"{input_path.name} is not one: use --slope or --alpha")
+    with usage_errors(param_hint="--virtual-depth"):
+        check_virtual_depth(src.calibration.grid, virtual_depth)
+    photo = render_product(src, "focused-refocus", virtual_depth=virtual_depth)
+    with usage_errors():
+        write_product(photo, output, bit_depth=bit_depth, overwrite=overwrite)
+    if not quiet(ctx):
+        render = photo.data["render"]
+        click.echo(f"wrote {output} (virtual depth {virtual_depth:g}, patch {float(render.patch.flat[0]):.2f} px)")
+
+
 @click.command("refocus")
 @click.argument("input_path", metavar="RAW_OR_LF", type=click.Path(exists=True, path_type=Path))
 @output_option
@@ -45,6 +82,9 @@ def parse_stack(text: str, units: str = "slope") -> tuple[float, float, int]:
 @click.option("--alpha", "--refocus", "alpha", type=POSITIVE, default=None,
               help="Relative film depth (Ng 2005; 1 = as captured); needs the camera constants in the metadata.")
 @focus_options
+@click.option("--virtual-depth", "virtual_depth", type=POSITIVE, default=None, metavar="V",
+              help="Focused-plenoptic (Raytrix) raws: refocus at virtual depth V (patch = lens pitch / V; the valid "
+                   "range comes from the RayCalibData lens types).")
 @click.option("--focal-stack", "stack", metavar="START:STOP:N", default=None,
               help="Write N photographs from START to STOP (slopes, or alphas with --stack-units alpha) and an "
                    "all-in-focus image into the OUTPUT folder.")
@@ -65,13 +105,15 @@ def parse_stack(text: str, units: str = "slope") -> tuple[float, float, int]:
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, output: Path, slope: float | None, alpha: float | None,
-            focus_at: tuple[float, float, bool] | None, no_depth: bool, distance_m: float | None, stack: str | None, stack_units: str, method: str, aperture: float, upsample: int, ext: str,
+            focus_at: tuple[float, float, bool] | None, no_depth: bool, distance_m: float | None,
+            stack: str | None, stack_units: str, method: str, aperture: float, upsample: int, ext: str,
             bit_depth: str, calibration: Path | None, white: Path | None, database: Path | None,
-            self_calibrate: bool, overwrite: bool) -> None:
+            self_calibrate: bool, overwrite: bool, virtual_depth: float | None = None) -> None:
     """Refocus RAW_OR_LF (a raw, a saved light field or an HCI scene folder).
 
     One photograph: --slope S, --alpha A, --focus-at X,Y or --focus-distance M, written to
-    OUTPUT (.png, .tif, .exr); outside the refocusable range it is written with a warning.
+    OUTPUT (.png, .tif, .exr); outside the refocusable range it is written with a warning.  Of a
+    focused-plenoptic (Raytrix) raw: --virtual-depth V.
     A focal stack: --focal-stack START:STOP:N writes OUTPUT/slice_000.png ...,
     OUTPUT/all_in_focus.png and OUTPUT/focal_stack.json (the slopes and alphas).
 
@@ -81,11 +123,16 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
       plenodecode refocus raw.lfr --alpha 1.01 --aperture 0.4 -o deep_dof.png --database calib/
       plenodecode refocus photo.zarr --focus-at 120,80 -o click.png
       plenodecode refocus photo.zarr --focal-stack -1.5:1.5:30 -o stack/ --method fourier-slice
+      plenodecode refocus raytrix.png --virtual-depth 3.5 -o v3.5.png
     """
     from ..pipeline import open_source, render_product, write_product
 
     check_focus_options({"--slope": slope, "--alpha": alpha, "--focus-at": focus_at, "--focus-distance": distance_m,
-                         "--focal-stack": stack}, no_depth)
+                         "--focal-stack": stack, "--virtual-depth": virtual_depth}, no_depth)
+    if virtual_depth is not None:
+        return refocus_at_virtual_depth(ctx, input_path, output, virtual_depth, bit_depth=int(bit_depth),
+                                        overwrite=overwrite, inputs=calibration_kwargs(calibration, white, database,
+                                                                                       self_calibrate))
     if stack is None:
         check_output(output, overwrite)
     else:

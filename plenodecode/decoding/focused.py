@@ -91,7 +91,7 @@ class FocusedRender:
 def _prepare_image(raw, grid: LensletGrid, white, demosaic: str) -> np.ndarray:
     """(H, W, C) float32 sensor image, devignetted when a white is given, NaN where unusable."""
     from .demosaic import demosaic as _demosaic
-    from .devignette import devignette, normalise, relative_white, repair_hot_pixels
+    from .devignette import normalise, repair_hot_pixels
     from .slice import lens_labels
 
     if isinstance(raw, RawCapture):
@@ -108,8 +108,7 @@ def _prepare_image(raw, grid: LensletGrid, white, demosaic: str) -> np.ndarray:
                                   f"{'x'.join(map(str, wm.shape))}; pass the white image of this camera")
             wb = (white.black, white.white) if isinstance(white, RawCapture) else (raw.black, raw.white)
             wn = wm.astype(np.float32) if wm.dtype.kind == "f" else normalise(wm, *wb)
-            rel = relative_white(wn, cfa, window=int(round(grid.pitch)) + 2)
-            x = devignette(x, wn, rel)
+            x = _devignetted(x, wn, cfa, grid)
         labels, _ = lens_labels(grid.centres_2d(), x.shape, 0.6 * grid.pitch + 1.0)
         img = _demosaic(x, cfa, method=demosaic, labels=labels)
         return img
@@ -122,13 +121,38 @@ def _prepare_image(raw, grid: LensletGrid, white, demosaic: str) -> np.ndarray:
     return np.ascontiguousarray(arr)
 
 
+def _devignetted(x: np.ndarray, white: np.ndarray, cfa: str | None, grid: LensletGrid) -> np.ndarray:
+    """``x / white`` where the white's relative light is usable, NaN elsewhere (both (H, W) float32, normalised;
+    :func:`~plenodecode.decoding.devignette.relative_white` over about one lens pitch)."""
+    from .devignette import devignette, relative_white
+
+    rel = relative_white(np.ascontiguousarray(white, np.float32), cfa, window=int(round(grid.pitch)) + 2)
+    return devignette(x, white, rel)
+
+
+def _devignetted_image(img: np.ndarray, white, grid: LensletGrid) -> np.ndarray:
+    """A prepared (H, W, C) image divided, channel by channel, by a normalised white image (H, W) or (H, W, C)."""
+    wn = np.asarray(white, np.float32)
+    wn = wn[..., None] if wn.ndim == 2 else wn
+    if wn.shape[:2] != img.shape[:2] or wn.shape[2] not in (1, img.shape[2]):
+        raise DecodeError(f"white image must be {img.shape[0]}x{img.shape[1]} with 1 or {img.shape[2]} channels "
+                          f"like the image, found {wn.shape}; pass the white image of this camera")
+    planes = []
+    for c in range(img.shape[2]):
+        w_c = np.ascontiguousarray(wn[..., min(c, wn.shape[2] - 1)])
+        planes.append(_devignetted(np.ascontiguousarray(img[..., c]), w_c, None, grid))
+    return np.stack(planes, -1)
+
+
 def _as_image(image, grid: LensletGrid, white=None, demosaic: str = "bilinear") -> np.ndarray:
-    """A prepared (H, W, C) float image as is (shape checked), anything else through :func:`_prepare_image`."""
+    """A prepared (H, W, C) float image as is (shape checked; divided by ``white``, a normalised float image
+    (H, W[, C]), when given), anything else through :func:`_prepare_image`."""
     if isinstance(image, np.ndarray) and image.ndim == 3:
         if image.shape[:2] != tuple(grid.sensor_shape):
             raise DecodeError(f"image must be {grid.sensor_shape[0]}x{grid.sensor_shape[1]} like the grid's sensor, "
                               f"found {image.shape[0]}x{image.shape[1]}; pass the raw the grid was calibrated for")
-        return np.ascontiguousarray(image, np.float32)
+        img = np.ascontiguousarray(image, np.float32)
+        return img if white is None else _devignetted_image(img, white, grid)
     return _prepare_image(image, grid, white, demosaic)
 
 
@@ -480,7 +504,8 @@ def render_focused(image, grid: LensletGrid, *, patch: float | np.ndarray, keple
     lens_weight : ndarray (rows, cols), optional
         Extra weight per lens (0 = unused), e.g. a focus measure.
     white : RawCapture or ndarray, optional
-        White image for devignetting (raw input only).
+        White image for devignetting: the raw's white (RawCapture or mosaic) for a raw, a normalised float
+        image (H, W[, C]) for a prepared image.
 
     Returns
     -------
@@ -531,7 +556,7 @@ def render_total_focus(raw, grid: LensletGrid, *, patch: float | np.ndarray | No
     patch : float or ndarray (rows, cols), optional
         Patch size per lens; default: estimated per lens (:func:`estimate_patch_sizes`).
     white : optional
-        White image for devignetting.
+        White image for devignetting (as for :func:`render_focused`).
     keplerian : bool or None
         Micro-image orientation; None detects it from the data (:func:`estimate_patch_sizes`).
     spacing : float, optional
@@ -576,4 +601,111 @@ def render_total_focus(raw, grid: LensletGrid, *, patch: float | np.ndarray | No
                          spread=res.spread, keplerian=res.keplerian)
 
 
-__all__ = ["FocusedRender", "estimate_patch_sizes", "focus_measure", "render_focused", "render_total_focus"]
+# -------------------------------------------------------------------------------------
+# refocus at a chosen virtual depth
+# -------------------------------------------------------------------------------------
+#: Weight of a lens whose type is not in focus at the chosen virtual depth (its depth range, RayCalibData).
+OUT_OF_RANGE_WEIGHT = 0.05
+#: Smallest patch size a virtual depth may ask for when the calibration has no depth ranges, px.
+MIN_PATCH_PX = 2.0
+
+
+def _lens_depth_ranges(grid: LensletGrid) -> dict[int, tuple[float, float]]:
+    """Lens type id -> its (min, max) virtual depth, from the RayCalibData the grid came from (may be empty)."""
+    types = (grid.info or {}).get("raytrix", {}).get("lens_types", ()) if isinstance(grid.info, dict) else ()
+    return {int(t["id"]): (float(t["depth_range"][0]), float(t["depth_range"][1]))
+            for t in types if t.get("depth_range") is not None}
+
+
+def virtual_depth_range(grid: LensletGrid) -> tuple[float, float]:
+    """The virtual depths ``v`` a focused-plenoptic raw can be rendered at, ``(lowest, highest)``.
+
+    A point at virtual depth ``v`` repeats every ``P = D / v`` px in neighbouring micro-images (``D`` the lens
+    pitch, px); the patch ``P`` is cut from one micro-image, so ``P < 2 r`` (the micro-image diameter), i.e.
+    ``v > D / (2 r)``.  Within that, the range is the union of the lens types' depth ranges of the
+    RayCalibData (R42: 1..3, 2.8..4, 3.8..100); without them, up to ``D / 2`` (a patch of 2 px).
+
+    Returns
+    -------
+    (float, float)
+        Both ends included.
+    """
+    geometric = float(grid.pitch) / (2.0 * float(grid.radius)) * (1.0 + 1e-6)
+    ranges = list(_lens_depth_ranges(grid).values())
+    if not ranges:
+        return geometric, float(grid.pitch) / MIN_PATCH_PX
+    return max(geometric, min(r[0] for r in ranges)), max(r[1] for r in ranges)
+
+
+def check_virtual_depth(grid: LensletGrid, virtual_depth: float) -> None:
+    """Raise ValueError naming ``virtual_depth`` unless it lies in :func:`virtual_depth_range`."""
+    lo, hi = virtual_depth_range(grid)
+    if not (math.isfinite(virtual_depth) and lo <= virtual_depth <= hi):
+        source = "its lens types' depth ranges" if _lens_depth_ranges(grid) else "its micro-image size"
+        raise ValueError(f"virtual depth must lie in [{lo:.3g}, {hi:.3g}] for this camera ({source}; patch = "
+                         f"lens pitch {grid.pitch:.2f} px / virtual depth), got {virtual_depth:g}")
+
+
+def lens_weights_at(grid: LensletGrid, virtual_depth: float) -> np.ndarray:
+    """Per-lens weight for a rendering at ``virtual_depth``: 1 for the lens types whose depth range holds it,
+    :data:`OUT_OF_RANGE_WEIGHT` for the others (they still fill gaps); all 1 without lens types or ranges.
+
+    Returns
+    -------
+    ndarray (rows, cols) float64
+    """
+    ranges = _lens_depth_ranges(grid)
+    if grid.lens_type is None or not ranges:
+        return np.ones(grid.shape)
+    sharp = [tid for tid, (lo, hi) in ranges.items() if lo <= virtual_depth <= hi]
+    if not sharp:
+        return np.ones(grid.shape)
+    return np.where(np.isin(grid.lens_type, sharp), 1.0, OUT_OF_RANGE_WEIGHT)
+
+
+def detect_orientation(image, grid: LensletGrid) -> bool:
+    """True when the micro-images are inverted (Keplerian), False when upright (Galilean): the orientation whose
+    neighbour matches correlate better (:func:`estimate_patch_sizes`)."""
+    return _estimate_auto(_as_image(image, grid), grid)[2]
+
+
+def render_at_virtual_depth(raw, grid: LensletGrid, virtual_depth: float, *, white=None,
+                            keplerian: bool | None = None, feather: float = 1.0,
+                            demosaic: str = "malvar") -> FocusedRender:
+    """A focused-plenoptic raw refocused at one virtual depth: every lens gives a patch of
+    ``P = D / virtual_depth`` px (Lumsdaine & Georgiev 2009), the lens types in focus there weigh most
+    (:func:`lens_weights_at`), tiled at ``P`` output px per lens (the sampling of that depth).
+
+    Parameters
+    ----------
+    raw : RawCapture or ndarray (H, W[, C])
+        Scene raw, or a prepared sensor image.
+    grid : LensletGrid
+        The raw's grid; its RayCalibData (``grid.info['raytrix']``) gives the lens types' depth ranges.
+    virtual_depth : float
+        In :func:`virtual_depth_range`.
+    white : optional
+        White image for devignetting (as for :func:`render_focused`).
+    keplerian : bool or None
+        Micro-image orientation; None detects it (:func:`detect_orientation`).
+
+    Returns
+    -------
+    FocusedRender
+
+    Raises
+    ------
+    ValueError
+        ``virtual_depth`` out of range (:func:`check_virtual_depth`).
+    """
+    check_virtual_depth(grid, virtual_depth)
+    img = _as_image(raw, grid, white, demosaic)
+    if keplerian is None:
+        keplerian = detect_orientation(img, grid)
+    return render_focused(img, grid, patch=float(grid.pitch) / float(virtual_depth), keplerian=keplerian,
+                          feather=feather, lens_weight=lens_weights_at(grid, virtual_depth))
+
+
+__all__ = ["FocusedRender", "estimate_patch_sizes", "focus_measure", "render_focused", "render_total_focus",
+           "virtual_depth_range", "check_virtual_depth", "lens_weights_at", "detect_orientation",
+           "render_at_virtual_depth"]

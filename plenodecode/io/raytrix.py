@@ -174,7 +174,8 @@ class RaytrixCalibration:
 
 
 # ----------------------------------------------------------------------------- finding and parsing
-def _is_raycalib(path: Path) -> bool:
+def is_raycalib_xml(path: str | os.PathLike) -> bool:
+    """True when ``path`` is a readable file whose first 64 KiB contain ``<RayCalibData``."""
     try:
         with open(path, "rb") as fh:
             return b"<RayCalibData" in fh.read(65536)
@@ -182,19 +183,60 @@ def _is_raycalib(path: Path) -> bool:
         return False
 
 
+def _calibrations_in_folder(folder: Path) -> list[Path]:
+    """Every RayCalibData XML (``*.xml`` of any case) in ``folder``, sorted by name."""
+    try:
+        entries = sorted(folder.iterdir())
+    except OSError:
+        return []
+    return [f for f in entries if f.suffix.lower() == ".xml" and f.is_file() and is_raycalib_xml(f)]
+
+
 def find_calibration_xml(path: str | os.PathLike) -> Path | None:
     """The RayCalibData XML of a Raytrix image, or None.
 
-    Looks for ``X.xml`` beside ``X.png`` (or another image extension in
-    :data:`RAYTRIX_IMAGE_EXTENSIONS`), then ``calibration.xml`` in the same folder; a candidate
-    counts only if it contains ``<RayCalibData``.  Never raises.
+    The rule: ``X.xml`` (or ``X.XML``) beside ``X.png`` (or another image extension in
+    :data:`RAYTRIX_IMAGE_EXTENSIONS`); else the only RayCalibData XML in the image's folder.  A
+    candidate counts only if it contains ``<RayCalibData``.  Never raises: several XMLs and no
+    same-stem one give None here (:func:`calibration_xml_for` says so as an error).
     """
     p = Path(path)
     if p.suffix.lower() not in RAYTRIX_IMAGE_EXTENSIONS:
         return None
-    for cand in (p.with_suffix(".xml"), p.with_suffix(".XML"), p.with_name("calibration.xml")):
-        if cand.is_file() and _is_raycalib(cand):
+    for cand in (p.with_suffix(".xml"), p.with_suffix(".XML")):
+        if cand.is_file() and is_raycalib_xml(cand):
             return cand
+    found = _calibrations_in_folder(p.parent)
+    return found[0] if len(found) == 1 else None
+
+
+def calibration_xml_for(path: str | os.PathLike, xml: str | os.PathLike | None = None) -> Path | None:
+    """The RayCalibData XML to read the image ``path`` with: ``xml`` when given, else
+    :func:`find_calibration_xml`'s; None when ``path`` is no Raytrix image.
+
+    Raises
+    ------
+    MetadataError
+        ``xml`` is not a RayCalibData document, or ``path`` is no image; or no XML of the image's stem and
+        several RayCalibData XMLs in its folder (ambiguous: the message lists them and names ``--raytrix-xml``).
+    """
+    p = Path(path)
+    if xml is not None:
+        if p.suffix.lower() not in RAYTRIX_IMAGE_EXTENSIONS:
+            raise MetadataError(f"{p.name}: --raytrix-xml applies to Raytrix images "
+                                f"({', '.join(RAYTRIX_IMAGE_EXTENSIONS)}); this is not one")
+        if not is_raycalib_xml(xml):
+            raise MetadataError(f"{xml}: not a RayCalibData XML (no <RayCalibData> element); pass the calibration "
+                                "RxLive exported with the image as --raytrix-xml")
+        return Path(xml)
+    found = find_calibration_xml(p)
+    if found is not None or p.suffix.lower() not in RAYTRIX_IMAGE_EXTENSIONS:
+        return found
+    several = _calibrations_in_folder(p.parent)
+    if len(several) > 1:
+        names = ", ".join(f.name for f in several)
+        raise MetadataError(f"{p.name}: {len(several)} RayCalibData XMLs beside it ({names}) and none named "
+                            f"{p.stem}.xml; say which one with --raytrix-xml FILE")
     return None
 
 
@@ -553,8 +595,48 @@ def read_raytrix_rgb(path: str | os.PathLike) -> np.ndarray:
     return np.ascontiguousarray(img[..., :3])
 
 
-def read_raytrix(path: str | os.PathLike) -> RawCapture:
+def is_rgb_export(raw: RawCapture) -> bool:
+    """True for a Raytrix RGB export read by :func:`read_raytrix` (its mosaic is the luminance; the colour is
+    in the file: :func:`read_raytrix_linear_rgb`)."""
+    extra = raw.metadata.extra
+    return "raytrix" in extra and int(extra.get("stored_channels", 1)) >= 3 and raw.path is not None
+
+
+def read_raytrix_linear_rgb(path: str | os.PathLike) -> np.ndarray:
+    """The RGB export of :func:`read_raytrix_rgb` as linear sRGB values in [0, 1].
+
+    An RxLive export is an image for display (8-bit sRGB, demosaiced: on the R42 crop the three channels
+    differ, means 106 / 78 / 71 of 255, and no 2 x 2 Bayer pattern is left); the values are taken as
+    sRGB-encoded and decoded with the inverse sRGB transfer function ``L = V / 12.92`` for ``V <= 0.04045``, else ``((V + 0.055) / 1.055) ** 2.4``
+    (:func:`plenodecode.io.mosaic_levels.srgb_decode`) with ``V = stored / full scale``.
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3), float32
+    """
+    from .mosaic_levels import srgb_decode
+
+    rgb = read_raytrix_rgb(path)
+    scale = float(np.iinfo(rgb.dtype).max) if rgb.dtype.kind in "ui" else 1.0
+    return srgb_decode(rgb / scale).astype(np.float32)
+
+
+def rgb_export_channels(raw: RawCapture) -> list[RawCapture]:
+    """The three colour channels of a Raytrix RGB export (:func:`is_rgb_export`) as monochrome captures:
+    mosaic ``rint(65535 * L_c)`` uint16 of the linear values ``L_c`` (:func:`read_raytrix_linear_rgb`),
+    black 0, white 65535, the raw's metadata and path; each decodes like the luminance capture."""
+    from dataclasses import replace
+
+    rgb = read_raytrix_linear_rgb(raw.path)
+    return [replace(raw, mosaic=np.rint(rgb[..., c] * 65535.0).astype(np.uint16), cfa=None,
+                    black=np.zeros((2, 2)), white=np.full((2, 2), 65535.0)) for c in range(3)]
+
+
+def read_raytrix(path: str | os.PathLike, *, xml: str | os.PathLike | None = None) -> RawCapture:
     """Read a Raytrix image + RayCalibData XML into a RawCapture.
+
+    The XML is ``xml`` when given, else the one beside the image (:func:`calibration_xml_for`: same stem,
+    or the only RayCalibData XML in the folder).
 
     A single-channel image is the sensor mosaic as stored (uint8 values kept, white 255);
     its CFA and levels come from a JSON sidecar (:func:`plenodecode.io.generic.read_sidecar`)
@@ -574,10 +656,10 @@ def read_raytrix(path: str | os.PathLike) -> RawCapture:
         Unreadable image.
     """
     p = Path(path)
-    xml = find_calibration_xml(p)
+    xml = calibration_xml_for(p, xml)
     if xml is None:
-        raise MetadataError(f"{p}: no RayCalibData XML ({p.with_suffix('.xml').name} or calibration.xml) beside it; "
-                            "export the calibration from RxLive next to the image")
+        raise MetadataError(f"{p}: no RayCalibData XML beside it ({p.with_suffix('.xml').name}, or the only XML in "
+                            "the folder); export the calibration from RxLive next to the image or pass --raytrix-xml")
     cal = parse_raycalib(xml)
     img = read_image(p)
     extra: dict[str, Any] = {"raytrix": cal.to_dict(), "raytrix_xml": str(xml),
@@ -635,5 +717,6 @@ def write_raytrix(path: str | os.PathLike, raw: RawCapture, grid: LensletGrid, *
 
 
 __all__ = ["RaytrixCalibration", "RaytrixLensType", "RaytrixDistortion", "find_calibration_xml",
+           "calibration_xml_for", "is_raycalib_xml", "is_rgb_export", "read_raytrix_linear_rgb", "rgb_export_channels",
            "parse_raycalib", "grid_from_raycalib", "raycalib_from_grid", "centre_lens_position",
            "read_raytrix", "read_raytrix_rgb", "write_raytrix"]

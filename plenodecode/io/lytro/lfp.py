@@ -13,7 +13,7 @@ from ...errors import FormatError
 from ...types import RawCapture
 from .. import packing
 from ..atomic import atomic_outputs, refuse_existing
-from .contents import EXTENSIONS, summarise_contents
+from .contents import EXTENSIONS, ContentItem, summarise_contents
 from .container import read_container, section_name, write_container
 from .fields import lookup_dict, first_frame
 from .metadata import packed_size_or_error, tags_entry, lytro_metadata, metadata_from_lytro
@@ -136,6 +136,15 @@ def write_lfp(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = Fal
     return write_container(p, toc, [meta_b, priv_b, image], lfm_first=True, overwrite=overwrite)
 
 
+#: The file :func:`extract_contents` writes the table of contents to.
+TOC_FILE = "toc.json"
+
+
+def content_file_name(item: ContentItem) -> str:
+    """The file name :func:`extract_contents` gives ``item``: its name and the extension of its type."""
+    return item.name + EXTENSIONS.get(item.type, ".bin")
+
+
 def extract_contents(path: str | os.PathLike, out_dir: str | os.PathLike, *,
                      overwrite: bool = False) -> list[Path]:
     """Save every payload of a container as a file in ``out_dir``.
@@ -159,10 +168,10 @@ def extract_contents(path: str | os.PathLike, out_dir: str | os.PathLike, *,
     """
     c = read_container(path)
     out = Path(out_dir)
-    plan: list[tuple[Path, Any]] = [(out / "toc.json", json.dumps(c.toc, indent="\t").encode("utf-8"))]
+    plan: list[tuple[Path, Any]] = [(out / TOC_FILE, json.dumps(c.toc, indent="\t").encode("utf-8"))]
     for it in c.items:
         buf = c.payload(it.sha1)
-        target = out / (it.name + EXTENSIONS.get(it.type, ".bin"))
+        target = out / content_file_name(it)
         if it.type in ("depth", "confidence", "lut"):
             if it.shape is not None and it.shape[0] * it.shape[1] * 4 != len(buf):
                 raise FormatError(f"{c.path}: {it.name} is {len(buf)} bytes, but the TOC declares "

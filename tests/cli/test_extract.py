@@ -1,0 +1,107 @@
+"""``plenodecode extract``: every item embedded in a processed Lytro file written, with its metadata (issue 18,
+items 6 and 7), on a generated container and on the real Desktop files in ../shared/data."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+from click.testing import CliRunner
+
+from plenodecode.cli.main import cli
+from plenodecode.io.lytro import read_container
+from tests.conftest import shared_path
+from tests.io.lytro.helpers import make_processed
+
+SHA1 = re.compile(r"^sha1-[0-9a-fA-F]{40}$")
+
+
+def run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def toc_references(toc) -> set[str]:
+    """Every ``sha1-<hex>`` string anywhere in a table of contents (lower case): the items it lists."""
+    if isinstance(toc, dict):
+        return set().union(*(toc_references(v) for v in toc.values())) if toc else set()
+    if isinstance(toc, list):
+        return set().union(*(toc_references(v) for v in toc)) if toc else set()
+    return {toc.lower()} if isinstance(toc, str) and SHA1.match(toc) else set()
+
+
+def check_extracted(path, out) -> int:
+    """Every item the TOC lists (and the file holds) is on disk, non-empty, described in contents.json with
+    its size; returns the number of items."""
+    c = read_container(path)
+    listed = {s for s in toc_references(c.toc) if c.has(s)}
+    manifest = json.loads((out / "contents.json").read_text())
+    entries = manifest["items"]
+    assert {e["sha1"].lower() for e in entries} == listed            # every listed item, nothing else
+    assert len(entries) == len(listed)
+    for e in entries:
+        f = out / e["file"]
+        assert f.is_file() and f.stat().st_size > 0, e["file"]
+        if e["type"] == "jpeg":
+            assert f.read_bytes()[:2] == b"\xff\xd8" and f.stat().st_size == e["size"]
+        elif e["type"] in ("depth", "confidence", "lut"):
+            arr = np.load(f)
+            assert arr.dtype == np.float32 and arr.nbytes == e["size"]
+            assert e["shape"] is None or list(arr.shape) == e["shape"]
+        else:
+            assert f.stat().st_size == e["size"]
+    assert json.loads((out / "toc.json").read_text()) == c.toc
+    return len(entries)
+
+
+def test_extract_writes_every_item_with_its_metadata(tmp_path):
+    path = make_processed(tmp_path / "p.lfp")
+    out = tmp_path / "out"
+    res = run("extract", path, "-o", out)
+    assert res.exit_code == 0, res.output
+    n = check_extracted(path, out)
+    assert n == 4                                          # a depth map and three JPEGs (metadata is in the TOC)
+    lines = res.output.splitlines()
+    assert len(lines) == n + 3 and lines[-1] == f"wrote {n} items of p.lfp to {out}"
+    assert sum(line.startswith(str(out / "focus_stack_")) and "jpeg 16x8" in line for line in lines) == 3
+    depth = json.loads((out / "contents.json").read_text())["items"]
+    assert [e for e in depth if e["type"] == "depth"][0]["shape"] == [3, 4]
+
+
+def test_extract_overwrite_rule_and_atomic_folder(tmp_path):
+    path = make_processed(tmp_path / "p.lfp")
+    out = tmp_path / "out"
+    assert run("extract", path, "-o", out).exit_code == 0
+    before = {f.name: f.stat().st_mtime_ns for f in out.iterdir()}
+    res = run("extract", path, "-o", out)                   # exists: refused before any work, nothing touched
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert res.exit_code == 2 and len(errors) == 1 and "--overwrite" in errors[0] and "overwrite=True" not in res.output
+    assert {f.name: f.stat().st_mtime_ns for f in out.iterdir()} == before
+    assert run("-q", "extract", path, "-o", out, "--overwrite").exit_code == 0
+    # a damaged container (a cut depth map): one error line, exit 1, and no output folder at all
+    data = bytearray(path.read_bytes())
+    bad = tmp_path / "bad.lfp"
+    bad.write_bytes(bytes(data[:-40]))
+    res = run("extract", bad, "-o", tmp_path / "bad_out")
+    assert res.exit_code == 1 and res.output.count("error:") == 1
+    assert not (tmp_path / "bad_out").exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]       # no staging left behind
+
+
+def test_extract_every_real_container():
+    folder = shared_path("lytro-containers")
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".lfp")
+    assert len(files) == 4                               # IMG_0001-stk, IMG_0002-dm, IMG_0002-stk, demo.LFP
+    import tempfile
+    from pathlib import Path
+
+    counts = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for path in files:
+            out = Path(tmp) / path.stem
+            res = run("-q", "extract", path, "-o", out)
+            assert res.exit_code == 0, (path.name, res.output)
+            counts[path.name] = check_extracted(path, out)
+    # what each file holds (also listed by `plenodecode info`): 12 JPEG refocus slices + a depth LUT; a depth and
+    # a confidence map; two H.264 streams + a depth LUT; a depth map + 10 focus-stack JPEGs
+    assert counts == {"IMG_0001-stk.lfp": 13, "IMG_0002-dm.lfp": 2, "IMG_0002-stk.lfp": 3, "demo.LFP": 11}

@@ -1,0 +1,203 @@
+"""Raytrix raws through the command line (issue 18, items 2 and 7): where the RayCalibData XML comes from
+(same stem, the only XML in the folder, --raytrix-xml, an ambiguity named), colour kept, total focus and a
+refocus at a virtual depth, decode's one-line refusal of a focused raw, batch; and the real R42 crop."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from plenodecode import pipeline, synthetic
+from plenodecode.cli.main import cli
+from plenodecode.decoding.focused import render_focused
+from plenodecode.io.images import read_image
+from plenodecode.io.raytrix import read_raytrix_linear_rgb
+from tests.cli.test_total_focus import COLOUR_RAYTRIX, srgb_to_linear
+from tests.conftest import shared_path
+
+
+def run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def error_lines(res) -> list[str]:
+    return [line for line in res.output.splitlines() if line.lower().startswith("error:")]
+
+
+def channels_differ(image: np.ndarray) -> float:
+    """Smallest mean absolute difference between two channels of an (H, W, 3) image, relative to its mean."""
+    x = image.astype(np.float64)
+    pairs = [(0, 1), (1, 2), (0, 2)]
+    return min(float(np.mean(np.abs(x[..., a] - x[..., b]))) for a, b in pairs) / float(x.mean())
+
+
+@pytest.fixture(scope="module")
+def shoot(tmp_path_factory):
+    """A small colour Raytrix-like raw with its RayCalibData XML and JSON sidecar (and its white image's)."""
+    sim = synthetic.simulate(COLOUR_RAYTRIX, seed=2, shape=(210, 300), noise=False)
+    folder = tmp_path_factory.mktemp("raytrix") / "shoot"
+    paths = synthetic.write_simulation(sim, folder, name="scene")
+    return paths
+
+
+def copy_raw(shoot, folder, xml_names=(), other_xml=()):
+    """``folder/scene.png`` (+ its sidecar) with the raw's RayCalibData copied under ``xml_names`` and
+    non-calibration XMLs ``other_xml``."""
+    folder.mkdir()
+    raw = folder / "scene.png"
+    shutil.copy(shoot["raw"], raw)
+    shutil.copy(shoot["raw_json"], folder / "scene.json")
+    for name in xml_names:
+        shutil.copy(shoot["raw_xml"], folder / name)
+    for name in other_xml:
+        (folder / name).write_text("<Settings><exposure>10</exposure></Settings>\n")
+    return raw
+
+
+def assert_refused_as_focused(res, raw) -> None:
+    """decode's one line: the XML was found (the grid has lens types) and the raw is focused-plenoptic."""
+    assert res.exit_code == 2, res.output
+    err = error_lines(res)
+    assert len(err) == 1 and "focused-plenoptic" in err[0]
+    assert f"plenodecode render {raw} --total-focus" in err[0] and "--views-anyway" in err[0]
+
+
+def test_xml_beside_the_image_by_stem(shoot, tmp_path):
+    # the generator's folder holds two XMLs (scene.xml, scene_white.xml): the stem decides
+    res = run("decode", shoot["raw"], "-o", tmp_path / "lf.zarr")
+    assert_refused_as_focused(res, shoot["raw"])
+    assert not (tmp_path / "lf.zarr").exists()
+
+
+def test_the_only_xml_in_the_folder(shoot, tmp_path):
+    raw = copy_raw(shoot, tmp_path / "only", xml_names=["camera_calibration.xml"], other_xml=["notes.xml"])
+    assert_refused_as_focused(run("decode", raw, "-o", tmp_path / "lf.zarr"), raw)
+    out = tmp_path / "tf.png"
+    res = run("render", raw, "--total-focus", "-o", out)
+    assert res.exit_code == 0, res.output
+    png = read_image(out)
+    assert png.ndim == 3 and png.shape[2] == 3 and channels_differ(png) > 0.05        # colour, not grey
+
+
+def test_two_xmls_are_ambiguous_until_raytrix_xml_names_one(shoot, tmp_path):
+    raw = copy_raw(shoot, tmp_path / "two", xml_names=["a.xml", "b.xml"])
+    res = run("decode", raw, "-o", tmp_path / "lf.zarr")
+    err = error_lines(res)
+    assert res.exit_code == 1 and len(err) == 1
+    assert "a.xml" in err[0] and "b.xml" in err[0] and "--raytrix-xml" in err[0]
+    res = run("refocus", raw, "--virtual-depth", 4.5, "-o", tmp_path / "v.png")
+    assert res.exit_code == 1 and "--raytrix-xml" in error_lines(res)[0]
+    assert_refused_as_focused(run("decode", raw, "--raytrix-xml", raw.parent / "a.xml", "-o", tmp_path / "lf.zarr"),
+                              raw)
+    out = tmp_path / "v.png"
+    res = run("refocus", raw, "--raytrix-xml", raw.parent / "b.xml", "--virtual-depth", 4.5, "-o", out)
+    assert res.exit_code == 0, res.output
+    assert "virtual depth 4.5" in res.output and "patch 7.75 px" in res.output        # 34.86 px / 4.5
+    png = read_image(out)
+    assert png.ndim == 3 and png.shape[2] == 3 and channels_differ(png) > 0.05
+    # an XML that is no RayCalibData: a usage error naming the option, before any work
+    (raw.parent / "notes.txt").write_text("<Settings/>")
+    res = run("decode", raw, "--raytrix-xml", raw.parent / "notes.txt", "-o", tmp_path / "lf.zarr")
+    assert res.exit_code == 2 and "--raytrix-xml" in error_lines(res)[0]
+
+
+def test_virtual_depth_is_checked_before_any_work(shoot, tmp_path):
+    out = tmp_path / "v.png"
+    # no depth ranges in the generator's XML: P = 34.86 / V below the micro-image diameter and at least 2 px
+    for bad in (0.9, 30.0):
+        res = run("refocus", shoot["raw"], "--virtual-depth", bad, "-o", out)
+        err = error_lines(res)
+        assert res.exit_code == 2 and len(err) == 1 and "--virtual-depth" in err[0] and "17.4" in err[0]
+    res = run("refocus", shoot["raw"], "--virtual-depth", 4.5, "--slope", 0.5, "-o", out)
+    assert res.exit_code == 2 and "--slope" in error_lines(res)[0]
+    from plenodecode.io.lightfield import save_lightfield
+    from plenodecode.types import LightField
+
+    lf = save_lightfield(LightField(np.zeros((3, 3, 4, 5, 1), np.float32), None, "srgb", {}), tmp_path / "lf.npy")
+    res = run("refocus", lf, "--virtual-depth", 4.5, "-o", out)
+    assert res.exit_code == 2 and "--virtual-depth" in error_lines(res)[0]
+    assert not out.exists()
+
+
+# ------------------------------------------------------------------------------------------ the real R42 crop
+@pytest.fixture(scope="module")
+def r42():
+    return shared_path("raytrix-r42", "sc2_klein.png")
+
+
+def test_r42_is_an_rgb_export_rendered_in_colour_and_sharper_than_any_single_patch_size(r42, tmp_path):
+    # what the file is: an 8-bit RGB export (demosaiced by RxLive; no Bayer pattern left), three distinct channels
+    rgb = read_image(r42)
+    assert rgb.shape == (670, 964, 3) and rgb.dtype == np.uint8
+    means = rgb.reshape(-1, 3).mean(0)
+    np.testing.assert_allclose(means, (105.5, 78.1, 71.5), atol=0.5)
+    tiles = [rgb[i::2, j::2, 1].mean() for i in (0, 1) for j in (0, 1)]
+    assert np.ptp(tiles) < 1.0                                        # a mosaic's 2 x 2 positions would differ
+
+    out = tmp_path / "tf.png"
+    res = run("render", r42, "--total-focus", "-o", out)
+    assert res.exit_code == 0, res.output
+    png = read_image(out)
+    assert png.dtype == np.uint16 and png.ndim == 3 and png.shape[2] == 3
+    image = srgb_to_linear(png)
+    assert channels_differ(image) > 0.2                               # measured 0.41; grey would be 0
+    red, green, blue = image.reshape(-1, 3).mean(0)
+    assert red > 1.5 * green and red > 2.0 * blue                     # a red textile and a blue cable
+
+    # sharpness: the per-lens patch sizes of the total focus against every single patch size P over the range the
+    # lenses measured (render_focused, same output grid); measured 0.098 against at most 0.071 (P = 6)
+    src = pipeline.open_source(r42)
+    render = pipeline.render_product(src, "total-focus").data["render"]
+    assert render.image.shape == png.shape
+    grid = src.calibration.grid
+    sensor = read_raytrix_linear_rgb(r42)
+    mask = render.weight > 0.5
+    b = int(2 * render.spacing)
+    mask[:b], mask[-b:], mask[:, :b], mask[:, -b:] = False, False, False, False
+
+    def gradient_energy(img, m):
+        g = img.mean(-1)
+        gy, gx = np.gradient(g)
+        return float(np.mean((gy ** 2 + gx ** 2)[m]) / np.mean(g[m]) ** 2)
+
+    lo, hi = float(render.patch.min()), float(render.patch.max())
+    assert 3.0 < lo < hi < 12.0
+    for p in np.linspace(0.8 * lo, 1.25 * hi, 9):
+        fixed = render_focused(sensor, grid, patch=p, spacing=render.spacing, keplerian=render.keplerian)
+        m = mask & (fixed.weight > 0.5)
+        assert gradient_energy(image, m) > 1.2 * gradient_energy(fixed.image, m), p
+
+
+def test_r42_decode_says_in_one_line_what_to_run(r42, tmp_path):
+    res = run("decode", r42, "-o", tmp_path / "lf.zarr")
+    assert_refused_as_focused(res, r42)
+    assert not (tmp_path / "lf.zarr").exists()
+    res = run("decode", r42, "--views-anyway", "-o", tmp_path / "lf.zarr")        # asked for: colour views
+    assert res.exit_code == 0, res.output
+    assert "x3, colour linear-srgb" in res.output
+
+
+def test_r42_refocus_at_a_virtual_depth_in_the_lens_types_range(r42, tmp_path):
+    res = run("refocus", r42, "--virtual-depth", 0.9, "-o", tmp_path / "x.png")
+    err = error_lines(res)
+    assert res.exit_code == 2 and "--virtual-depth" in err[0] and "[1.06, 100]" in err[0]
+    out = tmp_path / "v.png"
+    res = run("refocus", r42, "--virtual-depth", 3.5, "-o", out, "--raytrix-xml", r42.with_suffix(".xml"))
+    assert res.exit_code == 0, res.output
+    png = read_image(out)
+    assert png.shape == (192, 276, 3) and channels_differ(png.astype(np.float64)) > 0.1   # 964 x 670 at 9.96 / 34.86
+
+
+def test_r42_batch_total_focus_with_colour_thumbnails(r42, tmp_path):
+    db = tmp_path / "db"
+    db.mkdir()
+    res = run("batch", r42.parent, "-o", tmp_path / "batch", "--outputs", "total-focus", "--database", db,
+              "--jobs", 1)
+    assert res.exit_code == 0, res.output
+    folder = tmp_path / "batch" / "sc2_klein"
+    thumb = read_image(folder / "thumbs" / "total_focus.png")
+    assert thumb.ndim == 3 and thumb.shape[2] == 3 and channels_differ(thumb) > 0.2
+    assert read_image(folder / "total_focus.png").shape[2] == 3
