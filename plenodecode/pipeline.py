@@ -222,9 +222,13 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
 
     1. ``grid`` (a grid JSON written by ``plenodecode calibrate``); ``white``, when given, devignettes;
     2. ``white`` alone: calibrated on the spot (:func:`plenodecode.calib.calibrate`), and devignettes;
+       refused when it does not fit the raw (:func:`plenodecode.calib.check.check_white_fit`, as in 4);
     3. the camera's own calibration: a Raytrix raw's ``RayCalibData`` (:func:`~plenodecode.calib.selfcal.calibrate_raytrix`);
-    4. the calibration database ``database`` (default :data:`plenodecode.calib.store.DEFAULT_DB`): the white
-       image of the raw's camera, nearest zoom and focus, and its cached grid;
+    4. a Lytro raw LFP's own white image (``modulationDataRef``), else the calibration database ``database``
+       (default :data:`plenodecode.calib.store.DEFAULT_DB`): the white image the raw's ``geometryCorrectionRef``
+       names, else that of the raw's camera at the nearest zoom and focus, and its cached grid; a white image
+       whose lattice is off the raw's micro-images, or that is a scene, is refused in one line naming the
+       camera's other white images (with ``self_calibrate``: self-calibration instead);
     5. with ``self_calibrate``: the grid found in the scene itself
        (:func:`~plenodecode.calib.selfcal.calibrate_from_scene`), no devignetting.
 
@@ -265,9 +269,11 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
                           str(grid) + (f" (white {Path(white_raw.path or '?').name})" if white_raw else ""))
     elif white_raw is not None:
         from .calib import calibrate
+        from .calib.check import check_white_fit
 
         cal = Calibration(calibrate(white_raw, progress=progress), white_raw, "white image",
                           Path(white_raw.path or "?").name)
+        check_white_fit(raw, cal.grid, white_raw)  # a scene given as its white, or another lattice: refused
     elif "raytrix" in raw.metadata.extra:
         from .calib.selfcal import calibrate_raytrix
 
