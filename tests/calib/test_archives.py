@@ -123,3 +123,17 @@ def test_desktop_lfp_with_modulation_data_uses_its_own_white(f01, tmp_path):
     cal = choose_calibration(read_raw(scene), database=tmp_path / "no-db")
     assert cal.source == "camera" and "modulationDataRef" in cal.detail
     assert (cal.white.mosaic == whites[1].mosaic).all()
+
+
+def test_synth_writes_the_archive_the_cli_indexes_and_decodes_with(tmp_path):
+    out = tmp_path / "synth"
+    res = _run(["synth", "illum-mini", "-o", out, "--shape", 300, 420, "--no-lightfield", "--archive", "illum-tar"])
+    assert res.exit_code == 0, res.output
+    tar = out / "caldata-B5143909630.tar"
+    with CalibrationArchive(tar) as arch:
+        assert arch.white_images() == ["B5143909630/MOD_0000.RAW"]
+    assert _run(["calibrate", "--database", tmp_path / "db", tar]).exit_code == 0
+    res = _run(["decode", out / "scene.lfr", "--database", tmp_path / "db", "-o", tmp_path / "lf.npy"])
+    assert res.exit_code == 0, res.output
+    source = load_lightfield(tmp_path / "lf.npy").metadata["calibration"]["info"]["source"]
+    assert source == "../synth/caldata-B5143909630.tar::B5143909630/MOD_0000.RAW"
