@@ -5,9 +5,11 @@ fraction of a pitch off the raw's micro-images, and the decode is visibly damage
 as its own white image devignettes everything to a uniform grey-pink.  :func:`check_white_fit`
 catches both cheaply, in the manner of a self-calibration restricted to a sample of lenses:
 
-1. **The white is a flat field.**  Not the raw itself, and its lenslet-scale brightness varies
-   less than :data:`MAX_SCENE_LIKENESS` beyond a smooth vignetting
-   (:func:`~plenodecode.calib.white.scene_likeness`; white images < ~0.05, scenes > ~0.15).
+1. **The white is a flat field.**  Not the raw itself, and, unless its metadata tags it as a white
+   image (Lytro ``modulationFrame``, a sidecar's ``is_white_image``), its lenslet-scale brightness
+   varies less than :data:`MAX_SCENE_LIKENESS` beyond a smooth vignetting
+   (:func:`~plenodecode.calib.white.scene_likeness`; white images < ~0.08, scenes > ~0.15; the same
+   rule as :func:`~plenodecode.calib.calibrate`'s warning).
 2. **The lattice sits on the raw's micro-images.**  In a few tiles of the raw (centre and four
    off-centre), the Bayer-collapsed image is turned into lenslet contrast ``I / L - 1``
    (:func:`~plenodecode.calib.centroids.devignette`) and smoothed with the lenslet matched filter
@@ -236,7 +238,7 @@ def check_white_fit(raw: RawCapture, grid: LensletGrid, white: RawCapture | None
         if _same_picture(raw, white):
             raise WhiteMismatchError(f"the white image {name} is the picture {raw_name} itself, not a flat field; "
                                      f"{choices}")
-        likeness = white_scene_likeness(white, float(grid.pitch))
+        likeness = 0.0 if white.metadata.is_white_image else white_scene_likeness(white, float(grid.pitch))
         if likeness > MAX_SCENE_LIKENESS:
             raise WhiteMismatchError(f"the white image {name} is a scene, not a flat field (its lenslet-scale "
                                      f"brightness varies by {likeness:.0%}, a white image's by < "
