@@ -199,13 +199,37 @@ def _grid_from_file(path: str | os.PathLike) -> LensletGrid:
 
 
 def _from_database(raw: RawCapture, db: Path) -> Calibration:
+    """The database's white image for ``raw`` and its grid, refused when it does not fit the raw
+    (:func:`plenodecode.calib.check.check_white_fit`, naming the camera's other white images)."""
     from .calib import store
+    from .calib.check import check_white_fit
 
     entry = store.select_white(db, raw)
     cached = entry.grid is not None and (db / entry.grid).is_file()
     grid, white = store.calibration_for(raw, db)
+    others = [f"{Path(e.file).name} at zoom {e.zoom_step:g} focus {e.focus_step:g}"
+              if e.zoom_step is not None and e.focus_step is not None else Path(e.file).name
+              for e in store.other_whites(db, raw, entry)]
+    check_white_fit(raw, grid, white, white_name=f"{Path(entry.file).name} of {db}/", alternatives=others)
     return Calibration(grid, white, "database",
                        f"{db}/ (white {Path(entry.file).name}, {'cached grid' if cached else 'grid fitted now'})")
+
+
+def _per_picture_white(raw: RawCapture) -> Calibration | None:
+    """A Lytro Desktop raw LFP's own white image (``modulationDataRef``), calibrated and checked; None without one."""
+    from .io.lytro import frame_ref, read_modulation_white
+
+    if not raw.path or frame_ref(raw.metadata, "modulationDataRef") is None:
+        return None
+    from .calib import calibrate
+    from .calib.check import check_white_fit
+
+    white = read_modulation_white(raw.path)
+    if white is None:
+        return None
+    grid = calibrate(white)
+    check_white_fit(raw, grid, white, white_name="the picture's own white image (modulationDataRef)")
+    return Calibration(grid, white, "camera", "(the picture's white image, modulationDataRef)")
 
 
 def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None,
@@ -216,9 +240,13 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
 
     1. ``grid`` (a grid JSON written by ``plenodecode calibrate``); ``white``, when given, devignettes;
     2. ``white`` alone: calibrated on the spot (:func:`plenodecode.calib.calibrate`), and devignettes;
+       refused when it does not fit the raw (:func:`plenodecode.calib.check.check_white_fit`, as in 4);
     3. the camera's own calibration: a Raytrix raw's ``RayCalibData`` (:func:`~plenodecode.calib.selfcal.calibrate_raytrix`);
-    4. the calibration database ``database`` (default :data:`plenodecode.calib.store.DEFAULT_DB`): the white
-       image of the raw's camera, nearest zoom and focus, and its cached grid;
+    4. a Lytro raw LFP's own white image (``modulationDataRef``), else the calibration database ``database``
+       (default :data:`plenodecode.calib.store.DEFAULT_DB`): the white image the raw's ``geometryCorrectionRef``
+       names, else that of the raw's camera at the nearest zoom and focus, and its cached grid; a white image
+       whose lattice is off the raw's micro-images, or that is a scene, is refused in one line naming the
+       camera's other white images (with ``self_calibrate``: self-calibration instead);
     5. with ``self_calibrate``: the grid found in the scene itself
        (:func:`~plenodecode.calib.selfcal.calibrate_from_scene`), no devignetting.
 
@@ -259,9 +287,11 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
                           str(grid) + (f" (white {Path(white_raw.path or '?').name})" if white_raw else ""))
     elif white_raw is not None:
         from .calib import calibrate
+        from .calib.check import check_white_fit
 
         cal = Calibration(calibrate(white_raw, progress=progress), white_raw, "white image",
                           Path(white_raw.path or "?").name)
+        check_white_fit(raw, cal.grid, white_raw)  # a scene given as its white, or another lattice: refused
     elif "raytrix" in raw.metadata.extra:
         from .calib.selfcal import calibrate_raytrix
 
@@ -277,12 +307,27 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
 
 
 def _database_or_scene(raw: RawCapture, db: Path, *, self_calibrate: bool, progress: Progress) -> Calibration:
+    """The raw's own white image (Lytro ``modulationDataRef``), else the database's, else self-calibration."""
     from .calib import store
+    from .calib.check import WhiteMismatchError
 
     name = Path(raw.path).name if raw.path else "this raw"
+    try:
+        own = _per_picture_white(raw)
+    except WhiteMismatchError as exc:
+        if not self_calibrate:
+            raise
+        log.info("%s", exc)
+        own = None
+    if own is not None:
+        return own
     if (db / store.INDEX_NAME).is_file():
         try:
             return _from_database(raw, db)
+        except WhiteMismatchError as exc:  # its message already names the better choices
+            if not self_calibrate:
+                raise
+            log.warning("%s: self-calibrating instead", exc)
         except CalibrationError as exc:
             if not self_calibrate:
                 raise CalibrationError(f"{exc}; or pass --calibration grid.json, --white WHITE_IMAGE or "

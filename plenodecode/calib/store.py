@@ -19,7 +19,16 @@ stores them (``plenodecode calibrate --database DIR [FOLDER...]`` does both).
                   "serial": "B5143909630", "model": "B01", "zoom_step": -312, "focus_step": 417,
                   "exposure_s": 0.008, "shape": [1072, 1544], "grid": "B5143909630/MOD_0000.grid.json"}]}
 
-Selection follows LFToolbox's ``LFSelectFromDatabase``: the same serial first, then the smallest
+White images are indexed from folders of ``MOD_NNNN.RAW`` + ``.TXT`` pairs and, in place (never
+extracted), from the cameras' calibration archives: the Illum backup ``caldata-<serial>.tar`` (a
+``<serial>/`` or ``unitdata/`` folder) and the F01 volumes ``data.C.0..N``; such an entry's ``file``
+is an archive member path ``ARCHIVE::MEMBER`` (:mod:`plenodecode.io.lytro.archive`), read through
+:func:`plenodecode.io.read_raw`.  An entry's ``geometry_ref`` is the SHA-1 of its ``MOD_NNNN.GCT``
+listed in ``cal_file_manifest.json``.
+
+Selection: a picture whose ``frames[0].frame.geometryCorrectionRef`` equals an entry's
+``geometry_ref`` gets that white image (the camera's own link, as PlenoptiCam follows it); otherwise
+LFToolbox's ``LFSelectFromDatabase``: the same serial first, then the smallest
 ``|zoom_step - zoom|``, then among those the smallest ``|focus_step - focus|``.  The white images
 themselves are not copied; paths are stored relative to the database folder so a committed
 database works from any checkout.  Files are written to a temporary name and renamed; every
@@ -72,6 +81,9 @@ class WhiteEntry:
     shape : (H, W) or None
     grid : str or None
         Path of the cached grid JSON relative to the database folder, None until fitted.
+    geometry_ref : str or None
+        ``'sha1-<hex>'`` of the white image's ``MOD_NNNN.GCT`` (from ``cal_file_manifest.json``): the
+        ``geometryCorrectionRef`` of the pictures taken with it.
     """
 
     file: str
@@ -82,22 +94,32 @@ class WhiteEntry:
     exposure_s: float | None = None
     shape: tuple[int, int] | None = None
     grid: str | None = None
+    geometry_ref: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        return {"file": self.file, "serial": self.serial, "model": self.model, "zoom_step": self.zoom_step,
-                "focus_step": self.focus_step, "exposure_s": self.exposure_s,
-                "shape": None if self.shape is None else list(self.shape), "grid": self.grid}
+        d = {"file": self.file, "serial": self.serial, "model": self.model, "zoom_step": self.zoom_step,
+             "focus_step": self.focus_step, "exposure_s": self.exposure_s,
+             "shape": None if self.shape is None else list(self.shape), "grid": self.grid}
+        return d if self.geometry_ref is None else {**d, "geometry_ref": self.geometry_ref}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "WhiteEntry":
         shape = d.get("shape")
         return cls(file=str(d["file"]), serial=d.get("serial"), model=d.get("model"),
                    zoom_step=d.get("zoom_step"), focus_step=d.get("focus_step"), exposure_s=d.get("exposure_s"),
-                   shape=None if shape is None else (int(shape[0]), int(shape[1])), grid=d.get("grid"))
+                   shape=None if shape is None else (int(shape[0]), int(shape[1])), grid=d.get("grid"),
+                   geometry_ref=d.get("geometry_ref"))
 
 
 # -- files ------------------------------------------------------------------------------------
-def _rel(path: Path, db: Path) -> str:
+def _rel(path: Path | str, db: Path) -> str:
+    """``path`` relative to the database folder (an archive member path: its archive part)."""
+    from ..io.lytro.archive import MemberPath, split_member_path
+
+    member = split_member_path(path) if isinstance(path, (str, MemberPath)) else None
+    if member is not None:
+        return str(MemberPath(Path(_rel(member.archive, db)), member.member))
+    path = Path(path)
     try:
         return os.path.relpath(path.resolve(), db.resolve())
     except ValueError:  # another drive (Windows)
@@ -227,19 +249,73 @@ def _find_whites(folder: Path) -> list[Path]:
 
 
 def _grid_relpath(entry: WhiteEntry) -> str:
+    """``<serial>/<stem>.grid.json``; a white inside an archive: ``<serial>/<archive>--<stem>.grid.json``."""
+    from ..io.lytro.archive import split_member_path
+
     serial = entry.serial or "unknown"
+    member = split_member_path(entry.file)
+    if member is not None:
+        return f"{serial}/{member.archive.name}--{Path(member.name).stem}.grid.json"
     return f"{serial}/{Path(entry.file).stem}.grid.json"
+
+
+def _new_entry(file: str, cam: CameraMetadata, shape: tuple[int, int], existing: Mapping[str, WhiteEntry],
+               overwrite: bool, geometry_ref: str | None = None) -> WhiteEntry:
+    """The index entry of a white image; the cached grid of the same ``file`` is kept unless ``overwrite``."""
+    old = existing.get(file)
+    return WhiteEntry(file=file, serial=cam.serial, model=cam.model, zoom_step=cam.zoom_step,
+                      focus_step=cam.focus_step, exposure_s=cam.exposure_s, shape=(int(shape[0]), int(shape[1])),
+                      grid=old.grid if old is not None and not overwrite else None, geometry_ref=geometry_ref)
+
+
+def _archive_entries(archive: Path, db: Path, existing: Mapping[str, WhiteEntry],
+                     overwrite: bool) -> list[WhiteEntry]:
+    """Entries of the white images inside a calibration archive, read in place (TXT sidecars only)."""
+    from ..io.lytro.archive import CalibrationArchive
+
+    found = []
+    with CalibrationArchive(archive) as arch:
+        refs = arch.geometry_refs()
+        for name in arch.white_images():
+            try:
+                cam, *layout = arch.raw_layout(name)
+            except FormatError as exc:
+                log.warning("skipping %s: %s", arch.member_path(name), exc)
+                continue
+            found.append(_new_entry(_rel(arch.member_path(name), db), cam, (layout[4], layout[3]), existing,
+                                    overwrite, refs.get(name)))
+    return found
+
+
+def _folder_geometry_ref(raw_path: Path, manifests: dict[Path, Mapping[str, str]]) -> str | None:
+    """The GCT SHA-1 of an extracted ``MOD_NNNN.RAW`` from the ``cal_file_manifest.json`` beside it."""
+    from ..io.lytro.archive import MANIFEST_NAME, manifest_geometry_refs
+    from ..io.lytro.rawpair import read_sidecar
+
+    folder = raw_path.parent
+    if folder not in manifests:
+        manifest = folder / MANIFEST_NAME
+        try:
+            manifests[folder] = manifest_geometry_refs(read_sidecar(manifest)) if manifest.is_file() else {}
+        except FormatError as exc:
+            log.warning("%s", exc)
+            manifests[folder] = {}
+    return manifests[folder].get(raw_path.stem)
 
 
 # -- build / cache (the explicit writing steps) ----------------------------------------------------
 def build_database(folder: str | os.PathLike, db_dir: str | os.PathLike = DEFAULT_DB, *, fit: bool = True,
                    overwrite: bool = False, progress: Progress = None, **calibrate_kw: Any) -> list[WhiteEntry]:
-    """Index the white images (``MOD_NNNN.RAW`` + ``.TXT``) under a folder and, with ``fit``, cache their grids.
+    """Index the white images of a folder or a calibration archive and, with ``fit``, cache their grids.
 
     Parameters
     ----------
     folder : path
-        Searched recursively for ``MOD_*.RAW`` files with a metadata sidecar.
+        A folder, searched recursively for ``MOD_*.RAW`` files with a metadata sidecar, mosaics whose
+        sidecar sets ``is_white_image``, and calibration archives; or one archive: an Illum
+        ``caldata-<serial>.tar`` or the first F01 volume ``data.C.0`` (the chain is followed through
+        ``nextFile``), indexed in place as ``ARCHIVE::MEMBER`` entries.  A ``cal_file_manifest.json``
+        beside the white images gives each entry its ``geometry_ref``.
     db_dir : path
         Database folder (created); its ``index.json`` is merged with the new entries (same file ->
         replaced) under the writer lock (:func:`update_index`).
@@ -256,24 +332,27 @@ def build_database(folder: str | os.PathLike, db_dir: str | os.PathLike = DEFAUL
     Raises
     ------
     CalibrationError
-        No white image found in ``folder``.
+        Neither a folder nor a calibration archive, or no white image found in it.
+    FormatError
+        A damaged archive.
     """
     from ..io.generic import read_generic
     from ..io.lytro import read_raw_pair_metadata
+    from ..io.lytro.archive import archive_kind, iter_archives
 
     src, db = Path(folder), Path(db_dir)
-    if not src.is_dir():
-        raise CalibrationError(f"{src}: not a folder; pass the folder holding the MOD_NNNN.RAW/.TXT white images")
-    paths = _find_whites(src)
-    if not paths:
-        raise CalibrationError(f"{src}: no white images found; expected the camera's calibration files "
-                               "(MOD_0000.RAW + MOD_0000.TXT ...) or mosaics whose JSON sidecar sets is_white_image")
-    db.mkdir(parents=True, exist_ok=True)
+    is_archive = src.is_file() and archive_kind(src) is not None
+    if not src.is_dir() and not is_archive:
+        raise CalibrationError(f"{src}: not a folder or a calibration archive; pass the folder holding the "
+                               "MOD_NNNN.RAW/.TXT white images, the Illum caldata-<serial>.tar or the F01 data.C.0")
+    paths = [] if is_archive else _find_whites(src)
+    archives = [src] if is_archive else list(iter_archives(src))
     try:
         existing = {e.file: e for e in load_index(db)}
     except CalibrationError:
         existing = {}
     found: list[WhiteEntry] = []
+    manifests: dict[Path, Mapping[str, str]] = {}
     for p in paths:
         try:
             if p.suffix.lower() in MOSAIC_SUFFIXES:
@@ -285,12 +364,14 @@ def build_database(folder: str | os.PathLike, db_dir: str | os.PathLike = DEFAUL
         except FormatError as exc:
             log.warning("skipping %s: %s", p, exc)
             continue
-        rel = _rel(p, db)
-        old = existing.get(rel)
-        found.append(WhiteEntry(file=rel, serial=cam.serial, model=cam.model, zoom_step=cam.zoom_step,
-                                focus_step=cam.focus_step, exposure_s=cam.exposure_s, shape=(int(h), int(w)),
-                                grid=old.grid if old is not None and not overwrite else None))
-    out = update_index(db, found)
+        found.append(_new_entry(_rel(p, db), cam, (h, w), existing, overwrite, _folder_geometry_ref(p, manifests)))
+    for archive in archives:
+        found += _archive_entries(archive, db, existing, overwrite)
+    if not found:
+        raise CalibrationError(f"{src}: no white images found; expected the camera's calibration files "
+                               "(MOD_0000.RAW + MOD_0000.TXT ..., a caldata-<serial>.tar or data.C.0) or mosaics "
+                               "whose JSON sidecar sets is_white_image")
+    out = update_index(db, found)  # creates the folder
     if fit:
         out = cache_grids(db, files=[e.file for e in found], overwrite=overwrite, progress=progress, **calibrate_kw)
     log.info("calibration database %s: %d white images of %d camera(s)", db, len(out),
@@ -354,7 +435,8 @@ def _fit_grid(entry: WhiteEntry, db: Path, **calibrate_kw: Any) -> LensletGrid:
 
 # -- look up (never writes) ------------------------------------------------------------------------
 def select_white(db_dir: str | os.PathLike, metadata: CameraMetadata | RawCapture) -> WhiteEntry:
-    """The database entry for a raw: same serial, then nearest zoom step, then nearest focus step.
+    """The database entry for a raw: the white its ``geometryCorrectionRef`` names, else same serial, then
+    nearest zoom step, then nearest focus step.
 
     Parameters
     ----------
@@ -371,12 +453,21 @@ def select_white(db_dir: str | os.PathLike, metadata: CameraMetadata | RawCaptur
         No white image of the raw's camera (the message lists the serials the database holds),
         or the raw has no serial while the database holds several cameras.
     """
+    from ..io.lytro import frame_ref
+
     md = metadata.metadata if isinstance(metadata, RawCapture) else metadata
     entries = load_index(db_dir)
     serials = sorted({str(e.serial) for e in entries})
     if not entries:
         raise CalibrationError(f"{db_dir}: the calibration database is empty; add white images with "
                                "'plenodecode calibrate --database'")
+    ref = frame_ref(md, "geometryCorrectionRef")
+    linked = [e for e in entries if ref is not None and e.geometry_ref == ref
+              and (md.serial is None or str(e.serial) == str(md.serial))]
+    if linked:
+        log.info("white image %s: named by the picture's geometryCorrectionRef through cal_file_manifest.json",
+                 linked[0].file)
+        return min(linked, key=lambda e: e.file)
     if md.serial is None:
         if len(serials) > 1:
             raise CalibrationError(f"the raw has no camera serial and the database {db_dir} holds several cameras "
@@ -390,22 +481,54 @@ def select_white(db_dir: str | os.PathLike, metadata: CameraMetadata | RawCaptur
                                    f"{', '.join(serials)}); add that camera's white images with "
                                    f"'plenodecode calibrate --database {db_dir} FOLDER'")
 
-    def dist(v: float | None, ref: float | None) -> float:
-        return 0.0 if v is None or ref is None else abs(float(v) - float(ref))
-    best_zoom = min(dist(e.zoom_step, md.zoom_step) for e in cands)
-    cands = [e for e in cands if dist(e.zoom_step, md.zoom_step) == best_zoom]
-    return min(cands, key=lambda e: (dist(e.focus_step, md.focus_step), e.file))
+    best_zoom = min(_step_distance(e.zoom_step, md.zoom_step) for e in cands)
+    cands = [e for e in cands if _step_distance(e.zoom_step, md.zoom_step) == best_zoom]
+    return min(cands, key=lambda e: (_step_distance(e.focus_step, md.focus_step), e.file))
 
 
-def _white_path(entry: WhiteEntry, db: Path) -> Path:
-    """Path of an entry's white image (stored relative to the database folder, or absolute)."""
+def _step_distance(v: float | None, ref: float | None) -> float:
+    """``|v - ref|`` of two zoom or focus steps, 0 when either is unknown."""
+    return 0.0 if v is None or ref is None else abs(float(v) - float(ref))
+
+
+def other_whites(db_dir: str | os.PathLike, metadata: CameraMetadata | RawCapture, exclude: WhiteEntry,
+                 limit: int = 3) -> list[WhiteEntry]:
+    """The raw's camera's other white images in the database, nearest zoom then focus step first.
+
+    What to offer when the selected white image does not fit the raw (:mod:`plenodecode.calib.check`).
+
+    Returns
+    -------
+    list of WhiteEntry
+        At most ``limit`` entries of the raw's serial (all serials when the raw has none), ``exclude`` left out.
+    """
+    md = metadata.metadata if isinstance(metadata, RawCapture) else metadata
+    cands = [e for e in load_index(db_dir) if e.file != exclude.file
+             and (md.serial is None or str(e.serial) == str(md.serial))]
+    cands.sort(key=lambda e: (_step_distance(e.zoom_step, md.zoom_step), _step_distance(e.focus_step, md.focus_step),
+                              e.file))
+    return cands[:limit]
+
+
+def white_path(entry: WhiteEntry, db_dir: str | os.PathLike) -> Path | str:
+    """Where an entry's white image is: its path (stored relative to the database folder, or absolute), or
+    for a white inside a calibration archive the member path ``'<archive path>::<member>'`` (a str)."""
+    from ..io.lytro.archive import MemberPath, split_member_path
+
+    db = Path(db_dir)
+    member = split_member_path(entry.file)
+    if member is not None:
+        archive = member.archive if member.archive.is_absolute() else Path(os.path.normpath(db / member.archive))
+        return str(MemberPath(archive, member.member))
     return Path(entry.file) if os.path.isabs(entry.file) else Path(os.path.normpath(db / entry.file))
 
 
-def _existing_white(entry: WhiteEntry, db: Path) -> Path:
-    """:func:`_white_path`, or a CalibrationError naming the entry when the file is gone."""
-    path = _white_path(entry, db)
-    if not path.is_file():
+def _existing_white(entry: WhiteEntry, db: Path) -> Path | str:
+    """:func:`white_path`, or a CalibrationError naming the entry when the file (or archive member) is gone."""
+    from ..io.lytro.archive import member_exists
+
+    path = white_path(entry, db)
+    if not (path.is_file() if isinstance(path, Path) else member_exists(path)):
         raise CalibrationError(f"{path}: the white image of database entry {entry.file} is missing; restore it or "
                                f"rebuild the database {db}")
     return path
@@ -501,5 +624,5 @@ def calibration_for(raw: RawCapture, db_dir: str | os.PathLike = DEFAULT_DB,
     return grid, white
 
 
-__all__ = ["DEFAULT_DB", "WhiteEntry", "build_database", "cache_grids", "select_white", "grid_for", "calibration_for",
-           "load_index", "save_index", "update_index", "index_lock"]
+__all__ = ["DEFAULT_DB", "WhiteEntry", "build_database", "cache_grids", "select_white", "other_whites", "white_path",
+           "grid_for", "calibration_for", "load_index", "save_index", "update_index", "index_lock"]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import click
@@ -27,7 +26,8 @@ def _write_text(path: Path, text: str) -> None:
 @click.option("--pitch", "pitch_hint", type=POSITIVE, default=None,
               help="Approximate lens pitch in px (a hint; default from metadata or the image).")
 @click.option("--database", type=click.Path(path_type=Path, file_okay=False), default=None,
-              help="Calibration database folder: WHITE folders of MOD_NNNN.RAW/.TXT pairs are indexed into it and "
+              help="Calibration database folder: WHITE folders of MOD_NNNN.RAW/.TXT pairs, Illum "
+                   "caldata-<serial>.tar backups and F01 data.C.0 archives (read in place) are indexed into it and "
                    "the grids it lacks are fitted and cached (no WHITE: only that); with --for RAW the grid of the "
                    "matching white image is written to -o.")
 @click.option("--for", "for_raw", type=click.Path(exists=True, path_type=Path, dir_okay=False), default=None,
@@ -50,10 +50,13 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
       plenodecode calibrate MOD_0000.RAW -o grid.json --report grid.html
       plenodecode calibrate radiometry.png --lattice square -o grid.json
       plenodecode calibrate --database calib/ sample_raws/illum-mini/
+      plenodecode calibrate --database calib/ caldata-B5143909630.tar   # not extracted
+      plenodecode calibrate --database calib/ sn-A000424242/data.C.0    # follows nextFile
       plenodecode calibrate --database calib/            # fit and cache the grids the index lacks
       plenodecode calibrate --database calib/ --for scene.lfr -o grid.json
     """
     from ..calib import store
+    from ..io.lytro.archive import archive_kind
 
     if output is not None:
         check_output(output, overwrite)
@@ -61,10 +64,12 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
         check_output(report, overwrite)
     if database is not None and for_raw is None:
         for folder in inputs:
-            if not folder.is_dir():
-                raise click.UsageError(f"{folder} is not a folder; --database indexes folders of white images")
+            if not folder.is_dir() and archive_kind(folder) is None:
+                raise click.UsageError(f"{folder} is neither a folder nor a calibration archive; --database indexes "
+                                       "folders of white images, caldata-<serial>.tar and data.C.0")
         if not inputs and not (database / store.INDEX_NAME).is_file():
-            raise click.UsageError("--database needs the folder(s) of MOD_NNNN.RAW/.TXT white images to index")
+            raise click.UsageError("--database needs the folder(s) of MOD_NNNN.RAW/.TXT white images or the "
+                                   "calibration archives to index")
         entries = []
         for folder in inputs:  # index the folder's whites, fit and cache their grids (store.cache_grids)
             entries = store.build_database(folder, database, overwrite=overwrite, lattice=lattice,
@@ -83,7 +88,7 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
         raw = read_raw(for_raw)
         entry = store.select_white(database, raw)
         grid = store.grid_for(raw, database, lattice=lattice)
-        white = Path(os.path.normpath(database / entry.file))
+        white = store.white_path(entry, database)
         click.echo(f"white image {entry.file} (serial {entry.serial}, zoom {entry.zoom_step}, focus {entry.focus_step})",
                    err=True)
     else:

@@ -25,13 +25,16 @@ PRESET_CHOICE = RegistryChoice("plenodecode.synthetic.presets", "PRESETS")
 @click.option("--shape", type=(click.IntRange(min=1), click.IntRange(min=1)), default=None, metavar="H W", help="Sensor size override.")
 @click.option("--name", default="scene", show_default=True, help="File stem of the scene raw and truth files.")
 @click.option("--no-noise", is_flag=True, help="No shot/read noise and no hot pixels.")
+@click.option("--archive", type=click.Choice(["illum-tar", "f01-datac"]), default=None,
+              help="Also put the white image into the camera's calibration archive in the output folder: the Illum "
+                   "backup caldata-<serial>.tar or the F01 volume data.C.0 (for 'calibrate --database DIR ARCHIVE').")
 @click.option("--lightfield/--no-lightfield", default=None,
               help="Store the ground-truth light field in the truth .npz (default: only for sensors up to 2 Mpx).")
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: float | None, rotation: float | None,
             offset: tuple[float, float] | None, shape: tuple[int, int] | None, name: str, no_noise: bool,
-            lightfield: bool | None, overwrite: bool) -> None:
+            lightfield: bool | None, archive: str | None, overwrite: bool) -> None:
     """Generate a synthetic plenoptic raw of PRESET with exact ground truth.
 
     Writes the scene raw in the camera's own format (Illum .lfr, F01 .lfp, a 16-bit PNG
@@ -41,14 +44,20 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
     \b
     Example:
       plenodecode synth illum-mini -o out/ --seed 3 --offset 0.25 -0.4
+      plenodecode synth illum-mini -o out/ --archive illum-tar
     """
-    from ..synthetic import simulate, simulation_files, write_simulation
+    from ..synthetic import get_preset, simulate, simulation_files, write_simulation
+    from ..synthetic.archives import archive_name, write_calibration_archive
 
     out = Path(out_dir)
     try:
         names = simulation_files(preset, name)
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="--name") from exc
+    archive_path = None
+    if archive is not None:
+        archive_path = out / archive_name(archive, get_preset(preset).serial)
+        names = {**names, "archive": archive_path.name}
     if not overwrite:
         for fname in names.values():
             check_output(out / fname, overwrite)
@@ -61,5 +70,9 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
         paths = write_simulation(sim, out, name=name, overwrite=overwrite, lightfield=lightfield)
     except FileExistsError as exc:   # appeared while simulating
         raise click.UsageError(f"{exc}; pass --overwrite to replace it") from exc
+    if archive is not None:
+        written = write_calibration_archive([sim], archive_path if archive == "illum-tar" else out, kind=archive,
+                                            overwrite=overwrite)
+        paths = {**paths, "archive": written.paths[0]}
     for key, path in paths.items():
         click.echo(f"{key:11s} {path}")

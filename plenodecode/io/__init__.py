@@ -25,7 +25,10 @@ LYTRO_PAIR_EXTENSIONS = (".raw",)
 def read_raw(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None) -> RawCapture:
     """Read any supported raw file into a :class:`RawCapture`.
 
-    Dispatch: Lytro container by magic (``.lfp``/``.lfr`` of any case); a headerless
+    Dispatch: an archive member path ``ARCHIVE::MEMBER`` (a ``MOD_NNNN.RAW`` inside an Illum
+    ``caldata-<serial>.tar`` or F01 ``data.C.N``, read in place by
+    :func:`plenodecode.io.lytro.archive.read_member_raw`); Lytro container by magic
+    (``.lfp``/``.lfr`` of any case); a headerless
     ``.RAW`` with a ``.TXT``/``.json`` metadata sidecar (Lytro white images and frames);
     a PNG/TIFF/BMP with a ``RayCalibData`` XML beside it (Raytrix); other images (PNG, TIFF,
     JPEG, EXR, PGM), with or without a JSON sidecar, as mosaics; anything else through rawpy
@@ -42,6 +45,10 @@ def read_raw(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None) ->
     """
     p = Path(path)
     if not p.is_file():
+        from .lytro.archive import read_member_raw, split_member_path
+
+        if split_member_path(path) is not None:  # 'ARCHIVE::MEMBER', a white image inside a calibration archive
+            return read_member_raw(path)
         raise FormatError(f"{p}: no such file")
     with open(p, "rb") as fh:
         head = fh.read(8)

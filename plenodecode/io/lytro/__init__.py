@@ -12,7 +12,9 @@ Implements ``formats.md`` §1-3, one concern per module (each imports only those
   ``LFM``/``LFC`` of ``96 + N`` bytes: magic, length N, ``sha1-<hex>`` name, payload), with payloads
   resolved only through the SHA-1 names the LFM table of contents (TOC) refers to;
 * :mod:`.lfp` -- the raw of an F01 ``.lfp`` / Illum ``.lfr``, writers of both, payload extraction;
-* :mod:`.rawpair` -- headerless raws with a JSON sidecar (``MOD_NNNN.RAW`` + ``.TXT`` white images).
+* :mod:`.rawpair` -- headerless raws with a JSON sidecar (``MOD_NNNN.RAW`` + ``.TXT`` white images);
+* :mod:`.archive` -- calibration archives read in place (Illum ``caldata-<serial>.tar``, F01
+  ``data.C.N`` volumes), their members named ``ARCHIVE::MEMBER``, and ``cal_file_manifest.json``.
 
 Raw payload packings are in :mod:`plenodecode.io.packing`.  Readers never write; writers write to a
 temporary name and rename.
@@ -24,15 +26,16 @@ from .. import packing
 from .container import LytroContainer, Section, read_container, section_name, write_container
 from .contents import ContentItem
 from .fields import lookup
-from .lfp import TOC_FILE, content_file_name, extract_contents, read_lytro, write_lfp, write_lfr
+from .lfp import (TOC_FILE, content_file_name, extract_contents, frame_ref, read_lytro, read_modulation_white,
+                  write_lfp, write_lfr)
 from .metadata import lytro_metadata, metadata_from_lytro
 from .rawpair import find_sidecar, read_raw_pair, read_raw_pair_metadata, read_sidecar, write_raw_pair
 
 __all__ = [
     "Section", "ContentItem", "LytroContainer", "read_container", "read_lytro", "metadata_from_lytro",
     "find_sidecar", "read_raw_pair", "read_raw_pair_metadata", "write_container", "write_lfr", "write_lfp",
-    "write_raw_pair", "extract_contents", "content_file_name", "TOC_FILE", "lytro_metadata", "section_name", "lookup", "read_sidecar",
-    "pack_10bit", "unpack_10bit", "pack_12bit", "unpack_12bit",
+    "write_raw_pair", "extract_contents", "content_file_name", "TOC_FILE", "lytro_metadata", "section_name", "lookup",
+    "read_sidecar", "pack_10bit", "unpack_10bit", "pack_12bit", "unpack_12bit", "frame_ref", "read_modulation_white",
 ]
 
 pack_10bit = packing.pack_10bit

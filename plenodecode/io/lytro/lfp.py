@@ -4,21 +4,31 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ...errors import FormatError
-from ...types import RawCapture
+from ...types import CameraMetadata, RawCapture
 from .. import packing
 from ..atomic import atomic_outputs, refuse_existing
 from .contents import EXTENSIONS, ContentItem, summarise_contents
 from .container import read_container, section_name, write_container
-from .fields import lookup_dict, first_frame
+from .fields import lookup, lookup_dict, first_frame, normalise_sha1
 from .metadata import packed_size_or_error, tags_entry, lytro_metadata, metadata_from_lytro
 
 ILLUM_PICTURE_SCHEMA = "http://schema.lytro.com/lfp/picture/2.1.4/picture_schema.json"
+#: References of the picture's frame kept in ``metadata.extra['lytro']['frame_refs']`` by :func:`read_lytro`:
+#: the GCT that names the camera's white image (via ``cal_file_manifest.json``) and a per-picture white image.
+FRAME_REFS = ("geometryCorrectionRef", "modulationDataRef")
+
+
+def frame_ref(metadata: CameraMetadata, key: str) -> str | None:
+    """A reference of :data:`FRAME_REFS` kept by :func:`read_lytro` (``'sha1-<hex>'``), None when absent."""
+    ref = lookup(metadata.extra, "lytro", "frame_refs", key)
+    return ref if isinstance(ref, str) else None
 
 
 def read_lytro(path: str | os.PathLike, *, verify: bool = True) -> RawCapture:
@@ -62,14 +72,52 @@ def read_lytro(path: str | os.PathLike, *, verify: bool = True) -> RawCapture:
         raise FormatError(f"{where}: the raw payload is {len(buf)} bytes but the metadata declares {w} x {h} at "
                           f"{bits} bit = {expected} bytes; the file is damaged or its metadata is wrong")
     mosaic = packing.unpack(buf, h, w, bits, endian)
+    frame = lookup_dict(first_frame(c.toc), "frame")
+    refs = {k: normalise_sha1(frame[k]) for k in FRAME_REFS if isinstance(frame.get(k), str)}
+    if refs:
+        lytro_extra = lookup_dict(cam.extra, "lytro")
+        cam = replace(cam, extra={**cam.extra, "lytro": {**lytro_extra, "frame_refs": refs}})
     return RawCapture(mosaic=mosaic, cfa=cfa, black=black, white=white, metadata=cam, path=where)
 
 
-def _frame_payloads(raw: RawCapture, schema: str, bits: int) -> tuple[bytes, bytes, bytes, dict]:
-    """``(image, metadata JSON, private metadata JSON, frame entry)`` of a picture file.
+def read_modulation_white(path: str | os.PathLike, *, verify: bool = True) -> RawCapture | None:
+    """The per-picture white image of a Lytro Desktop raw LFP (``frame.modulationDataRef``), or None.
+
+    The payload is packed like the picture's raw (same size, bits and CFA); LFToolbox calls it
+    ``WhiteImg``.
+
+    Returns
+    -------
+    RawCapture or None
+        ``mosaic`` (H, W) uint16, the picture's levels and metadata with ``is_white_image`` True;
+        ``path`` is ``'<file>#modulationDataRef'``.  None when the frame has no such reference.
+
+    Raises
+    ------
+    FormatError
+        A damaged container, or a payload whose size disagrees with the picture's layout.
+    """
+    c = read_container(path, verify=verify)
+    ref = lookup_dict(first_frame(c.toc), "frame").get("modulationDataRef")
+    if not isinstance(ref, str) or c.metadata is None:
+        return None
+    cam, cfa, black, white, w, h, bits, endian = metadata_from_lytro(c.metadata, c.private_metadata, c.path)
+    buf = c.payload(ref)
+    expected = packed_size_or_error(h, w, bits, str(c.path))
+    if len(buf) != expected:
+        raise FormatError(f"{c.path}: the per-picture white image (modulationDataRef) is {len(buf)} bytes but the "
+                          f"picture is {w} x {h} at {bits} bit = {expected} bytes; the file is damaged")
+    return RawCapture(mosaic=packing.unpack(buf, h, w, bits, endian), cfa=cfa, black=black, white=white,
+                      metadata=replace(cam, is_white_image=True), path=f"{c.path}#modulationDataRef")
+
+
+def _frame_payloads(raw: RawCapture, schema: str, bits: int, *, geometry_correction: bytes | None = None,
+                    modulation: RawCapture | None = None) -> tuple[bytes, bytes, bytes, dict, list[bytes]]:
+    """``(image, metadata JSON, private metadata JSON, frame entry, extra payloads)`` of a picture file.
 
     ``image`` is ``raw.mosaic`` packed at ``bits``; the frame entry ``{frame: {metadataRef,
-    privateMetadataRef, imageRef}, parameters}`` refers to the three payloads by their section names.
+    privateMetadataRef, imageRef[, geometryCorrectionRef][, modulationDataRef]}, parameters}`` refers to
+    the payloads by their section names; the extra payloads are the GCT and the packed per-picture white.
     """
     meta, private = lytro_metadata(raw, schema=schema, bits=bits)
     image = packing.pack(raw.mosaic, bits)
@@ -77,16 +125,29 @@ def _frame_payloads(raw: RawCapture, schema: str, bits: int) -> tuple[bytes, byt
     priv_b = json.dumps(private, indent="\t").encode("utf-8")
     frame = {"metadataRef": section_name(meta_b), "privateMetadataRef": section_name(priv_b),
              "imageRef": section_name(image)}
-    return image, meta_b, priv_b, {"frame": frame, "parameters": tags_entry(raw)}
+    extra: list[bytes] = []
+    if geometry_correction is not None:
+        extra.append(bytes(geometry_correction))
+        frame["geometryCorrectionRef"] = section_name(extra[-1])
+    if modulation is not None:
+        if modulation.shape != raw.shape:
+            raise ValueError(f"modulation must be a white image of the picture's size {raw.shape}, "
+                             f"got {modulation.shape}")
+        extra.append(packing.pack(modulation.mosaic, bits))
+        frame["modulationDataRef"] = section_name(extra[-1])
+    return image, meta_b, priv_b, {"frame": frame, "parameters": tags_entry(raw)}, extra
 
 
-def write_lfr(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = False) -> Path:
+def write_lfr(path: str | os.PathLike, raw: RawCapture, *, geometry_correction: bytes | None = None,
+              modulation: RawCapture | None = None, overwrite: bool = False) -> Path:
     """Write an Illum-camera-style ``.lfr``: 10-bit raw, LFC sections first, LFM last.
 
     The TOC has the 'picture 2.1' shape (``frames[0].frame.{metadataRef, privateMetadataRef,
     imageRef}``, ``thumbnails``, ``views``, ...); the metadata uses the Illum schema and is
     generated from ``raw.metadata`` (see :func:`lytro_metadata`), so :func:`read_lytro`
-    returns the same mosaic, levels, CFA and metadata.
+    returns the same mosaic, levels, CFA and metadata.  ``geometry_correction`` (the bytes of the
+    camera's ``*.GCT``) is stored and named by ``frame.geometryCorrectionRef``; ``modulation`` (a white
+    image of the same size) by ``frame.modulationDataRef``.
 
     Raises
     ------
@@ -97,7 +158,8 @@ def write_lfr(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = Fal
     """
     p = Path(path)
     refuse_existing([p], overwrite)
-    image, meta_b, priv_b, frame = _frame_payloads(raw, "illum", 10)
+    image, meta_b, priv_b, frame, extra = _frame_payloads(raw, "illum", 10, geometry_correction=geometry_correction,
+                                                          modulation=modulation)
     toc = {
         "schema": ILLUM_PICTURE_SCHEMA,
         "generators": ["lightning"],
@@ -107,11 +169,15 @@ def write_lfr(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = Fal
         "annotations": [],
         "frames": [frame],
     }
-    return write_container(p, toc, [image, meta_b, priv_b], lfm_first=False, overwrite=overwrite)
+    return write_container(p, toc, [*extra, image, meta_b, priv_b], lfm_first=False, overwrite=overwrite)
 
 
-def write_lfp(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = False) -> Path:
+def write_lfp(path: str | os.PathLike, raw: RawCapture, *, geometry_correction: bytes | None = None,
+              modulation: RawCapture | None = None, overwrite: bool = False) -> Path:
     """Write an F01 Lytro-Desktop-style raw ``.lfp``: LFM first, 12-bit big-endian raw, F01 schema.
+
+    ``geometry_correction`` and ``modulation`` as :func:`write_lfr` (a Desktop export may carry the
+    picture's own white image as ``modulationDataRef``).
 
     Raises
     ------
@@ -122,7 +188,9 @@ def write_lfp(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = Fal
     """
     p = Path(path)
     refuse_existing([p], overwrite)
-    image, meta_b, priv_b, frame = _frame_payloads(raw, "rawdetails", 12)
+    image, meta_b, priv_b, frame, extra = _frame_payloads(raw, "rawdetails", 12,
+                                                          geometry_correction=geometry_correction,
+                                                          modulation=modulation)
     toc = {
         "picture": {
             "frameArray": [frame],
@@ -133,7 +201,7 @@ def write_lfp(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = Fal
         "thumbnailArray": [],
         "version": {"major": 1, "minor": 0, "provisionalDate": "2012-02-07"},
     }
-    return write_container(p, toc, [meta_b, priv_b, image], lfm_first=True, overwrite=overwrite)
+    return write_container(p, toc, [meta_b, priv_b, image, *extra], lfm_first=True, overwrite=overwrite)
 
 
 #: The file :func:`extract_contents` writes the table of contents to.

@@ -54,10 +54,28 @@ def read_sidecar(side: Path) -> Any:
         raw = side.read_bytes()
     except OSError as exc:
         raise FormatError(f"{side}: cannot read the metadata sidecar: {exc.strerror}") from None
+    return sidecar_document(raw, str(side))
+
+
+def sidecar_document(raw: bytes, where: str) -> Any:
+    """The JSON document in a sidecar's bytes, cut at the last ``}`` (a camera TXT may have trailing bytes).
+
+    Parameters
+    ----------
+    raw : bytes
+        The whole sidecar file (from disk or from a calibration-archive member).
+    where : str
+        Names the sidecar in error messages.
+
+    Raises
+    ------
+    FormatError
+        No ``}``, or no valid JSON up to it.
+    """
     end = raw.rfind(b"}")  # a TXT may have trailing bytes after the final '}'
     if end < 0:
-        raise FormatError(f"{side}: expected a JSON object, found no '}}'; the metadata file is damaged")
-    return parse_json(raw[:end + 1], f"{side}: the metadata sidecar")
+        raise FormatError(f"{where}: expected a JSON object, found no '}}'; the metadata file is damaged")
+    return parse_json(raw[:end + 1], f"{where}: the metadata sidecar")
 
 
 def read_raw_pair_metadata(path: str | os.PathLike,
@@ -80,18 +98,51 @@ def read_raw_pair_metadata(path: str | os.PathLike,
     if side is None:
         raise FormatError(f"{p}: no metadata sidecar ({p.stem}.TXT, .txt or .json) beside the raw; put the "
                           "camera's JSON next to it")
-    doc = read_sidecar(side)
+    return pair_metadata(read_sidecar(side), p.stat().st_size, str(p), str(side))
+
+
+def pair_metadata(doc: Any, size: int, raw_where: str, side_where: str,
+                  ) -> tuple[CameraMetadata, str, np.ndarray, np.ndarray, int, int, int, str]:
+    """:func:`metadata_from_lytro` of a sidecar document, checked against the raw's size in bytes.
+
+    Width, height and packing come from the sidecar or, when it lacks them, from the size of a
+    known sensor (:data:`KNOWN_SENSORS`).  Shared by files on disk and calibration-archive members.
+
+    Parameters
+    ----------
+    doc : object
+        The parsed sidecar (:func:`sidecar_document`).
+    size : int
+        Bytes of the headerless raw.
+    raw_where, side_where : str
+        The raw's and the sidecar's paths, for messages.
+
+    Raises
+    ------
+    FormatError
+        Not a JSON object, or a raw whose size disagrees with the metadata.
+    """
     if not isinstance(doc, Mapping):
-        raise FormatError(f"{side}: expected a JSON object, found {type(doc).__name__}")
-    size = p.stat().st_size
+        raise FormatError(f"{side_where}: expected a JSON object, found {type(doc).__name__}")
     default = KNOWN_SENSORS[size][:2] if size in KNOWN_SENSORS else None
-    result = metadata_from_lytro(doc, None, side, default_size=default)
+    result = metadata_from_lytro(doc, None, side_where, default_size=default)
     _, _, _, _, w, h, bits, _ = result
-    expected = packed_size_or_error(h, w, bits, str(p))
+    expected = packed_size_or_error(h, w, bits, raw_where)
     if size != expected:
-        raise FormatError(f"{p}: the raw is {size} bytes but {side.name} declares {w} x {h} at {bits} bit = "
+        raise FormatError(f"{raw_where}: the raw is {size} bytes but {Path(side_where).name} declares {w} x {h} at {bits} bit = "
                           f"{expected} bytes; the pair does not match or the raw is truncated")
     return result
+
+
+def raw_from_buffer(buf: Any, layout: tuple[CameraMetadata, str, np.ndarray, np.ndarray, int, int, int, str],
+                    where: str) -> RawCapture:
+    """The :class:`RawCapture` of a packed headerless raw ``buf`` with the ``layout`` of :func:`pair_metadata`.
+
+    ``mosaic`` (H, W) uint16 unpacked from ``bits``-bit ``endianness`` packing; ``path`` = ``where``.
+    """
+    cam, cfa, black, white, w, h, bits, endian = layout
+    return RawCapture(mosaic=packing.unpack(buf, h, w, bits, endian), cfa=cfa, black=black, white=white,
+                      metadata=cam, path=where)
 
 
 def read_raw_pair(path: str | os.PathLike) -> RawCapture:
@@ -112,17 +163,16 @@ def read_raw_pair(path: str | os.PathLike) -> RawCapture:
         No or unparsable sidecar; raw size disagreeing with the metadata.
     """
     p = Path(path)
-    cam, cfa, black, white, w, h, bits, endian = read_raw_pair_metadata(p)
+    layout = read_raw_pair_metadata(p)
     with open(p, "rb") as fh:
         buf = map_file(fh)
     try:
-        mosaic = packing.unpack(buf, h, w, bits, endian)
+        return raw_from_buffer(buf, layout, str(p))
     finally:
         try:
             buf.close()
         except BufferError:  # a view is still alive; the map closes when it is collected
             pass
-    return RawCapture(mosaic=mosaic, cfa=cfa, black=black, white=white, metadata=cam, path=str(p))
 
 
 def write_raw_pair(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool = False) -> tuple[Path, Path]:
@@ -141,6 +191,22 @@ def write_raw_pair(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool 
     p = Path(path)
     side = p.with_suffix(".txt" if p.suffix.islower() and p.suffix else ".TXT")
     refuse_existing([p, side], overwrite)
+    data, text = raw_pair_bytes(raw)
+    with atomic_outputs([p, side], overwrite=overwrite) as (tmp, tmp_side):
+        tmp.write_bytes(data)
+        tmp_side.write_bytes(text)
+    return p, side
+
+
+def raw_pair_bytes(raw: RawCapture) -> tuple[bytes, bytes]:
+    """The two files of a ``MOD_NNNN.RAW`` + ``.TXT`` pair as bytes (see :func:`write_raw_pair`).
+
+    Returns
+    -------
+    (raw bytes, TXT bytes)
+        The packed mosaic (F01: 12-bit big-endian; else 10-bit little-endian) and the TXT JSON with
+        the ``master`` wrapper, tab-indented with CR LF line ends as the cameras write it.
+    """
     f01 = raw.metadata.model == "F01"
     bits = 12 if f01 else 10
     meta, private = lytro_metadata(raw, schema="rawdetails", bits=bits)
@@ -160,8 +226,4 @@ def write_raw_pair(path: str | os.PathLike, raw: RawCapture, *, overwrite: bool 
             "thumbnailArray": [],
         }
     }
-    text = json.dumps(doc, indent="\t").replace("\n", "\r\n").encode("utf-8")
-    with atomic_outputs([p, side], overwrite=overwrite) as (tmp, tmp_side):
-        tmp.write_bytes(data)
-        tmp_side.write_bytes(text)
-    return p, side
+    return data, json.dumps(doc, indent="\t").replace("\n", "\r\n").encode("utf-8")
