@@ -99,17 +99,17 @@ def parse_optics(text: str, path: str | os.PathLike = "<optics>") -> MicroscopeO
     except ValueError:
         doc = None
     if isinstance(doc, dict):
+        by_key = {_optics_json_key(name): name for name in OPTICS_OPTIONS}
         if isinstance(doc.get("calibrate"), dict):
             optics = _from_napari(doc["calibrate"], path)
+        elif set(doc) <= set(by_key):
+            optics = _checked({by_key[k]: _number(v, k, path) * OPTICS_OPTIONS[by_key[k]][2]
+                               for k, v in doc.items() if v is not None}, path)
         elif any(k in doc for k in NAPARI_KEYS):
             optics = _from_napari(doc, path)
         else:
-            by_key = {_optics_json_key(name): name for name in OPTICS_OPTIONS}
-            unknown = sorted(set(doc) - set(by_key))
-            if unknown:
-                raise MetadataError(f"{path}: unknown optics key(s) {unknown}; valid: {', '.join(by_key)}")
-            optics = _checked({by_key[k]: _number(v, k, path) * OPTICS_OPTIONS[by_key[k]][2]
-                               for k, v in doc.items() if v is not None}, path)
+            raise MetadataError(f"{path}: unknown optics key(s) {sorted(set(doc) - set(by_key))}; valid: "
+                                f"{', '.join(by_key)} (or a napari-LF metadata.txt)")
     else:
         section = {}
         for line in text.splitlines():
