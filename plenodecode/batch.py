@@ -46,7 +46,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from .errors import PlenodecodeError
 from .io.atomic import (OLD_MARK, TEMP_MARK, atomic_output, discard, is_temporary, remove_stale_temporaries,
@@ -110,6 +110,12 @@ class BatchOptions:
         How to read image mosaics without a sidecar (the CLI options of the same names;
         :class:`plenodecode.io.mosaic_levels.MosaicOptions`): 'mono' or a Bayer pattern, levels in the file's
         units, 'linear' or 'srgb'.  None / 'linear': found out per file.
+    white, dark : str or None
+        White (radiometry) image and dark frame used for every raw (``--white``, ``--dark``; light-field
+        microscopes): the white calibrates the grid and devignettes, the dark frame is subtracted pixel by pixel.
+    optics : dict or None
+        Light-field microscope optics given for every raw (``MicroscopeOptics.to_dict()``, metres); they win
+        over a napari-LF ``metadata.txt`` beside a raw.
     """
 
     outputs: tuple[str, ...] = ("centre",)
@@ -124,6 +130,9 @@ class BatchOptions:
     input_encoding: str = "linear"
     alpha: float | None = None
     distance_m: float | None = None
+    white: str | None = None
+    dark: str | None = None
+    optics: Mapping[str, float | None] | None = None
 
     def __post_init__(self) -> None:
         outs = tuple(self.outputs) if not isinstance(self.outputs, str) else (self.outputs,)
@@ -155,6 +164,14 @@ class BatchOptions:
 
             object.__setattr__(self, "db_dir", DEFAULT_DB)
         object.__setattr__(self, "db_dir", str(self.db_dir))
+        for name in ("white", "dark"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, str(Path(getattr(self, name)).resolve()))
+        if self.optics is not None:
+            from .optics import MicroscopeOptics
+
+            optics = MicroscopeOptics.from_dict(self.optics)           # checks the values (ValueError)
+            object.__setattr__(self, "optics", None if optics.empty else optics.to_dict())
 
     def as_key_dict(self) -> dict[str, Any]:
         """The options as hashed into the task key.
@@ -170,7 +187,7 @@ class BatchOptions:
             if product not in self.outputs or (option in ("alpha", "distance_m") and d[option] is None):
                 d.pop(option)      # unset alpha / distance_m keep the keys of earlier versions
         for option, default in (("cfa", None), ("black_level", None), ("white_level", None),
-                                ("input_encoding", "linear")):
+                                ("input_encoding", "linear"), ("white", None), ("dark", None), ("optics", None)):
             if d[option] == default:     # keys of runs before these options existed stay valid
                 d.pop(option)
         return d
@@ -474,9 +491,10 @@ def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: Ba
                 raise FileExistsError(f"{target} exists and was not written by a batch run; "
                                       "pass --overwrite (overwrite=True) to replace it")
         _set_threads(threads)
-        from .io import read_raw
+        from .optics import MicroscopeOptics
+        from .pipeline import open_raw
 
-        raw = read_raw(src, mosaic=options.mosaic_options())
+        raw = open_raw(src, mosaic=options.mosaic_options(), optics=MicroscopeOptics.from_dict(options.optics))
         # the folder is staged under a temporary name and replaces ``target`` (checked above) only when complete
         with atomic_output(target, overwrite=True, folder=True) as staging:
             products = _write_products(raw, staging, options, threads=threads)
@@ -557,8 +575,10 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     """
     from . import pipeline
 
-    calibration = pipeline.choose_calibration(raw, database=options.db_dir)
-    src = pipeline.Source(raw=raw, calibration=calibration, decode_options={"workers": threads})
+    mosaic = options.mosaic_options()
+    calibration = pipeline.choose_calibration(raw, database=options.db_dir, white=options.white, mosaic=mosaic)
+    src = pipeline.Source(raw=raw, calibration=calibration, decode_options={
+        "workers": threads, "dark": pipeline.read_dark_frame(options.dark, mosaic)})
     bits = options.bit_depth
     thumbs = folder / THUMB_DIR
     thumbs.mkdir()

@@ -38,6 +38,7 @@ from .types import LensletGrid, LightField, RawCapture
 
 if TYPE_CHECKING:
     from .io.mosaic_levels import MosaicOptions
+    from .optics import MicroscopeOptics
 
 log = logging.getLogger(__name__)
 
@@ -106,10 +107,37 @@ def _read_lightfield(p: Path) -> LightField:
     return load_lightfield(p)
 
 
+def with_optics(item: LightField | RawCapture, optics: MicroscopeOptics | None) -> LightField | RawCapture:
+    """``item`` carrying the microscope optics ``optics`` (merged over those it has: given values win)."""
+    from dataclasses import replace
+
+    if optics is None or optics.empty:
+        return item
+    if isinstance(item, LightField):
+        have = item.geometry.microscope
+        return item.replace(geometry=replace(item.geometry, microscope=have.merged(optics) if have else optics))
+    have = item.metadata.microscope
+    return replace(item, metadata=replace(item.metadata, microscope=have.merged(optics) if have else optics))
+
+
+def _read_raw(p: Path, mosaic: MosaicOptions | None = None, raytrix_xml: str | os.PathLike | None = None
+              ) -> RawCapture:
+    """:func:`plenodecode.io.read_raw`, or a Raytrix image with ``raytrix_xml`` or the RayCalibData XML
+    :func:`plenodecode.io.raytrix.calibration_xml_for` finds beside it (same stem, or the only one in the folder)."""
+    from .io import raytrix, read_raw
+
+    xml = raytrix.calibration_xml_for(p, raytrix_xml) if p.is_file() else None
+    if xml is not None:
+        return raytrix.read_raytrix(p, xml=xml)
+    return read_raw(p, mosaic=mosaic)
+
+
 def open_raw(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None,
-             raytrix_xml: str | os.PathLike | None = None) -> RawCapture:
-    """Read a raw (:func:`plenodecode.io.read_raw`); a Raytrix image with ``raytrix_xml`` or the RayCalibData XML
-    :func:`plenodecode.io.raytrix.calibration_xml_for` finds beside it (same stem, or the only one in the folder).
+             raytrix_xml: str | os.PathLike | None = None, optics: MicroscopeOptics | None = None) -> RawCapture:
+    """Read a raw: :func:`plenodecode.io.read_raw`, a Raytrix image with its RayCalibData XML (``raytrix_xml``,
+    else the one beside it), and the optics of a light-field microscope: those of a napari-LF ``metadata.txt``
+    beside it (:func:`plenodecode.io.microscope.optics_beside`), overridden value by value by ``optics`` (the
+    command line's ``--magnification``, ``--optics FILE``, ...).
 
     Raises
     ------
@@ -118,13 +146,22 @@ def open_raw(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None,
     FormatError
         Unreadable raw.
     """
-    from .io import raytrix, read_raw
+    from .io.microscope import optics_beside
 
     p = Path(path)
-    xml = raytrix.calibration_xml_for(p, raytrix_xml) if p.is_file() else None
-    if xml is not None:
-        return raytrix.read_raytrix(p, xml=xml)
-    return read_raw(p, mosaic=mosaic)
+    raw = _read_raw(p, mosaic, raytrix_xml)
+    beside = optics_beside(p)
+    return with_optics(raw, beside.merged(optics) if beside is not None else optics)
+
+
+def read_dark_frame(dark: str | os.PathLike | RawCapture | None,
+                    mosaic: MosaicOptions | None = None) -> RawCapture | None:
+    """The dark frame (``--dark``), read like a raw; None for None.  :func:`plenodecode.decoding.decode`
+    subtracts it pixel by pixel from the raw and the white image instead of the black level."""
+    if dark is None or isinstance(dark, RawCapture):
+        return dark
+    log.info("dark frame %s", dark)
+    return _read_raw(Path(dark), mosaic)
 
 
 #: Input kind -> reader ``fn(path) -> LightField | RawCapture``.
@@ -134,7 +171,8 @@ INPUT_READERS: dict[str, Callable[[Path], LightField | RawCapture]] = {
 
 
 def open_input(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None,
-               raytrix_xml: str | os.PathLike | None = None) -> LightField | RawCapture:
+               raytrix_xml: str | os.PathLike | None = None, optics: MicroscopeOptics | None = None
+               ) -> LightField | RawCapture:
     """Read any supported input.
 
     Parameters
@@ -148,6 +186,9 @@ def open_input(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None,
         How to read an image mosaic (CFA, levels, value encoding); raws only.
     raytrix_xml : path-like, optional
         The RayCalibData XML of a Raytrix image, when it is not the one beside it (:func:`open_raw`).
+    optics : MicroscopeOptics, optional
+        Light-field microscope optics given by the caller; they win over a ``metadata.txt`` beside a raw
+        (:func:`open_raw`) and over those a saved light field carries.
 
     Returns
     -------
@@ -160,7 +201,9 @@ def open_input(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None,
     """
     p = Path(path)
     kind = input_kind(p)
-    return open_raw(p, mosaic=mosaic, raytrix_xml=raytrix_xml) if kind == "raw" else INPUT_READERS[kind](p)
+    if kind == "raw":
+        return open_raw(p, mosaic=mosaic, raytrix_xml=raytrix_xml, optics=optics)
+    return with_optics(INPUT_READERS[kind](p), optics)
 
 
 # -------------------------------------------------------------------------------------------- calibration
@@ -425,17 +468,22 @@ def open_source(path: str | os.PathLike, *, grid: str | os.PathLike | None = Non
                 white: str | os.PathLike | None = None, database: str | os.PathLike | None = None,
                 self_calibrate: bool = False, mosaic: MosaicOptions | None = None,
                 raytrix_xml: str | os.PathLike | None = None,
+                dark: str | os.PathLike | RawCapture | None = None, optics: MicroscopeOptics | None = None,
                 decode_options: Mapping[str, Any] | None = None, progress: Progress = None) -> Source:
     """:func:`open_input`, then for a raw :func:`choose_calibration`; the decoding waits for first use.
 
-    The calibration, ``mosaic`` and ``raytrix_xml`` options apply to raws only.
+    The calibration, ``mosaic``, ``raytrix_xml`` and ``dark`` (a dark frame, :func:`read_dark_frame`, handed to
+    the decoding) options apply to raws only; ``optics`` to every input (:func:`open_input`).
     """
-    item = open_input(path, mosaic=mosaic, raytrix_xml=raytrix_xml)
+    item = open_input(path, mosaic=mosaic, raytrix_xml=raytrix_xml, optics=optics)
     if isinstance(item, LightField):
         return Source(lightfield=item)
     cal = choose_calibration(item, grid=grid, white=white, database=database, self_calibrate=self_calibrate,
                              mosaic=mosaic)
-    return Source(raw=item, calibration=cal, decode_options=decode_options, progress=progress)
+    options = dict(decode_options or {})
+    if dark is not None:
+        options["dark"] = read_dark_frame(dark, mosaic)
+    return Source(raw=item, calibration=cal, decode_options=options, progress=progress)
 
 
 def load_lightfield_input(path: str | os.PathLike, **options: Any) -> LightField:
@@ -618,29 +666,32 @@ def render_depth(src: Source, *, method: str | None = None, disparity_range: tup
                  metric: bool = False, points: bool = False, focus_distance: float | None = None,
                  progress: Progress = None) -> Rendered:
     """Disparity of the centre view (:func:`plenodecode.depth.estimate_depth`), px per view step; with ``metric``
-    also depth in metres, with ``points`` the 3-D point of every pixel and its display colour.
+    also depth in metres (micrometres from the native object plane for a light-field microscope,
+    :func:`plenodecode.depth.metric.depth_unit`), with ``points`` the 3-D point of every pixel and its display
+    colour.
 
-    ``data``: 'depthmap' (DepthMap), 'values' (Y, X) float32 (depth in m with ``metric``, else disparity),
-    'label', and with ``points`` 'points' (Y, X, 3) m and 'colours' (Y, X, 3) uint8.
+    ``data``: 'depthmap' (DepthMap), 'values' (Y, X) float32 (depth in 'unit' with ``metric``, else disparity),
+    'unit', 'label', and with ``points`` 'points' (Y, X, 3) in 'unit' and 'colours' (Y, X, 3) uint8.
     """
     from .depth import DEFAULT_METHOD, disparity_to_depth, estimate_depth
-    from .depth.metric import depth_constants, depth_to_points
+    from .depth.metric import depth_constants, depth_to_points, depth_unit
 
     lf = src.lightfield
     method = method or DEFAULT_METHOD
     overrides = {} if focus_distance is None else {"focus_distance_m": focus_distance}
+    unit, scale = depth_unit(lf, **overrides)      # micrometres for a light-field microscope, else metres
     if metric or points:
         depth_constants(lf, **overrides)    # fail before the estimate when the camera geometry is missing
     kw = {} if disparity_range is None else {"disparity_range": disparity_range}
     dm = estimate_depth(lf, method=method, progress=progress, **kw)
     depth = disparity_to_depth(dm, lf, **overrides) if (metric or points) else None
-    data: dict[str, Any] = {"depthmap": dm, "method": method,
-                            "values": depth if metric else dm.disparity,
-                            "label": "depth (m)" if metric else "disparity (px / view step)"}
+    data: dict[str, Any] = {"depthmap": dm, "method": method, "unit": unit if metric else "px / view step",
+                            "values": depth * scale if metric else dm.disparity,
+                            "label": f"depth ({unit})" if metric else "disparity (px / view step)"}
     if points:
         from .io.depthio import display_colours
 
-        data["points"] = depth_to_points(depth, lf, **overrides)
+        data["points"] = depth_to_points(depth, lf, **overrides) * scale
         data["colours"] = display_colours(lf.centre_view(), lf.colour)
     return Rendered("depth", (), lf.colour, data=data)
 
@@ -979,7 +1030,8 @@ def write_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | N
 
 __all__ = ["LIGHTFIELD_EXTENSIONS", "IMAGE_EXTENSIONS", "BIT_DEPTHS", "MAX_STACK_SLICES", "INPUT_READERS", "PRODUCTS", "STACK_UNITS", "Calibration", "Source",
            "Rendered", "input_kind", "is_hci_folder", "is_lightfield_path", "open_input", "choose_calibration",
-           "decode_raw", "open_raw", "open_source", "virtual_depth_stem", "load_lightfield_input", "render_product", "check_total_focus_patch",
+           "decode_raw", "open_raw", "open_source", "with_optics", "read_dark_frame", "virtual_depth_stem",
+           "load_lightfield_input", "render_product", "check_total_focus_patch",
            "display_encoding", "default_extension", "write_image_file", "refuse_folder_clash", "staged_folder", "write_product",
            "write_parallax", "write_depth", "write_lightfield", "view_names", "refocus_stem", "focal_stack_names",
            "parallax_frame_names"]

@@ -49,6 +49,7 @@ from typing import Any, Literal, Mapping
 import numpy as np
 
 from .errors import CalibrationError, MetadataError
+from .optics import MicroscopeOptics
 
 #: Bayer pattern names, upper-left 2x2 tile read row-major.
 CFA_PATTERNS = ("RGGB", "GRBG", "GBRG", "BGGR")
@@ -110,6 +111,8 @@ class CameraMetadata:
     f_number: float | None = None
     is_white_image: bool = False
     extra: Mapping[str, Any] = field(default_factory=dict)
+    #: the optics of a light-field microscope (:class:`~plenodecode.optics.MicroscopeOptics`), None for a camera.
+    microscope: MicroscopeOptics | None = None
 
     def lenslet_pitch_px(self) -> float | None:
         """Lenslet pitch in sensor pixels, ``lens_pitch_m / pixel_pitch_m``, if both are known."""
@@ -122,6 +125,7 @@ class CameraMetadata:
         d = asdict(self)
         d["wb_gains"] = dict(self.wb_gains) if self.wb_gains is not None else None
         d["extra"] = dict(self.extra)
+        d["microscope"] = None if self.microscope is None else self.microscope.to_dict()
         return d
 
     @classmethod
@@ -135,6 +139,7 @@ class CameraMetadata:
         for key in ("mla_offset_m", "mla_scale"):
             if kw.get(key) is not None:
                 kw[key] = tuple(float(x) for x in kw[key])
+        kw["microscope"] = MicroscopeOptics.from_dict(kw.get("microscope"))
         return cls(**kw)
 
 
@@ -396,7 +401,7 @@ GEOMETRY_SCHEMA_VERSION = 1
 LINEAR_COLOUR_STATES = ("camera", "linear-srgb")
 #: Keys of the legacy free-form ``LightField.metadata`` dict that :class:`LightFieldGeometry` replaces.
 LEGACY_GEOMETRY_KEYS = ("source", "calibration", "camera", "spatial_step_px", "view_step_px", "geometry",
-                        "disparity_range", "hci_parameters", "focus_distance_m", "colour")
+                        "disparity_range", "hci_parameters", "focus_distance_m", "colour", "microscope")
 #: Where each :class:`HCIParameters` field sits in ``parameters.cfg``: field -> (section, key).
 _HCI_CFG = {"baseline_mm": ("extrinsics", "baseline_mm"), "focal_length_mm": ("intrinsics", "focal_length_mm"),
             "sensor_size_mm": ("intrinsics", "sensor_size_mm"), "focus_distance_m": ("extrinsics", "focus_distance_m")}
@@ -554,6 +559,8 @@ class LightFieldGeometry:
         The camera and exposure metadata of the raw.
     hci : HCIParameters or None
         The camera array, for an HCI benchmark scene.
+    microscope : MicroscopeOptics or None
+        The optics of a light-field microscope (metric depth in micrometres); defaults to ``camera.microscope``.
     """
 
     spatial_step_px: float | None = None
@@ -571,8 +578,12 @@ class LightFieldGeometry:
     calibration: Mapping[str, Any] | None = None
     camera: CameraMetadata | None = None
     hci: HCIParameters | None = None
+    microscope: MicroscopeOptics | None = None
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "microscope", MicroscopeOptics.from_dict(self.microscope))
+        if self.microscope is None and self.camera is not None:
+            object.__setattr__(self, "microscope", self.camera.microscope)
         if self.colour is not None and self.colour not in COLOUR_STATES:
             raise ValueError(f"colour must be one of {COLOUR_STATES}, got {self.colour!r}")
         object.__setattr__(self, "disparity_range", _pair(self.disparity_range, "disparity_range"))
@@ -615,7 +626,8 @@ class LightFieldGeometry:
                    disparity_range=meta.get("disparity_range"), colour=meta.get("colour"),
                    source=None if meta.get("source") is None else str(meta["source"]),
                    calibration=None if calib is None else dict(calib), camera=camera,
-                   hci=HCIParameters.from_cfg(meta.get("hci_parameters")), **consts)
+                   hci=HCIParameters.from_cfg(meta.get("hci_parameters")),
+                   microscope=MicroscopeOptics.from_dict(meta.get("microscope")), **consts)
 
     def to_legacy(self) -> dict[str, Any]:
         """The legacy free-form keys (inverse of :meth:`from_legacy`); unknown values are left out."""
@@ -626,7 +638,8 @@ class LightFieldGeometry:
                                "spatial_step_px": self.spatial_step_px, "view_step_px": self.view_step_px,
                                "focus_distance_m": self.focus_distance_m,
                                "disparity_range": None if self.disparity_range is None else list(self.disparity_range),
-                               "hci_parameters": None if self.hci is None else self.hci.to_cfg()}
+                               "hci_parameters": None if self.hci is None else self.hci.to_cfg(),
+                               "microscope": None if self.microscope is None else self.microscope.to_dict()}
         if self.camera is not None:
             cam = self.camera.to_dict()
             out["camera"] = {**cam, **{k: v for k, v in consts.items() if cam.get(k) is None}}
@@ -656,7 +669,8 @@ class LightFieldGeometry:
         d.update(disparity_range=None if self.disparity_range is None else list(self.disparity_range),
                  calibration=None if self.calibration is None else dict(self.calibration),
                  camera=None if self.camera is None else self.camera.to_dict(),
-                 hci=None if self.hci is None else self.hci.to_cfg())
+                 hci=None if self.hci is None else self.hci.to_cfg(),
+                 microscope=None if self.microscope is None else self.microscope.to_dict())
         return {"format": "plenodecode.LightFieldGeometry", "version": GEOMETRY_SCHEMA_VERSION, **d}
 
     @classmethod
@@ -787,5 +801,5 @@ class LightField:
 __all__ = [
     "CFA_PATTERNS", "COLOUR_STATES", "GRID_JSON_VERSION", "cfa_channel_map",
     "CameraMetadata", "RawCapture", "LensletGrid", "LightField", "LightFieldGeometry", "HCIParameters",
-    "LightFieldMetadata", "GEOMETRY_SCHEMA_VERSION", "LINEAR_COLOUR_STATES", "LEGACY_GEOMETRY_KEYS",
+    "LightFieldMetadata", "GEOMETRY_SCHEMA_VERSION", "LINEAR_COLOUR_STATES", "LEGACY_GEOMETRY_KEYS", "MicroscopeOptics",
 ]

@@ -8,8 +8,9 @@ import click
 
 from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES
 from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
-from .common import (FINITE, POSITIVE, RegistryChoice, bit_depth_option, current_mosaic_options, database_option,
-                     jobs_option, mosaic_options, progress_bar)
+from .common import (FINITE, POSITIVE, RegistryChoice, bit_depth_option, current_microscope_inputs,
+                     current_mosaic_options, database_option, jobs_option, microscope_options, mosaic_options,
+                     progress_bar)
 
 
 def _parse_outputs(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
@@ -30,6 +31,13 @@ def _echo_table(summary) -> None:
         click.echo(f"{name:{width}s}  {r.status:8s} {r.seconds:8.1f}  {detail}")
 
 
+def _microscope_fields() -> dict:
+    """``dark`` and ``optics`` of :class:`~plenodecode.batch.BatchOptions` from ``--dark`` and the optics options."""
+    found = current_microscope_inputs()
+    dark, optics = found["dark"], found["optics"]
+    return {"dark": None if dark is None else str(dark), "optics": None if optics is None else optics.to_dict()}
+
+
 @click.command("batch")
 @click.argument("inputs", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
 @click.option("-o", "--output", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True,
@@ -40,7 +48,11 @@ def _echo_table(summary) -> None:
 @click.option("--outputs", default="centre", show_default=True, callback=_parse_outputs,
               help=f"Comma-separated products per raw: {', '.join(OUTPUT_CHOICES)}.")
 @database_option
+@click.option("--white", "-w", "white", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
+              help="White (radiometry) image for every raw: the lenslet grid and devignetting (microscopes; "
+                   "instead of the database).")
 @mosaic_options
+@microscope_options
 @click.option("--format", "lf_format", type=RegistryChoice("plenodecode.batch", "LIGHTFIELD_NAMES"), default="zarr",
               show_default=True,
               help="Format of the 'lightfield' product.")
@@ -54,8 +66,8 @@ def _echo_table(summary) -> None:
               default=DEFAULT_DEPTH_METHOD, show_default=True, help="Method of the 'depth' product.")
 @click.option("--overwrite", is_flag=True, help="Redo raws a previous run finished and replace their outputs.")
 @click.pass_context
-def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, database, lf_format, bit_depth, slope,
-            alpha, distance_m, depth_method, overwrite) -> None:
+def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, database, white, lf_format, bit_depth,
+            slope, alpha, distance_m, depth_method, overwrite) -> None:
     """Decode every raw under INPUTS and write the chosen outputs per raw into OUTPUT/<name>/.
 
     Each raw is matched to its camera's calibration in the database (by serial, zoom and
@@ -83,7 +95,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
     files = find_raws(inputs, exclude=[out_dir])
     if not files:
         raise click.UsageError(f"no raws found under {', '.join(map(str, inputs))}")
-    if not db_dir.is_dir() and not all(needs_no_database(f) for f in files):
+    if white is None and not db_dir.is_dir() and not all(needs_no_database(f) for f in files):
         raise click.BadParameter(f"{db_dir} is not a folder; build the database with `plenodecode calibrate "
                                  "--database`", param_hint="--database")
     mosaic = current_mosaic_options()
@@ -91,7 +103,8 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
                            bit_depth=int(bit_depth), slope=slope, alpha=alpha, distance_m=distance_m,
                            depth_method=depth_method, cfa=mosaic.cfa,
                            black_level=mosaic.black_level, white_level=mosaic.white_level,
-                           input_encoding=mosaic.input_encoding)
+                           input_encoding=mosaic.input_encoding, white=None if white is None else str(white),
+                           **_microscope_fields())
     try:
         summary = run_batch(files, out_dir, options, jobs=jobs, scheduler=scheduler, overwrite=overwrite,
                             progress=progress_bar(f"decoding {len(files)} raws", ctx))

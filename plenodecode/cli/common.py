@@ -128,11 +128,78 @@ raytrix_xml_option = click.option(
     help="Raytrix images: the RayCalibData XML [default: X.xml beside X.png, else the only XML in its folder].")
 
 
+#: ``ctx.meta`` key of the dark frame and the microscope optics of a command (:func:`microscope_options`).
+MICROSCOPE_META = "plenodecode.microscope_inputs"
+#: ``--option`` -> (MicroscopeOptics field, help) of the microscope optics options.
+_OPTICS_HELP = {
+    "lens_pitch_m": "micro-lens pitch (um)",
+    "pixel_pitch_m": "pixel size at the micro-lens focal plane, relay included (um)",
+    "magnification": "objective magnification",
+    "numerical_aperture": "objective numerical aperture",
+    "tube_lens_focal_length_m": "tube lens focal length (mm)",
+    "medium_index": "refractive index of the immersion medium",
+    "microlens_focal_length_m": "micro-lens focal length (um) [default: micro-images fill the pitch]",
+    "wavelength_m": "emission wavelength (nm, for the record)",
+}
+
+
+def microscope_options(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """Light-field microscope inputs: ``--dark FRAME`` and the optics (``--lens-pitch-um``, ``--pixel-um``,
+    ``--magnification``, ``--na``, ``--tube-lens-mm``, ``--medium-index``, ``--microlens-focal-um``,
+    ``--wavelength-nm``, ``--optics FILE``; a napari-LF ``metadata.txt`` beside the raw is read anyway).
+
+    Checked before the command runs (a bad value is a usage error naming its option) and handed over through
+    ``ctx.meta`` (:func:`current_microscope_inputs`) as ``{'dark': Path | None, 'optics': MicroscopeOptics |
+    None}``: the option values win over ``--optics FILE``, which wins over ``metadata.txt``.
+    """
+    from ..optics import OPTICS_OPTIONS
+
+    names = {field: OPTICS_OPTIONS[field][0].lstrip("-").replace("-", "_") for field in _OPTICS_HELP}
+
+    @functools.wraps(fn)
+    def checked(*args: Any, dark: Path | None, optics_file: Path | None, **kwargs: Any) -> Any:
+        from ..errors import PlenodecodeError
+        from ..io.microscope import read_optics
+        from ..optics import MicroscopeOptics
+
+        values = {field: kwargs.pop(name) for field, name in names.items()}
+        try:
+            optics = read_optics(optics_file) if optics_file is not None else None
+        except PlenodecodeError as exc:
+            raise click.BadParameter(str(exc), param_hint="--optics") from None
+        try:
+            given = MicroscopeOptics.from_options(**values)
+            optics = optics.merged(given) if optics is not None else given
+        except ValueError as exc:
+            raise click.UsageError(str(exc)) from None
+        click.get_current_context().meta[MICROSCOPE_META] = {
+            "dark": dark, "optics": None if optics.empty else optics}
+        return fn(*args, **kwargs)
+
+    for field, help_text in reversed(_OPTICS_HELP.items()):
+        checked = click.option(OPTICS_OPTIONS[field][0], names[field], type=click.FloatRange(min=0, min_open=True),
+                               default=None, help=f"Microscopes: {help_text}.")(checked)
+    checked = click.option("--optics", "optics_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                           default=None, help="Microscopes: optics file (plenodecode JSON, napari-LF metadata.txt "
+                                              "or LFAnalyze 'name value unit' lines) [default: metadata.txt "
+                                              "beside the raw].")(checked)
+    return click.option("--dark", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
+                        help="Dark frame, subtracted pixel by pixel from raw and white (microscopes).")(checked)
+
+
+def current_microscope_inputs() -> dict[str, Any]:
+    """``{'dark': Path | None, 'optics': MicroscopeOptics | None}`` of the running command (:func:`microscope_options`)."""
+    ctx = click.get_current_context(silent=True)
+    found = None if ctx is None else ctx.meta.get(MICROSCOPE_META)
+    return dict(found) if found else {"dark": None, "optics": None}
+
+
 def input_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     """The input options of every command that reads a raw: the calibration (``--calibration/-g``,
     ``--white/-w``, ``--database``, ``--self-calibrate``; see :func:`plenodecode.pipeline.choose_calibration`),
-    the RayCalibData XML of a Raytrix image (``--raytrix-xml``) and how to read an image mosaic
-    (:func:`mosaic_options`)."""
+    the RayCalibData XML of a Raytrix image (``--raytrix-xml``), how to read an image mosaic
+    (:func:`mosaic_options`), and a microscope's dark frame and optics (:func:`microscope_options`)."""
+    fn = microscope_options(fn)
     fn = mosaic_options(fn)
     fn = raytrix_xml_option(fn)
     fn = click.option("--self-calibrate", "self_calibrate", is_flag=True,
@@ -150,12 +217,13 @@ def input_options(fn: Callable[..., Any]) -> Callable[..., Any]:
 
 def calibration_kwargs(calibration: Path | None, white: Path | None, database: Path | None,
                        self_calibrate: bool) -> dict[str, Any]:
-    """The command's input options as keywords of :func:`plenodecode.pipeline.open_source`: the calibration,
-    ``mosaic`` (:func:`current_mosaic_options`) and ``raytrix_xml`` (``--raytrix-xml``); without ``raytrix_xml``
-    they are those of :func:`~plenodecode.pipeline.choose_calibration`."""
+    """The command's input options as keywords of :func:`plenodecode.pipeline.open_source`: the calibration
+    (the keywords of :func:`~plenodecode.pipeline.choose_calibration`), ``mosaic`` (:func:`current_mosaic_options`),
+    ``raytrix_xml`` (``--raytrix-xml``), and ``dark`` and ``optics`` (:func:`current_microscope_inputs`)."""
     ctx = click.get_current_context(silent=True)
     return {"grid": calibration, "white": white, "database": database, "self_calibrate": self_calibrate,
-            "mosaic": current_mosaic_options(), "raytrix_xml": None if ctx is None else ctx.meta.get(RAYTRIX_XML_META)}
+            "mosaic": current_mosaic_options(), "raytrix_xml": None if ctx is None else ctx.meta.get(RAYTRIX_XML_META),
+            **current_microscope_inputs()}
 
 
 @contextlib.contextmanager

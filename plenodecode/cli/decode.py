@@ -17,8 +17,6 @@ log = logging.getLogger(__name__)
 @click.argument("raw_path", metavar="RAW", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @output_option
 @input_options
-@click.option("--dark", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
-              help="Dark frame, subtracted from raw and white (microscopes).")
 @click.option("--format", "fmt", type=RegistryChoice("plenodecode.io.lightfield", "LIGHTFIELD_FORMATS", sort=True),
               default=None, help="Output format (default: from OUTPUT's extension; a path without one is a views "
                                  "folder).")
@@ -36,7 +34,7 @@ log = logging.getLogger(__name__)
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path | None, white: Path | None,
-            database: Path | None, self_calibrate: bool, dark: Path | None, fmt: str | None, bit_depth: str,
+            database: Path | None, self_calibrate: bool, fmt: str | None, bit_depth: str,
             demosaic: str, n_views: int | None, colour: str, no_hot_pixels: bool, views_anyway: bool,
             overwrite: bool) -> None:
     """Decode RAW into a 4D light field (V, U, Y, X, C) and write it to OUTPUT.
@@ -53,8 +51,7 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
       plenodecode decode lf.png -w white.png --dark dark.tif -o lf.mat
       plenodecode decode IMG_1.jpg -o lf.zarr
     """
-    from ..io import read_raw
-    from ..pipeline import choose_calibration, decode_raw, open_raw, write_lightfield
+    from ..pipeline import choose_calibration, decode_raw, open_raw, read_dark_frame, write_lightfield
 
     if database is not None and (calibration is not None or white is not None):
         raise click.UsageError("--database cannot be combined with --calibration or --white")
@@ -62,13 +59,14 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
         raise click.BadParameter("must be a positive odd number", param_hint="--views")
     name = lightfield_output_format(output, fmt, overwrite)
     inputs = calibration_kwargs(calibration, white, database, self_calibrate)
-    raw = open_raw(raw_path, mosaic=inputs["mosaic"], raytrix_xml=inputs.pop("raytrix_xml"))
+    dark, optics = inputs.pop("dark"), inputs.pop("optics")
+    raw = open_raw(raw_path, mosaic=inputs["mosaic"], raytrix_xml=inputs.pop("raytrix_xml"), optics=optics)
     cal = choose_calibration(raw, **inputs)
     if cal.grid.lens_type is not None and not views_anyway:
         raise click.UsageError(f"{raw_path.name} is a focused-plenoptic (Raytrix) raw: its micro-images are small "
                                f"pictures, not a light field of views; render it with 'plenodecode render {raw_path} "
                                "--total-focus -o photo.png' (or pass --views-anyway)")
-    lf = decode_raw(raw, cal, dark=read_raw(dark) if dark is not None else None, demosaic=demosaic, colour=colour,
+    lf = decode_raw(raw, cal, dark=read_dark_frame(dark, inputs["mosaic"]), demosaic=demosaic, colour=colour,
                     n_views=n_views, hot_pixels=not no_hot_pixels, progress=progress_bar("decoding", ctx))
     with usage_errors():
         out = write_lightfield(lf, output, format=name, bit_depth=int(bit_depth), overwrite=overwrite,

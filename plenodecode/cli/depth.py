@@ -35,7 +35,9 @@ def parse_range(text: str | None) -> tuple[float, float] | None:
 @output_option
 @click.option("--method", type=RegistryChoice("plenodecode.depth", "DEPTH_METHODS"), default=DEFAULT_METHOD, show_default=True,
               help="'costvolume' = accurate, 'fast' = preview in seconds.")
-@click.option("--metric", is_flag=True, help="Write metric depth (m) instead of disparity (px per view step).")
+@click.option("--metric", is_flag=True, help="Write metric depth (m; for a light-field microscope um from the native "
+                                            "object plane, positive away from the objective) instead of disparity "
+                                            "(px per view step).")
 @click.option("--ply", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Also write a coloured point cloud (needs the camera geometry, as --metric).")
 @click.option("--disparity-range", "disparity_range", metavar="LO:HI", default=None,
@@ -52,13 +54,17 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
 
     Writes OUTPUT (.pfm, readable by the HCI benchmark toolkit), OUTPUT with .exr (32-bit float) and
     OUTPUT with .png (colour map with a legend): disparity in px per view step (HCI sign: positive =
-    closer than the focus plane), or depth in metres with --metric.
+    closer than the focus plane), or depth in metres with --metric (micrometres for a light-field
+    microscope, whose optics come from --magnification, --na, ..., --optics FILE or a metadata.txt
+    beside the raw).
 
     \b
     Examples:
       plenodecode depth ../shared/data/hci-antinous -o antinous.pfm
       plenodecode depth photo.zarr -o depth.pfm --metric --ply cloud.ply
       plenodecode depth raw.lfr --method fast -o preview.pfm --database calib/
+      plenodecode depth light_field.png -w radiometry_frame.png --dark dark_frame.tif --metric -o z.pfm
+        --magnification 20 --na 0.5 --medium-index 1.33 --lens-pitch-um 125 --pixel-um 4.55
     """
     import numpy as np
 
@@ -86,5 +92,9 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
         d = dm.disparity
         click.echo(f"{method}: disparity {float(np.nanmin(d)):.3f} .. {float(np.nanmax(d)):.3f} px/view, "
                    f"mean confidence {float(dm.confidence.mean()):.2f}, {dm.params['seconds']:.1f} s")
+        if metric:
+            z = rendered.data["values"]
+            lo, hi = np.nanpercentile(z, [2, 98]) if np.isfinite(z).any() else (np.nan, np.nan)
+            click.echo(f"depth {lo:.4g} .. {hi:.4g} {rendered.data['unit']} (2nd..98th percentile)")
         for p in written:
             click.echo(f"wrote {p}")

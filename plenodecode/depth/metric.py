@@ -40,6 +40,37 @@ the MLA towards the lens, so the film plane of infinity focus is ``lambda_inf g`
 ``b = F + lambda_inf g``.  **This unit of lambda is an assumption** (the Lytro format is undocumented; it
 gives plausible focus distances: 0.24 m for the F01 sample, 1.5 m for the Illum sample); a warning is
 logged when it is used, and an explicit ``focus_distance_m`` always wins.
+
+Light-field microscope (Levoy et al. 2006; Broxton et al. 2013)
+---------------------------------------------------------------
+The MLA sits in the image plane of the objective + tube lens (magnification ``M``), the sensor in the focal
+plane of the micro-lenses (distance ``f_mu``).  Depth is linear in disparity, measured from the native object
+plane (the plane imaged onto the MLA, ``z = 0``), positive *away from the objective* (the sense of a camera's
+depth; disparity > 0 = closer to the objective, as for a camera)::
+
+    z = -d * dx / tan(dtheta)
+
+* ``dx = lens_pitch_m * spatial_step_px / lens_pitch_px / M``: the spatial sample spacing in the specimen
+  (one lenslet = ``pitch / M``, 6.25 um for 125 um behind 20x; the pitch in px is the calibration's).
+* ``dtheta``: the angle in the specimen between the rays of neighbouring views.  A pixel ``o`` off the centre
+  of its micro-image receives the image-space ray of angle ``phi = o / f_mu`` (paraxial: ``phi`` < 2 deg); the
+  objective obeys the sine condition, ``n sin(theta) = M sin(phi)``, so one view step (``view_step_px``
+  pixels of ``pixel_pitch_m``) adds ``NA_step = M * view_step_px * pixel_pitch_m / f_mu`` to
+  ``n sin(theta)``.  Without ``f_mu`` the micro-images are assumed to fill the lens pitch (f-number matched
+  MLA: the aperture radius ``NA`` maps to half a pitch), ``NA_step = 2 NA view_step_px pixel_pitch_m /
+  lens_pitch_m``.  Then ``sin(dtheta) = NA_step / n`` (``n`` the medium index).
+* A point at ``z`` seen along a ray of angle ``theta`` crosses the native object plane ``z tan(theta)`` away
+  from its foot, i.e. ``z tan(theta) / dx`` spatial samples; between neighbouring views about the axis that is
+  ``z tan(dtheta) / dx``, the disparity up to its sign.
+
+Assumptions: telecentric objective obeying the sine condition, thin micro-lenses, small image-side angles;
+the relation is exact for the views about the axis.  Off-axis views see ``tan(theta)`` grow faster than
+``sin(theta)``, so a disparity fitted over the whole aperture is larger by ``1 / cos^3`` at its rim: for a
+0.5 NA water objective (``NA / n = 0.38``) the least-squares slope over a disk of views is 5 % above the
+axial one (the depth is overestimated by 5 %), for 1.2 NA in water 50 %.  The tube lens focal length and the
+wavelength do not enter.  ``lens_pitch_m``, ``pixel_pitch_m`` come from the optics, else from ``lf.geometry``
+(the pixel pitch also as lens pitch / calibrated pitch in px).  :func:`disparity_to_depth` returns metres;
+:func:`depth_unit` says the command line writes micrometres for a microscope.
 """
 
 from __future__ import annotations
@@ -51,6 +82,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import MetadataError
+from ..optics import OPTICS_OPTIONS, MicroscopeOptics, option_name
 from ..types import HCIParameters, LightField
 
 log = logging.getLogger(__name__)
@@ -60,6 +92,12 @@ HCI_KEYS = ("baseline_mm", "focal_length_mm", "sensor_size_mm", "image_resolutio
 #: Keyword overrides for plenoptic cameras.
 PLENOPTIC_KEYS = ("focal_length_m", "f_number", "lens_pitch_m", "spatial_step_px", "view_step_px",
                   "focus_distance_m", "infinity_lambda", "mla_sensor_gap_m")
+#: Keyword overrides for light-field microscopes: the fields of MicroscopeOptics and the sampling steps.
+MICROSCOPE_KEYS = (*OPTICS_OPTIONS, "spatial_step_px", "view_step_px")
+#: How a missing constant of a camera light field is supplied (errors name options, never Python keywords).
+_CAMERA_HINT = ("it comes with the camera's metadata (decode the raw itself, with its metadata); for a "
+                "light-field microscope give its optics instead: --magnification, --na, --medium-index, "
+                "--lens-pitch-um, --pixel-um (or --optics FILE.json, or a napari-LF metadata.txt beside the raw)")
 
 
 def _positive(name: str, value: Any) -> float:
@@ -96,8 +134,9 @@ def hci_constants(params: HCIParameters | Mapping[str, Mapping[str, Any]], **ove
     found["image_resolution_px"] = res
     for name, value in found.items():
         if value is None:
+            how = "pass --focus-distance METRES" if name == "focus_distance_m" else "add it to the scene's parameters.cfg"
             raise MetadataError(f"metric depth of an HCI scene needs '{name}', which parameters.cfg does not have; "
-                                f"pass {name}=...")
+                                f"{how}")
     v = {k: _positive(k, x) for k, x in found.items()}
     f_px = v["focal_length_mm"] / v["sensor_size_mm"] * v["image_resolution_px"]
     return v["baseline_mm"] / 1000.0 * f_px, v["focus_distance_m"]
@@ -113,7 +152,7 @@ def _camera_constants(lf: LightField, overrides: Mapping[str, Any]) -> dict[str,
     for name, value in found.items():
         if value is None:
             raise MetadataError(f"metric depth needs the camera constant '{name}', which the light field's metadata "
-                                f"does not have; pass {name}=... (or decode the raw with its metadata)")
+                                f"does not have; {_CAMERA_HINT}")
         out[name] = _positive(name, value)
     return out
 
@@ -147,21 +186,115 @@ def plenoptic_constants(lf: LightField, **overrides: float) -> tuple[float, floa
     if lam is None or gap is None:
         what = "no infinityLambda" if lam is None else "no MLA-sensor gap"
         raise MetadataError(f"metric depth needs the focus distance: the light field's metadata has no "
-                            f"focus_distance_m and {what} to derive it; pass focus_distance_m=... (metres)")
+                            f"focus_distance_m and {what} to derive it; pass --focus-distance METRES")
     lam = float(lam)
     gap = _positive("mla_sensor_gap_m", gap)
     b = f + lam * gap
     if not b > f:
         raise MetadataError(f"infinityLambda {lam} gives a film distance {b} m not beyond the focal length {f} m; "
-                            f"pass focus_distance_m=...")
+                            f"pass --focus-distance METRES")
     zf = f * b / (b - f)
     log.warning("focus distance %.3f m derived from infinityLambda=%g and the MLA gap (assumed lambda unit = one "
-                "MLA-sensor gap); pass focus_distance_m to override", zf, lam)
+                "MLA-sensor gap); pass --focus-distance to override", zf, lam)
     return k * b, zf
 
 
+def _microscope_value(name: str, optics: MicroscopeOptics, lf: LightField, overrides: Mapping[str, Any]) -> float:
+    """A microscope constant from the overrides, the optics, else the light field's geometry (pitches)."""
+    value = overrides.get(name, getattr(optics, name))
+    if value is None and name in ("lens_pitch_m", "pixel_pitch_m"):
+        value = getattr(lf.geometry, name)
+    if value is None:
+        raise MetadataError(f"metric depth of a light-field microscope needs {option_name(name)} "
+                            f"({name.replace('_m', '').replace('_', ' ')}), which its optics do not give; "
+                            f"pass {option_name(name)} (or --optics FILE.json, or a napari-LF metadata.txt beside "
+                            "the raw)")
+    return getattr(MicroscopeOptics(**{name: value}), name)      # checked: a ValueError names the option
+
+
+def microscope_constants(lf: LightField, **overrides: float) -> tuple[float, float]:
+    """``(K, dx)`` of a light-field microscope: axial offset per unit disparity ``K = dx / tan(dtheta)`` (m per
+    px/view) and the spatial sample spacing in the specimen ``dx`` (m); ``z = -K d`` (module docstring).
+
+    Parameters
+    ----------
+    lf : LightField
+        ``lf.geometry.microscope`` (:class:`~plenodecode.optics.MicroscopeOptics`) and the sampling steps.
+    **overrides : float
+        Any of :data:`MICROSCOPE_KEYS` (fields of MicroscopeOptics in metres, ``spatial_step_px``,
+        ``view_step_px``).
+
+    Raises
+    ------
+    MetadataError
+        A constant is missing; the message names its command-line option (``--magnification``, ...).
+    """
+    geometry = lf.geometry
+    optics = geometry.microscope or MicroscopeOptics()
+    mag = _microscope_value("magnification", optics, lf, overrides)
+    n = _microscope_value("medium_index", optics, lf, overrides)
+    pitch = _microscope_value("lens_pitch_m", optics, lf, overrides)
+    steps = {}
+    for name in ("spatial_step_px", "view_step_px"):
+        value = overrides.get(name, getattr(geometry, name))
+        if value is None:
+            raise MetadataError(f"metric depth needs the light field's sampling ('{name}'), which its metadata "
+                                "does not have; decode the raw with plenodecode")
+        steps[name] = _positive(name, value)
+    pitch_px = (geometry.calibration or {}).get("pitch")
+    pixel = overrides.get("pixel_pitch_m", optics.pixel_pitch_m) or geometry.pixel_pitch_m
+    if pixel is None and pitch_px:
+        pixel = pitch / float(pitch_px)
+    if pixel is None:
+        pixel = _microscope_value("pixel_pitch_m", optics, lf, overrides)     # raises naming --pixel-um
+    pixel = _positive(option_name("pixel_pitch_m"), pixel)
+    if pitch_px is None:
+        pitch_px = pitch / pixel
+    dx = pitch * steps["spatial_step_px"] / float(pitch_px) / mag
+    f_mu = overrides.get("microlens_focal_length_m", optics.microlens_focal_length_m)
+    if f_mu is not None:
+        na_step = mag * steps["view_step_px"] * pixel / _positive(option_name("microlens_focal_length_m"), f_mu)
+    else:
+        na = _microscope_value("numerical_aperture", optics, lf, overrides)
+        na_step = 2.0 * na * steps["view_step_px"] * pixel / pitch
+    if not na_step < n:
+        raise ValueError(f"one view step spans n sin(theta) = {na_step:.3g}, not below --medium-index {n:g}: "
+                         "check --magnification, --pixel-um and --microlens-focal-um")
+    dtheta = math.asin(na_step / n)
+    return dx / math.tan(dtheta), dx
+
+
+def depth_model(lf: LightField, overrides: Mapping[str, Any] | None = None) -> str:
+    """The conversion that applies to ``lf``: 'hci' (``lf.geometry.hci``), 'microscope' (``lf.geometry.microscope``
+    or a microscope override) or 'plenoptic'."""
+    overrides = overrides or {}
+    if lf.geometry.hci is not None:
+        return "hci"
+    if lf.geometry.microscope is not None or any(k in OPTICS_OPTIONS and k not in PLENOPTIC_KEYS for k in overrides):
+        return "microscope"
+    return "plenoptic"
+
+
+def depth_unit(lf: LightField, **overrides: float) -> tuple[str, float]:
+    """``(unit, scale)`` in which metric depth is written: ``('um', 1e6)`` for a light-field microscope,
+    ``('m', 1.0)`` otherwise (depth in metres times ``scale``)."""
+    return ("um", 1e6) if depth_model(lf, overrides) == "microscope" else ("m", 1.0)
+
+
 def depth_constants(lf: LightField, **overrides: float) -> tuple[float, float, str]:
-    """``(G, Z_f, model)`` with model 'hci' (``lf.geometry.hci``) or 'plenoptic'."""
+    """``(G, Z_f, model)`` with model 'hci' (``lf.geometry.hci``), 'plenoptic' or 'microscope'
+    (``lf.geometry.microscope``; then ``G`` is ``-K`` of :func:`microscope_constants` and ``Z_f = 0``, the
+    native object plane: ``z = -K d``, linear, not ``1 / Z = 1 / Z_f + d / G``)."""
+    model = depth_model(lf, overrides)
+    if model == "microscope":
+        bad = set(overrides) - set(MICROSCOPE_KEYS)
+        if bad:
+            hint = ("; --focus-distance does not apply to a microscope (depth is measured from the native object "
+                    "plane)") if "focus_distance_m" in bad else ""
+            raise ValueError(f"unknown override(s) {sorted(bad)} for a light-field microscope; valid: "
+                             f"{', '.join(MICROSCOPE_KEYS)}{hint}")
+        k, _ = microscope_constants(lf, **overrides)
+        return -k, 0.0, model
     hci = lf.geometry.hci
     if hci is not None:
         bad = set(overrides) - set(HCI_KEYS)
@@ -177,25 +310,29 @@ def depth_constants(lf: LightField, **overrides: float) -> tuple[float, float, s
 
 
 def disparity_to_depth(depth_map: Any, lf: LightField, **overrides: float) -> np.ndarray:
-    """Metric depth (m) along the optical axis from disparity: ``Z = 1 / (1 / Z_f + d / G)``.
+    """Metric depth (m) along the optical axis from disparity: ``Z = 1 / (1 / Z_f + d / G)``; for a light-field
+    microscope the axial position from the native object plane, ``z = -d dx / tan(dtheta)`` (module docstring).
 
     Parameters
     ----------
     depth_map : DepthMap or ndarray (Y, X)
         Disparity in px per view step (HCI sign convention).
     lf : LightField
-        Supplies the camera geometry, ``lf.geometry``: ``hci`` (HCI scenes) or the camera constants
-        of a decoded plenoptic light field (see the module docstring for both derivations).
+        Supplies the camera geometry, ``lf.geometry``: ``hci`` (HCI scenes), ``microscope`` (light-field
+        microscopes) or the camera constants of a decoded plenoptic light field (the module docstring derives
+        all three).
     **overrides : float
         Constants that win over the metadata: HCI ``baseline_mm, focal_length_mm, sensor_size_mm,
         image_resolution_px, focus_distance_m``; plenoptic ``focal_length_m, f_number, lens_pitch_m,
-        spatial_step_px, view_step_px, focus_distance_m, infinity_lambda, mla_sensor_gap_m``.
+        spatial_step_px, view_step_px, focus_distance_m, infinity_lambda, mla_sensor_gap_m``; microscope
+        :data:`MICROSCOPE_KEYS`.
 
     Returns
     -------
     ndarray (Y, X) float32
         Depth in metres; ``inf`` where the disparity lies at or beyond infinity (``d <= -G / Z_f``),
-        NaN where the disparity is NaN.
+        NaN where the disparity is NaN.  Microscope: signed, 0 at the native object plane, positive away
+        from the objective.
 
     Raises
     ------
@@ -206,6 +343,8 @@ def disparity_to_depth(depth_map: Any, lf: LightField, **overrides: float) -> np
     if d.ndim != 2:
         raise ValueError(f"depth_map must be a DepthMap or a 2-D disparity array, got shape {d.shape}")
     g, zf, model = depth_constants(lf, **overrides)
+    if model == "microscope":
+        return np.where(np.isnan(d), np.nan, g * d).astype(np.float32)
     inv = 1.0 / zf + d / g
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.where(inv > 0, 1.0 / inv, np.inf)
@@ -222,6 +361,9 @@ def focal_length_px(lf: LightField, **overrides: float) -> float:
     Overrides as :func:`disparity_to_depth`.
     """
     g, zf, model = depth_constants(lf, **overrides)
+    if model == "microscope":
+        raise ValueError("a light-field microscope is telecentric in the specimen: it has no focal length in "
+                         "pixels (depth_to_points projects orthographically)")
     if model == "hci":
         b_m = _positive("baseline_mm", overrides.get("baseline_mm", lf.geometry.hci.baseline_mm))
         return g / (b_m / 1000.0)
@@ -243,7 +385,8 @@ def depth_to_points(depth: np.ndarray, lf: LightField, **overrides: float) -> np
     """3-D points (m) of a depth map, camera frame: x right, y down, z forward (optical axis).
 
     ``X = (x - cx) Z / f``, ``Y = (y - cy) Z / f`` with the principal point at the image centre and ``f`` from
-    :func:`focal_length_px`.
+    :func:`focal_length_px`; a light-field microscope is telecentric in the specimen, so there
+    ``X = (x - cx) dx``, ``Y = (y - cy) dx`` (``dx`` of :func:`microscope_constants`) and ``Z = z``.
 
     Returns
     -------
@@ -252,19 +395,28 @@ def depth_to_points(depth: np.ndarray, lf: LightField, **overrides: float) -> np
     z = np.asarray(depth, np.float64)
     if z.ndim != 2:
         raise ValueError(f"depth must be 2-D, got shape {z.shape}")
-    f = focal_length_px(lf, **overrides)
     h, w = z.shape
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)
+    if depth_model(lf, overrides) == "microscope":          # object-side telecentric: orthographic
+        _, dx = microscope_constants(lf, **overrides)
+        pts = np.stack([(xx - (w - 1) / 2.0) * dx, (yy - (h - 1) / 2.0) * dx, z], axis=-1)
+        return np.where(np.isfinite(z)[..., None], pts, np.nan).astype(np.float32)
+    f = focal_length_px(lf, **overrides)
     pts = np.stack([(xx - (w - 1) / 2.0) * z / f, (yy - (h - 1) / 2.0) * z / f, z], axis=-1)
     return pts.astype(np.float32)
 
 
 def depth_to_disparity(depth: np.ndarray, lf: LightField, **overrides: float) -> np.ndarray:
-    """Inverse of :func:`disparity_to_depth`: ``d = G (1 / Z - 1 / Z_f)`` (px per view step), float32."""
+    """Inverse of :func:`disparity_to_depth`: ``d = G (1 / Z - 1 / Z_f)`` (px per view step), float32;
+    microscope ``d = -z / K``."""
     z = np.asarray(depth, np.float64)
-    g, zf, _ = depth_constants(lf, **overrides)
+    g, zf, model = depth_constants(lf, **overrides)
+    if model == "microscope":
+        return (z / g).astype(np.float32)
     with np.errstate(divide="ignore"):
         return (g * (1.0 / z - 1.0 / zf)).astype(np.float32)
 
 
-__all__ = ["disparity_to_depth", "depth_to_disparity", "focal_length_px", "depth_to_points", "depth_constants", "hci_constants", "plenoptic_constants"]
+__all__ = ["disparity_to_depth", "depth_to_disparity", "focal_length_px", "depth_to_points", "depth_constants",
+           "hci_constants", "plenoptic_constants", "microscope_constants", "depth_model", "depth_unit",
+           "MICROSCOPE_KEYS"]

@@ -1,7 +1,7 @@
 """Camera presets of the synthetic generator: sensor, micro-lens array, optics, levels, colour and noise.
 
 :data:`PRESETS` holds the simulated cameras by name (Lytro Illum and F01 at full size and as
-small crops, a square-lattice light-field microscope, a Raytrix-like focused camera);
+small crops, a square-lattice light-field microscope with its optics, a Raytrix-like focused camera);
 :func:`get_preset` looks one up.
 """
 
@@ -10,6 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+
+from ..optics import MicroscopeOptics
 
 
 @dataclass(frozen=True)
@@ -54,6 +56,7 @@ class Preset:
     iso: float = 100.0
     wb_gains: tuple[float, float, float, float] | None = None    # (r, gr, gb, b)
     ccm: tuple[tuple[float, float, float], ...] | None = None   # camera RGB -> linear sRGB, rows sum to 1
+    microscope: MicroscopeOptics | None = None   # light-field microscope optics (the 'square' preset)
 
     @property
     def mono(self) -> bool:
@@ -97,7 +100,12 @@ PRESETS: dict[str, Preset] = {
         offset=(0.23, -0.31), cfa=None, bits=12, black=100.0, white=4095.0, radius_frac=0.47,
         make="plenodecode", model="LFM-synthetic", serial="LFM-0001", pixel_pitch_m=4.55e-6,
         lens_pitch_m=1.25e-4, mla_gap_m=2.5e-3, focal_length_m=None, f_number=None,
-        exposure_s=0.05, iso=None, full_well=8000.0),
+        exposure_s=0.05, iso=None, full_well=8000.0,
+        # the optics of the LFAnalyze ant-leg capture: 20x / 0.5 NA water objective, 180 mm tube lens,
+        # 125 um f/20 micro-lenses (2433 um), 4.55 um effective pixels
+        microscope=MicroscopeOptics(lens_pitch_m=1.25e-4, pixel_pitch_m=4.55e-6, magnification=20.0,
+                                    numerical_aperture=0.5, tube_lens_focal_length_m=0.18, medium_index=1.33,
+                                    microlens_focal_length_m=2.433e-3, wavelength_m=5.1e-7)),
     "raytrix": Preset(
         name="raytrix", sensor_shape=(700, 1000), pitch_px=34.86, lattice="hex", rotation=0.0008,
         offset=(0.31, 0.12), cfa=None, bits=12, black=0.0, white=4095.0, radius_frac=0.47, focused=True,

@@ -9,7 +9,7 @@ from tests.conftest import shared_path
 from plenodecode.depth import disparity_to_depth
 from plenodecode.depth.metric import depth_to_disparity, depth_to_points, focal_length_px
 from plenodecode.errors import MetadataError
-from plenodecode.types import LightField
+from plenodecode.types import LightField, LightFieldGeometry
 
 #: parameters.cfg of the HCI 'antinous' scene (the values every HCI scene shares for the camera)
 ANTINOUS = {
@@ -141,3 +141,73 @@ def test_plenoptic_points_scale():
     dx = 2.0e-5 * 12.37 / PITCH_PX
     assert f == pytest.approx(b / dx)
     assert math.isfinite(f) and f > 0
+
+
+# ------------------------------------------------------------------------------------------- light-field microscope
+def _microscope(**optics):
+    from plenodecode.optics import MicroscopeOptics
+
+    values = dict(lens_pitch_m=125e-6, pixel_pitch_m=4.55e-6, magnification=20.0, numerical_aperture=0.5,
+                  medium_index=1.33, microlens_focal_length_m=2433e-6)
+    values.update(optics)
+    geometry = LightFieldGeometry(spatial_step_px=125 / 4.55, view_step_px=1.0, calibration={"pitch": 125 / 4.55},
+                                  microscope=MicroscopeOptics(**{k: v for k, v in values.items() if v is not None}))
+    return LightField(np.zeros((3, 3, 2, 2, 1), np.float32), geometry=geometry)
+
+
+def _traced_microscope_disparity(z_m: float) -> float:
+    """Disparity (samples per view step) of a point ``z_m`` from the native plane, by following two rays: the
+    centre view's (along the axis) and the next view's, whose pixel 4.55 um off the micro-image centre sees the
+    image-side angle 4.55 / 2433 rad, i.e. n sin(theta) = 20 * 4.55 / 2433 in the specimen (sine condition)."""
+    theta = math.asin(20 * 4.55e-6 / 2433e-6 / 1.33)
+    lateral = z_m * math.tan(theta)                 # where the tilted ray crosses the native plane
+    return -lateral / (125e-6 / 20)                 # in lenslets of 6.25 um; farther = negative disparity
+
+
+@pytest.mark.parametrize("z_um", [-80.0, -5.0, 0.0, 30.0, 150.0])
+def test_microscope_depth_matches_ray_geometry(z_um):
+    lf = _microscope()
+    d = _traced_microscope_disparity(z_um * 1e-6)
+    z = disparity_to_depth(np.array([[d, np.nan]]), lf)
+    assert z[0, 0] * 1e6 == pytest.approx(z_um, abs=1e-3) and np.isnan(z[0, 1])
+    assert depth_to_disparity(z[:, :1], lf)[0, 0] == pytest.approx(d, abs=1e-6)
+    # the sign: positive disparity (closer to the objective, as for a camera) is negative z
+    assert (d > 0) == (z_um < 0) or z_um == 0
+
+
+def test_microscope_constants_and_units():
+    from plenodecode.depth.metric import depth_constants, depth_unit, microscope_constants
+
+    k, dx = microscope_constants(_microscope())
+    assert dx == pytest.approx(6.25e-6)
+    assert k == pytest.approx(6.25e-6 / math.tan(math.asin(20 * 4.55 / 2433 / 1.33)))      # 222 um per px/view
+    assert depth_constants(_microscope())[1:] == (0.0, "microscope")
+    assert depth_unit(_microscope()) == ("um", 1e6) and depth_unit(_plenoptic()) == ("m", 1.0)
+    # without the micro-lens focal length the micro-images fill the pitch: NA step = 2 NA pixel / pitch
+    k_matched, _ = microscope_constants(_microscope(microlens_focal_length_m=None))
+    assert k_matched == pytest.approx(6.25e-6 / math.tan(math.asin(2 * 0.5 * 4.55 / 125 / 1.33)))
+    # orthographic points (telecentric in the specimen)
+    pts = depth_to_points(np.full((2, 3), 10e-6, np.float32), _microscope())
+    assert pts[0, 2, 0] - pts[0, 0, 0] == pytest.approx(2 * 6.25e-6) and np.allclose(pts[..., 2], 10e-6)
+    with pytest.raises(ValueError, match="focus-distance"):
+        disparity_to_depth(np.zeros((1, 1)), _microscope(), focus_distance_m=1.0)
+
+
+@pytest.mark.parametrize("missing, option", [("magnification", "--magnification"), ("medium_index", "--medium-index"),
+                                             ("numerical_aperture", "--na")])
+def test_microscope_missing_constant_names_the_option(missing, option):
+    kw = {missing: None}
+    if missing == "numerical_aperture":
+        kw["microlens_focal_length_m"] = None           # the NA is needed only without the micro-lens focal length
+    with pytest.raises(MetadataError, match=option) as info:
+        disparity_to_depth(np.zeros((1, 1)), _microscope(**kw))
+    assert "=..." not in str(info.value)
+
+
+def test_camera_errors_name_options_not_keywords():
+    with pytest.raises(MetadataError) as info:
+        disparity_to_depth(np.zeros((1, 1)), _lf({"spatial_step_px": 10.0, "view_step_px": 1.0}))
+    msg = str(info.value)
+    assert "focal_length_m" in msg and "=..." not in msg and "--magnification" in msg
+    with pytest.raises(MetadataError, match="--focus-distance"):
+        disparity_to_depth(np.zeros((1, 1)), _plenoptic())

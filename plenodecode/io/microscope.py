@@ -1,0 +1,172 @@
+"""Reading the optics of a light-field microscope: napari-LF / LFAnalyze ``metadata.txt`` and ``--optics`` files.
+
+Three dialects, told apart by their content (:func:`read_optics`):
+
+napari-LF ``metadata.txt`` (JSON)
+    ``{"calibrate": {"ulens_pitch": 125.0, "pixel_size": 4.55, "ulens_focal_length": 2433.0,
+    "ulens_focal_distance": 2433.0, "objective_magnification": 20, "objective_na": 0.5,
+    "tubelens_focal_length": 180.0, "center_wavelength": 510.0, "medium_index": 1.33, ...}, "main": ...,
+    "rectify": ..., "deconvolve": ..., "hw": ...}``.  The keys are those of LFAnalyze's ``lfcalibrate``
+    options, whose documented units are: pitch, pixel size, micro-lens focal length and focal distance in
+    um, tube lens focal length in mm, wavelength in nm.  The pixel size includes any relay magnification.
+LFAnalyze parameter list (text)
+    One ``name value [unit]`` per line with the ``lfcalibrate`` option names (``pitch 125 um``,
+    ``pixel-size 4.55 um``, ``focal-length 2433 um``, ``magnification 20 x``, ``na 0.5``,
+    ``tubelens-focal-length 180.0``, ``wavelength 510``, ``medium-index 1.33``), as in the README of the
+    LFAnalyze sample data; other lines are ignored.  Same units.
+plenodecode optics JSON (``--optics FILE.json``)
+    The command-line option names without dashes: ``{"lens_pitch_um": 125, "pixel_um": 4.55,
+    "magnification": 20, "na": 0.5, "tube_lens_mm": 180, "medium_index": 1.33, "microlens_focal_um": 2433}``
+    (:func:`format_optics_json` writes it).
+
+:func:`optics_beside` finds ``metadata.txt`` in the raw's folder; :func:`format_metadata_txt` writes a
+napari-LF file (the tests generate theirs with it).  Readers never write.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import re
+from pathlib import Path
+from typing import Any, Mapping
+
+from ..errors import MetadataError
+from ..optics import OPTICS_OPTIONS, MicroscopeOptics
+
+log = logging.getLogger(__name__)
+
+#: The file napari-LF keeps beside a light-field image.
+METADATA_NAME = "metadata.txt"
+#: napari-LF ``calibrate`` key -> (MicroscopeOptics field, metres per file unit).
+NAPARI_KEYS: dict[str, tuple[str, float]] = {
+    "ulens_pitch": ("lens_pitch_m", 1e-6),
+    "pixel_size": ("pixel_pitch_m", 1e-6),
+    "objective_magnification": ("magnification", 1.0),
+    "objective_na": ("numerical_aperture", 1.0),
+    "tubelens_focal_length": ("tube_lens_focal_length_m", 1e-3),
+    "medium_index": ("medium_index", 1.0),
+    "ulens_focal_length": ("microlens_focal_length_m", 1e-6),
+    "ulens_focal_distance": ("microlens_focal_length_m", 1e-6),     # wins: the MLA-sensor distance
+    "center_wavelength": ("wavelength_m", 1e-9),
+}
+#: LFAnalyze option names (text dialect) -> the napari-LF key of the same value.
+LFANALYZE_NAMES = {"pitch": "ulens_pitch", "pixel-size": "pixel_size", "focal-length": "ulens_focal_length",
+                   "ulens-focal-distance": "ulens_focal_distance", "magnification": "objective_magnification",
+                   "na": "objective_na", "tubelens-focal-length": "tubelens_focal_length",
+                   "wavelength": "center_wavelength", "medium-index": "medium_index"}
+
+
+def _optics_json_key(field_name: str) -> str:
+    """``'--lens-pitch-um'`` -> ``'lens_pitch_um'``: the key of a field in a plenodecode optics JSON."""
+    return OPTICS_OPTIONS[field_name][0].lstrip("-").replace("-", "_")
+
+
+def _number(value: Any, key: str, path: Path) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise MetadataError(f"{path}: '{key}' must be a number, got {value!r}") from None
+
+
+def _from_napari(section: Mapping[str, Any], path: Path) -> MicroscopeOptics:
+    values: dict[str, float] = {}
+    for key, (name, scale) in NAPARI_KEYS.items():       # dict order: focal distance after focal length
+        if section.get(key) not in (None, ""):
+            values[name] = _number(section[key], key, path) * scale
+    return _checked(values, path)
+
+
+def _checked(values: Mapping[str, float], path: Path) -> MicroscopeOptics:
+    try:
+        return MicroscopeOptics(**values)
+    except ValueError as exc:
+        raise MetadataError(f"{path}: {exc}") from None
+
+
+def parse_optics(text: str, path: str | os.PathLike = "<optics>") -> MicroscopeOptics:
+    """Microscope optics of the text of an optics file in any of the three dialects (module docstring).
+
+    Raises
+    ------
+    MetadataError
+        No optical value found, or a value that is not a positive number (naming the file and key).
+    """
+    path = Path(path)
+    try:
+        doc = json.loads(text)
+    except ValueError:
+        doc = None
+    if isinstance(doc, dict):
+        by_key = {_optics_json_key(name): name for name in OPTICS_OPTIONS}
+        if isinstance(doc.get("calibrate"), dict):
+            optics = _from_napari(doc["calibrate"], path)
+        elif set(doc) <= set(by_key):
+            optics = _checked({by_key[k]: _number(v, k, path) * OPTICS_OPTIONS[by_key[k]][2]
+                               for k, v in doc.items() if v is not None}, path)
+        elif any(k in doc for k in NAPARI_KEYS):
+            optics = _from_napari(doc, path)
+        else:
+            raise MetadataError(f"{path}: unknown optics key(s) {sorted(set(doc) - set(by_key))}; valid: "
+                                f"{', '.join(by_key)} (or a napari-LF metadata.txt)")
+    else:
+        section = {}
+        for line in text.splitlines():
+            m = re.match(r"\s*([A-Za-z][\w-]*)\s+([-+0-9.eE]+)\b", line)
+            if m and m.group(1).lower() in LFANALYZE_NAMES:
+                section[LFANALYZE_NAMES[m.group(1).lower()]] = m.group(2)
+        optics = _from_napari(section, path)
+    if optics.empty:
+        raise MetadataError(f"{path}: no microscope optics found (expected a napari-LF metadata.txt with a "
+                            "'calibrate' section, LFAnalyze 'pitch 125 um' lines, or a JSON with keys "
+                            f"{', '.join(_optics_json_key(n) for n in OPTICS_OPTIONS)})")
+    return optics
+
+
+def read_optics(path: str | os.PathLike) -> MicroscopeOptics:
+    """Read an optics file (``--optics``, or a ``metadata.txt``); see :func:`parse_optics`."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise MetadataError(f"{p}: cannot read the microscope optics ({exc})") from exc
+    return parse_optics(text, p)
+
+
+def optics_beside(raw_path: str | os.PathLike) -> MicroscopeOptics | None:
+    """The optics of the napari-LF ``metadata.txt`` in the raw's folder, None when there is none.
+
+    A ``metadata.txt`` that holds no optical value (another program's file) is ignored with a warning.
+    """
+    meta = Path(raw_path).parent / METADATA_NAME
+    if not meta.is_file():
+        return None
+    try:
+        optics = read_optics(meta)
+    except MetadataError as exc:
+        log.warning("ignoring %s: %s", meta, exc)
+        return None
+    log.info("microscope optics from %s: %s", meta, optics.describe())
+    return optics
+
+
+def format_metadata_txt(optics: MicroscopeOptics, *, comments: str = "") -> str:
+    """A napari-LF ``metadata.txt`` (``main`` + ``calibrate`` sections) holding ``optics``."""
+    calibrate: dict[str, Any] = {}
+    for key, (name, scale) in NAPARI_KEYS.items():
+        value = getattr(optics, name)
+        if value is not None:
+            calibrate[key] = round(value / scale, 9)
+    return json.dumps({"main": {"comments": comments}, "calibrate": calibrate}, indent=4) + "\n"
+
+
+def format_optics_json(optics: MicroscopeOptics) -> str:
+    """The plenodecode optics JSON (``--optics FILE.json``) of ``optics``, in the options' units."""
+    doc = {_optics_json_key(name): round(getattr(optics, name) / scale, 9)
+           for name, (_, _, scale) in OPTICS_OPTIONS.items() if getattr(optics, name) is not None}
+    return json.dumps(doc, indent=1) + "\n"
+
+
+__all__ = ["METADATA_NAME", "NAPARI_KEYS", "LFANALYZE_NAMES", "parse_optics", "read_optics", "optics_beside",
+           "format_metadata_txt", "format_optics_json"]

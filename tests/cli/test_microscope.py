@@ -1,0 +1,190 @@
+"""Light-field microscopes end to end through the command line (issue 18, items 3 and 7).
+
+Optics files in the napari-LF / LFAnalyze dialects, a generated square (microscope-like) raw with known optics
+and plane depths, and the real LFAnalyze ant-leg capture (radiometry + dark frame; skipped without
+``../shared/data``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from tests.conftest import shared_path
+from plenodecode.cli.main import cli
+from plenodecode.errors import MetadataError
+from plenodecode.io.microscope import format_metadata_txt, format_optics_json, parse_optics, read_optics
+from plenodecode.io.pfm import read_pfm
+from plenodecode.synthetic import PRESETS
+
+ANTLEG = ("lf-microscopy-antleg",)
+#: A napari-LF metadata.txt as the plugin writes it (JSON; um, mm and nm as documented by lfcalibrate).
+NAPARI_METADATA = """{
+    "main": {"comments": "ant leg"},
+    "calibrate": {"radiometry_frame_file": "radiometry_frame.png", "dark_frame_file": "dark_frame.tif",
+                  "ulens_pitch": 125.0, "pixel_size": 4.55, "ulens_focal_length": 2500.0,
+                  "ulens_focal_distance": 2433.0, "objective_magnification": 20, "objective_na": 0.5,
+                  "tubelens_focal_length": 180.0, "center_wavelength": 510.0, "medium_index": 1.33,
+                  "ulens_profile": "rect", "num_slices": 10},
+    "rectify": {"input_file": "light_field.png"},
+    "hw": {"gpu_id": "none"}
+}"""
+
+
+def test_optics_dialects_agree():
+    optics = PRESETS["square"].microscope
+    napari = parse_optics(NAPARI_METADATA)
+    assert napari == optics                                   # focal distance wins over focal length
+    lfanalyze = parse_optics("pixel-size 4.55 um\npitch 125 um\nfocal-length 2433 um\nmagnification 20 x\n"
+                             "na 0.5\ntubelens-focal-length 180.0\nwavelength 510\nmedium-index 1.33\n")
+    assert lfanalyze == optics
+    assert parse_optics(format_optics_json(optics)) == optics
+    assert parse_optics(format_metadata_txt(optics)) == optics
+    with pytest.raises(MetadataError, match="no microscope optics"):
+        parse_optics('{"main": {}, "calibrate": {}}')
+    with pytest.raises(MetadataError, match="--na"):
+        parse_optics('{"calibrate": {"objective_na": 1.5, "medium_index": 1.33}}')
+
+
+def _plane_disparity(z_m: float) -> float:
+    """Disparity of a plane ``z_m`` from the native object plane for the 'square' preset's optics, from the
+    ray geometry: the next view's pixel (4.55 um off the micro-image centre, 2433 um behind the lenslet) sees
+    n sin(theta) = 20 * 4.55 / 2433 in the specimen; the ray crosses the native plane z tan(theta) away, in
+    lenslets of 125 um / 20 (the decoded spatial step is the lattice row spacing of 27.5 px = one pitch)."""
+    theta = math.asin(20 * 4.55 / 2433 / 1.33)
+    return -z_m * math.tan(theta) / (27.5 * 4.55e-6 / 20)
+
+
+@pytest.fixture(scope="module")
+def square_capture(tmp_path_factory):
+    """A generated microscope raw + white: a plane 50 um towards the objective (left) and one 40 um away (right)."""
+    from plenodecode.synthetic import simulate, write_simulation
+    from plenodecode.synthetic.scene import Plane
+
+    folder = tmp_path_factory.mktemp("lfm")
+    near, far = -50e-6, 40e-6
+    planes = [Plane(d0=_plane_disparity(near), support=("rect", -5, -5, 100, 19), depth_order=0, texture_seed=1),
+              Plane(d0=_plane_disparity(far), depth_order=1, texture_seed=2)]
+    sim = simulate("square", seed=3, scene=planes, shape=(660, 880))
+    paths = write_simulation(sim, folder, name="lfm")
+    (folder / "metadata.txt").write_text(format_metadata_txt(PRESETS["square"].microscope), encoding="utf-8")
+    return paths, near, far
+
+
+def test_generated_microscope_metric_depth(square_capture, tmp_path):
+    paths, near, far = square_capture
+    out = tmp_path / "z.pfm"
+    r = CliRunner().invoke(cli, ["depth", str(paths["raw"]), "-w", str(paths["white"]), "--metric", "-o", str(out)],
+                           obj={})
+    assert r.exit_code == 0, r.output
+    assert " um (2nd..98th percentile)" in r.output
+    z = read_pfm(out)                                           # micrometres (metadata.txt beside the raw)
+    X = z.shape[1]
+    left, right = np.nanmedian(z[3:-3, 3:14]), np.nanmedian(z[3:-3, 24:X - 3])
+    # tolerance: 0.03 px per view step of disparity error is 6.7 um here (222 um per px/view)
+    assert left == pytest.approx(near * 1e6, abs=7.0)
+    assert right == pytest.approx(far * 1e6, abs=7.0)
+
+
+def test_missing_optics_name_the_cli_options(square_capture, tmp_path):
+    paths, _, _ = square_capture
+    bare = tmp_path / "bare"
+    bare.mkdir()
+    for key in ("raw", "raw_json", "white", "white_json"):
+        (bare / paths[key].name).write_bytes(paths[key].read_bytes())
+    base = ["depth", str(bare / paths["raw"].name), "-w", str(bare / paths["white"].name), "--metric",
+            "--method", "fast"]
+    r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "a.pfm")], obj={})
+    assert r.exit_code == 1 and "--magnification" in r.output and "=..." not in r.output
+    r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "b.pfm"), "--magnification", "20", "--na", "0.5"],
+                           obj={})
+    assert r.exit_code == 1 and "--medium-index" in r.output and "=..." not in r.output
+    r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "c.pfm"), "--na", "1.4", "--medium-index", "1.33"],
+                           obj={})
+    assert r.exit_code == 2 and "--na" in r.output
+
+
+# ------------------------------------------------------------------------------------- the real ant-leg capture
+@pytest.fixture(scope="module")
+def antleg(tmp_path_factory):
+    """The ant leg decoded through the CLI with its radiometry and dark frames and its optics (the LFAnalyze
+    parameter list of its README), saved as Zarr."""
+    folder = shared_path(*ANTLEG)
+    out = tmp_path_factory.mktemp("antleg") / "lf.zarr"
+    r = CliRunner().invoke(cli, ["decode", str(folder / "light_field.png"), "-w", str(folder / "radiometry_frame.png"),
+                                 "--dark", str(folder / "dark_frame.tif"), "--optics", str(folder / "README"),
+                                 "-o", str(out)], obj={})
+    assert r.exit_code == 0, r.output
+    from plenodecode.io.lightfield import load_lightfield
+
+    return folder, out, load_lightfield(out)
+
+
+def test_antleg_every_lens_found(antleg):
+    _, _, lf = antleg
+    grid = lf.geometry.calibration
+    optics = lf.geometry.microscope
+    assert optics.magnification == 20 and optics.medium_index == 1.33    # carried by the saved light field
+    assert lf.provenance.get("dark_subtracted") is True
+    # 125 um lenses on 4.55 um pixels over the 2160 x 2592 sensor: 78.6 x 94.4 -> 79 x 95 (partial at the edges)
+    rows, cols = (math.ceil(n * 4.55 / 125) for n in (2160, 2592))
+    assert tuple(grid["shape"]) == (rows, cols) and grid["info"]["n_lenses"] == rows * cols
+    assert grid["pitch"] == pytest.approx(125 / 4.55, rel=0.01)
+    from plenodecode.types import LensletGrid
+
+    g = LensletGrid.from_dict(grid)
+    lat = g.lattice_centres()
+    r = g.radius
+    inside = (lat[..., 0] > r) & (lat[..., 0] < 2159 - r) & (lat[..., 1] > r) & (lat[..., 1] < 2591 - r)
+    measured = np.isfinite(g.refined[..., 0])
+    # every lens is placed by the lattice; >= 95 % of those with their whole disk on the sensor are also measured
+    # (the rest sit in the dark corners of the radiometry frame)
+    assert (measured & inside).sum() / inside.sum() >= 0.95
+    assert lf.shape[:2] == (27, 27)
+
+
+def _textured_window(centre: np.ndarray, h: int = 24, w: int = 32) -> tuple[slice, slice]:
+    """The h x w window of the centre view with the most gradient energy (the structure, not the background)."""
+    import cv2
+
+    gy, gx = np.gradient(cv2.GaussianBlur(centre, (0, 0), 1.0))
+    energy = cv2.boxFilter(gx ** 2 + gy ** 2, -1, (w, h), normalize=False, anchor=(0, 0))
+    valid = energy[:centre.shape[0] - h + 1, :centre.shape[1] - w + 1]
+    y0, x0 = np.unravel_index(np.argmax(valid), valid.shape)
+    return slice(y0, y0 + h), slice(x0, x0 + w)
+
+
+def test_antleg_parallax_and_metric_depth(antleg, tmp_path):
+    import cv2
+
+    from plenodecode.depth.metric import disparity_to_depth
+
+    _, zarr, lf = antleg
+    V, U = lf.shape[:2]
+    vc, uc = V // 2, U // 2
+    centre = np.nan_to_num(lf.data[vc, uc, :, :, 0]).astype(np.float64)
+    ys, xs = _textured_window(centre)
+    # parallax between opposite views: (vc, uc - k) and (vc, uc + k) with k = 8, well inside the 0.5 NA disk
+    # (its rim, 13.4 px off the micro-image centre, holds the dim, vignetted views 0 and U - 1)
+    k = 8
+    a = np.nan_to_num(lf.data[vc, uc - k, ys, xs, 0]).astype(np.float64)
+    b = np.nan_to_num(lf.data[vc, uc + k, ys, xs, 0]).astype(np.float64)
+    (shift_x, _), response = cv2.phaseCorrelate(a, b, cv2.createHanningWindow(a.shape[::-1], cv2.CV_64F))
+    assert response > 0.5
+    # HCI convention: view u is the centre shifted by -d (u - uc), so b(x) = a(x + 2 k d) and shift_x = -2 k d
+    d = -shift_x / (2 * k)
+    z_parallax = float(disparity_to_depth(np.array([[d]]), lf)[0, 0]) * 1e6
+    # the bright cuticle band is 5..60 um nearer the objective than the native object plane
+    assert -60.0 < z_parallax < -5.0
+    out = tmp_path / "z.pfm"
+    r = CliRunner().invoke(cli, ["depth", str(zarr), "--metric", "-o", str(out)], obj={})
+    assert r.exit_code == 0, r.output
+    z = read_pfm(out)
+    # the depth estimate agrees with the parallax where the structure is (sign and size)
+    assert np.nanmedian(z[ys, xs]) == pytest.approx(z_parallax, abs=15.0)
+    lo, hi = np.nanpercentile(z, [2, 98])
+    # an ant leg: a few hundred um of relief at most, tens at least
+    assert -200.0 < lo < 0.0 < hi < 400.0 and 30.0 < hi - lo < 500.0
