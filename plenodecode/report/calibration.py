@@ -332,7 +332,7 @@ def _judge_selfcal(grid: LensletGrid) -> list[Check]:
     if mis is not None and math.isfinite(mis):
         g, c = SELFCAL_RULES["misfit_pitch"]
         lv = _level(mis / p, g, c)
-        checks.append(Check(f"local misfit (blocks of 5 x 5 lenses, detection noise removed)",
+        checks.append(Check("local misfit (blocks of 5 x 5 lenses, detection noise removed)",
                             f"{mis:.3f} px = {mis / p:.3f} pitch", f"good <= {g} pitch, check <= {c} pitch", lv,
                             "" if lv == "good" else f"the lattice sits {mis:.2f} px off the detected centres "
                                                     "locally: check the residual map"))
