@@ -110,7 +110,7 @@ def test_camera_rgb_light_fields_are_encoded_alike(shoot, tmp_path, monkeypatch)
     def camera_rgb(*args, **kw):
         return real(*args, **kw).replace(colour="camera")
 
-    monkeypatch.setattr(pipeline, "decode_raw", camera_rgb)
+    monkeypatch.setattr(pipeline.source, "decode_raw", camera_rgb)     # what Source.lightfield calls
     single, batch = commands_and_batch(shoot, tmp_path)
     assert (single / "refocus.png").read_bytes() == (batch / "refocus_s+0.30.png").read_bytes()
     lf = pipeline.Source(raw=pipeline.open_input(shoot["raw"]),

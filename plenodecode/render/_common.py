@@ -1,4 +1,4 @@
-"""Helpers shared by the rendering modules: argument checks and synthetic apertures.
+"""Helpers shared by the rendering modules: the refocus method registry, argument checks and synthetic apertures.
 
 Interpolation taps and view warps are in :mod:`plenodecode.imaging` (shared with decoding and depth).
 """
@@ -6,11 +6,13 @@ Interpolation taps and view warps are in :mod:`plenodecode.imaging` (shared with
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
+from ..registry import lazy, lookup
 from ..types import LightField
+
 
 def aperture_mask(shape: tuple[int, int], aperture: float | np.ndarray = 1.0) -> np.ndarray:
     """Per-view weights of a synthetic aperture.
@@ -48,6 +50,19 @@ def aperture_mask(shape: tuple[int, int], aperture: float | np.ndarray = 1.0) ->
     if not np.all(np.isfinite(m)) or np.any(m < 0) or not np.any(m > 0):
         raise ValueError("aperture mask must be finite, non-negative and select at least one view")
     return m
+
+
+#: Refocusing methods: name -> ``fn(lf, slopes, *, aperture, upsample, progress, **kw) -> (S, Y', X', C)``.
+#: Both modules compile numba kernels, so the entries import them on their first call.
+REFOCUS_METHODS: dict[str, Callable[..., np.ndarray]] = {
+    "shift-sum": lazy("plenodecode.render.shiftsum", "shift_sum"),
+    "fourier-slice": lazy("plenodecode.render.fourier", "fourier_slice"),
+}
+
+
+def get_method(method: str) -> Callable[..., np.ndarray]:
+    """The function of a refocus method; ValueError listing the valid names otherwise."""
+    return lookup(REFOCUS_METHODS, method, param="method")
 
 
 def check_lightfield(lf: Any) -> LightField:

@@ -37,7 +37,7 @@ from ..registry import lookup
 from ..types import LightField
 from ._common import check_lightfield
 from .focalstack import check_per_pixel_args, default_slopes, depth_from_focus, focal_stack, refocus_per_pixel
-from .refocus_methods import REFOCUS_METHODS
+from ._common import REFOCUS_METHODS
 
 log = logging.getLogger(__name__)
 

@@ -18,7 +18,7 @@ import numpy as np
 from ..imaging import remap_view
 from ..types import LightField
 from ._common import aperture_mask, check_lightfield, check_slopes
-from .refocus_methods import get_method
+from ._common import get_method
 
 log = logging.getLogger(__name__)
 

@@ -16,23 +16,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..registry import lazy, lookup
+from ..registry import lookup
 from ..types import LightField
-from ._common import check_lightfield
+from ._common import REFOCUS_METHODS, check_lightfield, get_method
 from .alpha import alpha_to_slope, distance_to_slope, refocus_range, split_constants
-
-#: Refocusing methods: name -> ``fn(lf, slopes, *, aperture, upsample, progress, **kw) -> (S, Y', X', C)``.
-#: Both modules compile numba kernels, so the entries import them on their first call.
-REFOCUS_METHODS: dict[str, Callable[..., np.ndarray]] = {
-    "shift-sum": lazy("plenodecode.render.shiftsum", "shift_sum"),
-    "fourier-slice": lazy("plenodecode.render.fourier", "fourier_slice"),
-}
-
-
-def get_method(method: str) -> Callable[..., np.ndarray]:
-    """The function of a refocus method; ValueError listing the valid names otherwise."""
-    return lookup(REFOCUS_METHODS, method, param="method")
-
 
 #: Side of the window around a point ``at`` whose depth decides the slope (:func:`slope_at`), samples.
 FOCUS_WINDOW = 7

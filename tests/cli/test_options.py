@@ -56,6 +56,7 @@ def test_bad_numeric_value_is_a_one_line_usage_error(tmp_path, monkeypatch, befo
         raise AssertionError("an input was opened before the options were checked")
 
     monkeypatch.setattr(pipeline, "open_input", no_work)
+    monkeypatch.setattr(pipeline.source, "open_input", no_work)
     monkeypatch.setattr("plenodecode.io.read_raw", no_work)
     out = tmp_path / "out"
     args = [str(out) + str(a)[3:] if str(a).startswith("OUT") else str(a) for a in before] + bad

@@ -1,0 +1,46 @@
+"""The workflow both front ends use: open any input, choose the calibration, decode, render a product, write it.
+
+The command line (:mod:`plenodecode.cli`), :mod:`plenodecode.batch` and Python callers go through the same
+five steps, each implemented once here::
+
+    open_input(path)          raw file (Lytro container, raw + sidecar, Raytrix image + XML, camera raw, mosaic
+                              + sidecar) -> RawCapture; saved light field or HCI scene folder -> LightField
+    choose_calibration(raw)   explicit grid JSON / white image > the camera's own calibration (Raytrix XML)
+                              > the calibration database > self-calibration from the scene (when allowed);
+                              the choice is logged in one info line
+    Source                    an opened input; a raw is decoded on first use of ``Source.lightfield``
+    render_product(src, name) a product of :data:`PRODUCTS` (centre, views, refocus, focal-stack, all-in-focus,
+                              parallax, depth, total-focus, focused-refocus) -> :class:`Rendered`
+    write_product(r, output)  display encoding, bit depth, file names, atomic rename, overwrite checks
+
+Display encoding (one rule, :func:`display_encoding`): images of a linear light field (colour state
+'camera' or 'linear-srgb') get the sRGB transfer function, except 32-bit float outputs, which stay linear;
+'srgb' images are written as they are.
+
+Importing this module is light (no numba, OpenCV or OpenImageIO): the CLI reads its registries for
+``click.Choice`` lists.
+
+The steps live in one module each (:mod:`.inputs`, :mod:`.calibration`, :mod:`.source`,
+:mod:`.products`, :mod:`.output`); this package hands on their public names.
+"""
+
+from __future__ import annotations
+
+from .inputs import (LIGHTFIELD_EXTENSIONS, IMAGE_EXTENSIONS, BIT_DEPTHS, INPUT_READERS, input_kind, is_hci_folder,
+                     is_lightfield_path, open_input, open_raw, with_optics, read_dark_frame)
+from .calibration import Calibration, choose_calibration
+from .source import Source, decode_raw, load_lightfield_input, open_source
+from .products import (MAX_STACK_SLICES, PRODUCTS, STACK_UNITS, Rendered, virtual_depth_stem, render_product,
+                       check_total_focus_patch, view_names, refocus_stem, focal_stack_names, parallax_frame_names)
+from .output import (display_encoding, default_extension, write_image_file, refuse_folder_clash, staged_folder,
+                     write_product, write_parallax, write_depth, write_lightfield)
+
+__all__ = [
+    "LIGHTFIELD_EXTENSIONS", "IMAGE_EXTENSIONS", "BIT_DEPTHS", "MAX_STACK_SLICES", "INPUT_READERS", "PRODUCTS",
+    "STACK_UNITS", "Calibration", "Source", "Rendered", "input_kind", "is_hci_folder", "is_lightfield_path",
+    "open_input", "choose_calibration", "decode_raw", "open_raw", "open_source", "with_optics",
+    "read_dark_frame", "virtual_depth_stem", "load_lightfield_input", "render_product",
+    "check_total_focus_patch", "display_encoding", "default_extension", "write_image_file",
+    "refuse_folder_clash", "staged_folder", "write_product", "write_parallax", "write_depth",
+    "write_lightfield", "view_names", "refocus_stem", "focal_stack_names", "parallax_frame_names",
+]

@@ -1,0 +1,205 @@
+"""Step 2 of the workflow: the calibration policy (:func:`choose_calibration`), one log line per choice.
+
+Part of :mod:`plenodecode.pipeline` (see its docstring for the five steps).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..errors import CalibrationError
+from ..types import LensletGrid, RawCapture
+from .inputs import Progress, open_raw
+
+if TYPE_CHECKING:
+    from ..io.mosaic_levels import MosaicOptions
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """The lenslet grid a raw is decoded with, the white image that devignettes it, and where both came from.
+
+    Attributes
+    ----------
+    grid : LensletGrid
+    white : RawCapture or None
+        Flat field of the same sensor (mosaic (H, W) uint16), None when there is none.
+    source : str
+        'grid file', 'white image', 'camera' (Raytrix XML), 'database' or 'self-calibration'.
+    detail : str
+        Which file(s): shown after ``source`` in the log line.
+    """
+
+    grid: LensletGrid
+    white: RawCapture | None
+    source: str
+    detail: str = ""
+
+    def describe(self) -> str:
+        """One line, e.g. ``'calibration: database calib/ (white MOD_0003.RAW, cached grid)'``."""
+        return f"calibration: {self.source}" + (f" {self.detail}" if self.detail else "")
+
+
+def _grid_from_file(path: str | os.PathLike) -> LensletGrid:
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CalibrationError(f"{path}: cannot read the lenslet grid ({exc}); pass a grid written by "
+                               "'plenodecode calibrate'") from exc
+    return LensletGrid.from_json(text)
+
+
+def _from_database(raw: RawCapture, db: Path) -> Calibration:
+    """The database's white image for ``raw`` and its grid, refused when it does not fit the raw
+    (:func:`plenodecode.calib.check.check_white_fit`, naming the camera's other white images)."""
+    from ..calib import store
+    from ..calib.check import check_white_fit
+
+    entry = store.select_white(db, raw)
+    cached = entry.grid is not None and (db / entry.grid).is_file()
+    grid, white = store.calibration_for(raw, db)
+    others = [f"{Path(e.file).name} at zoom {e.zoom_step:g} focus {e.focus_step:g}"
+              if e.zoom_step is not None and e.focus_step is not None else Path(e.file).name
+              for e in store.other_whites(db, raw, entry)]
+    check_white_fit(raw, grid, white, white_name=f"{Path(entry.file).name} of {db}/", alternatives=others)
+    return Calibration(grid, white, "database",
+                       f"{db}/ (white {Path(entry.file).name}, {'cached grid' if cached else 'grid fitted now'})")
+
+
+def _per_picture_white(raw: RawCapture) -> Calibration | None:
+    """A Lytro Desktop raw LFP's own white image (``modulationDataRef``), calibrated and checked; None without one."""
+    from ..io.lytro import frame_ref, read_modulation_white
+
+    if not raw.path or frame_ref(raw.metadata, "modulationDataRef") is None:
+        return None
+    from ..calib import calibrate
+    from ..calib.check import check_white_fit
+
+    white = read_modulation_white(raw.path)
+    if white is None:
+        return None
+    grid = calibrate(white)
+    check_white_fit(raw, grid, white, white_name="the picture's own white image (modulationDataRef)")
+    return Calibration(grid, white, "camera", "(the picture's white image, modulationDataRef)")
+
+
+def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None,
+                       white: str | os.PathLike | RawCapture | None = None,
+                       database: str | os.PathLike | None = None, self_calibrate: bool = False,
+                       mosaic: MosaicOptions | None = None, progress: Progress = None) -> Calibration:
+    """The calibration of ``raw``, chosen by one policy (first that applies).
+
+    1. ``grid`` (a grid JSON written by ``plenodecode calibrate``); ``white``, when given, devignettes;
+    2. ``white`` alone: calibrated on the spot (:func:`plenodecode.calib.calibrate`), and devignettes;
+       refused when it does not fit the raw (:func:`plenodecode.calib.check.check_white_fit`, as in 4);
+    3. the camera's own calibration: a Raytrix raw's ``RayCalibData`` (:func:`~plenodecode.calib.selfcal.calibrate_raytrix`);
+    4. a Lytro raw LFP's own white image (``modulationDataRef``), else the calibration database ``database``
+       (default :data:`plenodecode.calib.store.DEFAULT_DB`): the white image the raw's ``geometryCorrectionRef``
+       names, else that of the raw's camera at the nearest zoom and focus, and its cached grid; a white image
+       whose lattice is off the raw's micro-images, or that is a scene, is refused in one line naming the
+       camera's other white images (with ``self_calibrate``: self-calibration instead);
+    5. with ``self_calibrate``: the grid found in the scene itself
+       (:func:`~plenodecode.calib.selfcal.calibrate_from_scene`), no devignetting.
+
+    An image mosaic read without a sidecar (:func:`plenodecode.io.generic.is_bare_mosaic`) has no camera
+    identity to look up, so it skips the database and, with no grid and no white image, is self-calibrated
+    (said in one warning line); a camera raw without a database entry still needs ``self_calibrate``.
+
+    The choice is logged in one info line (:meth:`Calibration.describe`).
+
+    Parameters
+    ----------
+    raw : RawCapture
+    grid, white : path-like, optional
+    database : path-like, optional
+    self_calibrate : bool
+        Fall back to self-calibration when nothing above applies (instead of raising).
+    mosaic : MosaicOptions, optional
+        How to read ``white`` when it is an image mosaic (as for the raw).
+    progress : callable(done, total), optional
+        Progress of an on-the-spot calibration.
+
+    Returns
+    -------
+    Calibration
+
+    Raises
+    ------
+    CalibrationError
+        Nothing usable; the message says which option to pass.
+    """
+    from ..calib import store
+    from ..io.generic import is_bare_mosaic
+
+    white_raw = open_raw(white, mosaic=mosaic) if isinstance(white, (str, os.PathLike)) else white
+    db = Path(database) if database is not None else Path(store.DEFAULT_DB)
+    if grid is not None:
+        cal = Calibration(_grid_from_file(grid), white_raw, "grid file",
+                          str(grid) + (f" (white {Path(white_raw.path or '?').name})" if white_raw else ""))
+    elif white_raw is not None:
+        from ..calib import calibrate
+        from ..calib.check import check_white_fit
+
+        cal = Calibration(calibrate(white_raw, progress=progress), white_raw, "white image",
+                          Path(white_raw.path or "?").name)
+        check_white_fit(raw, cal.grid, white_raw)  # a scene given as its white, or another lattice: refused
+    elif "raytrix" in raw.metadata.extra:
+        from ..calib.selfcal import calibrate_raytrix
+
+        cal = Calibration(calibrate_raytrix(raw), None, "camera", "(Raytrix RayCalibData)")
+    elif is_bare_mosaic(raw):
+        log.warning("%s: no white image and no camera identity for the database: the lenslet grid comes from "
+                    "self-calibration of the scene", Path(raw.path or "mosaic").name)
+        cal = _self_calibration(raw, progress)
+    else:
+        cal = _database_or_scene(raw, db, self_calibrate=self_calibrate, progress=progress)
+    log.info("%s", cal.describe())
+    return cal
+
+
+def _database_or_scene(raw: RawCapture, db: Path, *, self_calibrate: bool, progress: Progress) -> Calibration:
+    """The raw's own white image (Lytro ``modulationDataRef``), else the database's, else self-calibration."""
+    from ..calib import store
+    from ..calib.check import WhiteMismatchError
+
+    name = Path(raw.path).name if raw.path else "this raw"
+    try:
+        own = _per_picture_white(raw)
+    except WhiteMismatchError as exc:
+        if not self_calibrate:
+            raise
+        log.info("%s", exc)
+        own = None
+    if own is not None:
+        return own
+    if (db / store.INDEX_NAME).is_file():
+        try:
+            return _from_database(raw, db)
+        except WhiteMismatchError as exc:  # its message already names the better choices
+            if not self_calibrate:
+                raise
+            log.warning("%s: self-calibrating instead", exc)
+        except CalibrationError as exc:
+            if not self_calibrate:
+                raise CalibrationError(f"{exc}; or pass --calibration grid.json, --white WHITE_IMAGE or "
+                                       "--self-calibrate") from exc
+            log.info("database %s: %s", db, exc)
+    elif not self_calibrate:
+        raise CalibrationError(
+            f"no calibration for {name} (camera {raw.metadata.model or '?'} {raw.metadata.serial or '?'}): "
+            f"no calibration database in {db}; pass --database DIR, --calibration grid.json, "
+            "--white WHITE_IMAGE or --self-calibrate")
+    return _self_calibration(raw, progress)
+
+
+def _self_calibration(raw: RawCapture, progress: Progress) -> Calibration:
+    from ..calib.selfcal import calibrate_from_scene
+
+    name = Path(raw.path).name if raw.path else "this raw"
+    return Calibration(calibrate_from_scene(raw, progress=progress), None, "self-calibration", f"from {name}")

@@ -1,0 +1,379 @@
+"""Step 4 of the workflow: the named products (:data:`PRODUCTS`) rendered from a :class:`Source`.
+
+Part of :mod:`plenodecode.pipeline` (see its docstring for the five steps).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+from ..registry import lazy, lookup
+from ..types import LensletGrid, LightField, RawCapture
+from .inputs import Progress
+from .source import Source
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Rendered:
+    """A rendered product, before writing.
+
+    Attributes
+    ----------
+    product : str
+        Its key in :data:`PRODUCTS`.
+    images : tuple of (str, ndarray)
+        File stem and image (H, W, C) float32 of every image; one for single-image products.
+    colour : str
+        Colour state of the images ('camera', 'linear-srgb' or 'srgb'); decides the display encoding.
+    folder : bool
+        The product is a folder of images (and ``documents``), not one file.
+    documents : tuple of (str, callable)
+        JSON files written beside the images: file name and ``fn(ext) -> mapping``, the content given the
+        image type the images are written as (documents list the image files).
+    data : mapping
+        Other results (depth map, animation frames, slopes, ...).
+    """
+
+    product: str
+    images: tuple[tuple[str, Any], ...]
+    colour: str
+    folder: bool = False
+    documents: tuple[tuple[str, Callable[[str], Mapping[str, Any]]], ...] = ()
+    data: Mapping[str, Any] = field(default_factory=dict)
+
+    def file_names(self, ext: str) -> list[str]:
+        """The names written into a folder product: images ``<stem>.<ext>``, then the documents."""
+        return [f"{stem}.{ext}" for stem, _ in self.images] + [name for name, _ in self.documents]
+
+
+def render_centre(src: Source) -> Rendered:
+    """The centre view ``(V // 2, U // 2)``, image (Y, X, C)."""
+    lf = src.lightfield
+    return Rendered("centre", (("centre", lf.centre_view()),), lf.colour)
+
+
+def view_names(shape: Sequence[int]) -> list[str]:
+    """File stems of all views of a light field of ``shape`` (V, U, ...): ``view_VV_UU``."""
+    return [f"view_{v:02d}_{u:02d}" for v in range(shape[0]) for u in range(shape[1])]
+
+
+def render_views(src: Source, *, view: tuple[float, float] | None = None, interp: str = "linear") -> Rendered:
+    """Every sub-aperture view (a folder of ``view_VV_UU`` images), or with ``view=(v, u)`` the perspective view
+    at that (fractional) position (:func:`plenodecode.render.perspective`, ``interp`` 'linear' or 'cubic')."""
+    lf = src.lightfield
+    if view is not None:
+        from ..render import perspective
+
+        return Rendered("views", (("view", perspective(lf, view[0], view[1], interp=interp)),), lf.colour)
+    nu = lf.shape[1]
+    images = tuple((name, lf.data[i // nu, i % nu]) for i, name in enumerate(view_names(lf.shape)))
+    return Rendered("views", images, lf.colour, folder=True)
+
+
+def refocus_stem(*, slope: float | None = None, alpha: float | None = None) -> str:
+    """File stem of a refocused photograph: ``refocus_s+0.30`` (slope) or ``refocus_a1.020`` (alpha)."""
+    return f"refocus_s{slope:+.2f}" if slope is not None else f"refocus_a{alpha:.3f}"
+
+
+def render_refocus(src: Source, *, slope: float | None = None, alpha: float | None = None,
+                   at: tuple[float, float] | None = None, distance_m: float | None = None, at_method: str = "depth",
+                   method: str = "shift-sum", aperture: float = 1.0, upsample: int = 1) -> Rendered:
+    """One photograph focused by one of ``slope``, ``alpha``, ``at = (y, x)``, ``distance_m`` (:func:`~plenodecode.
+    render.refocus_methods.focus_slope`); outside :func:`~plenodecode.render.alpha.refocus_range_units` it is
+    still rendered, with a one-line warning.  ``data``: 'slope' (chosen), 'alpha', 'method', 'aperture', 'range'."""
+    from ..render import refocus, refocus_range_units
+    from ..render.refocus_methods import focus_slope
+
+    lf = src.lightfield
+    chosen = focus_slope(lf, slope=slope, alpha=alpha, at=at, distance_m=distance_m, at_method=at_method)
+    span = refocus_range_units(lf)
+    if not span.contains(chosen):
+        log.warning("slope %.3g px/view%s is outside the refocusable range (%s): nothing in it can be sharp",
+                    chosen, "" if alpha is None else f" (alpha {alpha:g})", span.describe())
+    img = refocus(lf, slope=chosen, method=method, aperture=aperture, upsample=upsample)
+    stem = refocus_stem(alpha=alpha) if alpha is not None else refocus_stem(slope=chosen)
+    return Rendered("refocus", ((stem, img),), lf.colour,
+                    data={"slope": chosen, "alpha": alpha, "method": method, "aperture": aperture, "range": span})
+
+
+def focal_stack_names(n: int, ext: str) -> list[str]:
+    """Files of a focal stack of ``n`` slices: ``slice_000.<ext>`` ..., ``all_in_focus.<ext>``, the JSON."""
+    return [f"slice_{i:03d}.{ext}" for i in range(n)] + [f"all_in_focus.{ext}", "focal_stack.json"]
+
+
+def _slopes_as_given(values: Any, lf: LightField) -> Any:
+    return values
+
+
+#: Most slices of one focal stack (a larger count is refused before any work).
+MAX_STACK_SLICES = 512
+
+#: Units of a focal stack's START and STOP -> ``fn(values, lf) -> slopes`` (px per view step).
+STACK_UNITS: dict[str, Callable[..., Any]] = {
+    "slope": _slopes_as_given,
+    "alpha": lazy("plenodecode.render.alpha", "alpha_to_slope"),
+}
+
+
+def render_focal_stack(src: Source, *, start: float, stop: float, n: int, units: str = "slope",
+                       method: str = "shift-sum", aperture: float = 1.0, upsample: int = 1,
+                       progress: Progress = None) -> Rendered:
+    """``n`` photographs from ``start`` to ``stop`` (slopes, or alphas with ``units='alpha'``), the all-in-focus
+    image made from them, and ``focal_stack.json`` (slopes, alphas, method, file names).
+
+    The all-in-focus image renders every pixel at the slope of its sharpest slice
+    (:func:`~plenodecode.render.allinfocus.all_in_focus_from_stack`): it reuses the stack, where the
+    depth-guided default of the 'all-in-focus' product estimates depth first (a full-size
+    15 x 15 x 434 x 625 light field: 10 s, against 1 s from the stack; bench_allinfocus).
+    """
+    import numpy as np
+
+    from ..render import focal_stack, slope_to_alpha
+    from ..render.allinfocus import all_in_focus_from_stack
+
+    if not 2 <= int(n) <= MAX_STACK_SLICES:
+        raise ValueError(f"a focal stack has 2 to {MAX_STACK_SLICES} slices, got {n}")
+    lf = src.lightfield
+    slopes = lookup(STACK_UNITS, units, param="units")(np.linspace(start, stop, n), lf)
+    imgs = focal_stack(lf, slopes, method=method, aperture=aperture, upsample=upsample, progress=progress)
+    aif = all_in_focus_from_stack(lf, imgs, np.asarray(slopes), aperture=aperture)
+    try:
+        alphas = [float(a) for a in slope_to_alpha(np.asarray(slopes), lf)]
+    except Exception:  # noqa: BLE001 - alphas are informative only; the camera may not be known
+        alphas = None
+    stems = [f"slice_{i:03d}" for i in range(n)]
+
+    def document(ext: str) -> dict[str, Any]:
+        return {"slopes": [float(s) for s in slopes], "alphas": alphas, "method": method, "aperture": aperture,
+                "files": [f"{s}.{ext}" for s in stems], "all_in_focus": f"all_in_focus.{ext}"}
+
+    return Rendered("focal-stack", (*zip(stems, imgs), ("all_in_focus", aif)), lf.colour, folder=True,
+                    documents=(("focal_stack.json", document),), data={"slopes": slopes})
+
+
+def render_all_in_focus(src: Source, *, method: str = "depth", slopes: Sequence[float] | None = None,
+                        aperture: float = 1.0, progress: Progress = None, **options: Any) -> Rendered:
+    """An image sharp everywhere (:func:`plenodecode.render.all_in_focus`): by default every pixel at the
+    disparity of the 'fast' depth estimate, from the views that see it; ``method='focal-stack'`` (with
+    ``slopes``, default the light field's) the sharpest slice of a focal stack.  ``options`` are the method's
+    (``depth_method``, ``refocus_method``, ...)."""
+    from ..render import all_in_focus
+
+    lf = src.lightfield
+    img = all_in_focus(lf, method=method, slopes=slopes, aperture=aperture, progress=progress, **options)
+    return Rendered("all-in-focus", (("all_in_focus", img),), lf.colour)
+
+
+def parallax_frame_names(n: int, ext: str = "png") -> list[str]:
+    """Files of the ``n`` numbered frames of a parallax product: ``frame_000.<ext>`` ..."""
+    return [f"frame_{i:03d}.{ext}" for i in range(n)]
+
+
+def render_parallax(src: Source, *, frames: int = 24, radius: float | None = None, interp: str = "linear",
+                    progress: Progress = None) -> Rendered:
+    """Perspective views along a circle of viewpoints (:func:`plenodecode.render.render_parallax`): the
+    numbered frames ``frame_000`` ... and, in ``data['animation']``, the (N, Y, X, 3) frames of the animation."""
+    from ..render import render_parallax as parallax
+
+    lf = src.lightfield
+    out = parallax(lf, frames, radius, interp=interp, progress=progress)
+    anim = out if out.shape[-1] == 3 else out.repeat(3, axis=-1)
+    stems = [Path(name).stem for name in parallax_frame_names(len(out))]
+    return Rendered("parallax", tuple(zip(stems, out)), lf.colour, folder=True,
+                    data={"animation": anim})
+
+
+def render_depth(src: Source, *, method: str | None = None, disparity_range: tuple[float, float] | None = None,
+                 metric: bool = False, points: bool = False, focus_distance: float | None = None,
+                 progress: Progress = None) -> Rendered:
+    """Disparity of the centre view (:func:`plenodecode.depth.estimate_depth`), px per view step; with ``metric``
+    also depth in metres (micrometres from the native object plane for a light-field microscope,
+    :func:`plenodecode.depth.metric.depth_unit`), with ``points`` the 3-D point of every pixel and its display
+    colour.
+
+    ``data``: 'depthmap' (DepthMap), 'values' (Y, X) float32 (depth in 'unit' with ``metric``, else disparity),
+    'unit', 'label', and with ``points`` 'points' (Y, X, 3) in 'unit' and 'colours' (Y, X, 3) uint8.
+    """
+    from ..depth import DEFAULT_METHOD, disparity_to_depth, estimate_depth
+    from ..depth.metric import depth_constants, depth_to_points, depth_unit
+
+    lf = src.lightfield
+    method = method or DEFAULT_METHOD
+    overrides = {} if focus_distance is None else {"focus_distance_m": focus_distance}
+    unit, scale = depth_unit(lf, **overrides)      # micrometres for a light-field microscope, else metres
+    if metric or points:
+        depth_constants(lf, **overrides)    # fail before the estimate when the camera geometry is missing
+    kw = {} if disparity_range is None else {"disparity_range": disparity_range}
+    dm = estimate_depth(lf, method=method, progress=progress, **kw)
+    depth = disparity_to_depth(dm, lf, **overrides) if (metric or points) else None
+    data: dict[str, Any] = {"depthmap": dm, "method": method, "unit": unit if metric else "px / view step",
+                            "values": depth * scale if metric else dm.disparity,
+                            "label": f"depth ({unit})" if metric else "disparity (px / view step)"}
+    if points:
+        from ..io.depthio import display_colours
+
+        data["points"] = depth_to_points(depth, lf, **overrides) * scale
+        data["colours"] = display_colours(lf.centre_view(), lf.colour)
+    return Rendered("depth", (), lf.colour, data=data)
+
+
+def check_total_focus_patch(grid: LensletGrid, patch: Any) -> None:
+    """Raise ValueError naming ``patch`` unless it is None or every value lies in ``(0, 2 * grid.radius)`` px:
+    a patch is cut from one micro-image, so it is smaller than the micro-image diameter."""
+    import numpy as np
+
+    if patch is None:
+        return
+    p, hi = np.asarray(patch, np.float64), 2.0 * float(grid.radius)
+    if not (np.all(np.isfinite(p)) and np.all(p > 0) and np.all(p < hi)):
+        raise ValueError(f"patch must lie in (0, {hi:.1f}) px (0 < P < the micro-image diameter), got "
+                         f"{patch if p.ndim == 0 else 'an array outside it'}; P = lens pitch / virtual depth")
+
+
+def _focused_input(src: Source, what: str) -> tuple[Any, Any, str]:
+    """What a focused-plenoptic renderer reads: ``(image, white, colour state)``.
+
+    A Raytrix RGB export (:func:`plenodecode.io.raytrix.is_rgb_export`: its RawCapture holds the luminance)
+    is read again in colour, linear sRGB (:func:`~plenodecode.io.raytrix.read_raytrix_linear_rgb`), and so is
+    its white image when that is an export too (else the white's normalised mosaic divides every channel);
+    any other raw is rendered from its mosaic (demosaiced within the micro-images), in camera RGB.
+    ``src`` holds a raw; ``what`` names the product in the warning for a grid without lens types.
+    """
+    if not src.focused:
+        log.warning("the lenslet grid of %s has no lens types: %s expects a focused-plenoptic raw",
+                    src.raw.path or "the raw", what)
+    from ..io.raytrix import is_rgb_export, read_raytrix_linear_rgb
+
+    white = src.calibration.white
+    if not is_rgb_export(src.raw):
+        return src.raw, white, "camera"
+    if white is not None:
+        from ..decoding.devignette import normalise
+
+        white = read_raytrix_linear_rgb(white.path) if is_rgb_export(white) else \
+            normalise(white.mosaic, white.black, white.white)
+    return read_raytrix_linear_rgb(src.raw.path), white, "linear-srgb"
+
+
+def _camera_to_srgb(image: Any, state: str, raw: RawCapture, colour: str) -> tuple[Any, str]:
+    """A focused rendering in camera RGB converted as the decoder does, ``srgb = CCM @ diag(gains) @ camera``
+    (:func:`plenodecode.decoding.colour.colour_matrix`), when ``colour='linear-srgb'`` and the metadata has a CCM."""
+    from ..decoding.colour import apply_matrix, colour_matrix
+
+    if image.shape[-1] != 3 or state != "camera" or colour != "linear-srgb":
+        return image, state
+    matrix = colour_matrix(raw.metadata)
+    if matrix is None:
+        log.warning("the raw's metadata has no colour matrix (ccm): the focused rendering stays in camera RGB")
+        return image, state
+    return apply_matrix(image, matrix), "linear-srgb"
+
+
+def _check_colour(colour: str) -> None:
+    from ..decoding.colour import DECODE_COLOURS
+
+    if colour not in DECODE_COLOURS:
+        raise ValueError(f"colour must be one of {DECODE_COLOURS}, got {colour!r}")
+
+
+def render_total_focus(src: Source, *, patch: float | Any | None = None, sharpness: float = 2.0,
+                       colour: str = "linear-srgb", progress: Progress = None) -> Rendered:
+    """All-in-focus rendering of a focused-plenoptic (Raytrix) raw from its micro-images
+    (:func:`plenodecode.decoding.focused.render_total_focus`), devignetted by the calibration's white.
+
+    A colour raw (a CFA, demosaiced within each micro-image) is rendered in camera RGB and, with
+    ``colour='linear-srgb'``, converted as the decoder does: ``srgb = CCM @ diag(gains) @ camera``
+    (:func:`plenodecode.decoding.colour.colour_matrix`); without a CCM in the metadata it stays 'camera'.
+    A Raytrix RGB export is rendered from its colour image, linear sRGB (:func:`_focused_input`).
+
+    Parameters
+    ----------
+    src : Source
+        A raw with its calibration.
+    patch : float or ndarray (rows, cols), optional
+        Patch size P per lens, px (lens pitch / virtual depth); default estimated per lens.
+    sharpness : float
+        Exponent of the per-lens focus weight (0: plain blending).
+    colour : {'linear-srgb', 'camera'}
+    progress : callable(done, total), optional
+
+    Returns
+    -------
+    Rendered
+        One image ``total_focus`` (Ho, Wo, C) float32, C = 3 for a colour raw; ``data['render']`` the
+        :class:`~plenodecode.decoding.focused.FocusedRender` (patch sizes, focus, scale).
+
+    Raises
+    ------
+    ValueError
+        The input is not a raw (a light field has no micro-images); ``patch`` out of range
+        (:func:`check_total_focus_patch`); an unknown ``colour``.
+    """
+    if src.raw is None:
+        raise ValueError("total-focus renders a focused-plenoptic raw; the input is a light field")
+    check_total_focus_patch(src.calibration.grid, patch)
+    _check_colour(colour)
+    image, white, state = _focused_input(src, "total focus")
+    from ..decoding.focused import render_total_focus as total_focus
+
+    res = total_focus(image, src.calibration.grid, patch=patch, white=white, sharpness=sharpness, progress=progress)
+    out, state = _camera_to_srgb(res.image, state, src.raw, colour)
+    return Rendered("total-focus", (("total_focus", out),), state, data={"render": res})
+
+
+def virtual_depth_stem(virtual_depth: float) -> str:
+    """File stem of a focused raw refocused at a virtual depth: ``refocus_v2.50``."""
+    return f"refocus_v{virtual_depth:.2f}"
+
+
+def render_focused_refocus(src: Source, *, virtual_depth: float, colour: str = "linear-srgb") -> Rendered:
+    """A focused-plenoptic (Raytrix) raw refocused at ``virtual_depth``
+    (:func:`plenodecode.decoding.focused.render_at_virtual_depth`: patches of ``lens pitch / virtual_depth`` px,
+    the lens types in focus there weighted most), in colour as :func:`render_total_focus`.
+
+    Returns
+    -------
+    Rendered
+        One image ``refocus_v<V>`` (Ho, Wo, C) float32; ``data['render']`` the FocusedRender.
+
+    Raises
+    ------
+    ValueError
+        A light-field input; ``virtual_depth`` outside the camera's range
+        (:func:`plenodecode.decoding.focused.check_virtual_depth`); an unknown ``colour``.
+    """
+    from ..decoding.focused import check_virtual_depth, render_at_virtual_depth
+
+    if src.raw is None:
+        raise ValueError("a refocus at a virtual depth renders a focused-plenoptic raw; the input is a light field")
+    check_virtual_depth(src.calibration.grid, virtual_depth)
+    _check_colour(colour)
+    image, white, state = _focused_input(src, "a refocus at a virtual depth")
+    res = render_at_virtual_depth(image, src.calibration.grid, virtual_depth, white=white)
+    out, state = _camera_to_srgb(res.image, state, src.raw, colour)
+    return Rendered("focused-refocus", ((virtual_depth_stem(virtual_depth), out),), state,
+                    data={"render": res, "virtual_depth": virtual_depth})
+
+
+#: Product name -> ``fn(source, **options) -> Rendered``; the same names in the CLI, batch and Python.
+PRODUCTS: dict[str, Callable[..., Rendered]] = {
+    "centre": render_centre,
+    "views": render_views,
+    "refocus": render_refocus,
+    "focal-stack": render_focal_stack,
+    "all-in-focus": render_all_in_focus,
+    "parallax": render_parallax,
+    "depth": render_depth,
+    "total-focus": render_total_focus,
+    "focused-refocus": render_focused_refocus,
+}
+
+
+def render_product(src: Source, name: str, **options: Any) -> Rendered:
+    """Render the product ``name`` (a key of :data:`PRODUCTS`) of ``src`` with its ``options``."""
+    return lookup(PRODUCTS, name, param="product")(src, **options)

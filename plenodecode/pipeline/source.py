@@ -1,0 +1,120 @@
+"""Step 3 of the workflow: an opened input (:class:`Source`), decoded on first use.
+
+Part of :mod:`plenodecode.pipeline` (see its docstring for the five steps).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from functools import cached_property
+from typing import TYPE_CHECKING, Any, Mapping
+
+from ..types import LightField, RawCapture
+from .inputs import Progress, open_input, read_dark_frame
+from .calibration import Calibration, choose_calibration
+
+if TYPE_CHECKING:
+    from ..io.mosaic_levels import MosaicOptions
+    from ..optics import MicroscopeOptics
+
+log = logging.getLogger(__name__)
+
+
+class Source:
+    """An opened input, ready for rendering: a light field, or a raw with its calibration.
+
+    A raw is decoded on the first use of :attr:`lightfield` (once); products that render from the raw itself
+    (:func:`~plenodecode.pipeline.products.render_total_focus`) never decode it.
+
+    Parameters
+    ----------
+    lightfield : LightField, optional
+        An input that is already a light field.
+    raw : RawCapture, optional
+        A raw; needs ``calibration``.
+    calibration : Calibration, optional
+    decode_options : mapping, optional
+        Keywords of :func:`plenodecode.decoding.decode` (``demosaic``, ``colour``, ``n_views``, ``dark``,
+        ``hot_pixels``, ``workers``).
+    progress : callable(done, total), optional
+        Progress of the decoding.
+    """
+
+    def __init__(self, *, lightfield: LightField | None = None, raw: RawCapture | None = None,
+                 calibration: Calibration | None = None, decode_options: Mapping[str, Any] | None = None,
+                 progress: Progress = None) -> None:
+        if (lightfield is None) == (raw is None):
+            raise ValueError("pass exactly one of lightfield and raw")
+        if raw is not None and calibration is None:
+            raise ValueError("a raw needs its calibration")
+        self.raw = raw
+        self.calibration = calibration
+        self.decode_options = dict(decode_options or {})
+        self.progress = progress
+        if lightfield is not None:
+            self.__dict__["lightfield"] = lightfield
+
+    @cached_property
+    def lightfield(self) -> LightField:
+        """The light field (V, U, Y, X, C) float32: the input itself, or the raw decoded."""
+        return decode_raw(self.raw, self.calibration, progress=self.progress, **self.decode_options)
+
+    @property
+    def focused(self) -> bool:
+        """True for a focused-plenoptic (Raytrix) raw: a grid with lens types."""
+        return self.raw is not None and self.calibration.grid.lens_type is not None
+
+
+def decode_raw(raw: RawCapture, calibration: Calibration, *, progress: Progress = None,
+               **decode_options: Any) -> LightField:
+    """Decode ``raw`` with ``calibration`` (:func:`plenodecode.decoding.decode`; devignetted by its white).
+    A Raytrix RGB export is decoded channel by channel from its linear sRGB values (colour 'linear-srgb').
+
+    Returns
+    -------
+    LightField
+        ``data`` (V, U, Y, X, C) float32.
+    """
+    from ..decoding import decode
+    from ..io.raytrix import is_rgb_export, rgb_export_channels
+
+    log.info("decoding %s", raw.path)
+    if not is_rgb_export(raw):
+        return decode(raw, calibration.grid, white=calibration.white, progress=progress, **decode_options)
+    # a Raytrix RGB export (already demosaiced, sRGB): its linear channels decoded one by one, stacked as C = 3
+    import numpy as np
+
+    white = calibration.white
+    whites = rgb_export_channels(white) if white is not None and is_rgb_export(white) else [white] * 3
+    planes = [decode(plane, calibration.grid, white=w, progress=progress, **decode_options)
+              for plane, w in zip(rgb_export_channels(raw), whites)]
+    state = "camera" if decode_options.get("colour") == "camera" else "linear-srgb"
+    return planes[0].replace(data=np.concatenate([lf.data for lf in planes], axis=-1), colour=state)
+
+
+def open_source(path: str | os.PathLike, *, grid: str | os.PathLike | None = None,
+                white: str | os.PathLike | None = None, database: str | os.PathLike | None = None,
+                self_calibrate: bool = False, mosaic: MosaicOptions | None = None,
+                raytrix_xml: str | os.PathLike | None = None,
+                dark: str | os.PathLike | RawCapture | None = None, optics: MicroscopeOptics | None = None,
+                decode_options: Mapping[str, Any] | None = None, progress: Progress = None) -> Source:
+    """:func:`open_input`, then for a raw :func:`choose_calibration`; the decoding waits for first use.
+
+    The calibration, ``mosaic``, ``raytrix_xml`` and ``dark`` (a dark frame, :func:`read_dark_frame`, handed to
+    the decoding) options apply to raws only; ``optics`` to every input (:func:`open_input`).
+    """
+    item = open_input(path, mosaic=mosaic, raytrix_xml=raytrix_xml, optics=optics)
+    if isinstance(item, LightField):
+        return Source(lightfield=item)
+    cal = choose_calibration(item, grid=grid, white=white, database=database, self_calibrate=self_calibrate,
+                             mosaic=mosaic)
+    options = dict(decode_options or {})
+    if dark is not None:
+        options["dark"] = read_dark_frame(dark, mosaic)
+    return Source(raw=item, calibration=cal, decode_options=options, progress=progress)
+
+
+def load_lightfield_input(path: str | os.PathLike, **options: Any) -> LightField:
+    """The light field of any input: read, or decoded (options of :func:`open_source`)."""
+    return open_source(path, **options).lightfield
