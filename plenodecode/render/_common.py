@@ -78,3 +78,11 @@ def check_slopes(slopes: Any) -> np.ndarray:
     if s.size == 0 or not np.all(np.isfinite(s)):
         raise ValueError(f"slopes must be a non-empty sequence of finite numbers, got {slopes}")
     return s
+
+
+def check_upsample(upsample: Any) -> int:
+    """The spatial upsampling factor as an int ``k >= 1``; ValueError otherwise."""
+    k = int(upsample)
+    if k < 1 or k != upsample:
+        raise ValueError(f"upsample must be a positive integer, got {upsample}")
+    return k

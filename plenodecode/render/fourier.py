@@ -35,7 +35,7 @@ from numba import prange
 
 from .._numba import njit
 from ..types import LightField
-from ._common import aperture_mask, check_lightfield
+from ._common import aperture_mask, check_lightfield, check_upsample
 
 log = logging.getLogger(__name__)
 
@@ -308,9 +308,7 @@ class FourierRefocuser:
         s = float(slope)
         if not math.isfinite(s):
             raise ValueError(f"slope must be finite, got {slope}")
-        k = int(upsample)
-        if k < 1 or k != upsample:
-            raise ValueError(f"upsample must be a positive integer, got {upsample}")
+        k = check_upsample(upsample)
         if abs(s) > self.max_slope + 1e-9:
             log.warning("slope %.3g is beyond the padding of this Fourier transform (max %.3g): borders may wrap; "
                         "build the FourierRefocuser with a larger max_slope", s, self.max_slope)

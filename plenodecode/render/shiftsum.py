@@ -35,7 +35,7 @@ from numba import prange
 from .._numba import njit
 from ..imaging import INTERPOLATION_TAPS, interpolation_taps
 from ..types import LightField
-from ._common import aperture_mask, check_lightfield, check_slopes
+from ._common import aperture_mask, check_lightfield, check_slopes, check_upsample
 
 log = logging.getLogger(__name__)
 
@@ -494,9 +494,7 @@ def shift_sum(lf: LightField, slopes: float | np.ndarray, *, aperture: float | n
     """
     check_lightfield(lf)
     s = check_slopes(slopes)
-    k = int(upsample)
-    if k < 1 or k != upsample:
-        raise ValueError(f"upsample must be a positive integer, got {upsample}")
+    k = check_upsample(upsample)
     if interp not in INTERPOLATION_TAPS:
         raise ValueError(f"interp must be one of {', '.join(INTERPOLATION_TAPS)}, got {interp!r}")
     vmask = aperture_mask(lf.shape[:2], aperture)

@@ -43,7 +43,7 @@ import cv2
 import numpy as np
 
 from ..types import LightField
-from ._common import aperture_mask, check_lightfield, check_slopes
+from ._common import aperture_mask, check_lightfield, check_slopes, check_upsample
 from .shiftsum import shift_sum, sum_shifted_views
 
 log = logging.getLogger(__name__)
@@ -306,9 +306,7 @@ def fuse_views(lf: LightField, slopes: float | np.ndarray, *, upsample: int = 2,
     """
     check_lightfield(lf)
     s = check_slopes(slopes)
-    k = int(upsample)
-    if k < 1 or k != upsample:
-        raise ValueError(f"upsample must be a positive integer, got {upsample}")
+    k = check_upsample(upsample)
     vmask = aperture_mask(lf.shape[:2], aperture)
     h = kernel_scales(lf, s, k, vmask)
     out = _fuse_samples(lf, s, k, vmask, h, progress)
