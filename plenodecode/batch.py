@@ -57,13 +57,6 @@ log = logging.getLogger(__name__)
 
 Progress = Callable[[int, int], None] | None
 
-#: Suffixes always taken as raws when a folder is searched (Lytro containers, camera raws).
-RAW_SUFFIXES = (".lfr", ".lfp", ".dng", ".cr2", ".cr3", ".nef", ".arw", ".raf", ".orf", ".rw2")
-#: Headerless Lytro raws: taken when their JSON sidecar (.TXT/.json) is beside them.
-PAIR_SUFFIXES = (".raw",)
-#: Image mosaics: taken when a plenodecode mosaic sidecar or a Raytrix calibration XML is beside them, or, without
-#: either, when the image has the size of a known lenslet sensor (:func:`plenodecode.io.generic.is_known_sensor_image`).
-MOSAIC_SUFFIXES = (".png", ".tif", ".tiff", ".exr", ".pgm", ".jpg", ".jpeg")
 #: Outputs a batch can produce per raw (the CLI's --outputs choices): the decoded light field, and products of
 #: :data:`plenodecode.pipeline.PRODUCTS` under the same names (their options: :class:`BatchOptions`).
 BATCH_OUTPUTS = ("lightfield", "views", "centre", "refocus", "depth", "all-in-focus", "total-focus")
@@ -257,102 +250,25 @@ class BatchSummary:
 
 
 # ---------------------------------------------------------------------------- discovery
-def _is_mosaic_with_sidecar(p: Path) -> bool:
-    """An image with a plenodecode mosaic sidecar (not flagged as a white image) or a Raytrix XML."""
-    from .io import generic, raytrix
-
-    side = generic.find_sidecar(p)
-    if side is not None:
-        try:
-            doc = json.loads(side.read_text(encoding="utf-8", errors="replace"))
-        except (OSError, ValueError):
-            doc = None
-        if isinstance(doc, dict) and doc.get("format") == generic.SIDECAR_FORMAT:
-            meta = doc.get("metadata")
-            return not (isinstance(meta, dict) and meta.get("is_white_image"))
-    return raytrix.find_calibration_xml(p) is not None
-
-
-def _is_raw_candidate(p: Path) -> bool:
-    name = p.name
-    if name.startswith(".") or name.upper().startswith("MOD_") or ".truth." in name.lower():
-        return False      # hidden / staging files, white images, generator ground truth
-    suffix = p.suffix.lower()
-    if suffix in RAW_SUFFIXES:
-        return True
-    if suffix in PAIR_SUFFIXES:
-        from .io import lytro
-
-        return lytro.find_sidecar(p) is not None
-    if suffix in MOSAIC_SUFFIXES:
-        from .io.generic import find_sidecar, is_known_sensor_image
-
-        return _is_mosaic_with_sidecar(p) or (find_sidecar(p) is None and is_known_sensor_image(p))
-    return False
-
-
-def needs_no_database(p: Path) -> bool:
-    """True for an image mosaic with neither sidecar nor Raytrix XML: it is self-calibrated, never looked up."""
-    from .io import generic, raytrix
-
-    return (p.suffix.lower() in MOSAIC_SUFFIXES and generic.find_sidecar(p) is None
-            and raytrix.find_calibration_xml(p) is None)
-
-
-def _walk(folder: Path, exclude: set[Path]) -> list[Path]:
-    """Raw candidates under ``folder``; skips hidden folders, ``exclude`` and batch output folders."""
-    found: list[Path] = []
-    for root, dirs, files in os.walk(folder):
-        here = Path(root)
-        if DONE_MARKER in files:          # a batch output folder: nothing in it is an input
-            dirs[:] = []
-            continue
-        dirs[:] = sorted(d for d in dirs if not d.startswith(".") and (here / d).resolve() not in exclude)
-        found.extend(here / f for f in sorted(files) if _is_raw_candidate(here / f))
-    return found
-
-
 def find_raws(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os.PathLike] = ()) -> list[Path]:
-    """Every raw file under ``inputs``.
-
-    Files are taken as given.  Folders are searched recursively for Lytro containers
-    (``.lfr``/``.lfp``), camera raws and DNG, headerless ``.raw`` files with their JSON sidecar,
-    image mosaics with a plenodecode sidecar or a Raytrix XML, and images without a sidecar only when
-    their size is that of a known lenslet sensor (3280 x 3280 Lytro F01, 7728 x 5368 Illum; read from the
-    header), so a folder of ordinary pictures yields nothing; any other sidecar-less mosaic is decoded
-    when named as a file.  Skipped: white images
-    (``MOD_*``, or a mosaic whose sidecar says ``is_white_image``), the synthetic generator's ground
-    truth (``*.truth.*``), sidecars, hidden files and folders, folders in ``exclude`` (e.g. the
-    batch's own output folder) and batch output folders.
+    """Every raw under ``inputs`` (:func:`plenodecode.io.discovery.find_raws`), not searching batch output
+    folders (those holding a :data:`DONE_MARKER`).
 
     Parameters
     ----------
     inputs : iterable of path-like
+        Files (taken as given) and folders (searched recursively).
     exclude : iterable of path-like
-        Folders not to search.
+        Folders not to search (e.g. the batch's own output folder).
 
     Returns
     -------
     list of Path
         In the order of ``inputs``, each folder's files sorted; duplicates removed.
     """
-    skip = {Path(e).resolve() for e in exclude}
-    found: list[Path] = []
-    for item in inputs:
-        p = Path(item)
-        if p.is_dir():
-            if p.resolve() not in skip:
-                found.extend(_walk(p, skip))
-        else:
-            found.append(p)
-    seen: set[Path] = set()
-    unique = []
-    for f in found:
-        r = f.resolve()
-        if r not in seen:
-            seen.add(r)
-            unique.append(f)
-    return unique
+    from .io.discovery import find_raws as find
+
+    return find(inputs, exclude=exclude, stop_marker=DONE_MARKER)
 
 
 def output_names(files: Sequence[str | os.PathLike]) -> list[str]:

@@ -81,7 +81,8 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
       plenodecode batch shoot/ -o decoded/ --outputs centre,refocus,depth --jobs 2
       plenodecode batch shoot/ -o decoded/ --scheduler tcp://10.0.0.5:8786
     """
-    from ..batch import BatchOptions, check_summary_files, find_raws, needs_no_database, run_batch, write_summary
+    from ..batch import BatchOptions, check_summary_files, find_raws, run_batch, write_summary
+    from ..io.discovery import needs_no_database
     from ..calib.store import DEFAULT_DB
 
     if alpha is not None and distance_m is not None:
