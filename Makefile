@@ -30,7 +30,7 @@ demo: $(STAMP)
 	$(VENV)/bin/plenodecode info sample_raws/illum-mini/scene.lfr
 	$(VENV)/bin/plenodecode batch sample_raws -o demo_out \
 	    --outputs lightfield,centre,refocus,depth --database calib
-	$(VENV)/bin/plenodecode sample_raws/illum-mini/scene.lfr --refocus 1.02 -o demo_out/illum-mini_refocus_alpha1.02.png --overwrite
+	$(VENV)/bin/plenodecode sample_raws/illum-mini/scene.lfr --refocus 1.015 -o demo_out/illum-mini_refocus_alpha1.015.png --overwrite
 	$(VENV)/bin/plenodecode refocus demo_out/illum-mini__scene/lightfield.zarr --focal-stack -1:1:9 -o demo_out/focal_stack --overwrite
 	@echo
 	@echo "Demo outputs are in $(CURDIR)/demo_out/: open demo_out/index.html for the batch index;"
