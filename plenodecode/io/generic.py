@@ -29,7 +29,8 @@ from ..errors import FormatError, MetadataError
 from ..types import CFA_PATTERNS, CameraMetadata, RawCapture
 from .atomic import atomic_outputs, refuse_existing
 from .images import read_image
-from .mosaic_levels import KNOWN_SENSORS, MosaicOptions, bare_mosaic_cfa, bare_mosaic_levels, linearise_srgb, srgb_decode
+from .images import srgb_decode
+from .mosaic_levels import KNOWN_SENSORS, MosaicOptions, bare_mosaic_cfa, bare_mosaic_levels, linearise_srgb
 
 log = logging.getLogger(__name__)
 #: Sensor noise compresses poorly: the fastest zlib level costs ~1-2 % in size and saves a lot of time.

@@ -102,6 +102,15 @@ def srgb_encode(linear: np.ndarray) -> np.ndarray:
     return out
 
 
+def srgb_decode(encoded: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`srgb_encode` (IEC 61966-2-1) for values in [0, 1] (clipped), float64.
+
+    ``L = V / 12.92`` for ``V <= 0.04045``, else ``((V + 0.055) / 1.055) ** 2.4``.
+    """
+    v = np.clip(np.asarray(encoded, np.float64), 0.0, 1.0)
+    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
+
+
 def quantise(image: np.ndarray, bit_depth: int, *, encode_srgb: bool = False) -> np.ndarray:
     """Convert an image to the sample type written for ``bit_depth``.
 
@@ -344,4 +353,4 @@ def _write_gif(p: Path, tmp: Path, data: np.ndarray, fps: float, loop: bool) -> 
 
 
 __all__ = ["IMAGE_FORMATS", "ANIMATION_FORMATS", "write_image", "read_image", "write_animation",
-           "quantise", "to_unit_float", "srgb_encode"]
+           "quantise", "to_unit_float", "srgb_encode", "srgb_decode"]

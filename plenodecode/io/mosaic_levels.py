@@ -14,7 +14,7 @@ order (:func:`bare_mosaic_levels` and :func:`bare_mosaic_cfa`):
   (:func:`estimate_black_level`) and the white level is the file's full scale.
 
 ``--input-encoding srgb`` says the samples are display-encoded: they (and the levels) get the inverse
-sRGB transfer function (:func:`srgb_decode`) before decoding.
+sRGB transfer function (:func:`plenodecode.io.images.srgb_decode`) before decoding.
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..types import CFA_PATTERNS
+from .images import srgb_decode
 
 log = logging.getLogger(__name__)
 
@@ -197,15 +198,6 @@ def estimate_black_level(mosaic: np.ndarray) -> float | None:
     return black
 
 
-def srgb_decode(encoded: np.ndarray) -> np.ndarray:
-    """Inverse sRGB transfer function (IEC 61966-2-1) of values in [0, 1], float64.
-
-    ``L = V / 12.92`` for ``V <= 0.04045``, else ``((V + 0.055) / 1.055) ** 2.4``.
-    """
-    v = np.clip(np.asarray(encoded, np.float64), 0.0, 1.0)
-    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
-
-
 def linearise_srgb(mosaic: np.ndarray, full_scale: float) -> np.ndarray:
     """Display-encoded uint8/uint16 samples -> linear uint16 ``rint(65535 * srgb_decode(x / full_scale))``.
 
@@ -278,4 +270,4 @@ def bare_mosaic_levels(mosaic: np.ndarray, bits: int, full_scale: float,
 
 
 __all__ = ["MosaicOptions", "KnownSensor", "KNOWN_SENSORS", "CFA_CHOICES", "INPUT_ENCODINGS", "known_levels",
-           "estimate_black_level", "srgb_decode", "linearise_srgb", "bare_mosaic_cfa", "bare_mosaic_levels"]
+           "estimate_black_level", "linearise_srgb", "bare_mosaic_cfa", "bare_mosaic_levels"]

@@ -608,13 +608,13 @@ def read_raytrix_linear_rgb(path: str | os.PathLike) -> np.ndarray:
     An RxLive export is an image for display (8-bit sRGB, demosaiced: on the R42 crop the three channels
     differ, means 106 / 78 / 71 of 255, and no 2 x 2 Bayer pattern is left); the values are taken as
     sRGB-encoded and decoded with the inverse sRGB transfer function ``L = V / 12.92`` for ``V <= 0.04045``, else ``((V + 0.055) / 1.055) ** 2.4``
-    (:func:`plenodecode.io.mosaic_levels.srgb_decode`) with ``V = stored / full scale``.
+    (:func:`plenodecode.io.images.srgb_decode`) with ``V = stored / full scale``.
 
     Returns
     -------
     ndarray, shape (H, W, 3), float32
     """
-    from .mosaic_levels import srgb_decode
+    from .images import srgb_decode
 
     rgb = read_raytrix_rgb(path)
     scale = float(np.iinfo(rgb.dtype).max) if rgb.dtype.kind in "ui" else 1.0
