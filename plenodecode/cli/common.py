@@ -88,10 +88,10 @@ def mosaic_options(fn: Callable[..., Any]) -> Callable[..., Any]:
 
     checked = click.option("--input-encoding", type=RegistryChoice("plenodecode.io.mosaic_levels", "INPUT_ENCODINGS"), default="linear", show_default=True,
                            help="Image mosaics: 'srgb' if the values are display-encoded (inverse sRGB first).")(checked)
-    checked = click.option("--white-level", type=click.FloatRange(min=0, min_open=True), default=None,
+    checked = click.option("--white-level", type=POSITIVE, default=None,
                            help="Image mosaics: white (clipping) level in the file's units [default: the sidecar's, "
                                 "the known camera's, else the full scale].")(checked)
-    checked = click.option("--black-level", type=click.FloatRange(min=0), default=None,
+    checked = click.option("--black-level", type=NON_NEGATIVE, default=None,
                            help="Image mosaics: black level in the file's units [default: the sidecar's, the known "
                                 "camera's, else estimated from the gaps between micro-images].")(checked)
     return click.option("--cfa", type=RegistryChoice("plenodecode.io.mosaic_levels", "CFA_CHOICES"), default=None,
@@ -177,7 +177,7 @@ def microscope_options(fn: Callable[..., Any]) -> Callable[..., Any]:
         return fn(*args, **kwargs)
 
     for field, help_text in reversed(_OPTICS_HELP.items()):
-        checked = click.option(OPTICS_OPTIONS[field][0], names[field], type=click.FloatRange(min=0, min_open=True),
+        checked = click.option(OPTICS_OPTIONS[field][0], names[field], type=POSITIVE,
                                default=None, help=f"Microscopes: {help_text}.")(checked)
     checked = click.option("--optics", "optics_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
                            default=None, help="Microscopes: optics file (plenodecode JSON, napari-LF metadata.txt "

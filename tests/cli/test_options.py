@@ -38,6 +38,10 @@ CASES = [
     *[(["depth", RAW, "-o", "OUT.pfm"], ["--disparity-range", v], "--disparity-range")
       for v in ("nan:1", "-inf:1", "1:0")],
     *[(["decode", RAW, "-o", "OUT.zarr"], ["--views", v], "--views") for v in ("0", "4", "-3")],
+    *[(["decode", RAW, "-o", "OUT.zarr"], ["--black-level", v], "--black-level") for v in ("nan", "-1", "inf")],
+    *[(["decode", RAW, "-o", "OUT.zarr"], ["--white-level", v], "--white-level") for v in ("nan", "0", "inf")],
+    *[(["depth", RAW, "-o", "OUT.pfm"], ["--magnification", v], "--magnification") for v in ("nan", "0", "inf")],
+    (["batch", RAW, "-o", "OUT"], ["--na", "nan"], "--na"),
     *[(["synth", "illum-mini", "-o", "OUT"], ["--pitch", v], "--pitch") for v in ("0", "-3", "nan", "inf")],
     (["synth", "illum-mini", "-o", "OUT"], ["--rotation", "inf"], "--rotation"),
     (["synth", "illum-mini", "-o", "OUT"], ["--offset", "nan", "0"], "--offset"),
