@@ -73,6 +73,9 @@ SUMMARY_FILES = (SUMMARY_JSON, INDEX_HTML)
 SUMMARY_FORMAT = "plenodecode.BatchSummary"
 #: Longest side of a thumbnail, px.
 THUMB_SIZE = 256
+#: Colour map and percentile range of the disparity thumbnails (:func:`plenodecode.io.depthio.colour_mapped`).
+THUMB_CMAP = "viridis"
+THUMB_PERCENTILES = (2.0, 98.0)
 
 
 # ---------------------------------------------------------------------------------- data
@@ -451,22 +454,6 @@ def _thumbnail(image: Any, path: Path, *, colour: str) -> Path:
     return write_image_file(path, np.clip(img, 0.0, 1.0), colour=colour, bit_depth=8)
 
 
-def _colour_mapped(values: Any) -> Any:
-    """A disparity map as RGB in [0, 1] (viridis, 2nd..98th percentile), NaN black."""
-    import numpy as np
-    from matplotlib import colormaps
-
-    d = np.asarray(values, np.float64)
-    finite = np.isfinite(d)
-    if not finite.any():
-        return np.zeros((*d.shape, 3), np.float32)
-    lo, hi = np.percentile(d[finite], [2.0, 98.0])
-    t = np.clip((d - lo) / (hi - lo if hi > lo else 1.0), 0.0, 1.0)
-    rgb = colormaps["viridis"](np.where(finite, t, 0.0))[..., :3].astype(np.float32)
-    rgb[~finite] = 0.0
-    return rgb
-
-
 def _image_product_options(product: str, options: BatchOptions) -> dict[str, Any]:
     """Options of an image product of :data:`plenodecode.pipeline.PRODUCTS` taken from ``options``."""
     if product != "refocus":
@@ -490,6 +477,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     list of (product path, thumbnail path or None), in the order of ``options.outputs``.
     """
     from . import pipeline
+    from .io.depthio import colour_mapped
 
     mosaic = options.mosaic_options()
     calibration = pipeline.choose_calibration(raw, database=options.db_dir, white=options.white, mosaic=mosaic)
@@ -517,7 +505,8 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
             rendered = pipeline.render_product(src, "depth", method=options.depth_method)
             dest, = pipeline.write_depth(rendered, folder / "disparity.pfm", full=False)
             disparity = rendered.data["depthmap"].disparity
-            written.append((dest, _thumbnail(_colour_mapped(disparity), thumbs / "disparity.png", colour="srgb")))
+            colours = colour_mapped(disparity, cmap=THUMB_CMAP, percentiles=THUMB_PERCENTILES)
+            written.append((dest, _thumbnail(colours, thumbs / "disparity.png", colour="srgb")))
         else:
             rendered = pipeline.render_product(src, product, **_image_product_options(product, options))
             (stem, image), = rendered.images
