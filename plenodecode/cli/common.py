@@ -11,7 +11,6 @@ import contextlib
 import functools
 import importlib
 import math
-import os
 import sys
 from pathlib import Path
 from typing import Any, Callable, Iterator, Mapping
@@ -304,11 +303,6 @@ def progress_bar(label: str, ctx: click.Context | None = None) -> Callable[[int,
             state.pop("bar")
 
     return callback
-
-
-def default_jobs() -> int:
-    """All cores."""
-    return os.cpu_count() or 1
 
 
 # ----------------------------------------------------------------------------------------- numeric options
