@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import importlib
 import sys
-import types
 from typing import Any, Callable, Mapping, TypeVar
 
 T = TypeVar("T")
@@ -72,9 +71,7 @@ def lazy_exports(package: str, exports: Mapping[str, str]) -> tuple[Callable[[st
     A package whose modules are heavy (numba, OpenCV) lists its public names with their modules and
     does ``__getattr__, __dir__ = lazy_exports(__name__, _LAZY)``: importing the package then imports
     none of them, and ``from package import name`` works as before.  A name is cached in the package on
-    first access.  A public name that is also the name of the submodule defining it (``simulate`` in
-    ``plenodecode.synthetic.simulate``) stays the function: when the import system binds the submodule
-    to the package, the package keeps the submodule's attribute of that name instead.
+    first access.  No submodule may share a public name (importing it would bind the module to that name).
 
     Parameters
     ----------
@@ -84,14 +81,6 @@ def lazy_exports(package: str, exports: Mapping[str, str]) -> tuple[Callable[[st
         Public name -> absolute name of the module that defines it.
     """
     module = sys.modules[package]
-
-    class LazyPackage(types.ModuleType):
-        def __setattr__(self, name: str, value: Any) -> None:
-            if isinstance(value, types.ModuleType) and exports.get(name) == value.__name__:
-                value = getattr(value, name)
-            super().__setattr__(name, value)
-
-    module.__class__ = LazyPackage
 
     def __getattr__(name: str) -> Any:
         source = exports.get(name)

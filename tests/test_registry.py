@@ -27,16 +27,29 @@ def _run(code: str) -> str:
 
 
 def test_lazy_package_names_load_on_first_access_and_are_not_shadowed_by_their_submodule():
-    """``plenodecode.synthetic.simulate`` is both a submodule and the function it defines: importing the
-    submodule first must leave the package's ``simulate`` the function."""
-    out = _run("import sys\n"
+    """Importing a package loads none of its heavy modules; after every submodule is imported, its public
+    names are still the functions (no submodule shares a public name, so none can replace one)."""
+    out = _run("import sys, importlib, pkgutil, types\n"
                "import plenodecode.synthetic as syn\n"
                "print('numba' in sys.modules, 'cv2' in sys.modules)\n"
-               "import importlib; importlib.import_module('plenodecode.synthetic.simulate')\n"
+               "for sub in pkgutil.iter_modules(syn.__path__):\n"
+               "    importlib.import_module('plenodecode.synthetic.' + sub.name)\n"
                "from plenodecode.synthetic import simulate\n"
-               "print(callable(simulate) and simulate.__module__ == 'plenodecode.synthetic.simulate')\n"
+               "print(callable(simulate) and simulate.__module__ == 'plenodecode.synthetic.forward')\n"
                "print('simulate' in dir(syn), 'make_grid' in dir(syn))\n")
     assert out.split() == ["False", "False", "True", "True", "True"]
+
+
+def test_no_submodule_is_named_like_a_public_name_of_its_package():
+    import importlib
+    import pkgutil
+
+    for name in ("plenodecode", "plenodecode.synthetic", "plenodecode.render", "plenodecode.calib",
+                 "plenodecode.decoding", "plenodecode.depth", "plenodecode.io", "plenodecode.pipeline"):
+        package = importlib.import_module(name)
+        public = set(package.__all__) - {"errors"}
+        clash = public & {m.name for m in pkgutil.iter_modules(package.__path__)}
+        assert not clash, (name, clash)
 
 
 def test_lazy_package_unknown_name_is_an_attribute_error():

@@ -11,7 +11,7 @@ from .common import (NON_NEGATIVE, RegistryChoice, bit_depth_option, calibration
                      output_option, overwrite_option, progress_bar, quiet, usage_errors)
 
 #: Angular interpolation kernels of perspective views, for ``--interp``.
-INTERP_CHOICE = RegistryChoice("plenodecode.render.perspective", "PERSPECTIVE_INTERPOLATIONS")
+INTERP_CHOICE = RegistryChoice("plenodecode.render.viewpoints", "PERSPECTIVE_INTERPOLATIONS")
 
 
 @click.command("views")

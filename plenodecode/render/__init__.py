@@ -6,7 +6,8 @@ depth (1 = focus as captured), converted by :func:`alpha_to_slope` (derivation i
 :mod:`plenodecode.render.alpha`).
 
 Modules: ``refocus_methods`` (:func:`refocus` and the method registry), ``shiftsum``, ``fourier``, ``alpha``,
-``focalstack``, ``allinfocus`` (:func:`all_in_focus` and its method registry), ``perspective``;
+``focalstack``, ``allinfocus`` (:func:`all_in_focus` and its method registry), ``viewpoints``
+(:func:`perspective`, parallax);
 ``plenodecode.render.refocus`` is the function.
 
 Importing this package is light (no numba, no OpenCV): the names of the compiled modules (``shiftsum``,
@@ -20,7 +21,7 @@ from ..registry import lazy_exports
 from ._common import aperture_mask
 from .alpha import (REFOCUS_CONSTANTS, alpha_to_slope, distance_to_slope, refocus_constants, refocus_range,
                     refocus_range_units, slope_per_alpha_unit, slope_to_alpha, slope_to_distance)
-from .perspective import parallax_path, perspective, render_parallax
+from .viewpoints import parallax_path, perspective, render_parallax
 from .refocus_methods import REFOCUS_METHODS, refocus
 
 #: public name -> module that defines it (imported on first access: numba kernels or OpenCV)

@@ -32,7 +32,7 @@ Modules, each importing only those listed before it: :mod:`.presets` (the simula
 kernels), :mod:`.scene` (planes, textures, radiance), :mod:`.sensor` (disk response,
 vignetting, noise, rendering the mosaic), :mod:`.truth` (:class:`Simulation`, ground-truth
 files), :mod:`.archives` (white images in the cameras' calibration archives), :mod:`.focused`
-(the focused camera), :mod:`.simulate` (:func:`simulate`, :func:`simulate_white`).  Importing the package loads only :mod:`.presets`; the other names load on first
+(the focused camera), :mod:`.forward` (:func:`simulate`, :func:`simulate_white`).  Importing the package loads only :mod:`.presets`; the other names load on first
 access.
 """
 
@@ -46,7 +46,7 @@ _LAZY = {
     **dict.fromkeys(["assign_pixels", "make_grid", "raytrix_lens_types"], "plenodecode.synthetic.lattice"),
     **dict.fromkeys(["Plane", "Scene", "default_scene", "dot_chart"], "plenodecode.synthetic.scene"),
     **dict.fromkeys(["BAND_ROWS", "disk_profile", "disk_response", "vignetting"], "plenodecode.synthetic.sensor"),
-    **dict.fromkeys(["simulate", "simulate_white"], "plenodecode.synthetic.simulate"),
+    **dict.fromkeys(["simulate", "simulate_white"], "plenodecode.synthetic.forward"),
     **dict.fromkeys(["Simulation", "Truth", "load_truth", "simulation_files", "truth_document", "write_simulation"],
                     "plenodecode.synthetic.truth"),
     **dict.fromkeys(["ARCHIVE_KINDS", "WrittenArchive", "write_calibration_archive"], "plenodecode.synthetic.archives"),

@@ -247,7 +247,7 @@ def test_render_modules_do_not_shadow_the_refocus_function():
     import plenodecode.render as render
 
     assert isinstance(render.refocus, types.FunctionType)
-    for name in ("refocus_methods", "shiftsum", "fourier", "alpha", "focalstack", "perspective"):
+    for name in ("refocus_methods", "shiftsum", "fourier", "alpha", "focalstack", "viewpoints"):
         assert isinstance(importlib.import_module(f"plenodecode.render.{name}"), types.ModuleType)
     assert importlib.import_module("plenodecode.render.refocus_methods").refocus is render.refocus
     with pytest.raises(ModuleNotFoundError):
