@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plenodecode.calib.geometry import model
-from plenodecode.calib.geometry.model import GeometricCalibration
+from plenodecode import raymodel as model
+from plenodecode.raymodel import GeometricCalibration
 from tests.conftest import shared_path
 
 # An F01-like intrinsic matrix for 0-based indices of an 11 x 11 x 379 x 379 light field (toolbox values,

@@ -23,7 +23,7 @@ which sample sees a given ray) has no closed form and is found by fixed-point it
 (:func:`distort_directions`).  This is the direction in which the Light Field Toolbox applies its
 stored ``EstCamDistortionV`` (cheap in the calibration cost, iterated in rectification), so
 ``CalInfo.json`` files carry over unchanged apart from the 1-based indices
-(:func:`from_toolbox_intrinsics`).
+(:func:`from_toolbox_intrinsics`; files: :mod:`plenodecode.io.calinfo`).
 
 A checkerboard pose is ``[tx, ty, tz, rx, ry, rz]``: a board point ``X_b = (x_b, y_b, 0)`` (m) lies
 at ``R(r) X_b + t`` in the camera frame, ``R`` the rotation of the Rodrigues vector ``r``.
