@@ -109,8 +109,10 @@ def simulate(preset: str | Preset, *, seed: int = 0, pitch: float | None = None,
         Overrides, as in :func:`simulate_white`.
     noise : bool
         False: no shot/read noise, no hot pixels.
-    scene : Scene, list of Plane or list of plane dicts, optional
-        Planes in decoded coordinates (see :class:`plenodecode.synthetic.scene.Plane`);
+    scene : Scene, list of Plane, list of plane dicts or callable, optional
+        Planes in decoded coordinates (see :class:`plenodecode.synthetic.scene.Plane`), or a builder
+        ``(n_y, n_x, seed) -> Scene`` called with the decoded size (e.g. a value of
+        :data:`plenodecode.synthetic.thin.THIN_SCENES`; unfocused presets only);
         default :func:`plenodecode.synthetic.scene.default_scene` for the decoded size.
     progress : callable(done, total), optional
 
@@ -121,12 +123,17 @@ def simulate(preset: str | Preset, *, seed: int = 0, pitch: float | None = None,
     p, grid, off = _resolve(preset, pitch, rotation, offset, shape)
     rngs = _rngs(seed)
     if p.focused:
+        if callable(scene):
+            raise ValueError(f"a scene builder (decoded-size scene) needs an unfocused preset, got {p.name!r}")
         return simulate_focused(p, grid, off, seed=seed, rngs=rngs if noise else None, scene=scene,
                                 metadata=lambda white: _metadata(p, grid, white=white, seed=seed, offset=off),
                                 progress=progress)
     smp = grid.decoded_sampling()
     ny, nx = int(smp["Y"]), int(smp["X"])
-    sc = default_scene(ny, nx, seed) if scene is None else as_scene(scene)
+    if scene is None:
+        sc = default_scene(ny, nx, seed)
+    else:
+        sc = as_scene(scene(ny, nx, seed) if callable(scene) else scene)
     tex = build_textures(sc, ny, nx, mono=p.mono, cam_matrix=p.camera_matrix())
     total = 2 * ((grid.sensor_shape[0] + BAND_ROWS - 1) // BAND_ROWS)
     half = total // 2
