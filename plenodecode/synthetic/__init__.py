@@ -47,7 +47,7 @@ _LAZY = {
     **dict.fromkeys(["assign_pixels", "make_grid", "raytrix_lens_types"], "plenodecode.synthetic.lattice"),
     **dict.fromkeys(["Plane", "Scene", "default_scene", "dot_chart"], "plenodecode.synthetic.scene"),
     **dict.fromkeys(["BAND_ROWS", "disk_profile", "disk_response", "vignetting"], "plenodecode.synthetic.sensor"),
-    **dict.fromkeys(["simulate", "simulate_white"], "plenodecode.synthetic.forward"),
+    **dict.fromkeys(["simulate", "simulate_ideal", "simulate_white"], "plenodecode.synthetic.forward"),
     **dict.fromkeys(["Simulation", "Truth", "load_truth", "simulation_files", "truth_document", "write_simulation"],
                     "plenodecode.synthetic.truth"),
     **dict.fromkeys(["THIN_SCENES", "thin_scene"], "plenodecode.synthetic.thin"),
@@ -57,7 +57,7 @@ _LAZY = {
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 
 __all__ = ["Preset", "PRESETS", "get_preset", "make_grid", "raytrix_lens_types", "assign_pixels", "disk_profile",
-           "disk_response", "vignetting", "simulate_white", "Simulation", "simulate", "write_simulation",
+           "disk_response", "vignetting", "simulate_white", "simulate_ideal", "Simulation", "simulate", "write_simulation",
            "simulation_files", "truth_document", "Truth", "load_truth", "SUBSAMPLES", "BAND_ROWS",
            "Plane", "Scene", "default_scene", "dot_chart", "THIN_SCENES", "thin_scene", "ARCHIVE_KINDS", "WrittenArchive",
            "write_calibration_archive"]
