@@ -45,7 +45,7 @@ SPACING = 6.0
 #: Rim (px) of the near planes' supports.
 THIN_RIM = 0.5
 #: Texture contrast of a weakly textured far plane.
-WEAK_CONTRAST = 0.15
+WEAK_CONTRAST = 0.25
 THIN_KINDS = ("slats", "slits")
 THIN_BACKGROUNDS = ("tex", "weak")
 
