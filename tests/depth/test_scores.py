@@ -53,3 +53,47 @@ def test_depth_edge_band_is_two_pixels_each_side_of_a_jump_and_ignores_slopes():
     assert np.isnan(badpix_in_band(est, np.zeros_like(gt), border=2))
     with pytest.raises(ValueError, match="radius"):
         depth_edge_band(gt, radius=0.2)
+
+
+def test_sparsification_of_an_informative_a_constant_and_an_inverted_confidence():
+    from plenodecode.depth.scores import sparsification
+
+    rng = np.random.default_rng(3)
+    gt = rng.uniform(-1, 1, (60, 60))
+    est = gt.copy()
+    bad = np.zeros(gt.shape, bool)
+    bad[:, :18] = True                      # 30 % of the columns wrong by 0.5 px
+    est[bad] += 0.5
+    conf = np.where(bad, 0.2, 0.9)
+    s = sparsification(est, gt, conf, border=0)
+    np.testing.assert_allclose(s["fractions"], np.arange(1, 11) / 10)
+    # the 70 % most confident are exact, then the wrong ones come in
+    np.testing.assert_allclose(s["curve"][:7], 0.0, atol=1e-12)
+    np.testing.assert_allclose(s["curve"][7:], 100 * (1 - np.array([0.7, 0.7, 0.7]) / [0.8, 0.9, 1.0]))
+    assert s["random_area"] == pytest.approx(30.0)
+    assert s["area"] == pytest.approx(np.mean(s["curve"]))
+    assert s["area"] == pytest.approx(s["oracle_area"])      # this confidence is an oracle
+    assert s["ratio"] == pytest.approx((100 / 8 + 200 / 9 + 30) / 10 / 30)
+    # a constant confidence is a random ordering: every fraction has the overall error (ties averaged)
+    flat = sparsification(est, gt, np.full(gt.shape, 0.5), border=0)
+    np.testing.assert_allclose(flat["curve"], 30.0)
+    assert flat["ratio"] == pytest.approx(1.0)
+    # the inverted confidence puts the errors first
+    inv = sparsification(est, gt, 1 - conf, border=0)
+    assert inv["curve"][0] == pytest.approx(100.0) and inv["ratio"] > 2
+    # MSE: the squared error x 100, the same ordering
+    m = sparsification(est, gt, conf, border=0, error="mse")
+    assert m["random_area"] == pytest.approx(100 * 0.3 * 0.25)
+    assert m["curve"][-1] == pytest.approx(m["random_area"])
+
+
+def test_sparsification_rejects_bad_arguments():
+    from plenodecode.depth.scores import sparsification
+
+    z = np.zeros((20, 20))
+    with pytest.raises(ValueError, match="error"):
+        sparsification(z, z, z, error="mae", border=0)
+    with pytest.raises(ValueError, match="fractions"):
+        sparsification(z, z, z, border=0, fractions=(0.5, 0.2))
+    with pytest.raises(ValueError, match="confidence"):
+        sparsification(z, z, np.zeros((10, 10)), border=0)
