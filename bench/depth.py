@@ -17,8 +17,8 @@ a 15 px border excluded (5 px on the 87 x 125 px synthetic scenes), and BadPix0.
 band (:func:`plenodecode.depth.scores.badpix_in_band`: pixels within 2 px of a ground-truth disparity jump
 over 0.1), and the area of the sparsification curve of the method's confidence (BadPix0.07 of the most
 confident 10 .. 100 % of pixels, :func:`plenodecode.depth.scores.sparsification`) over that of a random
-ordering ('AUSE/rnd'; issue 20 asks for at most 0.5).  The means over the thin scenes are printed last, with issue 20's targets for the accurate
-method.  Runtime is one wall-clock run on this machine (the load average is printed: other processes slow
+ordering ('AUSE/rnd'; issue 20 asks for at most 0.5).  The means over the thin scenes are printed last,
+with issue 20's targets for the accurate method.  Runtime is one wall-clock run on this machine (the load average is printed: other processes slow
 it down) and the process CPU time (both cores count, so on an idle 2-core machine wall time is about
 CPU time / 1.5 .. 2).
 

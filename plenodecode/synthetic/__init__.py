@@ -32,8 +32,8 @@ Modules, each importing only those listed before it: :mod:`.presets` (the simula
 kernels), :mod:`.scene` (planes, textures, radiance), :mod:`.sensor` (disk response,
 vignetting, noise, rendering the mosaic), :mod:`.truth` (:class:`Simulation`, ground-truth
 files), :mod:`.thin` (thin-structure scenes), :mod:`.archives` (white images in the cameras' calibration
-archives), :mod:`.focused`
-(the focused camera), :mod:`.forward` (:func:`simulate`, :func:`simulate_white`).  Importing the package loads only :mod:`.presets`; the other names load on first
+archives), :mod:`.focused` (the focused camera), :mod:`.forward` (:func:`simulate`, :func:`simulate_ideal`,
+:func:`simulate_white`).  Importing the package loads only :mod:`.presets`; the other names load on first
 access.
 """
 
@@ -57,7 +57,7 @@ _LAZY = {
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 
 __all__ = ["Preset", "PRESETS", "get_preset", "make_grid", "raytrix_lens_types", "assign_pixels", "disk_profile",
-           "disk_response", "vignetting", "simulate_white", "simulate_ideal", "Simulation", "simulate", "write_simulation",
-           "simulation_files", "truth_document", "Truth", "load_truth", "SUBSAMPLES", "BAND_ROWS",
-           "Plane", "Scene", "default_scene", "dot_chart", "THIN_SCENES", "thin_scene", "ARCHIVE_KINDS", "WrittenArchive",
-           "write_calibration_archive"]
+           "disk_response", "vignetting", "simulate_white", "simulate_ideal", "Simulation", "simulate",
+           "write_simulation", "simulation_files", "truth_document", "Truth", "load_truth", "SUBSAMPLES", "BAND_ROWS",
+           "Plane", "Scene", "default_scene", "dot_chart", "THIN_SCENES", "thin_scene", "ARCHIVE_KINDS",
+           "WrittenArchive", "write_calibration_archive"]

@@ -354,5 +354,6 @@ def load_truth(path: str | os.PathLike) -> Truth:
                  disparity_range=(float(dr[0]), float(dr[1])), lightfield=lf, arrays=arrays, document=doc)
 
 
-__all__ = ["Simulation", "ideal_lightfield", "finite_range", "TRUTH_FORMAT", "TRUTH_VERSION", "simulation_files", "truth_document", "write_simulation",
+__all__ = ["Simulation", "ideal_lightfield", "finite_range",
+           "TRUTH_FORMAT", "TRUTH_VERSION", "simulation_files", "truth_document", "write_simulation",
            "Truth", "load_truth"]
