@@ -137,3 +137,17 @@ def test_default_intrinsics_scale():
         default_intrinsics(shape, focus_distance_m=0.0)
     with pytest.raises(ValueError, match="lf_shape"):
         default_intrinsics((9, 9, 120))
+
+
+def test_compiled_board_radiance_equals_the_numpy_model():
+    from plenodecode.synthetic.checkerboard import board_radiance, board_radiance_numpy
+
+    rng = np.random.default_rng(5)
+    samples = rng.uniform([0, 0, -5, -5], [3, 3, 93, 77], (3000, 4))
+    dist = [0.12, -0.3, 0.5, 0.004, -0.002]
+    h = default_intrinsics(SHAPE)
+    off = footprint_offsets(2)
+    got = board_radiance(h, dist, BOARD, POSE, samples, off)
+    want = board_radiance_numpy(h, dist, BOARD, POSE, samples, off)
+    np.testing.assert_allclose(got, want, atol=1e-12)
+    assert len(np.unique(np.round(got, 6))) > 10          # edges, squares, margin and grey all sampled
