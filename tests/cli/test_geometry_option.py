@@ -1,0 +1,97 @@
+"""``--geometry CAL.json`` (cli/common.py) on ``decode`` and ``depth``: a generated checkerboard raw decoded
+rectified, measured (straight corner lines, metric depth), and the usage errors."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from plenodecode import synthetic
+from plenodecode.cli.main import cli
+from plenodecode.decoding.rectify import decoded_shape, rectified_intrinsics
+from plenodecode.raymodel import GeometricCalibration
+from tests.geometry_scenes import detect_corners, facing_board, line_residual_rms, skewed_calibration
+
+BOARD_Z = 0.5
+
+
+@pytest.fixture(scope="module")
+def board_files(tmp_path_factory):
+    """A 600 x 600 F01-like board raw (board facing the camera at 0.5 m), its white and grid, and the
+    calibration it was rendered with (distorted, non-square) as cal.json."""
+    from plenodecode.io.calinfo import save_geometric_calibration
+    from plenodecode.io.generic import write_mosaic
+    from plenodecode.synthetic.checkerboard import render_board_mosaic
+
+    d = tmp_path_factory.mktemp("geometry_cli")
+    sim = synthetic.simulate("f01", shape=(600, 600), seed=1, noise=False)
+    cal = skewed_calibration(decoded_shape(sim.grid), distortion=(3.0, 0.0, 0.0, 0.0, 0.0))
+    board, pose = facing_board(BOARD_Z, corners=7, square_at_03m=0.004)
+    raw = replace(sim.raw, mosaic=render_board_mosaic(sim.preset, sim.grid, cal, board, pose, None))
+    paths = {"raw": write_mosaic(d / "board.png", raw), "white": write_mosaic(d / "white.png", sim.white),
+             "grid": d / "grid.json", "cal": save_geometric_calibration(cal, d / "cal.json")}
+    paths["grid"].write_text(sim.grid.to_json(), encoding="utf-8")
+    return {k: str(v) for k, v in paths.items()}, cal, board
+
+
+def run(args):
+    return CliRunner().invoke(cli, args, catch_exceptions=False)
+
+
+def _inputs(files):
+    return [files["raw"], "-g", files["grid"], "-w", files["white"]]
+
+
+def test_decode_geometry_writes_a_rectified_light_field(board_files, tmp_path):
+    from plenodecode.io.lightfield import load_lightfield
+
+    files, cal, board = board_files
+    out = tmp_path / "rect.npy"
+    res = run(["decode", *_inputs(files), "--geometry", files["cal"], "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "rectified" in res.output
+    lf = load_lightfield(out)
+    model = lf.geometry.ray_model
+    assert model["rectified"] and model["calibration"] == files["cal"]
+    np.testing.assert_allclose(model["intrinsics"], rectified_intrinsics(cal), rtol=1e-12)
+    for j, i in ((4, 4), (3, 3), (5, 5), (3, 5)):                 # measured: 0.010-0.012 px
+        assert line_residual_rms(detect_corners(lf.data[j, i].mean(axis=-1), board)) < 0.05
+
+
+def test_depth_geometry_metric_depth_of_the_board(board_files, tmp_path):
+    from plenodecode.io.pfm import read_pfm
+
+    files, cal, board = board_files
+    out = tmp_path / "z.pfm"
+    res = run(["depth", *_inputs(files), "--geometry", files["cal"], "--metric", "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    z = read_pfm(out)
+    h, w = z.shape[:2]
+    assert np.median(z[h // 4:3 * h // 4, w // 4:3 * w // 4]) == pytest.approx(BOARD_Z, rel=0.01)   # 0.4975 m
+
+
+def test_geometry_usage_errors_before_any_work(board_files, tmp_path):
+    files, cal, board = board_files
+    out = tmp_path / "lf.npy"
+    missing = run(["decode", *_inputs(files), "--geometry", str(tmp_path / "nope.json"), "-o", str(out)])
+    not_cal = tmp_path / "not_cal.json"
+    not_cal.write_text(json.dumps({"hello": 1}))
+    invalid = run(["decode", *_inputs(files), "--geometry", str(not_cal), "-o", str(out)])
+    other = tmp_path / "other.json"
+    from plenodecode.io.calinfo import save_geometric_calibration
+
+    save_geometric_calibration(GeometricCalibration(cal.intrinsics, cal.distortion, (11, 11, 70, 69)), other)
+    for command, output in (("decode", out), ("depth", tmp_path / "z.pfm")):
+        mismatch = run([command, *_inputs(files), "--geometry", str(other), "-o", str(output)])
+        assert mismatch.exit_code == 2, mismatch.output
+        assert "--geometry" in mismatch.output and "11x11x70x69" in mismatch.output
+        assert not output.exists()
+    for res in (missing, invalid):
+        assert res.exit_code == 2, res.output
+        assert "--geometry" in res.output
+    assert "not a geometric calibration" in invalid.output
+    assert not out.exists()
