@@ -78,3 +78,29 @@ def corner_disparities(lf_views: np.ndarray, board: Board, views) -> np.ndarray:
     slope_i = np.polyfit(offsets, along_i, 1)[0]
     slope_j = np.polyfit(offsets, along_j, 1)[0]
     return -0.5 * (slope_i + slope_j)
+
+
+def write_board_raw(folder, z_m: float = 0.5):
+    """A 600 x 600 F01-like raw of a board facing the camera at ``z_m``, written into ``folder`` with its white
+    and lenslet grid, and the calibration it was rendered with (distorted, non-square) as ``cal.json``.
+
+    Returns ``(paths, calibration, board)``, ``paths`` a dict of str: 'raw', 'white', 'grid', 'cal'.
+    """
+    from dataclasses import replace
+    from pathlib import Path
+
+    from plenodecode import synthetic
+    from plenodecode.decoding.rectify import decoded_shape
+    from plenodecode.io.calinfo import save_geometric_calibration
+    from plenodecode.io.generic import write_mosaic
+    from plenodecode.synthetic.checkerboard import render_board_mosaic
+
+    folder = Path(folder)
+    sim = synthetic.simulate("f01", shape=(600, 600), seed=1, noise=False)
+    cal = skewed_calibration(decoded_shape(sim.grid), distortion=(3.0, 0.0, 0.0, 0.0, 0.0))
+    board, pose = facing_board(z_m, corners=7, square_at_03m=0.004)
+    raw = replace(sim.raw, mosaic=render_board_mosaic(sim.preset, sim.grid, cal, board, pose, None))
+    paths = {"raw": write_mosaic(folder / "board.png", raw), "white": write_mosaic(folder / "white.png", sim.white),
+             "grid": folder / "grid.json", "cal": save_geometric_calibration(cal, folder / "cal.json")}
+    paths["grid"].write_text(sim.grid.to_json(), encoding="utf-8")
+    return {k: str(v) for k, v in paths.items()}, cal, board

@@ -4,38 +4,23 @@ rectified, measured (straight corner lines, metric depth), and the usage errors.
 from __future__ import annotations
 
 import json
-from dataclasses import replace
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from plenodecode import synthetic
 from plenodecode.cli.main import cli
-from plenodecode.decoding.rectify import decoded_shape, rectified_intrinsics
+from plenodecode.decoding.rectify import rectified_intrinsics
 from plenodecode.raymodel import GeometricCalibration
-from tests.geometry_scenes import detect_corners, facing_board, line_residual_rms, skewed_calibration
+from tests.geometry_scenes import detect_corners, line_residual_rms, write_board_raw
 
 BOARD_Z = 0.5
 
 
 @pytest.fixture(scope="module")
 def board_files(tmp_path_factory):
-    """A 600 x 600 F01-like board raw (board facing the camera at 0.5 m), its white and grid, and the
-    calibration it was rendered with (distorted, non-square) as cal.json."""
-    from plenodecode.io.calinfo import save_geometric_calibration
-    from plenodecode.io.generic import write_mosaic
-    from plenodecode.synthetic.checkerboard import render_board_mosaic
-
-    d = tmp_path_factory.mktemp("geometry_cli")
-    sim = synthetic.simulate("f01", shape=(600, 600), seed=1, noise=False)
-    cal = skewed_calibration(decoded_shape(sim.grid), distortion=(3.0, 0.0, 0.0, 0.0, 0.0))
-    board, pose = facing_board(BOARD_Z, corners=7, square_at_03m=0.004)
-    raw = replace(sim.raw, mosaic=render_board_mosaic(sim.preset, sim.grid, cal, board, pose, None))
-    paths = {"raw": write_mosaic(d / "board.png", raw), "white": write_mosaic(d / "white.png", sim.white),
-             "grid": d / "grid.json", "cal": save_geometric_calibration(cal, d / "cal.json")}
-    paths["grid"].write_text(sim.grid.to_json(), encoding="utf-8")
-    return {k: str(v) for k, v in paths.items()}, cal, board
+    """A board raw facing the camera at 0.5 m, its white, grid and calibration (:func:`write_board_raw`)."""
+    return write_board_raw(tmp_path_factory.mktemp("geometry_cli"), BOARD_Z)
 
 
 def run(args):
