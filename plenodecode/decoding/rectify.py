@@ -9,8 +9,9 @@ shape and records, at sample ``n``, the ray of a *target* model without distorti
     phi_rect(n) = H_rect n
 
 For every output sample the measured sample that saw the same ray is ``n' = H^-1 D^-1(H_rect n)``
-(:meth:`GeometricCalibration.samples`: the direction distorted back by fixed-point iteration, then
-``H^-1``), and the output is the input interpolated there (:func:`rectify`).
+(:func:`plenodecode.raymodel.samples_of_rays`: the direction distorted back by
+:data:`DISTORTION_ITERATIONS` fixed-point iterations, then ``H^-1``), and the output is the input
+interpolated there (:func:`rectify`).
 
 The target intrinsics (:func:`rectified_intrinsics`)
 ----------------------------------------------------
@@ -55,7 +56,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import GeometryMismatchError
-from ..raymodel import GeometricCalibration, check_intrinsics
+from ..raymodel import GeometricCalibration, check_intrinsics, samples_of_rays
 from ..types import LightField
 
 log = logging.getLogger(__name__)
@@ -64,6 +65,10 @@ log = logging.getLogger(__name__)
 SQUARE_PAIRS = (((0, 0), (1, 1)), ((0, 2), (1, 3)), ((2, 0), (3, 1)), ((2, 2), (3, 3)))
 #: Interpolated weight below which an output sample counts as missing (data 0).
 MIN_WEIGHT = 1e-6
+#: Fixed-point iterations that distort the target directions back: the error shrinks about 7x per iteration
+#: for the F01 calibration (2: 2e-4 = 0.1 px, the toolbox's choice; 8: 5e-10 = 3e-7 px), half the time of
+#: iterating to 1e-12.
+DISTORTION_ITERATIONS = 8
 
 
 def centre_sample(lf_shape: tuple[int, int, int, int]) -> np.ndarray:
@@ -137,7 +142,8 @@ def source_coordinates(calibration: GeometricCalibration, target: np.ndarray, vi
     ll, kk = np.mgrid[0:ny, 0:nx].astype(np.float64)
     samples = np.stack([np.full_like(kk, i), np.full_like(kk, j), kk, ll], axis=-1)
     rays = samples @ target[:4, :4].T + target[:4, 4]
-    src = calibration.samples(rays)                           # (Y, X, 4) (i', j', k', l')
+    src = samples_of_rays(calibration.intrinsics, calibration.distortion, rays,
+                          iterations=DISTORTION_ITERATIONS)      # (Y, X, 4) (i', j', k', l')
     return np.stack([src[..., 1], src[..., 0], src[..., 3], src[..., 2]])
 
 
