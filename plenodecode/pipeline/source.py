@@ -83,11 +83,16 @@ class Source:
 
 def check_geometry(geometry: GeometricCalibration, *, lightfield: LightField | None = None,
                    calibration: Calibration | None = None, n_views: int | None = None) -> None:
-    """Refuse a geometric calibration made for light fields of another shape than ``lightfield`` or than the
-    raw decoded with ``calibration`` and ``n_views`` will have (CalibrationError; nothing is decoded)."""
+    """Refuse a geometric calibration made for light fields of another shape than ``lightfield`` (or one
+    already rectified) or than the raw decoded with ``calibration`` and ``n_views`` will have
+    (:class:`~plenodecode.errors.GeometryMismatchError`; nothing is decoded)."""
     from ..decoding.rectify import check_shape, decoded_shape
+    from ..errors import GeometryMismatchError
 
     if lightfield is not None:
+        if (lightfield.geometry.ray_model or {}).get("rectified"):
+            raise GeometryMismatchError("the light field is already rectified (it carries its calibrated ray "
+                                        "model); use it without --geometry")
         check_shape(geometry, lightfield.shape, "light field")
     else:
         check_shape(geometry, decoded_shape(calibration.grid, n_views), "decoded light field")

@@ -80,3 +80,21 @@ def test_geometry_usage_errors_before_any_work(board_files, tmp_path):
         assert "--geometry" in res.output
     assert "not a geometric calibration" in invalid.output
     assert not out.exists()
+
+
+def test_saved_light_field_rectified_on_load(board_files, tmp_path):
+    """``depth LF --geometry``: a light field decoded without it is rectified when read; one already rectified
+    is refused (usage error)."""
+    from plenodecode.io.pfm import read_pfm
+
+    files, cal, board = board_files
+    plain, rectified = tmp_path / "plain.npy", tmp_path / "rect.npy"
+    assert run(["-q", "decode", *_inputs(files), "-o", str(plain)]).exit_code == 0
+    res = run(["-q", "depth", str(plain), "--geometry", files["cal"], "--metric", "-o", str(tmp_path / "z.pfm")])
+    assert res.exit_code == 0, res.output
+    z = read_pfm(tmp_path / "z.pfm")
+    h, w = z.shape[:2]
+    assert np.median(z[h // 4:3 * h // 4, w // 4:3 * w // 4]) == pytest.approx(BOARD_Z, rel=0.01)
+    assert run(["-q", "decode", *_inputs(files), "--geometry", files["cal"], "-o", str(rectified)]).exit_code == 0
+    again = run(["depth", str(rectified), "--geometry", files["cal"], "-o", str(tmp_path / "again.pfm")])
+    assert again.exit_code == 2 and "already rectified" in again.output
