@@ -112,6 +112,10 @@ class BatchOptions:
     optics : dict or None
         Light-field microscope optics given for every raw (``MicroscopeOptics.to_dict()``, metres); they win
         over a napari-LF ``metadata.txt`` beside a raw.
+    geometry : dict or None
+        Geometric calibration that rectifies every light field (``--geometry``;
+        ``GeometricCalibration.to_dict()``, so its values, not its path, are hashed); a raw whose decoded
+        shape differs fails before decoding.
     """
 
     outputs: tuple[str, ...] = ("centre",)
@@ -129,6 +133,7 @@ class BatchOptions:
     white: str | None = None
     dark: str | None = None
     optics: Mapping[str, float | None] | None = None
+    geometry: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         outs = tuple(self.outputs) if not isinstance(self.outputs, str) else (self.outputs,)
@@ -168,6 +173,8 @@ class BatchOptions:
 
             optics = MicroscopeOptics.from_dict(self.optics)           # checks the values (ValueError)
             object.__setattr__(self, "optics", None if optics.empty else optics.to_dict())
+        if self.geometry is not None:
+            object.__setattr__(self, "geometry", self.geometric_calibration().to_dict())
 
     def as_key_dict(self) -> dict[str, Any]:
         """The options as hashed into the task key.
@@ -183,10 +190,17 @@ class BatchOptions:
             if product not in self.outputs or (option in ("alpha", "distance_m") and d[option] is None):
                 d.pop(option)      # unset alpha / distance_m keep the keys of earlier versions
         for option, default in (("cfa", None), ("black_level", None), ("white_level", None),
-                                ("input_encoding", "linear"), ("white", None), ("dark", None), ("optics", None)):
+                                ("input_encoding", "linear"), ("white", None), ("dark", None), ("optics", None),
+                                ("geometry", None)):
             if d[option] == default:     # keys of runs before these options existed stay valid
                 d.pop(option)
         return d
+
+    def geometric_calibration(self) -> Any:
+        """``geometry`` as a :class:`~plenodecode.raymodel.GeometricCalibration` (None without one)."""
+        from .raymodel import GeometricCalibration
+
+        return None if self.geometry is None else GeometricCalibration.from_dict(self.geometry)
 
     def mosaic_options(self) -> Any:
         """The mosaic options as :class:`plenodecode.io.mosaic_levels.MosaicOptions` (ValueError naming a bad one)."""
@@ -482,7 +496,8 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     mosaic = options.mosaic_options()
     calibration = pipeline.choose_calibration(raw, database=options.db_dir, white=options.white, mosaic=mosaic)
     src = pipeline.Source(raw=raw, calibration=calibration, decode_options={
-        "workers": threads, "dark": pipeline.read_dark_frame(options.dark, mosaic)})
+        "workers": threads, "dark": pipeline.read_dark_frame(options.dark, mosaic)},
+        geometry=options.geometric_calibration())
     bits = options.bit_depth
     thumbs = folder / THUMB_DIR
     thumbs.mkdir()

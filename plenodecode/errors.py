@@ -24,8 +24,13 @@ class CalibrationError(PlenodecodeError):
     """No usable lenslet grid: bad white image, wrong camera, failed fit."""
 
 
+class GeometryMismatchError(CalibrationError):
+    """A geometric calibration (``--geometry``) made for light fields of another shape."""
+
+
 class DecodeError(PlenodecodeError):
     """A raw cannot be decoded with the given grid or options."""
 
 
-__all__ = ["PlenodecodeError", "FormatError", "MetadataError", "CalibrationError", "DecodeError"]
+__all__ = ["PlenodecodeError", "FormatError", "MetadataError", "CalibrationError", "GeometryMismatchError",
+           "DecodeError"]

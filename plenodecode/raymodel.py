@@ -128,13 +128,15 @@ def sample_rays(h: np.ndarray, distortion: Any, samples: np.ndarray) -> np.ndarr
     return rays
 
 
-def samples_of_rays(h: np.ndarray, distortion: Any, rays: np.ndarray) -> np.ndarray:
+def samples_of_rays(h: np.ndarray, distortion: Any, rays: np.ndarray, *,
+                    iterations: int = DISTORTION_ITERATIONS) -> np.ndarray:
     """Inverse of :func:`sample_rays`: ideal rays (..., 4) -> continuous sample indices (..., 4) ``(i, j, k, l)``.
 
-    ``(u, v)`` are distorted back (:func:`distort_directions`), then ``n = H^-1 [s, t, u, v, 1]``.
+    ``(u, v)`` are distorted back (:func:`distort_directions`, at most ``iterations``), then
+    ``n = H^-1 [s, t, u, v, 1]``.
     """
     measured = np.array(rays, dtype=np.float64)
-    measured[..., 2:] = distort_directions(measured[..., 2:], distortion)
+    measured[..., 2:] = distort_directions(measured[..., 2:], distortion, iterations=iterations)
     inverse = np.linalg.inv(h)
     return measured @ inverse[:4, :4].T + inverse[:4, 4]
 

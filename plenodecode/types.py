@@ -401,7 +401,8 @@ GEOMETRY_SCHEMA_VERSION = 1
 LINEAR_COLOUR_STATES = ("camera", "linear-srgb")
 #: Keys of the legacy free-form ``LightField.metadata`` dict that :class:`LightFieldGeometry` replaces.
 LEGACY_GEOMETRY_KEYS = ("source", "calibration", "camera", "spatial_step_px", "view_step_px", "geometry",
-                        "disparity_range", "hci_parameters", "focus_distance_m", "colour", "microscope")
+                        "disparity_range", "hci_parameters", "focus_distance_m", "colour", "microscope",
+                        "ray_model")
 #: Where each :class:`HCIParameters` field sits in ``parameters.cfg``: field -> (section, key).
 _HCI_CFG = {"baseline_mm": ("extrinsics", "baseline_mm"), "focal_length_mm": ("intrinsics", "focal_length_mm"),
             "sensor_size_mm": ("intrinsics", "sensor_size_mm"), "focus_distance_m": ("extrinsics", "focus_distance_m")}
@@ -415,6 +416,21 @@ def _number(value: Any, name: str) -> float | None:
         return float(value)
     except (TypeError, ValueError):
         raise MetadataError(f"light-field metadata '{name}' must be a number, got {value!r}") from None
+
+
+def _ray_model(value: Mapping[str, Any] | None) -> dict[str, Any] | None:
+    """:attr:`LightFieldGeometry.ray_model` as plain JSON-ready data (H checked by :func:`raymodel.check_intrinsics`)."""
+    if value is None:
+        return None
+    from .raymodel import check_distortion, check_intrinsics
+
+    try:
+        return {"intrinsics": check_intrinsics(value["intrinsics"]).tolist(),
+                "distortion": check_distortion(value.get("distortion")).tolist(),
+                "rectified": bool(value.get("rectified", False)),
+                "calibration": None if value.get("calibration") is None else str(value["calibration"])}
+    except (KeyError, TypeError, ValueError) as exc:
+        raise MetadataError(f"light-field metadata 'ray_model' is malformed ({exc})") from None
 
 
 def _pair(value: Any, name: str) -> tuple[float, float] | None:
@@ -561,6 +577,11 @@ class LightFieldGeometry:
         The camera array, for an HCI benchmark scene.
     microscope : MicroscopeOptics or None
         The optics of a light-field microscope (metric depth in micrometres); defaults to ``camera.microscope``.
+    ray_model : dict or None
+        The calibrated ray model of the samples as they are (:mod:`plenodecode.raymodel`), plain data:
+        ``{'intrinsics': 5 x 5 nested list (H, 0-based samples), 'distortion': [k1, k2, k3, b1, b2],
+        'rectified': bool, 'calibration': the calibration file or None}``; set by
+        :func:`plenodecode.decoding.rectify.rectify` (then rectified, distortion 0), read by metric depth.
     """
 
     spatial_step_px: float | None = None
@@ -579,9 +600,11 @@ class LightFieldGeometry:
     camera: CameraMetadata | None = None
     hci: HCIParameters | None = None
     microscope: MicroscopeOptics | None = None
+    ray_model: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "microscope", MicroscopeOptics.from_dict(self.microscope))
+        object.__setattr__(self, "ray_model", _ray_model(self.ray_model))
         if self.microscope is None and self.camera is not None:
             object.__setattr__(self, "microscope", self.camera.microscope)
         if self.colour is not None and self.colour not in COLOUR_STATES:
@@ -627,7 +650,8 @@ class LightFieldGeometry:
                    source=None if meta.get("source") is None else str(meta["source"]),
                    calibration=None if calib is None else dict(calib), camera=camera,
                    hci=HCIParameters.from_cfg(meta.get("hci_parameters")),
-                   microscope=MicroscopeOptics.from_dict(meta.get("microscope")), **consts)
+                   microscope=MicroscopeOptics.from_dict(meta.get("microscope")), ray_model=meta.get("ray_model"),
+                   **consts)
 
     def to_legacy(self) -> dict[str, Any]:
         """The legacy free-form keys (inverse of :meth:`from_legacy`); unknown values are left out."""
@@ -639,7 +663,8 @@ class LightFieldGeometry:
                                "focus_distance_m": self.focus_distance_m,
                                "disparity_range": None if self.disparity_range is None else list(self.disparity_range),
                                "hci_parameters": None if self.hci is None else self.hci.to_cfg(),
-                               "microscope": None if self.microscope is None else self.microscope.to_dict()}
+                               "microscope": None if self.microscope is None else self.microscope.to_dict(),
+                               "ray_model": self.ray_model}
         if self.camera is not None:
             cam = self.camera.to_dict()
             out["camera"] = {**cam, **{k: v for k, v in consts.items() if cam.get(k) is None}}

@@ -507,3 +507,30 @@ def test_find_raws_takes_mosaics_but_not_their_whites(tmp_path):
     write_simulation(simulate("raytrix", seed=1, shape=(110, 150)), tmp_path / "rx", name="rtx")
     (tmp_path / "sq" / "notes.png").write_bytes(b"\x89PNG")                 # an image without a sidecar
     assert [p.relative_to(tmp_path).as_posix() for p in find_raws([tmp_path])] == ["rx/rtx.png", "sq/lfm.png"]
+
+
+def test_cli_geometry_rectifies_every_raw_and_is_hashed(tmp_path):
+    """``batch --geometry``: the light field of a generated board raw is rectified (straight corner lines);
+    the calibration's values enter the task key; a calibration of another shape fails the raw."""
+    from plenodecode.io.calinfo import load_geometric_calibration, save_geometric_calibration
+    from plenodecode.io.lightfield import load_lightfield
+    from tests.geometry_scenes import detect_corners, line_residual_rms, write_board_raw
+
+    files, cal, board = write_board_raw(tmp_path / "in")
+    out = tmp_path / "out"
+    args = ["-q", "batch", files["raw"], "-o", str(out), "--white", files["white"], "--outputs", "lightfield",
+            "--format", "npy"]
+    res = CliRunner().invoke(cli, [*args, "--geometry", files["cal"]], catch_exceptions=False)
+    assert res.exit_code == 0, res.output
+    lf = load_lightfield(next(out.rglob("lightfield.npy")))
+    assert lf.geometry.ray_model["rectified"]
+    assert line_residual_rms(detect_corners(lf.data[4, 4].mean(axis=-1), board)) < 0.05
+    loaded = load_geometric_calibration(files["cal"])
+    plain, rectified = BatchOptions(), BatchOptions(geometry=loaded.to_dict())
+    assert task_key(files["raw"], plain) != task_key(files["raw"], rectified)
+    assert "geometry" not in plain.as_key_dict()
+    other = save_geometric_calibration(replace(cal, lf_shape=(11, 11, 70, 69)), tmp_path / "other.json")
+    res = CliRunner().invoke(cli, [*args, "--geometry", str(other), "--overwrite"], catch_exceptions=False)
+    assert res.exit_code == 1
+    summary = json.loads((out / "summary.json").read_text())
+    assert "11x11x70x69" in json.dumps(summary)

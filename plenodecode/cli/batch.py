@@ -8,9 +8,9 @@ import click
 
 from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES
 from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
-from .common import (FINITE, POSITIVE, RegistryChoice, bit_depth_option, current_microscope_inputs,
-                     current_mosaic_options, database_option, jobs_option, microscope_options, mosaic_options,
-                     progress_bar)
+from .common import (FINITE, POSITIVE, RegistryChoice, bit_depth_option, current_geometry,
+                     current_microscope_inputs, current_mosaic_options, database_option, geometry_option, jobs_option,
+                     microscope_options, mosaic_options, progress_bar)
 
 
 def _parse_outputs(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
@@ -53,6 +53,7 @@ def _microscope_fields() -> dict:
                    "instead of the database).")
 @mosaic_options
 @microscope_options
+@geometry_option
 @click.option("--format", "lf_format", type=RegistryChoice("plenodecode.batch", "LIGHTFIELD_NAMES"), default="zarr",
               show_default=True,
               help="Format of the 'lightfield' product.")
@@ -105,6 +106,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
                            depth_method=depth_method, cfa=mosaic.cfa,
                            black_level=mosaic.black_level, white_level=mosaic.white_level,
                            input_encoding=mosaic.input_encoding, white=None if white is None else str(white),
+                           geometry=None if current_geometry() is None else current_geometry().to_dict(),
                            **_microscope_fields())
     try:
         summary = run_batch(files, out_dir, options, jobs=jobs, scheduler=scheduler, overwrite=overwrite,

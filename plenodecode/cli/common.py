@@ -127,6 +127,39 @@ raytrix_xml_option = click.option(
     help="Raytrix images: the RayCalibData XML [default: X.xml beside X.png, else the only XML in its folder].")
 
 
+#: ``ctx.meta`` key of the geometric calibration (``--geometry``) of a command.
+GEOMETRY_META = "plenodecode.geometry"
+
+
+def _load_geometry(ctx: click.Context, param: click.Parameter, value: Path | None) -> Any:
+    """``--geometry FILE``: the :class:`~plenodecode.raymodel.GeometricCalibration` it holds (this project's JSON
+    or the toolbox's ``CalInfo.json``), else a usage error naming the option; kept in ``ctx.meta``."""
+    cal = None
+    if value is not None:
+        from ..errors import FormatError
+        from ..io.calinfo import load_geometric_calibration
+
+        try:
+            cal = load_geometric_calibration(value)
+        except FormatError as exc:
+            raise click.BadParameter(str(exc), ctx=ctx, param=param) from None
+    ctx.meta[GEOMETRY_META] = cal
+    return cal
+
+
+geometry_option = click.option(
+    "--geometry", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None, expose_value=False,
+    callback=_load_geometry, is_eager=False, metavar="CAL.json",
+    help="Rectify with this geometric calibration ('plenodecode calibrate-geometry' JSON or the Light Field "
+         "Toolbox's CalInfo.json): undistorted pinhole views, metric depth from the calibration.")
+
+
+def current_geometry() -> Any:
+    """The ``--geometry`` calibration of the running command (None when not given or outside a command)."""
+    ctx = click.get_current_context(silent=True)
+    return None if ctx is None else ctx.meta.get(GEOMETRY_META)
+
+
 #: ``ctx.meta`` key of the dark frame and the microscope optics of a command (:func:`microscope_options`).
 MICROSCOPE_META = "plenodecode.microscope_inputs"
 #: ``--option`` -> (MicroscopeOptics field, help) of the microscope optics options.
@@ -197,7 +230,9 @@ def input_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     """The input options of every command that reads a raw: the calibration (``--calibration/-g``,
     ``--white/-w``, ``--database``, ``--self-calibrate``; see :func:`plenodecode.pipeline.choose_calibration`),
     the RayCalibData XML of a Raytrix image (``--raytrix-xml``), how to read an image mosaic
-    (:func:`mosaic_options`), and a microscope's dark frame and optics (:func:`microscope_options`)."""
+    (:func:`mosaic_options`), a microscope's dark frame and optics (:func:`microscope_options`), and the
+    geometric calibration that rectifies (``--geometry``, :func:`current_geometry`)."""
+    fn = geometry_option(fn)
     fn = microscope_options(fn)
     fn = mosaic_options(fn)
     fn = raytrix_xml_option(fn)
@@ -218,11 +253,12 @@ def calibration_kwargs(calibration: Path | None, white: Path | None, database: P
                        self_calibrate: bool) -> dict[str, Any]:
     """The command's input options as keywords of :func:`plenodecode.pipeline.open_source`: the calibration
     (the keywords of :func:`~plenodecode.pipeline.choose_calibration`), ``mosaic`` (:func:`current_mosaic_options`),
-    ``raytrix_xml`` (``--raytrix-xml``), and ``dark`` and ``optics`` (:func:`current_microscope_inputs`)."""
+    ``raytrix_xml`` (``--raytrix-xml``), ``dark`` and ``optics`` (:func:`current_microscope_inputs`) and
+    ``geometry`` (``--geometry``, :func:`current_geometry`)."""
     ctx = click.get_current_context(silent=True)
     return {"grid": calibration, "white": white, "database": database, "self_calibrate": self_calibrate,
             "mosaic": current_mosaic_options(), "raytrix_xml": None if ctx is None else ctx.meta.get(RAYTRIX_XML_META),
-            **current_microscope_inputs()}
+            "geometry": current_geometry(), **current_microscope_inputs()}
 
 
 @contextlib.contextmanager

@@ -41,8 +41,10 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
 
     The lenslet grid comes from --calibration, from --white (calibrated on the fly), from the camera's
     own calibration (Raytrix XML), or from the calibration database (--database, default ./calib) by
-    camera serial, zoom and focus; an image mosaic without a sidecar is self-calibrated.  A focused-plenoptic
-    (Raytrix) raw is refused (exit 2) unless --views-anyway: render it with 'plenodecode render RAW --total-focus'.
+    camera serial, zoom and focus; an image mosaic without a sidecar is self-calibrated.  With --geometry the
+    light field is rectified (undistorted pinhole views) and carries the calibrated ray model for metric depth.
+    A focused-plenoptic (Raytrix) raw is refused (exit 2) unless --views-anyway: render it with
+    'plenodecode render RAW --total-focus'.
 
     \b
     Examples:
@@ -50,8 +52,9 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
       plenodecode decode scene.lfr -g grid.json -w MOD_0000.RAW -o views/ --format views --bit-depth 8
       plenodecode decode lf.png -w white.png --dark dark.tif -o lf.mat
       plenodecode decode IMG_1.jpg -o lf.zarr
+      plenodecode decode scene.lfr --geometry CalInfo.json -o rectified.zarr
     """
-    from ..pipeline import choose_calibration, decode_raw, open_raw, read_dark_frame, write_lightfield
+    from ..pipeline import check_geometry, choose_calibration, decode_raw, open_raw, read_dark_frame, write_lightfield
 
     if database is not None and (calibration is not None or white is not None):
         raise click.UsageError("--database cannot be combined with --calibration or --white")
@@ -59,18 +62,22 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
         raise click.BadParameter("must be a positive odd number", param_hint="--views")
     name = lightfield_output_format(output, fmt, overwrite)
     inputs = calibration_kwargs(calibration, white, database, self_calibrate)
-    dark, optics = inputs.pop("dark"), inputs.pop("optics")
+    dark, optics, geometry = inputs.pop("dark"), inputs.pop("optics"), inputs.pop("geometry")
     raw = open_raw(raw_path, mosaic=inputs["mosaic"], raytrix_xml=inputs.pop("raytrix_xml"), optics=optics)
     cal = choose_calibration(raw, **inputs)
     if cal.grid.lens_type is not None and not views_anyway:
         raise click.UsageError(f"{raw_path.name} is a focused-plenoptic (Raytrix) raw: its micro-images are small "
                                f"pictures, not a light field of views; render it with 'plenodecode render {raw_path} "
                                "--total-focus -o photo.png' (or pass --views-anyway)")
+    if geometry is not None:
+        check_geometry(geometry, calibration=cal, n_views=n_views)
     lf = decode_raw(raw, cal, dark=read_dark_frame(dark, inputs["mosaic"]), demosaic=demosaic, colour=colour,
-                    n_views=n_views, hot_pixels=not no_hot_pixels, progress=progress_bar("decoding", ctx))
+                    n_views=n_views, hot_pixels=not no_hot_pixels, progress=progress_bar("decoding", ctx),
+                    geometry=geometry)
     with usage_errors():
         out = write_lightfield(lf, output, format=name, bit_depth=int(bit_depth), overwrite=overwrite,
                                progress=progress_bar(f"writing {name}", ctx))
     if not quiet(ctx):
         V, U, Y, X, C = lf.shape
-        click.echo(f"wrote {out} ({name}: {V}x{U} views of {Y}x{X}x{C}, colour {lf.colour})")
+        rectified = ", rectified" if lf.geometry.ray_model else ""
+        click.echo(f"wrote {out} ({name}: {V}x{U} views of {Y}x{X}x{C}, colour {lf.colour}{rectified})")

@@ -16,7 +16,7 @@ import sys
 import click
 
 from .. import __version__, _numba
-from ..errors import PlenodecodeError
+from ..errors import GeometryMismatchError, PlenodecodeError
 
 #: command name -> (module, one-line description shown by --help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -61,6 +61,8 @@ class LazyGroup(click.Group):
     def invoke(self, ctx: click.Context):
         try:
             return super().invoke(ctx)
+        except GeometryMismatchError as exc:      # checked before any decoding: a usage error like a bad file
+            raise click.BadParameter(str(exc), param_hint="--geometry") from None
         except PlenodecodeError as exc:
             if ctx.obj and ctx.obj.get("verbose", 0) > 0:
                 raise

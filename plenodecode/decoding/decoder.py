@@ -15,6 +15,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import CalibrationError, DecodeError
+from ..raymodel import GeometricCalibration
 from ..registry import lookup
 from ..types import LensletGrid, LightField, LightFieldGeometry, RawCapture
 from . import colour as _colour
@@ -22,6 +23,7 @@ from . import devignette as _dv
 from .demosaic import DEMOSAIC_METHODS
 from .demosaic import demosaic as _demosaic
 from .devignette import DEFAULT_FLOOR, normalise, relative_white, repair_hot_pixels
+from .rectify import rectify
 from .resample import RESAMPLE_METHODS, hex_to_rect, output_shape
 from .slice import lens_labels, plan_bands, safe_radius, sample_lenses, view_offsets
 
@@ -85,7 +87,8 @@ def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray
            dark: RawCapture | np.ndarray | None = None, demosaic: str = DEFAULT_DEMOSAIC,
            colour: str = "linear-srgb", n_views: int | None = None, hot_pixels: bool = True,
            resample: str = "cubic", floor: float = DEFAULT_FLOOR, workers: int | None = None,
-           progress: Callable[[int, int], None] | None = None) -> LightField:
+           progress: Callable[[int, int], None] | None = None, geometry: GeometricCalibration | None = None
+           ) -> LightField:
     """Decode a raw lenslet image into a 4D light field.
 
     Parameters
@@ -118,6 +121,10 @@ def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray
         Threads (default: all cores).
     progress : callable(done, total), optional
         Called after each band of lens rows.
+    geometry : GeometricCalibration, optional
+        Rectify the decoded light field with this geometric calibration
+        (:func:`plenodecode.decoding.rectify.rectify`: undistorted pinhole views, ``geometry.ray_model``
+        set); its ``lf_shape`` must be the decoded ``(V, U, Y, X)``.
 
     Returns
     -------
@@ -128,13 +135,13 @@ def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray
     Raises
     ------
     CalibrationError
-        The grid was fitted on another sensor size.
+        The grid was fitted on another sensor size; ``geometry`` is for another light-field shape.
     DecodeError
         White or dark frame of the wrong size or with NaNs.
     """
     return decode_timed(raw, grid, white=white, dark=dark, demosaic=demosaic, colour=colour, n_views=n_views,
                         hot_pixels=hot_pixels, resample=resample, floor=floor, workers=workers,
-                        progress=progress, timings=None)
+                        progress=progress, timings=None, geometry=geometry)
 
 
 def decode_timed(raw: RawCapture, grid: LensletGrid, *, timings: dict[str, float] | None, **kw) -> LightField:
@@ -148,7 +155,7 @@ def decode_timed(raw: RawCapture, grid: LensletGrid, *, timings: dict[str, float
 
 def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosaic: str = DEFAULT_DEMOSAIC,
             colour: str = "linear-srgb", n_views=None, hot_pixels: bool = True, resample: str = "cubic",
-            floor: float = DEFAULT_FLOOR, workers=None, progress=None, timings=None) -> LightField:
+            floor: float = DEFAULT_FLOOR, workers=None, progress=None, timings=None, geometry=None) -> LightField:
     t_wall, t_cpu = time.perf_counter(), time.process_time()
     if not isinstance(raw, RawCapture):
         raise ValueError(f"raw must be a RawCapture, got {type(raw).__name__}")
@@ -288,6 +295,7 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
         timings["total cpu"] = timings.get("total cpu", 0.0) + time.process_time() - t_cpu
         timings["wall"] = timings.get("wall", 0.0) + time.perf_counter() - t_wall
 
+    calibration = geometry
     s = grid.decoded_sampling()
     geometry = LightFieldGeometry.from_camera(raw.metadata, grid.to_dict(), spatial_step_px=float(s["step"]),
                                               view_step_px=1.0, source=raw.path)
@@ -302,7 +310,8 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
         "dark_subtracted": dark_p is not None,
         "hot_pixels_repaired": int(n_hot),
     }
-    return LightField(data=data, weight=weight, colour=colour_state, metadata=provenance, geometry=geometry)
+    lf = LightField(data=data, weight=weight, colour=colour_state, metadata=provenance, geometry=geometry)
+    return lf if calibration is None else rectify(lf, calibration)
 
 
 __all__ = ["decode", "decode_timed", "DEMOSAIC_METHODS", "RESAMPLE_METHODS", "DEFAULT_DEMOSAIC"]

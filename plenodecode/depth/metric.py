@@ -31,6 +31,32 @@ spatial sample is ``Dx = lens_pitch_m * spatial_step_px / lens_pitch_px`` on the
 (the ``K`` of :func:`plenodecode.render.alpha.slope_per_alpha_unit`, ``alpha = b' / b``).  Eliminating
 ``b'`` gives ``1/Z = 1/Z_f + d / (K b)``, so ``G = K b``.
 
+Calibrated, rectified light field (Dansereau et al. 2013; :mod:`plenodecode.decoding.rectify`)
+-------------------------------------------------------------------------------------------
+A light field rectified with a geometric calibration carries its ray model ``H_rect`` in
+``lf.geometry.ray_model``: sample ``n = [i, j, k, l, 1]`` records the ray ``(s, t, u, v) = H_rect n``, the
+line ``(s + u z, t + v z, z)`` of the calibration's camera frame (z along the optical axis, m).  Along x,
+``s = a i + b k + s0`` and ``u = c i + e k + u0`` (``a, b, c, e = H_rect[0, 0], [0, 2], [2, 0], [2, 2]``;
+y alike, and equal: the views are square).  A point ``(x, y, z)`` appears in view ``i`` at the ``k`` with
+``s + u z = x``::
+
+    k = (x - s0 - u0 z - (a + c z) i) / (b + e z),   dk/di = -(a + c z) / (b + e z)
+
+The HCI convention has the point at ``k_c - d (i - i_c)`` in view ``i``, so
+
+    d = (a + c z) / (b + e z)        z = (a - b d) / (e d - c)
+
+the same at every pixel (one pinhole per view).  All rays of one view cross at ``z_0 = -b / e`` (where
+``b + e z = 0``): the views' common pinhole plane (the main lens).  Counted from there, ``z' = z - z_0``,
+``d = c / e + (a e - b c) / (e^2 z')``, i.e. the form above, exact::
+
+    1 / z' = 1 / Z_f + d / G,   G = (a e - b c) / e^2,   Z_f = -(a e - b c) / (c e)
+
+(``Z_f + z_0 = -a / c`` is where ``d = 0``).  :func:`depth_constants` returns this ``(G, Z_f)`` (model
+'calibrated'; distances from the pinhole plane, as the focus distances of :mod:`plenodecode.render.alpha`),
+:func:`disparity_to_depth` adds ``z_0`` back: its depth is the calibration's ``z`` (the frame of the board
+poses).  :func:`depth_to_points` intersects the centre view's rays ``H_rect n`` with ``z``.
+
 Every constant is read from ``lf.geometry`` (:class:`plenodecode.types.LightFieldGeometry`; an HCI scene's
 ``parameters.cfg`` is ``lf.geometry.hci``) unless a keyword overrides it.
 
@@ -264,12 +290,36 @@ def microscope_constants(lf: LightField, **overrides: float) -> tuple[float, flo
     return dx / math.tan(dtheta), dx
 
 
+def calibrated_constants(lf: LightField) -> tuple[float, float, float]:
+    """``(G, Z_f, z_0)`` of a rectified light field from ``lf.geometry.ray_model`` (module docstring):
+    ``1 / (z - z_0) = 1 / Z_f + d / G``, ``z`` in the calibration's camera frame (m).
+
+    Raises
+    ------
+    MetadataError
+        The light field carries no rectified ray model, or one whose views look nowhere (``a e = b c``).
+    """
+    model = lf.geometry.ray_model or {}
+    if not model.get("rectified"):
+        raise MetadataError("calibrated metric depth needs a rectified light field; decode with --geometry CAL.json")
+    h = np.asarray(model["intrinsics"], np.float64)
+    a, b, c, e = h[0, 0], h[0, 2], h[2, 0], h[2, 2]
+    det = a * e - b * c
+    if det == 0.0 or c == 0.0 or e == 0.0:
+        raise MetadataError(f"the light field's ray model gives no depth from disparity (H_rect entries a={a:g}, "
+                            f"b={b:g}, c={c:g}, e={e:g}); rectify with a valid geometric calibration")
+    return det / (e * e), -det / (c * e), -b / e
+
+
 def depth_model(lf: LightField, overrides: Mapping[str, Any] | None = None) -> str:
-    """The conversion that applies to ``lf``: 'hci' (``lf.geometry.hci``), 'microscope' (``lf.geometry.microscope``
-    or a microscope override) or 'plenoptic'."""
+    """The conversion that applies to ``lf``: 'hci' (``lf.geometry.hci``), 'calibrated' (a rectified light field:
+    ``lf.geometry.ray_model``), 'microscope' (``lf.geometry.microscope`` or a microscope override) or
+    'plenoptic'."""
     overrides = overrides or {}
     if lf.geometry.hci is not None:
         return "hci"
+    if (lf.geometry.ray_model or {}).get("rectified"):
+        return "calibrated"
     if lf.geometry.microscope is not None or any(k in OPTICS_OPTIONS and k not in PLENOPTIC_KEYS for k in overrides):
         return "microscope"
     return "plenoptic"
@@ -295,6 +345,12 @@ def depth_constants(lf: LightField, **overrides: float) -> tuple[float, float, s
                              f"{', '.join(MICROSCOPE_KEYS)}{hint}")
         k, _ = microscope_constants(lf, **overrides)
         return -k, 0.0, model
+    if model == "calibrated":
+        if overrides:
+            raise ValueError(f"unknown override(s) {sorted(overrides)}: a rectified light field's metric geometry "
+                             "comes from its calibration (--geometry) alone")
+        g, zf, _ = calibrated_constants(lf)
+        return g, zf, model
     hci = lf.geometry.hci
     if hci is not None:
         bad = set(overrides) - set(HCI_KEYS)
@@ -330,7 +386,7 @@ def disparity_to_depth(depth_map: Any, lf: LightField, **overrides: float) -> np
     Returns
     -------
     ndarray (Y, X) float32
-        Depth in metres; ``inf`` where the disparity lies at or beyond infinity (``d <= -G / Z_f``),
+        Depth in metres (a rectified light field: the calibration's ``z``); ``inf`` where the disparity lies at or beyond infinity (``d <= -G / Z_f``),
         NaN where the disparity is NaN.  Microscope: signed, 0 at the native object plane, positive away
         from the objective.
 
@@ -349,6 +405,8 @@ def disparity_to_depth(depth_map: Any, lf: LightField, **overrides: float) -> np
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.where(inv > 0, 1.0 / inv, np.inf)
     z = np.where(np.isnan(d), np.nan, z)
+    if model == "calibrated":
+        z = z + calibrated_constants(lf)[2]
     log.debug("disparity_to_depth (%s): G = %.6g px m, Z_f = %.4g m", model, g, zf)
     return z.astype(np.float32)
 
@@ -367,6 +425,8 @@ def focal_length_px(lf: LightField, **overrides: float) -> float:
     if model == "hci":
         b_m = _positive("baseline_mm", overrides.get("baseline_mm", lf.geometry.hci.baseline_mm))
         return g / (b_m / 1000.0)
+    if model == "calibrated":                     # x = (k - k_c) e (z - z_0) about the centre ray
+        return 1.0 / abs(float(lf.geometry.ray_model["intrinsics"][2][2]))
     c = _camera_constants(lf, overrides)
     geometry = lf.geometry
     pitch_px = (geometry.calibration or {}).get("pitch")
@@ -401,6 +461,13 @@ def depth_to_points(depth: np.ndarray, lf: LightField, **overrides: float) -> np
         _, dx = microscope_constants(lf, **overrides)
         pts = np.stack([(xx - (w - 1) / 2.0) * dx, (yy - (h - 1) / 2.0) * dx, z], axis=-1)
         return np.where(np.isfinite(z)[..., None], pts, np.nan).astype(np.float32)
+    if depth_model(lf, overrides) == "calibrated":          # the centre view's rays H_rect n at depth z
+        h = np.asarray(lf.geometry.ray_model["intrinsics"], np.float64)
+        vc, uc = lf.centre_index
+        n = np.stack([np.full_like(xx, uc), np.full_like(xx, vc), xx, yy], axis=-1)
+        rays = n @ h[:4, :4].T + h[:4, 4]
+        pts = np.stack([rays[..., 0] + rays[..., 2] * z, rays[..., 1] + rays[..., 3] * z, z], axis=-1)
+        return np.where(np.isfinite(z)[..., None], pts, np.nan).astype(np.float32)
     f = focal_length_px(lf, **overrides)
     pts = np.stack([(xx - (w - 1) / 2.0) * z / f, (yy - (h - 1) / 2.0) * z / f, z], axis=-1)
     return pts.astype(np.float32)
@@ -413,10 +480,12 @@ def depth_to_disparity(depth: np.ndarray, lf: LightField, **overrides: float) ->
     g, zf, model = depth_constants(lf, **overrides)
     if model == "microscope":
         return (z / g).astype(np.float32)
+    if model == "calibrated":
+        z = z - calibrated_constants(lf)[2]
     with np.errstate(divide="ignore"):
         return (g * (1.0 / z - 1.0 / zf)).astype(np.float32)
 
 
 __all__ = ["disparity_to_depth", "depth_to_disparity", "focal_length_px", "depth_to_points", "depth_constants",
-           "hci_constants", "plenoptic_constants", "microscope_constants", "depth_model", "depth_unit",
+           "hci_constants", "plenoptic_constants", "calibrated_constants", "microscope_constants", "depth_model", "depth_unit",
            "MICROSCOPE_KEYS"]

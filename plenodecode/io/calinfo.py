@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -81,7 +82,8 @@ def load_geometric_calibration(path: str | os.PathLike):
     try:
         if isinstance(doc, dict) and all(k in doc for k in TOOLBOX_KEYS):
             return _from_toolbox(doc, str(p))
-        return GeometricCalibration.from_dict(doc)
+        cal = GeometricCalibration.from_dict(doc)
+        return replace(cal, info={**cal.info, "source": str(p)})      # as the toolbox's: the file read
     except (KeyError, TypeError, ValueError) as exc:
         raise FormatError(f"{p}: not a geometric calibration ({exc})") from exc
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 from .inputs import (LIGHTFIELD_EXTENSIONS, IMAGE_EXTENSIONS, BIT_DEPTHS, INPUT_READERS, input_kind, is_hci_folder,
                      is_lightfield_path, open_input, open_raw, with_optics, read_dark_frame)
 from .calibration import Calibration, choose_calibration
-from .source import Source, decode_raw, load_lightfield_input, open_source
+from .source import Source, check_geometry, decode_raw, load_lightfield_input, open_source
 from .products import (MAX_STACK_SLICES, PRODUCTS, STACK_UNITS, Rendered, virtual_depth_stem, render_product,
                        check_total_focus_patch, view_names, refocus_stem, focal_stack_names, parallax_frame_names)
 from .output import (display_encoding, default_extension, write_image_file, refuse_folder_clash, staged_folder,
@@ -38,7 +38,7 @@ from .output import (display_encoding, default_extension, write_image_file, refu
 __all__ = [
     "LIGHTFIELD_EXTENSIONS", "IMAGE_EXTENSIONS", "BIT_DEPTHS", "MAX_STACK_SLICES", "INPUT_READERS", "PRODUCTS",
     "STACK_UNITS", "Calibration", "Source", "Rendered", "input_kind", "is_hci_folder", "is_lightfield_path",
-    "open_input", "choose_calibration", "decode_raw", "open_raw", "open_source", "with_optics",
+    "open_input", "choose_calibration", "check_geometry", "decode_raw", "open_raw", "open_source", "with_optics",
     "read_dark_frame", "virtual_depth_stem", "load_lightfield_input", "render_product",
     "check_total_focus_patch", "display_encoding", "default_extension", "write_image_file",
     "refuse_folder_clash", "staged_folder", "write_product", "write_parallax", "write_depth",

@@ -17,6 +17,7 @@ from .calibration import Calibration, choose_calibration
 if TYPE_CHECKING:
     from ..io.mosaic_levels import MosaicOptions
     from ..optics import MicroscopeOptics
+    from ..raymodel import GeometricCalibration
 
 log = logging.getLogger(__name__)
 
@@ -39,11 +40,14 @@ class Source:
         ``hot_pixels``, ``workers``).
     progress : callable(done, total), optional
         Progress of the decoding.
+    geometry : GeometricCalibration, optional
+        Rectify the light field (:func:`plenodecode.decoding.rectify.rectify`) on first use; its shape is
+        checked now (:func:`check_geometry`), before any work.
     """
 
     def __init__(self, *, lightfield: LightField | None = None, raw: RawCapture | None = None,
                  calibration: Calibration | None = None, decode_options: Mapping[str, Any] | None = None,
-                 progress: Progress = None) -> None:
+                 progress: Progress = None, geometry: GeometricCalibration | None = None) -> None:
         if (lightfield is None) == (raw is None):
             raise ValueError("pass exactly one of lightfield and raw")
         if raw is not None and calibration is None:
@@ -52,13 +56,24 @@ class Source:
         self.calibration = calibration
         self.decode_options = dict(decode_options or {})
         self.progress = progress
-        if lightfield is not None:
+        self.geometry = geometry
+        self._input = lightfield
+        if geometry is not None:
+            check_geometry(geometry, lightfield=lightfield, calibration=calibration,
+                           n_views=self.decode_options.get("n_views"))
+        elif lightfield is not None:
             self.__dict__["lightfield"] = lightfield
 
     @cached_property
     def lightfield(self) -> LightField:
-        """The light field (V, U, Y, X, C) float32: the input itself, or the raw decoded."""
-        return decode_raw(self.raw, self.calibration, progress=self.progress, **self.decode_options)
+        """The light field (V, U, Y, X, C) float32: the input itself, or the raw decoded; rectified with
+        :attr:`geometry` when given."""
+        if self.raw is None:
+            from ..decoding.rectify import rectify
+
+            return rectify(self._input, self.geometry, progress=self.progress)
+        return decode_raw(self.raw, self.calibration, progress=self.progress, geometry=self.geometry,
+                          **self.decode_options)
 
     @property
     def focused(self) -> bool:
@@ -66,9 +81,28 @@ class Source:
         return self.raw is not None and self.calibration.grid.lens_type is not None
 
 
+def check_geometry(geometry: GeometricCalibration, *, lightfield: LightField | None = None,
+                   calibration: Calibration | None = None, n_views: int | None = None) -> None:
+    """Refuse a geometric calibration made for light fields of another shape than ``lightfield`` (or one
+    already rectified) or than the raw decoded with ``calibration`` and ``n_views`` will have
+    (:class:`~plenodecode.errors.GeometryMismatchError`; nothing is decoded)."""
+    from ..decoding.rectify import check_shape, decoded_shape
+    from ..errors import GeometryMismatchError
+
+    if lightfield is not None:
+        if (lightfield.geometry.ray_model or {}).get("rectified"):
+            raise GeometryMismatchError("the light field is already rectified (it carries its calibrated ray "
+                                        "model); use it without --geometry")
+        check_shape(geometry, lightfield.shape, "light field")
+    else:
+        check_shape(geometry, decoded_shape(calibration.grid, n_views), "decoded light field")
+
+
 def decode_raw(raw: RawCapture, calibration: Calibration, *, progress: Progress = None,
-               **decode_options: Any) -> LightField:
-    """Decode ``raw`` with ``calibration`` (:func:`plenodecode.decoding.decode`; devignetted by its white).
+               geometry: GeometricCalibration | None = None, **decode_options: Any) -> LightField:
+    """Decode ``raw`` with ``calibration`` (:func:`plenodecode.decoding.decode`; devignetted by its white),
+    rectified with ``geometry`` when given (a geometric calibration,
+    :func:`plenodecode.decoding.rectify.rectify`).
     A Raytrix RGB export is decoded channel by channel from its linear sRGB values (colour 'linear-srgb').
 
     Returns
@@ -81,7 +115,8 @@ def decode_raw(raw: RawCapture, calibration: Calibration, *, progress: Progress 
 
     log.info("decoding %s", raw.path)
     if not is_rgb_export(raw):
-        return decode(raw, calibration.grid, white=calibration.white, progress=progress, **decode_options)
+        return decode(raw, calibration.grid, white=calibration.white, progress=progress, geometry=geometry,
+                      **decode_options)
     # a Raytrix RGB export (already demosaiced, sRGB): its linear channels decoded one by one, stacked as C = 3
     import numpy as np
 
@@ -90,7 +125,12 @@ def decode_raw(raw: RawCapture, calibration: Calibration, *, progress: Progress 
     planes = [decode(plane, calibration.grid, white=w, progress=progress, **decode_options)
               for plane, w in zip(rgb_export_channels(raw), whites)]
     state = "camera" if decode_options.get("colour") == "camera" else "linear-srgb"
-    return planes[0].replace(data=np.concatenate([lf.data for lf in planes], axis=-1), colour=state)
+    lf = planes[0].replace(data=np.concatenate([lf.data for lf in planes], axis=-1), colour=state)
+    if geometry is None:
+        return lf
+    from ..decoding.rectify import rectify
+
+    return rectify(lf, geometry, progress=progress)
 
 
 def open_source(path: str | os.PathLike, *, grid: str | os.PathLike | None = None,
@@ -98,21 +138,23 @@ def open_source(path: str | os.PathLike, *, grid: str | os.PathLike | None = Non
                 self_calibrate: bool = False, mosaic: MosaicOptions | None = None,
                 raytrix_xml: str | os.PathLike | None = None,
                 dark: str | os.PathLike | RawCapture | None = None, optics: MicroscopeOptics | None = None,
-                decode_options: Mapping[str, Any] | None = None, progress: Progress = None) -> Source:
+                decode_options: Mapping[str, Any] | None = None, progress: Progress = None,
+                geometry: GeometricCalibration | None = None) -> Source:
     """:func:`open_input`, then for a raw :func:`choose_calibration`; the decoding waits for first use.
 
     The calibration, ``mosaic``, ``raytrix_xml`` and ``dark`` (a dark frame, :func:`read_dark_frame`, handed to
-    the decoding) options apply to raws only; ``optics`` to every input (:func:`open_input`).
+    the decoding) options apply to raws only; ``optics`` to every input (:func:`open_input`); ``geometry`` (a
+    geometric calibration: rectify) to raws and light fields, its shape checked here (:func:`check_geometry`).
     """
     item = open_input(path, mosaic=mosaic, raytrix_xml=raytrix_xml, optics=optics)
     if isinstance(item, LightField):
-        return Source(lightfield=item)
+        return Source(lightfield=item, geometry=geometry)
     cal = choose_calibration(item, grid=grid, white=white, database=database, self_calibrate=self_calibrate,
                              mosaic=mosaic)
     options = dict(decode_options or {})
     if dark is not None:
         options["dark"] = read_dark_frame(dark, mosaic)
-    return Source(raw=item, calibration=cal, decode_options=options, progress=progress)
+    return Source(raw=item, calibration=cal, decode_options=options, progress=progress, geometry=geometry)
 
 
 def load_lightfield_input(path: str | os.PathLike, **options: Any) -> LightField:

@@ -33,8 +33,9 @@ kernels), :mod:`.scene` (planes, textures, radiance), :mod:`.sensor` (disk respo
 vignetting, noise, rendering the mosaic), :mod:`.truth` (:class:`Simulation`, ground-truth
 files), :mod:`.thin` (thin-structure scenes), :mod:`.archives` (white images in the cameras' calibration
 archives), :mod:`.focused` (the focused camera), :mod:`.forward` (:func:`simulate`, :func:`simulate_ideal`,
-:func:`simulate_white`).  Importing the package loads only :mod:`.presets`; the other names load on first
-access.
+:func:`simulate_white`), :mod:`.checkerboard` (checkerboard captures with geometric ground truth through
+the ray model of :mod:`plenodecode.raymodel`).  Importing the package loads only :mod:`.presets`; the
+other names load on first access.
 """
 
 from ..registry import lazy_exports
@@ -52,6 +53,8 @@ _LAZY = {
                     "plenodecode.synthetic.truth"),
     **dict.fromkeys(["THIN_SCENES", "thin_scene"], "plenodecode.synthetic.thin"),
     **dict.fromkeys(["ARCHIVE_KINDS", "WrittenArchive", "write_calibration_archive"], "plenodecode.synthetic.archives"),
+    **dict.fromkeys(["Board", "board_lightfield", "board_corners", "default_intrinsics"],
+                    "plenodecode.synthetic.checkerboard"),
 }
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY)
@@ -60,4 +63,5 @@ __all__ = ["Preset", "PRESETS", "get_preset", "make_grid", "raytrix_lens_types",
            "disk_response", "vignetting", "simulate_white", "simulate_ideal", "Simulation", "simulate",
            "write_simulation", "simulation_files", "truth_document", "Truth", "load_truth", "SUBSAMPLES", "BAND_ROWS",
            "Plane", "Scene", "default_scene", "dot_chart", "THIN_SCENES", "thin_scene", "ARCHIVE_KINDS",
-           "WrittenArchive", "write_calibration_archive"]
+           "WrittenArchive", "write_calibration_archive", "Board", "board_lightfield", "board_corners",
+           "default_intrinsics"]

@@ -200,4 +200,47 @@ def sensor_band_kernel(r0, out, origin_r, origin_c, cos_t, sin_t, pitch, rs, shi
             out[rr, col] = sig
 
 
-__all__ = ["SUBSAMPLES", "box_radiance_kernel", "sensor_band_kernel"]
+@njit(parallel=True, cache=True)
+def board_radiance_kernel(samples, offsets, h, distortion, rot, trans, rows, cols, square, margin, levels, out):
+    """Mean checkerboard radiance over each sample's footprint: the compiled twin of
+    :func:`plenodecode.synthetic.checkerboard.board_radiance_numpy` (samples (N, 4), offsets (M, 4),
+    ``H`` (5, 5), distortion (5,), board rotation (3, 3) and translation (3,), levels (dark, light, grey))."""
+    n = samples.shape[0]
+    m = offsets.shape[0]
+    k1, k2, k3, b1, b2 = distortion[0], distortion[1], distortion[2], distortion[3], distortion[4]
+    nx, ny, nz = rot[0, 2], rot[1, 2], rot[2, 2]
+    lo = -1.0 - margin
+    for p in numba.prange(n):
+        acc = 0.0
+        for q in range(m):
+            n0 = samples[p, 0] + offsets[q, 0]
+            n1 = samples[p, 1] + offsets[q, 1]
+            n2 = samples[p, 2] + offsets[q, 2]
+            n3 = samples[p, 3] + offsets[q, 3]
+            s = h[0, 0] * n0 + h[0, 1] * n1 + h[0, 2] * n2 + h[0, 3] * n3 + h[0, 4]
+            t = h[1, 0] * n0 + h[1, 1] * n1 + h[1, 2] * n2 + h[1, 3] * n3 + h[1, 4]
+            cu = h[2, 0] * n0 + h[2, 1] * n1 + h[2, 2] * n2 + h[2, 3] * n3 + h[2, 4] - b1
+            cv = h[3, 0] * n0 + h[3, 1] * n1 + h[3, 2] * n2 + h[3, 3] * n3 + h[3, 4] - b2
+            r2 = cu * cu + cv * cv
+            f = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+            du = f * cu + b1
+            dv = f * cv + b2
+            along = du * nx + dv * ny + nz
+            value = levels[2]
+            if abs(along) > 1e-12:
+                z = ((trans[0] - s) * nx + (trans[1] - t) * ny + trans[2] * nz) / along
+                if z > 0.0:
+                    hx = s + z * du - trans[0]
+                    hy = t + z * dv - trans[1]
+                    hz = z - trans[2]
+                    x = (hx * rot[0, 0] + hy * rot[1, 0] + hz * rot[2, 0]) / square
+                    y = (hx * rot[0, 1] + hy * rot[1, 1] + hz * rot[2, 1]) / square
+                    if lo <= x < cols + margin and lo <= y < rows + margin:
+                        value = levels[1]
+                        if -1.0 <= x < cols and -1.0 <= y < rows and (math.floor(x) + math.floor(y)) % 2 == 0:
+                            value = levels[0]
+            acc += value
+        out[p] = acc / m
+
+
+__all__ = ["SUBSAMPLES", "box_radiance_kernel", "sensor_band_kernel", "board_radiance_kernel"]
