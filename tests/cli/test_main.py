@@ -69,3 +69,11 @@ def test_command_help_imports_neither_numba_nor_opencv(name):
             "print(sorted({m.split('.')[0] for m in sys.modules} & {'numba', 'cv2'}))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]", f"plenodecode {name} --help imports {out.strip()}"
+
+
+def test_python_dash_m_runs_the_same_command_line():
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "plenodecode", "--version"], capture_output=True, text=True, check=True)
+    assert out.stdout.startswith("plenodecode") and out.stdout.strip().split()[-1][0].isdigit()
