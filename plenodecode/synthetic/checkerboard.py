@@ -39,11 +39,11 @@ from ..raymodel import (GeometricCalibration, board_points, check_distortion, ch
                         project_points, rotation_matrix, sample_rays)
 from ..io.atomic import refuse_existing
 from ..types import LensletGrid, LightField, RawCapture, cfa_channel_map
-from .forward import simulate_white
+from .forward import _metadata, _resolve, simulate_white
 from .kernels import SUBSAMPLES, board_radiance_kernel
 from .lattice import assign_pixels
 from .presets import Preset, get_preset
-from .sensor import Progress, render_sensor
+from .sensor import Progress, levels, render_sensor
 from .truth import simulation_files, write_camera_file
 
 #: Linear radiance of the board's dark squares, light squares (and margin) and the grey beyond.
@@ -550,9 +550,10 @@ def sample_poses(calibration: GeometricCalibration, board: Board, n_poses: int, 
 
 def simulate_checkerboard_set(preset: str | Preset, board: Board | Sequence[float], n_captures: int = 12, *,
                               intrinsics: np.ndarray | None = None, distortion: Any = None, seed: int = 0,
-                              shape: tuple[int, int] | None = None, distances: tuple[float, float] = SET_DISTANCES,
-                              max_tilt: float = SET_MAX_TILT, noise: bool = True, supersample: int = 4,
-                              progress: Progress = None) -> CheckerboardSet:
+                              shape: tuple[int, int] | None = None, pitch: float | None = None,
+                              rotation: float | None = None, offset: tuple[float, float] | None = None,
+                              distances: tuple[float, float] = SET_DISTANCES, max_tilt: float = SET_MAX_TILT,
+                              noise: bool = True, supersample: int = 4, progress: Progress = None) -> CheckerboardSet:
     """Simulate a geometric calibration set: ``n_captures`` raws of a checkerboard at varied poses.
 
     Each raw is :func:`render_board_mosaic` of the board at one pose of :func:`sample_poses`, through
@@ -574,6 +575,8 @@ def simulate_checkerboard_set(preset: str | Preset, board: Board | Sequence[floa
         Seeds the poses and the noise.
     shape : (H, W), optional
         Sensor size; default :func:`set_sensor_shape` (decoded about :data:`SET_SAMPLES`).
+    pitch, rotation, offset : optional
+        Lattice overrides, as in :func:`~plenodecode.synthetic.simulate`.
     distances : (near, far)
         Range of board distances (m).
     max_tilt : float
@@ -583,14 +586,12 @@ def simulate_checkerboard_set(preset: str | Preset, board: Board | Sequence[floa
     supersample : int
         Spatial footprint points per axis (:func:`footprint_offsets`).
     progress : callable(done, total), optional
-        Called after each raw.
+        Called after each raw and after the white image (``total = n_captures + 1``).
 
     Returns
     -------
     CheckerboardSet
     """
-    from .forward import _metadata
-
     p = get_preset(preset)
     if p.focused:
         raise ValueError(f"preset must be an unfocused camera for a checkerboard set, got {p.name!r} (focused)")
@@ -601,23 +602,27 @@ def simulate_checkerboard_set(preset: str | Preset, board: Board | Sequence[floa
         raise ValueError(f"max_tilt must be in [0, pi/2) rad, got {max_tilt!r}")
     if not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    streams = np.random.SeedSequence(int(seed)).spawn(1 + int(n_captures))
-    white, grid = simulate_white(p, seed=int(seed), noise=noise, shape=set_sensor_shape(p) if shape is None else shape)
+    shape = set_sensor_shape(p) if shape is None else shape
+    p, grid, off = _resolve(p, pitch, rotation, offset, shape)
     grid = pipeline_grid(grid)
     lf_shape = decoded_shape(grid)
     h = default_intrinsics(lf_shape) if intrinsics is None else check_intrinsics(intrinsics)
     camera = GeometricCalibration(intrinsics=h, distortion=check_distortion(distortion), lf_shape=lf_shape)
+    streams = np.random.SeedSequence(int(seed)).spawn(1 + int(n_captures))
     poses = sample_poses(camera, board, int(n_captures), np.random.default_rng(streams[0]), distances=distances,
                          max_tilt=max_tilt)
-    offset = tuple(float(v) for v in p.offset)
     raws = []
     for q, pose in enumerate(poses):
         rng = np.random.default_rng(streams[1 + q]) if noise else None
         mosaic = render_board_mosaic(p, grid, camera, board, pose, rng, supersample=supersample)
-        raws.append(RawCapture(mosaic=mosaic, cfa=p.cfa, black=white.black, white=white.white,
-                               metadata=_metadata(p, grid, white=False, seed=int(seed), offset=offset)))
+        raws.append(RawCapture(mosaic=mosaic, cfa=p.cfa, black=levels(p)[0], white=levels(p)[1],
+                               metadata=_metadata(p, grid, white=False, seed=int(seed), offset=off)))
         if progress is not None:
-            progress(q + 1, len(poses))
+            progress(q + 1, len(poses) + 1)
+    white, _ = simulate_white(p, seed=int(seed), pitch=pitch, rotation=rotation, offset=offset, noise=noise,
+                              shape=shape)
+    if progress is not None:
+        progress(len(poses) + 1, len(poses) + 1)
     info = {"generator": "plenodecode.synthetic.checkerboard", "board": board.to_dict(), "preset": p.name,
             "seed": int(seed), "noise": bool(noise), "sensor_shape": list(grid.sensor_shape)}
     truth = GeometricCalibration(intrinsics=h, distortion=camera.distortion, lf_shape=lf_shape, poses=poses, info=info)
