@@ -51,7 +51,8 @@ _LAZY = {
     **dict.fromkeys(["Simulation", "Truth", "load_truth", "simulation_files", "truth_document", "write_simulation"],
                     "plenodecode.synthetic.truth"),
     **dict.fromkeys(["ARCHIVE_KINDS", "WrittenArchive", "write_calibration_archive"], "plenodecode.synthetic.archives"),
-    **dict.fromkeys(["Board", "board_lightfield", "board_corners", "default_intrinsics"],
+    **dict.fromkeys(["Board", "board_lightfield", "board_corners", "default_intrinsics", "CheckerboardSet",
+                     "simulate_checkerboard_set", "write_checkerboard_set"],
                     "plenodecode.synthetic.checkerboard"),
 }
 
@@ -61,4 +62,5 @@ __all__ = ["Preset", "PRESETS", "get_preset", "make_grid", "raytrix_lens_types",
            "disk_response", "vignetting", "simulate_white", "Simulation", "simulate", "write_simulation",
            "simulation_files", "truth_document", "Truth", "load_truth", "SUBSAMPLES", "BAND_ROWS",
            "Plane", "Scene", "default_scene", "dot_chart", "ARCHIVE_KINDS", "WrittenArchive",
-           "write_calibration_archive", "Board", "board_lightfield", "board_corners", "default_intrinsics"]
+           "write_calibration_archive", "Board", "board_lightfield", "board_corners", "default_intrinsics",
+           "CheckerboardSet", "simulate_checkerboard_set", "write_checkerboard_set"]

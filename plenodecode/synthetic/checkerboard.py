@@ -184,27 +184,10 @@ def board_radiance(intrinsics: np.ndarray, distortion: Any, board: Board, pose: 
 
 
 def board_radiance_numpy(intrinsics: np.ndarray, distortion: Any, board: Board, pose: Sequence[float],
-                   samples: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    """Mean board radiance over the footprint of continuous samples (see the module docstring): the
-    plain-numpy model that :func:`board_radiance` computes with a compiled kernel (same arguments).
-
-    Parameters
-    ----------
-    intrinsics : (5, 5) float64
-        ``H`` (0-based samples).
-    distortion : (5,) or None
-    board : Board
-    pose : [tx, ty, tz, rx, ry, rz]
-    samples : (N, 4) float
-        Continuous ``(i, j, k, l)``.
-    offsets : (M, 4) float
-        Footprint sub-sample offsets (:func:`footprint_offsets`).
-
-    Returns
-    -------
-    (N,) float64
-        ``mean_m value(board point hit by the ray of samples + offsets[m])``.
-    """
+                         samples: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """The plain-numpy model of :func:`board_radiance` (same arguments and result, (N,) float64): every
+    sub-sample's ray (:func:`plenodecode.raymodel.sample_rays`) is met with the board plane as in the module
+    docstring and :func:`board_values` gives its radiance; processed in batches of :data:`_BATCH` rays."""
     h = check_intrinsics(intrinsics)
     dist = check_distortion(distortion)
     pose = np.asarray(pose, dtype=np.float64)
