@@ -69,8 +69,8 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
     out = Path(out_dir)
     if board is not None:
         _checkerboard_set(ctx, preset, out, board=board, captures=12 if captures is None else captures,
-                          distortion=distortion, distances=distances, seed=seed, pitch=pitch, rotation=rotation, offset=offset,
-                          shape=shape, name=name or "board", noise=not no_noise, archive=archive,
+                          distortion=distortion, distances=distances, seed=seed, pitch=pitch, rotation=rotation,
+                          offset=offset, shape=shape, name=name or "board", noise=not no_noise, archive=archive,
                           lightfield=lightfield, overwrite=overwrite)
         return
     for option, value in (("--captures", captures), ("--distortion", distortion), ("--distances", distances)):

@@ -342,7 +342,6 @@ def default_intrinsics(lf_shape: Sequence[int], *, field_of_view: float = 0.18, 
     return check_intrinsics(h)
 
 
-
 # ---------------------------------------------------------------------------------------
 # raws of a preset camera
 # ---------------------------------------------------------------------------------------
@@ -649,7 +648,8 @@ def write_checkerboard_set(cset: CheckerboardSet, out_dir: str | os.PathLike, *,
     save_geometric_calibration(truth, paths["truth"], overwrite=overwrite)
     return paths
 
-__all__ = ["BOARD_LEVELS", "Board", "as_board", "board_values", "footprint_offsets", "board_radiance", "board_radiance_numpy",
+__all__ = ["BOARD_LEVELS", "Board", "as_board", "board_values", "footprint_offsets", "board_radiance",
+           "board_radiance_numpy",
            "board_lightfield", "board_corners", "default_intrinsics", "decoded_shape", "pipeline_grid", "pixel_samples",
            "render_board_mosaic", "SET_SAMPLES", "SET_DISTANCES", "SET_MAX_TILT", "SET_BORDER", "SET_TRUTH_NAME",
            "CheckerboardSet", "set_sensor_shape", "sample_poses", "simulate_checkerboard_set", "write_checkerboard_set"]
