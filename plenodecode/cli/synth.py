@@ -42,12 +42,20 @@ PRESET_CHOICE = RegistryChoice("plenodecode.synthetic.presets", "PRESETS")
               help="With --checkerboard: lens distortion of the simulated camera (toolbox convention) [default: none].")
 @click.option("--distances", type=(POSITIVE, POSITIVE), default=None, metavar="NEAR FAR",
               help="With --checkerboard: range of board distances in m.  [default: 0.3 0.6]")
+@click.option("--geometry", "geometry_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              default=None, help="With --checkerboard: take H and the distortion from this calibration (JSON of "
+                                 "'calibrate-geometry' or a toolbox CalInfo.json) [default: a plausible H for the "
+                                 "decoded shape, no distortion; --distortion overrides the file's].")
+@click.option("--views", "n_views", type=click.IntRange(min=1), default=None,
+              help="With --checkerboard: views per axis of the decoded light fields the truth is for (odd; decode "
+                   "with the same --views) [default: the decoder's].")
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: float | None, rotation: float | None,
             offset: tuple[float, float] | None, shape: tuple[int, int] | None, name: str | None, no_noise: bool,
             lightfield: bool | None, archive: str | None, board: tuple[int, int, float] | None, captures: int | None,
-            distortion: tuple[float, ...] | None, distances: tuple[float, float] | None, overwrite: bool) -> None:
+            distortion: tuple[float, ...] | None, distances: tuple[float, float] | None, geometry_file: Path | None,
+            n_views: int | None, overwrite: bool) -> None:
     """Generate a synthetic plenoptic raw of PRESET with exact ground truth.
 
     Writes the scene raw in the camera's own format (Illum .lfr, F01 .lfp, a 16-bit PNG
@@ -69,11 +77,13 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
     out = Path(out_dir)
     if board is not None:
         _checkerboard_set(ctx, preset, out, board=board, captures=12 if captures is None else captures,
-                          distortion=distortion, distances=distances, seed=seed, pitch=pitch, rotation=rotation,
+                          distortion=distortion, distances=distances, geometry_file=geometry_file, n_views=n_views,
+                          seed=seed, pitch=pitch, rotation=rotation,
                           offset=offset, shape=shape, name=name or "board", noise=not no_noise, archive=archive,
                           lightfield=lightfield, overwrite=overwrite)
         return
-    for option, value in (("--captures", captures), ("--distortion", distortion), ("--distances", distances)):
+    for option, value in (("--captures", captures), ("--distortion", distortion), ("--distances", distances),
+                          ("--geometry", geometry_file), ("--views", n_views)):
         if value is not None:
             raise click.UsageError(f"{option} needs --checkerboard")
     name = name or "scene"
@@ -106,7 +116,8 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
 
 
 def _checkerboard_set(ctx: click.Context, preset: str, out: Path, *, board: tuple[int, int, float], captures: int,
-                      distortion: tuple[float, ...] | None, distances: tuple[float, float] | None, seed: int,
+                      distortion: tuple[float, ...] | None, distances: tuple[float, float] | None,
+                      geometry_file: Path | None, n_views: int | None, seed: int,
                       pitch: float | None, rotation: float | None, offset: tuple[float, float] | None,
                       shape: tuple[int, int] | None, name: str, noise: bool, archive: str | None,
                       lightfield: bool | None, overwrite: bool) -> None:
@@ -120,6 +131,19 @@ def _checkerboard_set(ctx: click.Context, preset: str, out: Path, *, board: tupl
     if distances is not None and not distances[0] <= distances[1]:
         raise click.BadParameter(f"NEAR must not exceed FAR, got {distances[0]:g} {distances[1]:g}",
                                  param_hint="--distances")
+    if n_views is not None and n_views % 2 == 0:
+        raise click.BadParameter(f"must be odd, got {n_views}", param_hint="--views")
+    intrinsics = None
+    if geometry_file is not None:
+        from ..errors import FormatError
+        from ..io.calinfo import load_geometric_calibration
+
+        try:
+            camera = load_geometric_calibration(geometry_file)
+        except FormatError as exc:
+            raise click.BadParameter(str(exc), param_hint="--geometry") from exc
+        intrinsics = camera.intrinsics
+        distortion = camera.distortion if distortion is None else distortion
     if get_preset(preset).focused:
         raise click.BadParameter(f"{preset!r} is a focused (Raytrix) camera; checkerboard sets need an unfocused "
                                  "preset", param_hint="PRESET")
@@ -133,7 +157,8 @@ def _checkerboard_set(ctx: click.Context, preset: str, out: Path, *, board: tupl
             check_output(out / fname, overwrite)
     try:
         extra = {} if distances is None else {"distances": distances}
-        cset = simulate_checkerboard_set(preset, board, captures, distortion=distortion, seed=seed, shape=shape,
+        cset = simulate_checkerboard_set(preset, board, captures, intrinsics=intrinsics, distortion=distortion,
+                                         n_views=n_views, seed=seed, shape=shape,
                                          pitch=pitch, rotation=rotation, offset=offset, noise=noise, **extra,
                                          progress=progress_bar(f"checkerboard set of {preset}", ctx))
     except ValueError as exc:
@@ -147,4 +172,5 @@ def _checkerboard_set(ctx: click.Context, preset: str, out: Path, *, board: tupl
     lf_shape = "x".join(str(v) for v in cset.truth.lf_shape)
     for key, path in paths.items():
         click.echo(f"{key:11s} {path}")
-    click.echo(f"light field {lf_shape} (V x U x Y x X) when decoded with {paths['white'].name}")
+    views = f" --views {n_views}" if n_views is not None else ""
+    click.echo(f"light field {lf_shape} (V x U x Y x X) when decoded with -w {paths['white'].name}{views}")

@@ -534,8 +534,9 @@ def simulate_checkerboard_set(preset: str | Preset, board: Board | Sequence[floa
                               intrinsics: np.ndarray | None = None, distortion: Any = None, seed: int = 0,
                               shape: tuple[int, int] | None = None, pitch: float | None = None,
                               rotation: float | None = None, offset: tuple[float, float] | None = None,
-                              distances: tuple[float, float] = SET_DISTANCES, max_tilt: float = SET_MAX_TILT,
-                              noise: bool = True, supersample: int = 4, progress: Progress = None) -> CheckerboardSet:
+                              n_views: int | None = None, distances: tuple[float, float] = SET_DISTANCES,
+                              max_tilt: float = SET_MAX_TILT, noise: bool = True, supersample: int = 4,
+                              progress: Progress = None) -> CheckerboardSet:
     """Simulate a geometric calibration set: ``n_captures`` raws of a checkerboard at varied poses.
 
     Each raw is :func:`render_board_mosaic` of the board at one pose of :func:`sample_poses`, through
@@ -559,6 +560,9 @@ def simulate_checkerboard_set(preset: str | Preset, board: Board | Sequence[floa
         Sensor size; default :func:`set_sensor_shape` (decoded about :data:`SET_SAMPLES`).
     pitch, rotation, offset : optional
         Lattice overrides, as in :func:`~plenodecode.synthetic.simulate`.
+    n_views : int, optional
+        Views per angular axis of the decoded light fields the truth is for (odd; default
+        ``grid.n_views()``, the decoder's default; decode with the same ``n_views``).
     distances : (near, far)
         Range of board distances (m).
     max_tilt : float
@@ -587,7 +591,9 @@ def simulate_checkerboard_set(preset: str | Preset, board: Board | Sequence[floa
     shape = set_sensor_shape(p) if shape is None else shape
     p, grid, off = _resolve(p, pitch, rotation, offset, shape)
     grid = pipeline_grid(grid)
-    lf_shape = decoded_shape(grid)
+    if n_views is not None and not (isinstance(n_views, (int, np.integer)) and n_views >= 1 and n_views % 2 == 1):
+        raise ValueError(f"n_views must be a positive odd number, got {n_views!r}")
+    lf_shape = decoded_shape(grid, n_views)
     h = default_intrinsics(lf_shape) if intrinsics is None else check_intrinsics(intrinsics)
     camera = GeometricCalibration(intrinsics=h, distortion=check_distortion(distortion), lf_shape=lf_shape)
     streams = np.random.SeedSequence(int(seed)).spawn(1 + int(n_captures))

@@ -74,6 +74,8 @@ def test_cli_synth_checkerboard_set(tmp_path):
     (["--checkerboard", "3x4x0.008", "--distances", "0.5", "0.4"], "--distances"),
     (["--checkerboard", "3x4x0.008", "--archive", "f01-datac"], "--archive"),
     (["--checkerboard", "8x10x0.02", "--shape", "300", "360"], "--checkerboard"),
+    (["--checkerboard", "3x4x0.008", "--views", "8"], "--views"),
+    (["--views", "7"], "--views needs --checkerboard"),
 ])
 def test_cli_synth_checkerboard_refuses_bad_options(tmp_path, extra, message):
     from click.testing import CliRunner
@@ -93,3 +95,27 @@ def test_cli_synth_checkerboard_refuses_a_focused_preset(tmp_path):
 
     res = CliRunner().invoke(cli, ["synth", "raytrix", "-o", str(tmp_path), "--checkerboard", "3x4x0.008"])
     assert res.exit_code == 2 and "PRESET" in res.output and "unfocused" in res.output
+
+
+def test_cli_synth_checkerboard_takes_the_camera_from_a_calibration_file(tmp_path):
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+    from plenodecode.io.calinfo import load_geometric_calibration, save_geometric_calibration
+    from plenodecode.raymodel import GeometricCalibration
+    from plenodecode.synthetic.checkerboard import default_intrinsics
+
+    h = default_intrinsics((7, 7, 49, 58), field_of_view=0.2, focus_distance_m=0.5)
+    save_geometric_calibration(GeometricCalibration(h, [0.05, 0, 0, 0, 0]), tmp_path / "camera.json")
+    (tmp_path / "bad.json").write_text("{}")
+    args = ["synth", "f01", "-o", str(tmp_path / "set"), "--checkerboard", "3x4x0.008", "--captures", "1",
+            "--shape", "420", "500", "--distances", "0.4", "0.5", "--views", "7", "--no-noise"]
+    res = CliRunner().invoke(cli, [*args, "--geometry", str(tmp_path / "bad.json")])
+    assert res.exit_code == 2 and "--geometry" in res.output
+    res = CliRunner().invoke(cli, [*args, "--geometry", str(tmp_path / "camera.json"), "--distortion", "0.1", "0",
+                                   "0", "0", "0"])
+    assert res.exit_code == 0, res.output
+    assert "7x7x49x58" in res.output and "--views 7" in res.output
+    truth = load_geometric_calibration(tmp_path / "set" / "geometry_truth.json")
+    np.testing.assert_array_equal(truth.intrinsics, h)
+    assert truth.lf_shape == (7, 7, 49, 58) and truth.distortion[0] == 0.1
