@@ -23,6 +23,12 @@ the mean over its 4-D footprint (:func:`footprint_offsets`): a 1 x 1 box in ``(i
 :func:`board_lightfield` renders the ideal light field; :func:`board_corners` gives the true
 corner positions ``(k, l)`` in every view (:func:`plenodecode.raymodel.project_points`);
 :func:`default_intrinsics` gives a plausible ``H`` for a decoded shape.
+
+Raws of a preset camera (:func:`render_board_mosaic`) give every sensor pixel the radiance of the decoded
+sample ``(i, j, k, l)`` it becomes (:func:`pixel_samples`: the generator's sampling contract, on the lens
+block the calibration fit makes, :func:`pipeline_grid`), so light fields decoded by the real pipeline
+from them show the board where the truth puts it.  :func:`simulate_checkerboard_set` makes a calibration
+set (poses from :func:`sample_poses`), :func:`write_checkerboard_set` writes it with its truth.
 """
 
 from __future__ import annotations
