@@ -235,3 +235,23 @@ def test_set_validation():
         simulate_checkerboard_set("f01", SET_BOARD, 0)
     with pytest.raises(ValueError, match="does not fit"):
         simulate_checkerboard_set("f01", Board(8, 10, 0.02), 1, shape=(300, 360))
+
+
+@pytest.mark.parametrize("offset,reblocked", [((0.4, -1.94), False), ((0.4, -2.5), True)])
+def test_pipeline_grid_is_the_block_the_calibration_fits(offset, reblocked):
+    from plenodecode.calib import calibrate
+    from plenodecode.synthetic import simulate_white
+    from plenodecode.synthetic.checkerboard import decoded_shape, pipeline_grid
+
+    white, grid = simulate_white("f01", shape=(420, 500), offset=offset, noise=False)
+    fitted = calibrate(white)
+    ours = pipeline_grid(grid)
+    # at offset (0.4, -2.5) the generator's block starts one lens earlier on even rows (51 vs 50 columns)
+    assert (ours.odd_row_shift != grid.odd_row_shift) == reblocked
+    assert ours.shape == fitted.shape and ours.odd_row_shift == fitted.odd_row_shift
+    np.testing.assert_allclose(ours.origin, fitted.origin, atol=0.02)
+    assert decoded_shape(ours) == decoded_shape(fitted)
+    # the same lattice: every lens of the re-blocked grid is a lens of the generator's
+    centres = ours.lattice_centres().reshape(-1, 2)
+    nearest = np.min(np.linalg.norm(centres[:, None] - grid.lattice_centres().reshape(1, -1, 2), axis=-1), axis=1)
+    assert nearest.max() < 1e-9
