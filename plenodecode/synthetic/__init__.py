@@ -53,7 +53,8 @@ _LAZY = {
                     "plenodecode.synthetic.truth"),
     **dict.fromkeys(["THIN_SCENES", "thin_scene"], "plenodecode.synthetic.thin"),
     **dict.fromkeys(["ARCHIVE_KINDS", "WrittenArchive", "write_calibration_archive"], "plenodecode.synthetic.archives"),
-    **dict.fromkeys(["Board", "board_lightfield", "board_corners", "default_intrinsics"],
+    **dict.fromkeys(["Board", "board_lightfield", "board_corners", "default_intrinsics", "CheckerboardSet",
+                     "simulate_checkerboard_set", "write_checkerboard_set"],
                     "plenodecode.synthetic.checkerboard"),
 }
 
@@ -64,4 +65,4 @@ __all__ = ["Preset", "PRESETS", "get_preset", "make_grid", "raytrix_lens_types",
            "write_simulation", "simulation_files", "truth_document", "Truth", "load_truth", "SUBSAMPLES", "BAND_ROWS",
            "Plane", "Scene", "default_scene", "dot_chart", "THIN_SCENES", "thin_scene", "ARCHIVE_KINDS",
            "WrittenArchive", "write_calibration_archive", "Board", "board_lightfield", "board_corners",
-           "default_intrinsics"]
+           "default_intrinsics", "CheckerboardSet", "simulate_checkerboard_set", "write_checkerboard_set"]
