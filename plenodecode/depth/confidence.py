@@ -76,7 +76,7 @@ def image_noise(image: np.ndarray) -> float:
     return float(math.sqrt(math.pi / 2.0) * np.mean(np.abs(r)) / 6.0)
 
 
-def epipolar_texture(guide: np.ndarray, views: Views, sigma: float) -> np.ndarray:
+def epipolar_texture(guide: np.ndarray, views: Views, sigma: float, valid: np.ndarray | None = None) -> np.ndarray:
     """Texture energy of the centre view along the views' baselines, ``T`` of the module docstring.
 
     Parameters
@@ -87,6 +87,10 @@ def epipolar_texture(guide: np.ndarray, views: Views, sigma: float) -> np.ndarra
         Its used views and their weights give the baseline directions.
     sigma : float
         Gaussian window, px.
+    valid : ndarray (Y, X) bool, optional
+        Pixels with data.  The window then averages only the gradients whose 3 x 3 stencil lies on valid
+        pixels (a normalised convolution, Knutsson & Westin, CVPR 1993), so the step to a no-data border is
+        not texture; 0 where the window holds none.
 
     Returns
     -------
@@ -103,7 +107,13 @@ def epipolar_texture(guide: np.ndarray, views: Views, sigma: float) -> np.ndarra
     gx = cv2.Sobel(guide, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
     gy = cv2.Sobel(guide, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
     t = np.float32(a) * gx * gx + np.float32(2 * b) * gx * gy + np.float32(c) * gy * gy
-    return cv2.GaussianBlur(t, (0, 0), sigma)
+    if valid is None:
+        return cv2.GaussianBlur(t, (0, 0), sigma)
+    inner = cv2.erode(np.asarray(valid, np.uint8), np.ones((3, 3), np.uint8), borderType=cv2.BORDER_REPLICATE)
+    inner = inner.astype(np.float32)
+    num = cv2.GaussianBlur(t * inner, (0, 0), sigma)
+    den = cv2.GaussianBlur(inner, (0, 0), sigma)
+    return np.where(den > 1e-3, num / np.maximum(den, 1e-3), 0.0).astype(np.float32)
 
 
 def view_agreement(views: Views, disparity: np.ndarray, *, radius: int, noise_var: float, k_agreement: float,
@@ -126,7 +136,7 @@ def view_agreement(views: Views, disparity: np.ndarray, *, radius: int, noise_va
 
 
 def estimate_confidence(views: Views, peak_ratio: np.ndarray, disparity: np.ndarray, *, radius: int = 1,
-                        **params: float) -> np.ndarray:
+                        valid: np.ndarray | None = None, **params: float) -> np.ndarray:
     """Confidence of a disparity estimate, the product of texture, distinctiveness and view agreement
     (equations in the module docstring).
 
@@ -140,6 +150,9 @@ def estimate_confidence(views: Views, peak_ratio: np.ndarray, disparity: np.ndar
         The estimate (px per view step) whose views' agreement is measured.
     radius : int
         Box radius of the matching cost (the residuals of the view agreement are averaged over it).
+    valid : ndarray (Y, X) bool, optional
+        Pixels of the centre view with data (e.g. ``lf.weight > 0``); the others get confidence 0 and lend
+        no texture to their neighbours.
     **params
         Keys of :data:`CONFIDENCE_DEFAULTS`.
 
@@ -153,16 +166,19 @@ def estimate_confidence(views: Views, peak_ratio: np.ndarray, disparity: np.ndar
     p = {**CONFIDENCE_DEFAULTS, **params}
     guide = np.ascontiguousarray(views.guide(), np.float32)
     noise_var = max(image_noise(guide), float(p["noise_floor"])) ** 2
-    texture = epipolar_texture(guide, views, float(p["texture_sigma"]))
+    texture = epipolar_texture(guide, views, float(p["texture_sigma"]), valid)
     c_tex = np.clip((texture - np.float32(NOISE_TEXTURE * noise_var)) / np.float32(p["k_texture"] * noise_var),
                     0.0, 1.0)
     c_occ = view_agreement(views, disparity, radius=radius, noise_var=noise_var,
                            k_agreement=float(p["k_agreement"]), k_fit=float(p["k_fit"]))
-    return np.clip(c_tex * np.asarray(peak_ratio, np.float32) * c_occ, 0.0, 1.0).astype(np.float32)
+    conf = np.clip(c_tex * np.asarray(peak_ratio, np.float32) * c_occ, 0.0, 1.0).astype(np.float32)
+    if valid is not None:
+        conf[~np.asarray(valid, bool)] = 0.0
+    return conf
 
 
-def confident_winner(cost: np.ndarray, labels: np.ndarray, views: Views, *, radius: int = 1
-                     ) -> tuple[np.ndarray, np.ndarray]:
+def confident_winner(cost: np.ndarray, labels: np.ndarray, views: Views, *, radius: int = 1,
+                     weight: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Winner-take-all disparity of an aggregated cost volume (:func:`~plenodecode.depth.aggregation.winner`)
     and its confidence (:func:`estimate_confidence`).
 
@@ -175,13 +191,16 @@ def confident_winner(cost: np.ndarray, labels: np.ndarray, views: Views, *, radi
         The matching views of the cost volume.
     radius : int
         Box radius of the matching cost.
+    weight : ndarray (V, U, Y, X), optional
+        The light field's sample weights (``lf.weight``): the centre view's zeros mark pixels without data.
 
     Returns
     -------
     disparity, confidence : ndarray (Y, X) float32
     """
     disparity, peak = winner(cost, labels)
-    return disparity, estimate_confidence(views, peak, disparity, radius=radius)
+    valid = None if weight is None else np.asarray(weight[views.centre]) > 0
+    return disparity, estimate_confidence(views, peak, disparity, radius=radius, valid=valid)
 
 
 __all__ = ["CONFIDENCE_DEFAULTS", "NOISE_TEXTURE", "image_noise", "epipolar_texture", "view_agreement",

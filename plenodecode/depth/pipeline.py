@@ -279,7 +279,7 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     agg = sgm(cost, guide, p1=float(p["p1"]), p2=float(p["p2"]), sigma=float(p["edge_sigma"]), paths=n_paths,
               progress=stage(n_labels))
     del cost
-    disparity, confidence = confident_winner(agg, labels, views, radius=int(p["radius"]))
+    disparity, confidence = confident_winner(agg, labels, views, radius=int(p["radius"]), weight=lf.weight)
     del agg
     disparity = weighted_median(guide, disparity, int(p["median_radius"]))
     if n_refine:
