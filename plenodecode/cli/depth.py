@@ -9,8 +9,8 @@ import click
 
 from ..depth import DEFAULT_METHOD
 from ..io.depthio import DEFAULT_MIN_CONFIDENCE
-from .common import (POSITIVE, UNIT_INTERVAL, RegistryChoice, calibration_kwargs, input_options, output_option, overwrite_option,
-                     progress_bar, quiet, usage_errors)
+from .common import (POSITIVE, UNIT_INTERVAL, RegistryChoice, calibration_kwargs, input_options, output_option,
+                     overwrite_option, progress_bar, quiet, usage_errors)
 
 
 def parse_range(text: str | None) -> tuple[float, float] | None:

@@ -45,7 +45,7 @@ from .views import Views
 CONFIDENCE_DEFAULTS = {
     "texture_sigma": 4.0,    # Gaussian window of the texture, px (the semi-global aggregation reaches further
                              # than the matching window)
-    "k_texture": 0.3,        # texture energy above the noise's, in noise variances, at which c_tex reaches 1
+    "k_texture": 0.1,        # texture energy above the noise's, in noise variances, at which c_tex reaches 1
     "k_agreement": 4.0,      # noise variances added to both residuals of the view-agreement ratio
     "k_fit": 100.0,          # residual (noise variances) at which the fit factor is 0.5
     "noise_floor": 1.0 / (255.0 * math.sqrt(12.0)),  # lower bound of the noise sigma: 8-bit quantisation

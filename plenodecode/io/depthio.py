@@ -162,8 +162,9 @@ def check_min_confidence(value: float, name: str = "min_confidence") -> float:
 
 
 def colour_map_figure(values: np.ndarray, *, label: str, cmap: str = DEPTH_CMAP, vmin: float | None = None,
-                      vmax: float | None = None, title: str | None = None, masked: np.ndarray | None = None,
-                      width_in: float = 6.0, dpi: int | None = None, fontsize: float | None = None):
+                      vmax: float | None = None, percentiles: tuple[float, float] = DEPTH_PERCENTILES,
+                      title: str | None = None, masked: np.ndarray | None = None, width_in: float = 6.0,
+                      dpi: int | None = None, fontsize: float | None = None):
     """A matplotlib Figure (no pyplot state) of ``values`` with a colour bar naming ``label``.
 
     Parameters
@@ -171,9 +172,9 @@ def colour_map_figure(values: np.ndarray, *, label: str, cmap: str = DEPTH_CMAP,
     values : ndarray (Y, X) float
     label : str
         Colour-bar legend, with the unit.
-    cmap, vmin, vmax
-        The colour map and its range; a limit not given is the 1st / 99th percentile of the finite values
-        that are not ``masked`` (:func:`colour_range`).
+    cmap, vmin, vmax, percentiles
+        The colour map and its range; a limit not given is a percentile of the finite values that are not
+        ``masked`` (:func:`colour_range`).
     title : str, optional
     masked : ndarray (Y, X) bool, optional
         Pixels drawn in :data:`MASK_GREY` (e.g. confidence below a threshold); non-finite values are left
@@ -193,11 +194,12 @@ def colour_map_figure(values: np.ndarray, *, label: str, cmap: str = DEPTH_CMAP,
     if grey is not None and grey.shape != v.shape:
         raise ValueError(f"masked must have shape {v.shape}, got {grey.shape}")
     shown = v if grey is None else np.where(grey, np.nan, v)
-    vmin, vmax = colour_range(shown, vmin=vmin, vmax=vmax)
+    vmin, vmax = colour_range(shown, percentiles=percentiles, vmin=vmin, vmax=vmax)
     h, w = v.shape
     scale = width_in / max(h, w)
     dpi = max(100, int(max(h, w) / width_in)) if dpi is None else int(dpi)
-    bar_in = 1.6 * width_in / 6.0
+    # room for the colour bar, its tick labels and its legend: at least nine characters of the text size
+    bar_in = max(1.6 * width_in / 6.0, 9.0 * (fontsize or 10.0) / 72.0)
     fig = Figure(figsize=(w * scale + bar_in, h * scale + (0.5 if title else 0.2) * width_in / 6.0), dpi=dpi)
     image_share = w * scale / (w * scale + bar_in)
     ax = fig.add_axes([0.02, 0.04, image_share - 0.02, 0.9 if title else 0.92])
