@@ -142,9 +142,9 @@ def colour_mapped(values: np.ndarray, *, cmap: str = DEPTH_CMAP, percentiles: tu
 
 
 #: Default ``min_confidence`` of the depth PNGs: pixels of lower confidence are greyed out.  On the benchmark
-#: scenes (``make bench-depth``) the pixels below it are 2-100x as often wrong (BadPix0.07) as those above and
-#: are 15-17 % of hci-antinous and of the decoded illum-mini scene; on the ant-leg microscope capture they are
-#: its featureless background.
+#: scenes (``make bench-depth``, 'costvolume') the pixels below it are 3-180x as often wrong (BadPix0.07) as
+#: those above and are 13 % of hci-antinous and 15 % of the decoded illum-mini scene; on the ant-leg
+#: microscope capture they are its featureless background.
 DEFAULT_MIN_CONFIDENCE = 0.2
 #: Display colour (RGB in [0, 1]) of the pixels below ``min_confidence``.
 MASK_GREY = (0.62, 0.62, 0.62)
