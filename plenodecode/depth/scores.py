@@ -156,3 +156,72 @@ def sparsification(disparity: np.ndarray, truth: np.ndarray, confidence: np.ndar
 
 
 __all__ += ["SPARSIFICATION_FRACTIONS", "sparsification"]
+
+
+# ---------------------------------------------------------------------------------------
+# thin-structure band (issue 20)
+# ---------------------------------------------------------------------------------------
+def depth_edge_band(gt: np.ndarray, radius: float = 2.0, jump: float = 0.1) -> np.ndarray:
+    """Pixels within ``radius`` px of a ground-truth depth edge: the thin-structure band.
+
+    A depth edge lies between two 4-neighbours whose finite ground-truth disparities differ by more than
+    ``jump`` (px per view step; a slanted surface changes by far less per pixel).  Both pixels of such a pair
+    are edge pixels, half a pixel from the edge; a pixel is in the band when its Euclidean distance
+    (:func:`scipy.ndimage.distance_transform_edt`) to the nearest edge pixel is at most ``radius - 0.5``,
+    i.e. its centre is within about ``radius`` px of the edge: with ``radius = 2``, two pixels on each side of
+    a straight edge.
+
+    Parameters
+    ----------
+    gt : ndarray (Y, X)
+        Ground-truth disparity (non-finite pixels never make an edge).
+    radius : float
+        Half-width of the band (px), >= 0.5.
+    jump : float
+        Smallest disparity step that counts as a depth edge (px per view step), > 0.
+
+    Returns
+    -------
+    ndarray (Y, X) bool
+    """
+    from scipy import ndimage
+
+    gt = np.asarray(gt, np.float64)
+    if gt.ndim != 2:
+        raise ValueError(f"gt must be a 2-D array, got shape {gt.shape}")
+    if not radius >= 0.5:
+        raise ValueError(f"radius must be >= 0.5, got {radius!r}")
+    if not jump > 0:
+        raise ValueError(f"jump must be > 0, got {jump!r}")
+    edge = np.zeros(gt.shape, bool)
+    with np.errstate(invalid="ignore"):
+        for axis in (0, 1):
+            step = np.abs(np.diff(gt, axis=axis)) > jump      # NaN compares False
+            lo = [slice(None), slice(None)]
+            hi = [slice(None), slice(None)]
+            lo[axis], hi[axis] = slice(None, -1), slice(1, None)
+            edge[tuple(lo)] |= step
+            edge[tuple(hi)] |= step
+    if not edge.any():
+        return edge
+    return ndimage.distance_transform_edt(~edge) <= radius - 0.5
+
+
+def badpix_in_band(est: np.ndarray, gt: np.ndarray, t: float = 0.07, border: int = 15, radius: float = 2.0,
+                   jump: float = 0.1) -> float:
+    """BadPix(t) restricted to the thin-structure band :func:`depth_edge_band` (``radius``, ``jump``) of ``gt``;
+    other arguments as :func:`badpix`.  NaN when the band is empty inside the border.
+
+    Returns
+    -------
+    float, percent in [0, 100], or NaN
+    """
+    band = depth_edge_band(gt, radius, jump)
+    b = int(border)
+    inner = band[b:-b, b:-b] if b else band
+    if not inner.any():
+        return float("nan")
+    return badpix(est, gt, t, border, mask=band)
+
+
+__all__ += ["depth_edge_band", "badpix_in_band"]

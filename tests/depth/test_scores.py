@@ -33,6 +33,28 @@ def test_metrics_mask_nonfinite_and_errors():
         badpix(np.zeros((10, 10)), np.zeros((10, 10)), border=5)
 
 
+def test_depth_edge_band_is_two_pixels_each_side_of_a_jump_and_ignores_slopes():
+    from plenodecode.depth.scores import badpix_in_band, depth_edge_band
+
+    gt = np.tile(np.linspace(0.0, 0.5, 30), (20, 1))   # a slant: 0.017 per px, no edge
+    assert not depth_edge_band(gt).any()
+    gt[:, 12:] += 1.0                                   # a vertical depth edge between columns 11 and 12
+    gt[0, 0] = np.nan                                   # never makes an edge
+    band = depth_edge_band(gt)
+    cols = np.flatnonzero(band.any(axis=0))
+    assert cols.tolist() == [10, 11, 12, 13] and band[:, 10:14].all()
+    assert depth_edge_band(gt, radius=1.0).any(axis=0).nonzero()[0].tolist() == [11, 12]
+    assert not depth_edge_band(gt, jump=1.5).any()
+    est = gt.copy()
+    est[:, 11] = gt[:, 12]          # edge fattening: one column takes the other side
+    est[:, 25] += 0.5               # a far-away error, outside the band
+    assert badpix_in_band(est, gt, border=0) == pytest.approx(25.0)     # 1 of the 4 band columns
+    assert badpix(est, gt, border=0) == pytest.approx(100 * 40 / 599)    # gt[0, 0] is not evaluated
+    assert np.isnan(badpix_in_band(est, np.zeros_like(gt), border=2))
+    with pytest.raises(ValueError, match="radius"):
+        depth_edge_band(gt, radius=0.2)
+
+
 def test_sparsification_of_an_informative_a_constant_and_an_inverted_confidence():
     from plenodecode.depth.scores import sparsification
 
