@@ -73,9 +73,12 @@ SUMMARY_FILES = (SUMMARY_JSON, INDEX_HTML)
 SUMMARY_FORMAT = "plenodecode.BatchSummary"
 #: Longest side of a thumbnail, px.
 THUMB_SIZE = 256
-#: Colour map and percentile range of the disparity thumbnails (:func:`plenodecode.io.depthio.colour_mapped`).
+#: Colour map and percentile range of the disparity thumbnails (:func:`plenodecode.io.depthio.colour_map_image`,
+#: with a colour bar; pixels below ``min_confidence`` grey).
 THUMB_CMAP = "viridis"
 THUMB_PERCENTILES = (2.0, 98.0)
+#: Width (inches at 100 dpi) and text size (points) of the map in a disparity thumbnail.
+THUMB_FIGURE = {"width_in": 1.9, "dpi": 100, "fontsize": 6}
 
 
 # ---------------------------------------------------------------------------------- data
@@ -102,6 +105,9 @@ class BatchOptions:
         Focus distance (m) of the 'refocus' output instead of ``slope`` (needs the focus distance in the metadata).
     depth_method : str or None
         Method of the 'depth' output (None: the library's default).
+    min_confidence : float in [0, 1] or None
+        Pixels of the 'depth' thumbnail with a lower confidence are grey (None:
+        :data:`plenodecode.io.depthio.DEFAULT_MIN_CONFIDENCE`; 0 = none), as ``plenodecode depth --min-confidence``.
     cfa, black_level, white_level, input_encoding :
         How to read image mosaics without a sidecar (the CLI options of the same names;
         :class:`plenodecode.io.mosaic_levels.MosaicOptions`): 'mono' or a Bayer pattern, levels in the file's
@@ -134,6 +140,7 @@ class BatchOptions:
     dark: str | None = None
     optics: Mapping[str, float | None] | None = None
     geometry: Mapping[str, Any] | None = None
+    min_confidence: float | None = None
 
     def __post_init__(self) -> None:
         outs = tuple(self.outputs) if not isinstance(self.outputs, str) else (self.outputs,)
@@ -148,6 +155,10 @@ class BatchOptions:
             from .depth import DEPTH_METHODS
 
             lookup(DEPTH_METHODS, self.depth_method, param="depth_method")
+        if self.min_confidence is not None:
+            from .io.depthio import check_min_confidence
+
+            object.__setattr__(self, "min_confidence", check_min_confidence(self.min_confidence))
         object.__setattr__(self, "slope", float(self.slope))
         mosaic = self.mosaic_options()          # checks the four mosaic options (ValueError naming the option)
         object.__setattr__(self, "black_level", mosaic.black_level)
@@ -185,9 +196,14 @@ class BatchOptions:
         d = asdict(self)
         d["outputs"] = list(self.outputs)
         d["db_dir"] = str(Path(self.db_dir).resolve())
+        from .io.depthio import DEFAULT_MIN_CONFIDENCE
+
+        if d["min_confidence"] == DEFAULT_MIN_CONFIDENCE:
+            d["min_confidence"] = None          # the default: the keys of runs before this option stay valid
         for option, product in (("slope", "refocus"), ("depth_method", "depth"), ("lightfield_format", "lightfield"),
-                                ("alpha", "refocus"), ("distance_m", "refocus")):
-            if product not in self.outputs or (option in ("alpha", "distance_m") and d[option] is None):
+                                ("alpha", "refocus"), ("distance_m", "refocus"), ("min_confidence", "depth")):
+            if product not in self.outputs or (option in ("alpha", "distance_m", "min_confidence")
+                                               and d[option] is None):
                 d.pop(option)      # unset alpha / distance_m keep the keys of earlier versions
         for option, default in (("cfa", None), ("black_level", None), ("white_level", None),
                                 ("input_encoding", "linear"), ("white", None), ("dark", None), ("optics", None),
@@ -490,8 +506,10 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     -------
     list of (product path, thumbnail path or None), in the order of ``options.outputs``.
     """
+    import numpy as np
+
     from . import pipeline
-    from .io.depthio import colour_mapped
+    from .io.depthio import DEFAULT_MIN_CONFIDENCE, colour_map_image
 
     mosaic = options.mosaic_options()
     calibration = pipeline.choose_calibration(raw, database=options.db_dir, white=options.white, mosaic=mosaic)
@@ -519,8 +537,11 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
         elif product == "depth":
             rendered = pipeline.render_product(src, "depth", method=options.depth_method)
             dest, = pipeline.write_depth(rendered, folder / "disparity.pfm", full=False)
-            disparity = rendered.data["depthmap"].disparity
-            colours = colour_mapped(disparity, cmap=THUMB_CMAP, percentiles=THUMB_PERCENTILES)
+            dm = rendered.data["depthmap"]
+            threshold = DEFAULT_MIN_CONFIDENCE if options.min_confidence is None else options.min_confidence
+            masked = dm.confidence < np.float32(threshold) if threshold > 0 else None
+            colours = colour_map_image(rendered.data["values"], label=rendered.data["label"], cmap=THUMB_CMAP,
+                                       percentiles=THUMB_PERCENTILES, masked=masked, **THUMB_FIGURE)
             written.append((dest, _thumbnail(colours, thumbs / "disparity.png", colour="srgb")))
         else:
             rendered = pipeline.render_product(src, product, **_image_product_options(product, options))

@@ -232,6 +232,51 @@ def test_summary_json_and_index(local_run):
     assert page.count("<img") == 12 and "<script" not in page
 
 
+def test_depth_thumbnail_has_a_colour_bar_and_greys_low_confidence(local_run):
+    """The disparity thumbnail: the map, then a viridis colour bar (bright at the top) with its unit; the pixels
+    below the default min_confidence are the mask grey."""
+    from matplotlib import colormaps
+
+    from plenodecode.io.depthio import DEFAULT_MIN_CONFIDENCE, MASK_GREY
+    from plenodecode.io.images import read_image
+
+    thumb = read_image(local_run["out"] / "scene1" / "thumbs" / "disparity.png")[..., :3].astype(np.float64) / 255
+    h, w = thumb.shape[:2]
+    assert max(h, w) <= 256 and w > h
+    viridis = colormaps["viridis"](np.linspace(0, 1, 256))[:, :3]
+    # the colour bar: a column in the right third whose colours run down viridis from its top to its bottom
+    found = False
+    for x in range(2 * w // 3, w):
+        col = thumb[:, x]
+        coloured = np.flatnonzero(np.abs(col - col.mean(axis=1, keepdims=True)).max(axis=1) > 0.08)
+        if coloured.size < h // 3:
+            continue
+        index = np.argmin(((col[coloured, None, :] - viridis[None]) ** 2).sum(-1), axis=1)
+        if np.corrcoef(coloured, index)[0, 1] < -0.95 and index.max() - index.min() > 180:
+            found = True
+            break
+    assert found
+    grey = np.all(np.abs(thumb - np.array(MASK_GREY)) < 2.5 / 255, axis=-1)
+    assert DEFAULT_MIN_CONFIDENCE > 0 and grey[:, : 2 * w // 3].any()
+    # the index shows the depth thumbnails (one per decoded raw) wider, so the colour bar's text stays legible
+    page = (local_run["out"] / "index.html").read_text()
+    assert page.count('<img class="legend"') == len(SEEDS) and "img.legend{width:240px}" in page
+
+
+def test_min_confidence_option(tmp_path):
+    opt = BatchOptions(outputs=("depth",), db_dir=str(tmp_path))
+    assert "min_confidence" not in opt.as_key_dict()          # the default keeps the keys of earlier runs
+    assert "min_confidence" not in replace(opt, min_confidence=0.2).as_key_dict()
+    assert replace(opt, min_confidence=0.5).as_key_dict()["min_confidence"] == 0.5
+    assert "min_confidence" not in BatchOptions(outputs=("centre",), min_confidence=0.5).as_key_dict()
+    for bad in (1.5, -0.1, float("nan")):
+        with pytest.raises(ValueError, match="min_confidence"):
+            BatchOptions(outputs=("depth",), min_confidence=bad)
+    r = CliRunner().invoke(cli, ["batch", str(tmp_path), "-o", str(tmp_path / "out"), "--min-confidence", "nan"],
+                           obj={})
+    assert r.exit_code == 2 and "--min-confidence" in r.output and not (tmp_path / "out").exists()
+
+
 # --------------------------------------------------------------------------- resuming
 def test_second_run_skips_finished_raws_and_keeps_files(data, local_run, tmp_path):
     out = tmp_path / "out"

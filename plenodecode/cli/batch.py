@@ -8,7 +8,8 @@ import click
 
 from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES
 from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
-from .common import (FINITE, POSITIVE, RegistryChoice, bit_depth_option, current_geometry,
+from ..io.depthio import DEFAULT_MIN_CONFIDENCE
+from .common import (FINITE, POSITIVE, UNIT_INTERVAL, RegistryChoice, bit_depth_option, current_geometry,
                      current_microscope_inputs, current_mosaic_options, database_option, geometry_option, jobs_option,
                      microscope_options, mosaic_options, progress_bar)
 
@@ -65,10 +66,12 @@ def _microscope_fields() -> dict:
               help="Refocus the 'refocus' product at this distance (m) instead of --slope (cameras with geometry).")
 @click.option("--depth-method", type=RegistryChoice("plenodecode.depth", "DEPTH_METHODS"),
               default=DEFAULT_DEPTH_METHOD, show_default=True, help="Method of the 'depth' product.")
+@click.option("--min-confidence", "min_confidence", type=UNIT_INTERVAL, default=DEFAULT_MIN_CONFIDENCE,
+              show_default=True, help="Grey out the pixels of the 'depth' thumbnails below this confidence (0 = none).")
 @click.option("--overwrite", is_flag=True, help="Redo raws a previous run finished and replace their outputs.")
 @click.pass_context
 def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, database, white, lf_format, bit_depth,
-            slope, alpha, distance_m, depth_method, overwrite) -> None:
+            slope, alpha, distance_m, depth_method, min_confidence, overwrite) -> None:
     """Decode every raw under INPUTS and write the chosen outputs per raw into OUTPUT/<name>/.
 
     Each raw is matched to its camera's calibration in the database (by serial, zoom and
@@ -103,7 +106,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
     mosaic = current_mosaic_options()
     options = BatchOptions(outputs=outputs, db_dir=str(db_dir), lightfield_format=lf_format,
                            bit_depth=int(bit_depth), slope=slope, alpha=alpha, distance_m=distance_m,
-                           depth_method=depth_method, cfa=mosaic.cfa,
+                           depth_method=depth_method, min_confidence=min_confidence, cfa=mosaic.cfa,
                            black_level=mosaic.black_level, white_level=mosaic.white_level,
                            input_encoding=mosaic.input_encoding, white=None if white is None else str(white),
                            geometry=None if current_geometry() is None else current_geometry().to_dict(),

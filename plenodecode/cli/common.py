@@ -363,6 +363,8 @@ FINITE = FiniteFloat()
 POSITIVE = FiniteFloat(min=0, min_open=True)
 #: A finite number >= 0.
 NON_NEGATIVE = FiniteFloat(min=0)
+#: A finite number in [0, 1] (confidences, fractions).
+UNIT_INTERVAL = FiniteFloat(min=0, max=1)
 
 
 class BoardSpec(click.ParamType):

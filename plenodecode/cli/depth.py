@@ -8,8 +8,9 @@ from pathlib import Path
 import click
 
 from ..depth import DEFAULT_METHOD
-from .common import (POSITIVE, RegistryChoice, calibration_kwargs, input_options, output_option, overwrite_option,
-                     progress_bar, quiet, usage_errors)
+from ..io.depthio import DEFAULT_MIN_CONFIDENCE
+from .common import (POSITIVE, UNIT_INTERVAL, RegistryChoice, calibration_kwargs, input_options, output_option,
+                     overwrite_option, progress_bar, quiet, usage_errors)
 
 
 def parse_range(text: str | None) -> tuple[float, float] | None:
@@ -44,16 +45,21 @@ def parse_range(text: str | None) -> tuple[float, float] | None:
               help="Search range in px per view step (default: from the metadata, else estimated).")
 @click.option("--focus-distance", "focus_distance", type=POSITIVE, default=None,
               help="Distance of the plane in focus (m), for --metric/--ply when the metadata lacks it.")
+@click.option("--min-confidence", "min_confidence", type=UNIT_INTERVAL, default=DEFAULT_MIN_CONFIDENCE,
+              show_default=True, help="Grey out the pixels of the colour-mapped PNG whose confidence is below this "
+                                      "(0 = none); the confidence map is written beside (OUTPUT_confidence.exr/.png).")
 @input_options
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, output: Path, method: str, metric: bool, ply: Path | None,
-            disparity_range: str | None, focus_distance: float | None, calibration: Path | None,
-            white: Path | None, database: Path | None, self_calibrate: bool, overwrite: bool) -> None:
+            disparity_range: str | None, focus_distance: float | None, min_confidence: float,
+            calibration: Path | None, white: Path | None, database: Path | None, self_calibrate: bool,
+            overwrite: bool) -> None:
     """Estimate the depth of RAW_OR_LF (a raw, a saved light field, an HCI scene folder or a .npy).
 
-    Writes OUTPUT (.pfm, readable by the HCI benchmark toolkit), OUTPUT with .exr (32-bit float) and
-    OUTPUT with .png (colour map with a legend): disparity in px per view step (HCI sign: positive =
+    Writes OUTPUT (.pfm, readable by the HCI benchmark toolkit), OUTPUT with .exr (32-bit float),
+    OUTPUT with .png (colour map with a legend, pixels below --min-confidence grey) and the confidence
+    map in [0, 1] as OUTPUT_confidence.exr and .png: disparity in px per view step (HCI sign: positive =
     closer than the focus plane), or depth in metres with --metric (micrometres for a light-field
     microscope, whose optics come from --magnification, --na, ..., --optics FILE or a metadata.txt
     beside the raw).
@@ -73,7 +79,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
 
     rng = parse_range(disparity_range)
     try:
-        paths = depth_output_paths(output, ply=ply)
+        paths = depth_output_paths(output, ply=ply, confidence=True)
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="--output") from None
     if not overwrite:
@@ -86,12 +92,15 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
                               points=ply is not None, focus_distance=focus_distance,
                               progress=progress_bar(f"depth ({method})", ctx))
     with usage_errors():
-        written = write_depth(rendered, output, ply=ply, title=f"{input_path.name}: {method}", overwrite=overwrite)
+        written = write_depth(rendered, output, ply=ply, title=f"{input_path.name}: {method}",
+                              min_confidence=min_confidence, overwrite=overwrite)
     if not quiet(ctx):
         dm = rendered.data["depthmap"]
         d = dm.disparity
         click.echo(f"{method}: disparity {float(np.nanmin(d)):.3f} .. {float(np.nanmax(d)):.3f} px/view, "
-                   f"mean confidence {float(dm.confidence.mean()):.2f}, {dm.params['seconds']:.1f} s")
+                   f"mean confidence {float(dm.confidence.mean()):.2f} "
+                   f"({100 * float(np.mean(dm.confidence < min_confidence)):.0f} % below {min_confidence:g}), "
+                   f"{dm.params['seconds']:.1f} s")
         if metric:
             z = rendered.data["values"]
             lo, hi = np.nanpercentile(z, [2, 98]) if np.isfinite(z).any() else (np.nan, np.nan)

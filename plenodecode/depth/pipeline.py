@@ -20,8 +20,10 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
 2. **Edge-aware regularisation** (:mod:`~plenodecode.depth.aggregation`): semi-global aggregation along
    ``paths`` directions (Hirschmueller, TPAMI 2008) whose large-jump penalty P2 falls at the centre view's
    intensity edges, so depth edges follow image edges.
-3. **Winner-take-all**: best label with a parabola through its neighbours' aggregated cost; confidence is
-   the peak ratio of the aggregated cost (1 - best / second-best distinct minimum).
+3. **Winner-take-all**: best label with a parabola through its neighbours' aggregated cost; confidence
+   (:mod:`~plenodecode.depth.confidence`) is the product of the centre view's texture along the baselines
+   against its noise, the peak ratio of the aggregated cost and the agreement of all views with the best
+   half-plane at the estimate (low on featureless areas, ambiguous cost curves and occlusions).
 4. **Clean-up** (:mod:`~plenodecode.depth.refinement`): an edge-aware weighted median guided by the centre
    view (Ma et al., ICCV 2013).
 5. **Sub-label refinement without the fronto-parallel bias**: a second, narrow cost volume of offsets
@@ -53,6 +55,7 @@ import numpy as np
 
 from ..types import LightField
 from .aggregation import sgm, winner
+from .confidence import confident_winner
 from .cost import N_SECTORS, Progress, half_plane_cost_volume, make_labels
 from .occlusion import EDGE_DEFAULTS, fix_occlusion_edges
 from .refinement import refine_disparity, refine_radius_for, weighted_median
@@ -276,7 +279,7 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     agg = sgm(cost, guide, p1=float(p["p1"]), p2=float(p["p2"]), sigma=float(p["edge_sigma"]), paths=n_paths,
               progress=stage(n_labels))
     del cost
-    disparity, confidence = winner(agg, labels)
+    disparity, confidence = confident_winner(agg, labels, views, radius=int(p["radius"]), weight=lf.weight)
     del agg
     disparity = weighted_median(guide, disparity, int(p["median_radius"]))
     if n_refine:

@@ -166,9 +166,16 @@ def write_parallax(rendered: Rendered, animation: str | os.PathLike, *, fps: flo
 
 
 def write_depth(rendered: Rendered, pfm_path: str | os.PathLike, *, ply: str | os.PathLike | None = None,
-                title: str | None = None, full: bool = True, overwrite: bool = False) -> list[Path]:
-    """Write a depth product: ``X.pfm`` (the values, float32), and with ``full`` ``X.exr`` and a colour-mapped
-    ``X.png`` (:func:`plenodecode.io.depthio.write_depth_outputs`), plus a PLY point cloud with ``ply``."""
+                title: str | None = None, full: bool = True, min_confidence: float | None = None,
+                overwrite: bool = False) -> list[Path]:
+    """Write a depth product: ``X.pfm`` (the values, float32), and with ``full`` ``X.exr``, a colour-mapped
+    ``X.png`` whose pixels of confidence below ``min_confidence`` are grey (default
+    :data:`plenodecode.io.depthio.DEFAULT_MIN_CONFIDENCE`) and the confidence map ``X_confidence.exr`` /
+    ``X_confidence.png`` (:func:`plenodecode.io.depthio.write_depth_outputs`), plus a PLY point cloud with
+    ``ply``."""
+    from ..io.depthio import DEFAULT_MIN_CONFIDENCE, check_min_confidence
+
+    min_confidence = check_min_confidence(DEFAULT_MIN_CONFIDENCE if min_confidence is None else min_confidence)
     values = rendered.data["values"]
     if not full:
         from ..io.pfm import write_pfm
@@ -176,8 +183,10 @@ def write_depth(rendered: Rendered, pfm_path: str | os.PathLike, *, ply: str | o
         return [write_pfm(pfm_path, values, overwrite=overwrite)]
     from ..io.depthio import write_depth_outputs
 
-    return write_depth_outputs(pfm_path, values, label=rendered.data["label"], points=rendered.data.get("points"),
-                               colours=rendered.data.get("colours"), ply=ply, title=title, overwrite=overwrite)
+    return write_depth_outputs(pfm_path, values, label=rendered.data["label"],
+                               confidence=rendered.data["depthmap"].confidence, min_confidence=min_confidence,
+                               points=rendered.data.get("points"), colours=rendered.data.get("colours"), ply=ply,
+                               title=title, overwrite=overwrite)
 
 
 def write_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | None = None, bit_depth: int = 16,

@@ -26,6 +26,7 @@ h1{font-size:1.4em;margin:0 0 .4em} .sum{margin-bottom:1em} .sum b{font-size:1.1
 .thumbs{display:flex;flex-wrap:wrap;gap:6px}
 figure{margin:0;text-align:center;font-size:.8em}
 figure img{display:block;width:160px;height:auto;background:#eee;border:1px solid #ccc}
+figure img.legend{width:240px}
 figcaption{margin-top:2px;word-break:break-all}
 .err{color:#a00;font-family:ui-monospace,monospace;font-size:.85em;white-space:pre-wrap;max-width:520px}
 table{border-collapse:collapse;margin-top:1.2em;font-size:.85em}
@@ -47,7 +48,9 @@ def _card(r: Any, base: Path) -> str:
     for out, thumb in zip(r.outputs, thumbs):
         label = html.escape(Path(out).name)
         if thumb and Path(thumb).is_file():
-            img = f'<img alt="{label}" src="{_rel(thumb, base)}">'
+            # depth thumbnails carry a colour bar with its unit: shown larger so the text stays legible
+            wide = ' class="legend"' if Path(out).suffix.lower() == ".pfm" else ""
+            img = f'<img{wide} alt="{label}" src="{_rel(thumb, base)}">'
         else:
             img = ""
         figs.append(f'<figure><a href="{_rel(out, base)}">{img}</a><figcaption>{label}</figcaption></figure>')

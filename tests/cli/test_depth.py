@@ -1,0 +1,112 @@
+"""``plenodecode depth``: the confidence map beside the disparity, --min-confidence, and the real light-field
+microscope capture (featureless background masked, the two structures' parallax; skipped without
+``../shared/data``)."""
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from plenodecode.cli.main import cli
+from plenodecode.io.depthio import MASK_GREY
+from plenodecode.io.images import read_image
+from plenodecode.io.pfm import read_pfm
+from tests.cli.test_microscope import antleg  # noqa: F401  (the decoded ant-leg capture, a module fixture)
+from tests.depth.test_confidence import half_featureless_scene
+
+
+def _grey_share(png) -> float:
+    """Share of the pixels of a rendered depth PNG that are the mask grey."""
+    rgb = read_image(png)[..., :3].astype(np.int16)
+    return float(np.mean(np.all(np.abs(rgb - np.rint(255 * np.array(MASK_GREY))) <= 1, axis=-1)))
+
+
+def test_depth_writes_the_confidence_and_greys_out_the_featureless_half(tmp_path):
+    from plenodecode.io.lightfield import save_lightfield
+
+    lf, gt, square = half_featureless_scene()
+    src = save_lightfield(lf, tmp_path / "lf.npy", format="npy")
+    out = tmp_path / "d.pfm"
+    r = CliRunner().invoke(cli, ["depth", str(src), "-o", str(out), "--method", "fast"], obj={})
+    assert r.exit_code == 0, r.output
+    assert "% below 0.2" in r.output
+    conf = read_image(tmp_path / "d_confidence.exr").squeeze()
+    assert conf.shape == (64, 64)
+    np.testing.assert_array_equal(read_image(tmp_path / "d_confidence.png").squeeze(),
+                                  np.rint(255 * conf).astype(np.uint8))
+    # the uniform right half of the background (away from the square) is below the default threshold, the
+    # textured left half above it
+    assert np.median(conf[4:18, 40:60]) < 0.2 and np.median(conf[4:18, 4:20]) > 0.4
+    greyed = _grey_share(tmp_path / "d.png")
+    r = CliRunner().invoke(cli, ["depth", str(src), "-o", str(out), "--method", "fast", "--overwrite",
+                                 "--min-confidence", "0"], obj={})
+    assert r.exit_code == 0, r.output
+    assert greyed > 0.1 and _grey_share(tmp_path / "d.png") < 0.001     # (anti-aliased text aside)
+
+
+@pytest.mark.parametrize("bad", ["nan", "-0.1", "1.5", "x"])
+def test_min_confidence_outside_the_unit_interval_is_a_usage_error(tmp_path, bad):
+    out = tmp_path / "d.pfm"
+    r = CliRunner().invoke(cli, ["depth", str(tmp_path), "-o", str(out), "--min-confidence", bad], obj={})
+    assert r.exit_code == 2 and "--min-confidence" in r.output
+    assert len([ln for ln in r.output.splitlines() if ln.startswith("Error")]) == 1
+    assert not list(tmp_path.glob("d*"))
+
+
+def _parallax(lf, ys, xs, k=8):
+    """Disparity (px per view step, HCI sign) between the views k steps left and right of the centre, by
+    phase correlation over a window, and the correlation's response."""
+    import cv2
+
+    V, U = lf.shape[:2]
+    a = np.nan_to_num(lf.data[V // 2, U // 2 - k, ys, xs, 0]).astype(np.float64)
+    b = np.nan_to_num(lf.data[V // 2, U // 2 + k, ys, xs, 0]).astype(np.float64)
+    (shift_x, _), response = cv2.phaseCorrelate(a, b, cv2.createHanningWindow(a.shape[::-1], cv2.CV_64F))
+    return -shift_x / (2 * k), response          # view u sees the centre shifted by -d (u - uc)
+
+
+def test_antleg_background_is_masked_and_the_structures_have_the_parallax_sign(antleg, tmp_path):  # noqa: F811
+    from scipy import ndimage
+
+    _, zarr, lf = antleg
+    out = tmp_path / "antleg.pfm"
+    r = CliRunner().invoke(cli, ["depth", str(zarr), "-o", str(out)], obj={})
+    assert r.exit_code == 0, r.output
+    d = read_pfm(out)
+    conf = read_image(tmp_path / "antleg_confidence.exr").squeeze()
+    V, U = lf.shape[:2]
+    centre = ndimage.gaussian_filter(np.nan_to_num(lf.data[V // 2, U // 2, :, :, 0]), 2.0)
+    # the structures: the two largest bright blobs of the smoothed centre view; the background: far from both
+    bright = centre > np.percentile(centre, 80)
+    blobs, n = ndimage.label(bright)
+    assert n >= 2
+    sizes = ndimage.sum(bright, blobs, range(1, n + 1))
+    structures = [blobs == 1 + i for i in np.argsort(sizes)[::-1][:2]]
+    near = ndimage.binary_dilation(structures[0] | structures[1], iterations=8)
+    background = ~near
+    background[:2, :] = background[:, :2] = False             # the partial lenses at the border
+    assert background.mean() > 0.15
+    print(f"background {background.mean():.2f} of the map, {np.mean(conf[background] < 0.2):.3f} below 0.2; "
+          f"grey share of the PNG {_grey_share(out.with_suffix('.png')):.3f}, of the map {np.mean(conf < 0.2):.3f}")
+    assert np.mean(conf[background] < 0.2) > 0.9             # featureless: below the default --min-confidence
+    # and greyed in the PNG (the map fills about half of the figure)
+    assert _grey_share(out.with_suffix(".png")) > 0.3 * np.mean(conf < 0.2)
+    medians = []
+    for blob in structures:
+        rows, cols = np.flatnonzero(blob.any(axis=1)), np.flatnonzero(blob.any(axis=0))
+        ys = slice(max(0, rows[0] - 4), rows[-1] + 5)
+        # the window along the structure with the strongest parallax (the structures are tilted in depth)
+        best = None
+        for x0 in range(cols[0], max(cols[0] + 1, cols[-1] - 30), 6):
+            xs = slice(x0, x0 + 32)
+            p, response = _parallax(lf, ys, xs)
+            if response > 0.4 and (best is None or abs(p) > abs(best[0])):
+                best = (p, xs)
+        assert best is not None
+        p, xs = best
+        keep = (conf[ys, xs] >= 0.2) & blob[ys, xs]
+        est = float(np.median(d[ys, xs][keep]))
+        print(f"structure rows {ys}, cols {xs}: parallax {p:+.3f}, estimate {est:+.3f} px/view")
+        assert abs(p) > 0.05 and np.sign(est) == np.sign(p) and abs(est - p) < 0.2, (p, est)
+        medians.append(est)
+    # the two structures lie on opposite sides of the focal plane: distinct disparities
+    assert abs(medians[0] - medians[1]) > 0.3
