@@ -136,5 +136,26 @@ def njit(*args: Any, **options: Any) -> Any:
     return numba.njit(*args, **options)
 
 
+def run_in_blocks(call: Callable[[int, int], Any], n: int, *, blocks_per_thread: int = 8) -> list[Any]:
+    """Call ``call(i0, i1)`` on blocks covering ``0 .. n`` from a pool of ``numba.get_num_threads()`` threads.
+
+    The parallel loop of a serial ``nogil`` kernel: such a kernel compiles in about half the time of the same
+    loop under ``parallel=True`` (no parfor lowering), and small blocks handed out as threads free up keep both
+    cores busy when the machine is shared.  Returns the calls' results in block order.
+    """
+    import numba
+
+    threads = max(1, numba.get_num_threads())
+    n_blocks = max(1, min(n, threads * blocks_per_thread))
+    cuts = [round(i * n / n_blocks) for i in range(n_blocks + 1)]
+    spans = [(a, b) for a, b in zip(cuts[:-1], cuts[1:]) if b > a]
+    if threads == 1 or len(spans) < 2:
+        return [call(a, b) for a, b in spans]
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(threads) as pool:
+        return list(pool.map(lambda span: call(*span), spans))
+
+
 __all__ = ["KERNEL_GROUPS", "COMPILE_SECONDS", "default_cache_dir", "use_user_cache", "group_of",
-           "compile_message", "set_compile_notice", "njit"]
+           "compile_message", "set_compile_notice", "njit", "run_in_blocks"]
