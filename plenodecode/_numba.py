@@ -34,13 +34,16 @@ KERNEL_GROUPS: dict[str, str] = {
     "plenodecode.depth": "depth",
 }
 
-#: group -> CPU seconds its kernels take to compile (2-core AMD EPYC, numba 0.68; ``bench/bench_coldstart.py``)
+#: group -> CPU seconds its kernels take to compile (2-core AMD EPYC, numba 0.68; ``plenodecode warmup`` with the
+#: numba:compile events timed).  'calibration': about 1.5 s for the bundled samples (small whites repair hot
+#: pixels through OpenCV), 3 s for a full-size white; 'refocus': a focal stack's tiled shift-sum and the
+#: Fourier slice (a single shift-sum photograph goes through OpenCV and compiles nothing).
 COMPILE_SECONDS: dict[str, float] = {
-    "synthetic": 5.0,
-    "calibration": 15.0,
+    "synthetic": 6.0,
+    "calibration": 3.0,
     "total-focus": 4.0,
     "decode": 10.0,
-    "refocus": 14.0,
+    "refocus": 9.0,
     "depth": 4.0,
 }
 
