@@ -23,6 +23,7 @@ Interpolation: linear, or Keys' cubic convolution (a = -0.5; Keys, IEEE TASSP 19
 from __future__ import annotations
 
 import logging
+from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
 
 import cv2
@@ -41,8 +42,12 @@ _TILED_MIN_SLOPES = 8
 def _sum_shifted_views_opencv(data: np.ndarray, weight: np.ndarray | None, vmask: np.ndarray,
                               taps_y: tuple[np.ndarray, np.ndarray], taps_x: tuple[np.ndarray, np.ndarray],
                               chunks: int, step: Callable[[], None]) -> np.ndarray:
-    """:func:`sum_shifted_views` by separable OpenCV filters, one view column after the other (see the module
-    docstring); ``step()`` after each of ``chunks`` groups of view columns."""
+    """:func:`sum_shifted_views` by separable OpenCV filters (see the module docstring).
+
+    The view columns are split in ``cv2.getNumThreads()`` contiguous blocks summed on as many threads (OpenCV
+    releases the GIL), each block's partial sums added in block order.  ``step()`` is called ``chunks`` times,
+    from the calling thread: after each part of the columns with one thread, at the end with several.
+    """
     nv, nu, ny, nx, nc = data.shape
     (by, wy), (bx, wx) = taps_y, taps_x
     ty, tx = wy.shape[-1], wx.shape[-1]
@@ -52,38 +57,52 @@ def _sum_shifted_views_opencv(data: np.ndarray, weight: np.ndarray | None, vmask
     top, bottom = max(0, -int(by.min())), max(0, int(by.max()) + ty - 1)
     left, right = max(0, -int(bx.min())), max(0, int(bx.max()) + tx - 1)
     width = left + nx + right
-    acc = np.zeros((ns, ny, nx, cp), np.float32)
-    column_sum = np.empty((ns, ny, width * cp), np.float32)
-    filtered = np.empty((ny + ty - 1, width * cp), np.float32)
     one = np.ones(1, np.float32)
-    ends = np.linspace(0, nu, chunks + 1).round().astype(int)[1:]
-    for u in range(nu):
-        views = np.flatnonzero(vmask[:, u])
-        if len(views):
+
+    def columns(u0: int, u1: int, report: Callable[[], None] = lambda: None) -> np.ndarray:
+        acc = np.zeros((ns, ny, nx, cp), np.float32)
+        column_sum = np.empty((ns, ny, width * cp), np.float32)
+        filtered = np.empty((ny + ty - 1, width * cp), np.float32)
+        ends = np.linspace(u0, u1, chunks + 1).round().astype(int)[1:]
+        for u in range(u0, u1):
+            views = np.flatnonzero(vmask[:, u])
             column_sum.fill(0.0)
-        for v in views:
-            view = data[v, u]
-            if weight is not None:
-                w = weight[v, u, :, :, None]
-                view = np.concatenate([view * w, w], axis=-1)
-            padded = cv2.copyMakeBorder(np.ascontiguousarray(view, np.float32), top, bottom, left, right,
-                                        cv2.BORDER_REPLICATE).reshape(top + ny + bottom, width * cp)
-            for s in range(ns):
-                # y pass: filtered[i] = sum_t m_vu wy[s, v, t] padded[top + by[s, v] + i + t]
-                r0 = top + int(by[s, v])
-                kernel = (wy[s, v] * vmask[v, u]).reshape(ty, 1)
-                cv2.filter2D(padded[r0:r0 + ny + ty - 1], cv2.CV_32F, kernel, dst=filtered, anchor=(0, 0),
-                             borderType=cv2.BORDER_REPLICATE)
-                np.add(column_sum[s], filtered[:ny], out=column_sum[s])
-        for s in range(ns if len(views) else 0):
-            # x pass: acc[s, :, x] += sum_t wx[s, u, t] column_sum[s, :, left + bx[s, u] + x + t]
-            c0 = left + int(bx[s, u])
-            cols = column_sum[s].reshape(ny, width, cp)[:, c0:c0 + nx + tx - 1]
-            shifted = cv2.sepFilter2D(np.ascontiguousarray(cols), cv2.CV_32F, wx[s, u], one, anchor=(0, 0),
-                                      borderType=cv2.BORDER_REPLICATE)
-            np.add(acc[s], shifted.reshape(ny, nx + tx - 1, cp)[:, :nx], out=acc[s])
-        for _ in range(int(np.count_nonzero(ends == u + 1))):
+            for v in views:
+                view = data[v, u]
+                if weight is not None:
+                    w = weight[v, u, :, :, None]
+                    view = np.concatenate([view * w, w], axis=-1)
+                padded = cv2.copyMakeBorder(np.ascontiguousarray(view, np.float32), top, bottom, left, right,
+                                            cv2.BORDER_REPLICATE).reshape(top + ny + bottom, width * cp)
+                for s in range(ns):
+                    # y pass: filtered[i] = sum_t m_vu wy[s, v, t] padded[top + by[s, v] + i + t]
+                    r0 = top + int(by[s, v])
+                    kernel = (wy[s, v] * vmask[v, u]).reshape(ty, 1)
+                    cv2.filter2D(padded[r0:r0 + ny + ty - 1], cv2.CV_32F, kernel, dst=filtered, anchor=(0, 0),
+                                 borderType=cv2.BORDER_REPLICATE)
+                    np.add(column_sum[s], filtered[:ny], out=column_sum[s])
+            for s in range(ns if len(views) else 0):
+                # x pass: acc[s, :, x] += sum_t wx[s, u, t] column_sum[s, :, left + bx[s, u] + x + t]
+                c0 = left + int(bx[s, u])
+                cols = column_sum[s].reshape(ny, width, cp)[:, c0:c0 + nx + tx - 1]
+                shifted = cv2.sepFilter2D(np.ascontiguousarray(cols), cv2.CV_32F, wx[s, u], one, anchor=(0, 0),
+                                          borderType=cv2.BORDER_REPLICATE)
+                np.add(acc[s], shifted.reshape(ny, nx + tx - 1, cp)[:, :nx], out=acc[s])
+            for _ in range(int(np.count_nonzero(ends == u + 1))):
+                report()
+        return acc
+
+    blocks = np.linspace(0, nu, min(nu, max(1, cv2.getNumThreads())) + 1).round().astype(int)
+    if len(blocks) > 2:
+        with ThreadPoolExecutor(len(blocks) - 1) as pool:
+            parts = list(pool.map(columns, blocks[:-1].tolist(), blocks[1:].tolist()))
+        for _ in range(chunks):
             step()
+    else:
+        parts = [columns(0, nu, step)]
+    acc = parts[0]
+    for part in parts[1:]:
+        np.add(acc, part, out=acc)
     if weight is None:
         return np.multiply(acc, np.float32(1.0 / float(vmask.sum())), out=acc)
     den = acc[..., nc:]

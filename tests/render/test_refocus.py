@@ -509,3 +509,25 @@ def test_focus_arguments_are_checked():
         refocus(lf, at=(20, 3))
     with pytest.raises(ValueError, match="at_method"):
         refocus(lf, at=(2, 3), at_method="guess")
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("slopes", [0.3, np.linspace(-1, 1, 9)])
+def test_progress_counts_up_to_its_total_on_both_paths(monkeypatch, threads, slopes):
+    """OpenCV path (one slope; one or two threads) and compiled focal stack (9 slopes): steps 1..total, upsampled
+    too, and the photographs do not depend on OpenCV's thread count beyond float32 rounding."""
+    import cv2
+
+    lf, _ = two_planes(n=5, shape=(20, 26))
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(threads)
+    try:
+        for k in (1, 2):
+            calls = []
+            out = shift_sum(lf, slopes, upsample=k, progress=lambda d, t: calls.append((d, t)))
+            total = calls[-1][1]
+            assert [d for d, _ in calls] == list(range(1, total + 1)) and total == 4 * k * k
+        cv2.setNumThreads(1)
+        np.testing.assert_allclose(out, shift_sum(lf, slopes, upsample=2), atol=1e-6)
+    finally:
+        cv2.setNumThreads(before)
