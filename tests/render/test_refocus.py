@@ -236,6 +236,9 @@ def test_opencv_photographs_equal_the_compiled_focal_stack(monkeypatch, interp, 
         np.testing.assert_allclose(one, stack[i], atol=1e-6)
     monkeypatch.setattr(shiftsum, "_TILED_MIN_SLOPES", 100)
     np.testing.assert_allclose(shift_sum(lf, slopes, aperture=mask, interp=interp), stack, atol=1e-6)
+    # a light field of _TILED_MIN_SAMPLES samples or more: one photograph through the kernel, as in the stack
+    monkeypatch.setattr(shiftsum, "_TILED_MIN_SAMPLES", data[..., 0].size)
+    np.testing.assert_array_equal(shift_sum(lf, slopes[2], aperture=mask, interp=interp)[0], stack[2])
 
 
 @pytest.mark.parametrize("interp", ["linear", "cubic"])
