@@ -6,7 +6,8 @@ after installing), then again with the cache that first run filled (warm, best o
 Wall seconds are a monotonic clock around the child; CPU seconds are the child's user + system
 time (``resource.getrusage(RUSAGE_CHILDREN)``), the figure to trust when the machine is shared.
 
-Issue 21's target: a cold command takes at most ``max(2 x warm, warm + 5 s)``.
+Issue 21's target: a cold command takes at most ``max(2 x warm, warm + 5 s)``; the table judges the wall
+seconds, and the note the same target on CPU seconds (the verdict to trust on a loaded machine).
 
 ``python -m bench.bench_coldstart`` prints the table on its own.
 """
@@ -87,8 +88,10 @@ def run() -> list[Figure]:
     figures = []
     for name, cold, warm in measure_commands():
         limit = max(2 * warm.wall, warm.wall + 5.0)
+        cpu_limit = max(2 * warm.cpu, warm.cpu + 5.0)
+        verdict = "ok" if cold.cpu <= cpu_limit else "over"
         figures.append(Figure(f"cold start: {name} (cold, empty numba cache)", cold.wall, target_s=limit,
-                              note=f"CPU {cold.cpu:.1f} s"))
+                              note=f"CPU {cold.cpu:.1f} s (same target on CPU: <= {cpu_limit:.1f} s, {verdict})"))
         figures.append(Figure(f"cold start: {name} (warm)", warm.wall, note=f"CPU {warm.cpu:.1f} s"))
     return figures
 

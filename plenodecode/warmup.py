@@ -7,9 +7,11 @@ compiling.  Groups, in order (each needs the one before):
 
 ``synthetic``   the forward model (:func:`plenodecode.synthetic.simulate`), which makes the inputs, and the
                 checkerboard renderer (:func:`plenodecode.synthetic.board_lightfield`);
-``calibration`` :func:`plenodecode.calib.calibrate` on the white image;
+``calibration`` :func:`plenodecode.calib.calibrate` on the white image, and the hot-pixel kernel of
+                full-size whites;
 ``decode``      :func:`plenodecode.pipeline.decode_raw` (devignette, demosaic, slice, hex -> rect);
-``refocus``     shift-sum and Fourier-slice photographs (:func:`plenodecode.pipeline.render_product`);
+``refocus``     shift-sum and Fourier-slice photographs and a shift-sum focal stack
+                (:func:`plenodecode.pipeline.render_product`);
 ``depth``       the default depth method (cost volume, aggregation, occlusion);
 ``total-focus`` a focused-plenoptic ('raytrix') raw rendered all-in-focus.
 """
@@ -34,9 +36,14 @@ def _synthetic(state: dict[str, Any]) -> None:
 
 
 def _calibration(state: dict[str, Any]) -> None:
+    import numpy as np
+
     from .calib import calibrate
+    from .calib.centroids import flatten
 
     state["grid"] = calibrate([state["sim"].white])
+    # full-size whites repair hot pixels in a compiled kernel (small images go through OpenCV)
+    flatten.fix_hot_pixels(np.zeros((1, flatten._KERNEL_MIN_PIXELS), np.float32))
 
 
 def _decode(state: dict[str, Any]) -> None:
@@ -48,10 +55,13 @@ def _decode(state: dict[str, Any]) -> None:
 
 def _refocus(state: dict[str, Any]) -> None:
     from .pipeline import Source, render_product
+    from .render.shiftsum import _TILED_MIN_SLOPES
 
     src = Source(lightfield=state["lf"])
     for method in ("shift-sum", "fourier-slice"):
         render_product(src, "refocus", slope=0.25, method=method)
+    # a focal stack: the compiled tiled shift-sum (a single photograph goes through OpenCV)
+    render_product(src, "focal-stack", start=-0.5, stop=0.5, n=_TILED_MIN_SLOPES)
 
 
 def _depth(state: dict[str, Any]) -> None:

@@ -35,16 +35,32 @@ def test_kernels_compile_into_numba_cache_dir_and_say_so_once(tmp_path):
     code = ("import numpy as np\n"
             "from plenodecode import _numba\n"
             "_numba.set_compile_notice(lambda m: print('NOTICE', m))\n"
-            "from plenodecode.calib.grid import _nearest_per_cell\n"
+            "from plenodecode.calib.centroids.peaks import window_contrast\n"
+            "g = np.array([[0.0, 2.0, 5.0], [1.0, 4.0, 0.5]], np.float32)\n"
             "for _ in range(2):\n"
-            "    print(_nearest_per_cell(np.array([0, 1, 1]), np.array([1.0, 2.0, 0.5]), np.arange(3), 2))\n")
+            "    print(window_contrast(g, np.array([0, 1]), np.array([2, 1]), 1))\n")
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(ROOT))
     run = [sys.executable, "-c", code]
     first = subprocess.run(run, capture_output=True, text=True, check=True, env=env).stdout
     assert first.count("NOTICE compiling calibration kernels (first run only") == 1
-    assert "[0 2]" in first
+    assert "[4.5 4. ]" in first
     assert any((tmp_path / "cache").rglob("*.nbi"))
     package_caches = [p for p in (ROOT / "plenodecode").rglob("*.nbi")]
     assert not package_caches, package_caches
     second = subprocess.run(run, capture_output=True, text=True, check=True, env=env).stdout
-    assert "NOTICE" not in second and "[0 2]" in second
+    assert "NOTICE" not in second and "[4.5 4. ]" in second
+
+
+def test_run_in_blocks_covers_the_range_once_in_order():
+    seen = []
+
+    def call(i0, i1):
+        seen.append((i0, i1))
+        return list(range(i0, i1))
+
+    out = _numba.run_in_blocks(call, 103, blocks_per_thread=5)
+    assert [i for block in out for i in block] == list(range(103))        # results in block order, no gap/overlap
+    assert sorted(seen) == seen or len(seen) == len(out)
+    assert len(out) > 1
+    assert _numba.run_in_blocks(call, 0) == []
+    assert _numba.run_in_blocks(call, 1) == [[0]]

@@ -25,7 +25,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy import ndimage
 
-from .._numba import njit
 from ..errors import CalibrationError
 from ..types import LensletGrid
 
@@ -156,35 +155,24 @@ def _model(x: np.ndarray, s: float, n: np.ndarray, m: np.ndarray) -> np.ndarray:
     return np.stack([o_r + a * cs + b * sn, o_c - a * sn + b * cs], axis=-1)
 
 
-@njit(cache=True)
-def _normal_equations(x, s, pts, n, m):  # pragma: no cover - compiled
-    o_r, o_c, th, p, rs = x[0], x[1], x[2], x[3], x[4]
+def _normal_equations(x: np.ndarray, s: float, pts: np.ndarray, n: np.ndarray,
+                      m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``A = Jr^T Jr + Jc^T Jc`` (5, 5) and ``g = Jr^T rr + Jc^T rc`` (5,) of the 5-parameter model, float64.
+
+    ``rr, rc`` (N,) are the row and column residuals ``pts - P``; ``Jr, Jc`` (N, 5) their Jacobians
+    (see :func:`_gauss_newton_step`).
+    """
+    o_r, o_c, th, p, rs = x
     sn, cs = math.sin(th), math.cos(th)
-    A = np.zeros((5, 5))
-    g = np.zeros(5)
-    jr = np.zeros(5)
-    jc = np.zeros(5)
-    for t in range(pts.shape[0]):
-        a = n[t] * rs
-        k = m[t] + s * n[t]
-        b = k * p
-        rr = pts[t, 0] - (o_r + a * cs + b * sn)
-        rc = pts[t, 1] - (o_c - a * sn + b * cs)
-        jr[0] = 1.0
-        jr[1] = 0.0
-        jr[2] = -a * sn + b * cs
-        jr[3] = k * sn
-        jr[4] = n[t] * cs
-        jc[0] = 0.0
-        jc[1] = 1.0
-        jc[2] = -a * cs - b * sn
-        jc[3] = k * cs
-        jc[4] = -n[t] * sn
-        for i in range(5):
-            g[i] += jr[i] * rr + jc[i] * rc
-            for j in range(5):
-                A[i, j] += jr[i] * jr[j] + jc[i] * jc[j]
-    return A, g
+    a = n * rs
+    k = m + s * n
+    b = k * p
+    res_r = pts[:, 0] - (o_r + a * cs + b * sn)
+    res_c = pts[:, 1] - (o_c - a * sn + b * cs)
+    one, zero = np.ones_like(a), np.zeros_like(a)
+    jr = np.stack([one, zero, -a * sn + b * cs, k * sn, n * cs], axis=1)
+    jc = np.stack([zero, one, -a * cs - b * sn, k * cs, -n * sn], axis=1)
+    return jr.T @ jr + jc.T @ jc, jr.T @ res_r + jc.T @ res_c
 
 
 def _gauss_newton_step(x: np.ndarray, s: float, pts: np.ndarray, n: np.ndarray,
@@ -292,33 +280,17 @@ def index_points(points: np.ndarray, v1: np.ndarray, v2: np.ndarray, *, seed: np
     return r.astype(np.int64), ok, np.stack([o, b1, b2])
 
 
-@njit(cache=True)
-def _affine_normal_equations(pts, dist, radius, o, inv, tol):  # pragma: no cover - compiled
+def _affine_normal_equations(pts: np.ndarray, dist: np.ndarray, radius: float, o: np.ndarray, inv: np.ndarray,
+                             tol: float) -> tuple[np.ndarray, np.ndarray, int]:
     """Normal equations of the affine lattice fit over the points within ``radius`` whose
     fractional lattice coordinates ``inv @ (p - o)`` are within ``tol`` of integers ``(n, m)``:
     ``A^T A`` (3, 3) and ``A^T P`` (3, 2) with rows ``A = [1, n, m]``, and the number of points."""
-    ata = np.zeros((3, 3))
-    atp = np.zeros((3, 2))
-    count = 0
-    for k in range(pts.shape[0]):
-        if dist[k] > radius:
-            continue
-        dr = pts[k, 0] - o[0]
-        dc = pts[k, 1] - o[1]
-        fn = inv[0, 0] * dr + inv[0, 1] * dc
-        fm = inv[1, 0] * dr + inv[1, 1] * dc
-        n = np.round(fn)
-        m = np.round(fm)
-        if abs(fn - n) >= tol or abs(fm - m) >= tol:
-            continue
-        a = (1.0, n, m)
-        for i in range(3):
-            for j in range(3):
-                ata[i, j] += a[i] * a[j]
-            atp[i, 0] += a[i] * pts[k, 0]
-            atp[i, 1] += a[i] * pts[k, 1]
-        count += 1
-    return ata, atp, count
+    near = pts[dist <= radius]
+    f = (near - o) @ inv.T                      # fractional (n, m)
+    nm = np.round(f)
+    good = np.all(np.abs(f - nm) < tol, axis=1)
+    a = np.concatenate([np.ones((int(good.sum()), 1)), nm[good]], axis=1)
+    return a.T @ a, a.T @ near[good], int(good.sum())
 
 
 def _lattice_coords(pts: np.ndarray, o: np.ndarray, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
@@ -337,30 +309,13 @@ def _dedupe(nm: np.ndarray, ok: np.ndarray, dist: np.ndarray) -> np.ndarray:
     if len(idx) == 0:
         return ok
     n, m = nm[idx, 0], nm[idx, 1]
-    n0, m0 = int(n.min()), int(m.min())
-    rows, cols = int(n.max()) - n0 + 1, int(m.max()) - m0 + 1
+    key = (n - n.min()) * (int(m.max() - m.min()) + 1) + (m - m.min())     # the cell, one integer per (n, m)
     out = np.zeros_like(ok)
-    if rows * cols <= 8 * len(idx) + 1024:  # dense index table: one pass
-        out[_nearest_per_cell((n - n0) * cols + (m - m0), dist[idx], idx, rows * cols)] = True
-        return out
-    key = n * 1_000_003 + m
-    order = np.lexsort((dist[idx], key))
+    order = np.lexsort((dist[idx], key))        # by cell, then distance; stable: the first point on ties
     first = np.ones(len(order), bool)
     first[1:] = key[order][1:] != key[order][:-1]
     out[idx[order[first]]] = True
     return out
-
-
-@njit(cache=True)
-def _nearest_per_cell(cell, dist, idx, n_cells):  # pragma: no cover - compiled
-    """For each occupied cell, the ``idx`` of its entry with the smallest ``dist`` (first on ties)."""
-    best = np.full(n_cells, -1, np.int64)
-    for k in range(len(cell)):
-        c = cell[k]
-        if best[c] < 0 or dist[k] < dist[best[c]]:
-            best[c] = k
-    keep = best[best >= 0]
-    return idx[np.sort(keep)]
 
 
 def fit_lattice(points: np.ndarray, v1: np.ndarray, v2: np.ndarray, lattice: str, *,

@@ -31,9 +31,8 @@ from typing import Any, Callable
 import numpy as np
 import scipy.fft
 import scipy.special
-from numba import prange
 
-from .._numba import njit
+from .._numba import njit, run_in_blocks
 from ..types import LightField
 from ._common import aperture_mask, check_lightfield, check_upsample
 
@@ -93,21 +92,22 @@ def _gridding_taps(freq: np.ndarray, n_grid: int, width: int, beta: float) -> tu
     return np.mod(bins, n_grid), w.astype(np.float32)
 
 
-@njit(parallel=True, cache=True)
-def _slice(spec, iy, wy, run_start, run_bin, wxe, out):
+@njit(nogil=True, cache=True)
+def _slice(spec, iy, wy, run_start, run_bin, wxe, out, n0, n1):
     """Interpolate the 2D slice ``out[n, k] = sum_ij wy[n, i] wx[k, j] spec[iy[n, i], (b_k + j) % Pu, n, k]``.
 
     ``spec`` (Pv, Pu, Yp, L) float32 is the complex spectrum viewed as real numbers (``L = Xr * 2 C``): a real
     weight scales real and imaginary parts alike.  Columns ``k`` are grouped in runs sharing the first angular
     bin ``b_k`` (``run_start`` (R + 1,) in units of L, ``run_bin`` (R,)), so the inner loop is a contiguous,
     vectorised multiply-add; ``wxe`` (W, L) holds ``wx[k, j]`` repeated over the 2 C numbers of column ``k``.
-    iy, wy (Yp, W); out (Yp, L) float32.
+    iy, wy (Yp, W); out (Yp, L) float32.  Rows ``n0 <= n < n1`` (blocks on threads:
+    :func:`plenodecode._numba.run_in_blocks`, which compiles in less time than ``parallel=True``).
     """
     npu = spec.shape[1]
     ny = spec.shape[2]
     nt = iy.shape[1]
     nrun = run_bin.shape[0]
-    for n in prange(ny):
+    for n in range(n0, n1):
         dst_row = out[n]
         dst_row[:] = 0.0
         for i in range(nt):
@@ -326,7 +326,7 @@ class FourierRefocuser:
         wxe = np.ascontiguousarray(np.repeat(wx.T, q, axis=1))  # (W, xr * q)
         spec_f = self.spectrum.view(np.float32).reshape(pv, pu, yp, xr * q)
         out = np.empty((yp, xr * q), np.float32)
-        _slice(spec_f, iy, wy, run_start, run_bin, wxe, out)
+        run_in_blocks(lambda n0, n1: _slice(spec_f, iy, wy, run_start, run_bin, wxe, out, n0, n1), out.shape[0])
         sl = out.view(np.complex64).reshape(yp, xr, nch)
         if k > 1:
             big = np.zeros((k * yp, k * (xp // 2) + 1, sl.shape[2]), np.complex64)

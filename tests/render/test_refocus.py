@@ -9,6 +9,7 @@ import scipy.ndimage as ndi
 
 from plenodecode.errors import MetadataError
 import plenodecode.render.shiftsum as shiftsum
+import plenodecode.render.shiftsum_tiles as shiftsum_tiles
 from plenodecode.render import REFOCUS_METHODS, focal_stack, refocus, sharpest_slope, shift_sum
 from plenodecode.render.focalstack import gradient_energy
 from plenodecode.render.fourier import FourierRefocuser
@@ -194,23 +195,50 @@ def test_many_slopes_in_one_pass_equal_one_at_a_time():
 @pytest.mark.parametrize("weighted", [False, True])
 @pytest.mark.parametrize("slopes", [[-2.3, -0.45, 0.0, 0.8, 3.1], [-0.3, 0.2, 0.25]])
 def test_tiles_and_slope_groups_do_not_change_the_photographs(monkeypatch, interp, weighted, slopes):
-    """Tiny tiles (partial ones at the borders, shifts reaching across several tiles; with small slopes, inner
+    """The compiled kernel: tiny tiles (partial ones at the borders, shifts reaching across several tiles; with small slopes, inner
     tiles read the light field in place) and groups of 2 slopes give the reference photographs, and exactly the
     same numbers as one tile."""
     rng = np.random.default_rng(5)
     data = rng.random((5, 7, 33, 38, 3), dtype=np.float32)
     w = rng.random((5, 7, 33, 38), dtype=np.float32) + 0.1 if weighted else None
     lf = LightField(data, w)
+    monkeypatch.setattr(shiftsum, "_TILED_MIN_SLOPES", 1)             # the compiled tiled kernel
     whole = shift_sum(lf, slopes, interp=interp)
-    monkeypatch.setattr(shiftsum, "_ROWS", 5)
-    monkeypatch.setattr(shiftsum, "_COLS", 7)
-    monkeypatch.setattr(shiftsum, "_EDGE_COLS", 3)
-    monkeypatch.setattr(shiftsum, "_ACC_BYTES", 2 * 4 * 5 * 12 * 4)   # two slopes per group
+    monkeypatch.setattr(shiftsum_tiles, "_ROWS", 5)
+    monkeypatch.setattr(shiftsum_tiles, "_COLS", 7)
+    monkeypatch.setattr(shiftsum_tiles, "_EDGE_COLS", 3)
+    monkeypatch.setattr(shiftsum_tiles, "_ACC_BYTES", 2 * 4 * 5 * 12 * 4)   # two slopes per group
     tiled = shift_sum(lf, slopes, interp=interp)
     np.testing.assert_array_equal(tiled, whole)
     for i, s in enumerate(slopes):
         ref = reference_shift_sum(lf, s) if interp == "linear" else keys_reference(lf, s)
         np.testing.assert_allclose(tiled[i], ref, atol=2e-6)
+
+
+@pytest.mark.parametrize("interp", ["linear", "cubic"])
+@pytest.mark.parametrize("weighted", [False, True])
+def test_opencv_photographs_equal_the_compiled_focal_stack(monkeypatch, interp, weighted):
+    """A focal stack (compiled tiled kernel) and the same slopes one photograph at a time (OpenCV) agree to float32
+    rounding, with large shifts, a fractional aperture mask and a weight; a one-pixel shift error or a tap applied
+    to the wrong view would differ by ~0.1."""
+    rng = np.random.default_rng(9)
+    data = rng.random((5, 7, 29, 41, 3), dtype=np.float32)
+    w = rng.random((5, 7, 29, 41), dtype=np.float32) + 0.1 if weighted else None
+    lf = LightField(data, w)
+    mask = np.ones((5, 7), np.float32)
+    mask[:, 2] = 0
+    mask[1, 5] = 0.25
+    slopes = np.array([-3.4, -1.25, -0.5, 0.0, 0.3, 0.77, 1.6, 4.2])
+    assert len(slopes) >= shiftsum._TILED_MIN_SLOPES
+    stack = shift_sum(lf, slopes, aperture=mask, interp=interp)
+    for i, s in enumerate(slopes):
+        one = shift_sum(lf, s, aperture=mask, interp=interp)[0]
+        np.testing.assert_allclose(one, stack[i], atol=1e-6)
+    monkeypatch.setattr(shiftsum, "_TILED_MIN_SLOPES", 100)
+    np.testing.assert_allclose(shift_sum(lf, slopes, aperture=mask, interp=interp), stack, atol=1e-6)
+    # a light field of _TILED_MIN_SAMPLES samples or more: one photograph through the kernel, as in the stack
+    monkeypatch.setattr(shiftsum, "_TILED_MIN_SAMPLES", data[..., 0].size)
+    np.testing.assert_array_equal(shift_sum(lf, slopes[2], aperture=mask, interp=interp)[0], stack[2])
 
 
 @pytest.mark.parametrize("interp", ["linear", "cubic"])
@@ -484,3 +512,25 @@ def test_focus_arguments_are_checked():
         refocus(lf, at=(20, 3))
     with pytest.raises(ValueError, match="at_method"):
         refocus(lf, at=(2, 3), at_method="guess")
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("slopes", [0.3, np.linspace(-1, 1, 9)])
+def test_progress_counts_up_to_its_total_on_both_paths(monkeypatch, threads, slopes):
+    """OpenCV path (one slope; one or two threads) and compiled focal stack (9 slopes): steps 1..total, upsampled
+    too, and the photographs do not depend on OpenCV's thread count beyond float32 rounding."""
+    import cv2
+
+    lf, _ = two_planes(n=5, shape=(20, 26))
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(threads)
+    try:
+        for k in (1, 2):
+            calls = []
+            out = shift_sum(lf, slopes, upsample=k, progress=lambda d, t: calls.append((d, t)))
+            total = calls[-1][1]
+            assert [d for d, _ in calls] == list(range(1, total + 1)) and total == 4 * k * k
+        cv2.setNumThreads(1)
+        np.testing.assert_allclose(out, shift_sum(lf, slopes, upsample=2), atol=1e-6)
+    finally:
+        cv2.setNumThreads(before)

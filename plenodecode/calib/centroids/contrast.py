@@ -10,10 +10,7 @@ from __future__ import annotations
 import math
 
 import cv2
-import numba
 import numpy as np
-
-from ..._numba import njit
 
 
 def _blur_1d_moments(n: int, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -27,49 +24,33 @@ def _blur_1d_moments(n: int, sigma: float) -> tuple[np.ndarray, np.ndarray, np.n
     return conv[0], conv[1], conv[2], t
 
 
-@njit(cache=True, fastmath=True, inline="always")
-def _geometric_moments(r1, ry, ryy, ty, c1, cx, cxx, tx):  # pragma: no cover - compiled
-    """``(g1, m0y, m0x, myy, mxx, mxy)``: the Gaussian moments ``G * 1, G * (y' - y), G * (x' - x), ...`` of
-    one pixel from the separable 1-D blurs of its row (``r1, ry, ryy, ty``) and column (``c1, cx, cxx, tx``)."""
-    ay = ry - ty * r1
-    ayy = ryy - 2 * ty * ry + ty * ty * r1
-    ax = cx - tx * c1
-    axx = cxx - 2 * tx * cx + tx * tx * c1
-    return r1 * c1, ay * c1, r1 * ax, ayy * c1, r1 * axx, ay * ax
+def _local_linear_level(r1: np.ndarray, ry: np.ndarray, ryy: np.ndarray, ty: np.ndarray, c1: np.ndarray,
+                        cx: np.ndarray, cxx: np.ndarray, tx: np.ndarray, s0: np.ndarray, sy: np.ndarray,
+                        sx: np.ndarray) -> np.ndarray:
+    """``beta0`` of the 3x3 normal equations of :func:`local_mean` per pixel (Cramer's rule), float32 (hs, ws).
 
-
-@njit(cache=True, parallel=True, fastmath=True)
-def _local_linear_level(r1, ry, ryy, ty, c1, cx, cxx, tx, s0, sy, sx):  # pragma: no cover - compiled
-    """``beta0`` of the 3x3 normal equations of :func:`local_mean` per pixel (Cramer's rule).
-
-    The geometric moments are separable (:func:`_geometric_moments`); ``s0, sy, sx`` are the Gaussian
-    blurs of ``I``, ``I t_y`` and ``I t_x``.  A first pass finds the determinants, so that a determinant
-    tiny against the largest (a degenerate fit) falls back to the plain mean.
+    The geometric moments are separable: with ``a_y = G*(y' - y)``, ``a_yy = G*(y' - y)^2`` along the rows
+    (from the 1-D blurs ``r1, ry, ryy`` of ``1, t, t^2`` and ``ty``; likewise ``a_x, a_xx`` along the columns),
+    ``g1 = r1 c1``, ``m0y = a_y c1``, ``m0x = r1 a_x``, ``myy = a_yy c1``, ``mxx = r1 a_xx``, ``mxy = a_y a_x``
+    (outer products, float64).  ``s0, sy, sx`` (hs, ws) are the Gaussian blurs of ``I``, ``I t_y`` and
+    ``I t_x``.  A determinant tiny against the largest (a degenerate fit) falls back to the plain mean.
     """
-    hs, ws = s0.shape
-    det = np.empty((hs, ws))
-    row_max = np.zeros(hs)
-    for i in numba.prange(hs):
-        for j in range(ws):
-            g1, m0y, m0x, myy, mxx, mxy = _geometric_moments(r1[i], ry[i], ryy[i], ty[i], c1[j], cx[j], cxx[j], tx[j])
-            d = g1 * (myy * mxx - mxy * mxy) + m0y * (m0x * mxy - m0y * mxx) + m0x * (m0y * mxy - m0x * myy)
-            det[i, j] = d
-            row_max[i] = max(row_max[i], abs(d))
-    tiny = 1e-9 * row_max.max()
-    out = np.empty((hs, ws), np.float32)
-    for i in numba.prange(hs):
-        for j in range(ws):
-            g1, m0y, m0x, myy, mxx, mxy = _geometric_moments(r1[i], ry[i], ryy[i], ty[i], c1[j], cx[j], cxx[j], tx[j])
-            v0 = np.float64(s0[i, j])
-            d = det[i, j]
-            if abs(d) > tiny:
-                by = sy[i, j] - ty[i] * v0
-                bx = sx[i, j] - tx[j] * v0
-                out[i, j] = ((myy * mxx - mxy * mxy) * v0 + (m0x * mxy - m0y * mxx) * by
-                             + (m0y * mxy - m0x * myy) * bx) / d
-            else:
-                out[i, j] = v0 / max(g1, 1e-12)
-    return out
+    ay, ayy = ry - ty * r1, ryy - 2 * ty * ry + ty * ty * r1
+    ax, axx = cx - tx * c1, cxx - 2 * tx * cx + tx * tx * c1
+    col = (slice(None), None)
+    g1, m0y, m0x = r1[col] * c1, ay[col] * c1, r1[col] * ax
+    myy, mxx, mxy = ayy[col] * c1, r1[col] * axx, ay[col] * ax
+    c00 = myy * mxx - mxy * mxy                 # cofactors of the first row of [[g1, m0y, m0x], ...]
+    c01 = m0x * mxy - m0y * mxx
+    c02 = m0y * mxy - m0x * myy
+    det = g1 * c00 + m0y * c01 + m0x * c02
+    v0 = s0.astype(np.float64)
+    by = sy - ty[col] * v0
+    bx = sx - tx * v0
+    fit = np.abs(det) > 1e-9 * np.abs(det).max()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        level = np.where(fit, (c00 * v0 + c01 * by + c02 * bx) / det, v0 / np.maximum(g1, 1e-12))
+    return level.astype(np.float32)
 
 
 def local_mean(img: np.ndarray, sigma: float) -> np.ndarray:

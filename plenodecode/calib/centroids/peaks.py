@@ -14,10 +14,9 @@ from __future__ import annotations
 import math
 
 import cv2
-import numba
 import numpy as np
 
-from ..._numba import njit
+from ..._numba import njit, run_in_blocks
 
 
 def smoothing_sigma(pitch: float) -> float:
@@ -76,19 +75,17 @@ def window_maxima(g: np.ndarray, half: int, margin: int) -> np.ndarray:
     return mask
 
 
-@njit(cache=True, parallel=True)
-def _window_contrast_at(g, rr, cc, half):  # pragma: no cover - compiled
-    """Kernel of :func:`window_contrast`: visits only the windows of the listed pixels."""
+@njit(cache=True, nogil=True)
+def _window_contrast_at(g, rr, cc, half, out, k0, k1):  # pragma: no cover - compiled
+    """Pixels ``k0 .. k1`` of :func:`window_contrast` into ``out``: visits only the windows of the listed pixels."""
     h, w = g.shape
-    out = np.empty(len(rr), np.float32)
-    for k in numba.prange(len(rr)):
+    for k in range(k0, k1):
         i, j = rr[k], cc[k]
         mn = g[i, j]
         for r in range(max(0, i - half), min(h, i + half + 1)):
             for c in range(max(0, j - half), min(w, j + half + 1)):
                 mn = min(mn, g[r, c])
         out[k] = g[i, j] - mn
-    return out
 
 
 def window_contrast(g: np.ndarray, rr: np.ndarray, cc: np.ndarray, half: int) -> np.ndarray:
@@ -111,8 +108,11 @@ def window_contrast(g: np.ndarray, rr: np.ndarray, cc: np.ndarray, half: int) ->
     -------
     ndarray, shape (N,), float32
     """
-    return _window_contrast_at(np.ascontiguousarray(g), np.asarray(rr, np.int64), np.asarray(cc, np.int64),
-                               int(half))
+    g = np.ascontiguousarray(g)
+    rr, cc = np.asarray(rr, np.int64), np.asarray(cc, np.int64)
+    out = np.empty(len(rr), np.float32)
+    run_in_blocks(lambda k0, k1: _window_contrast_at(g, rr, cc, int(half), out, k0, k1), len(rr))
+    return out
 
 
 def window_contrast_reference(g: np.ndarray, rr: np.ndarray, cc: np.ndarray, half: int) -> np.ndarray:

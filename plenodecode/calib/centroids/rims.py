@@ -15,10 +15,9 @@ from __future__ import annotations
 import math
 
 import cv2
-import numba
 import numpy as np
 
-from ..._numba import njit
+from ..._numba import njit, run_in_blocks
 from .contrast import devignette
 
 
@@ -100,14 +99,12 @@ def rim_votes(gy: np.ndarray, gx: np.ndarray, radius: float, *, min_gradient: fl
     return _splat_votes(np.ascontiguousarray(gy), np.ascontiguousarray(gx), float(radius), thr)
 
 
-@njit(cache=True, parallel=True, fastmath=True)
-def _rim_fit(gy, gx, start, radius, band, n_iter, relax, tol):  # pragma: no cover - compiled
-    n = start.shape[0]
+@njit(cache=True, nogil=True, fastmath=True)
+def _rim_fit(gy, gx, start, radius, band, n_iter, relax, tol, out, ok, k0, k1):  # pragma: no cover - compiled
+    """Disks ``k0 .. k1`` of :func:`refine_rims` into ``out`` (N, 2) and ``ok`` (N,) (see there)."""
     h, w = gy.shape
-    out = np.empty((n, 2))
-    ok = np.ones(n, np.bool_)
     half = int(math.ceil(radius + band + 1.0))
-    for k in numba.prange(n):
+    for k in range(k0, k1):
         cy = start[k, 0]
         cx = start[k, 1]
         for _ in range(n_iter):
@@ -177,7 +174,6 @@ def _rim_fit(gy, gx, start, radius, band, n_iter, relax, tol):  # pragma: no cov
             ok[k] = False
         out[k, 0] = cy
         out[k, 1] = cx
-    return out, ok
 
 
 def refine_rims(gy: np.ndarray, gx: np.ndarray, start: np.ndarray, radius: float, *, band: float = RIM_BAND,
@@ -215,6 +211,10 @@ def refine_rims(gy: np.ndarray, gx: np.ndarray, start: np.ndarray, radius: float
     """
     if len(start) == 0:
         return np.zeros((0, 2)), np.zeros(0, bool)
-    return _rim_fit(np.ascontiguousarray(gy, np.float32), np.ascontiguousarray(gx, np.float32),
-                    np.ascontiguousarray(start, np.float64), float(radius), float(band), int(n_iter),
-                    float(RIM_RELAX), float(tol))
+    gy, gx = np.ascontiguousarray(gy, np.float32), np.ascontiguousarray(gx, np.float32)
+    start = np.ascontiguousarray(start, np.float64)
+    out = np.empty((len(start), 2))
+    ok = np.ones(len(start), bool)
+    run_in_blocks(lambda k0, k1: _rim_fit(gy, gx, start, float(radius), float(band), int(n_iter), float(RIM_RELAX),
+                                          float(tol), out, ok, k0, k1), len(start))
+    return out, ok

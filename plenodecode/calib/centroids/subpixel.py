@@ -9,10 +9,9 @@ from __future__ import annotations
 import math
 from typing import Callable
 
-import numba
 import numpy as np
 
-from ..._numba import njit
+from ..._numba import njit, run_in_blocks
 from ...registry import lookup
 from .peaks import smooth_for_peaks
 
@@ -21,7 +20,7 @@ from .peaks import smooth_for_peaks
 NEWTON_TOL = 0.05
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _gauss_row(out, d0, inv2s2):  # pragma: no cover - compiled
     """``out[t] = exp(-(d0 + t)^2 inv2s2)`` by the recurrence ``g(d + 1) = g(d) exp(-(2d + 1) inv2s2)``
     (three exponentials per row instead of one per tap)."""
@@ -34,12 +33,10 @@ def _gauss_row(out, d0, inv2s2):  # pragma: no cover - compiled
         r *= q
 
 
-@njit(cache=True, parallel=True, fastmath=True)
-def _newton_dog_peaks(img, start, sigma_w, sigma_b, n_iter, tol):  # pragma: no cover - compiled
-    n = start.shape[0]
+@njit(cache=True, nogil=True)
+def _newton_dog_peaks(img, start, sigma_w, sigma_b, n_iter, tol, out, ok, k0, k1):  # pragma: no cover - compiled
+    """Lenses ``k0 .. k1`` of :func:`refine_dog` into ``out`` (N, 2) and ``ok`` (N,) (see there)."""
     h, w = img.shape
-    out = np.empty((n, 2), np.float64)
-    ok = np.ones(n, np.bool_)
     half = int(math.ceil(2.5 * sigma_b))
     size = 2 * half + 1
     iw = 1.0 / (2.0 * sigma_w * sigma_w)
@@ -47,7 +44,7 @@ def _newton_dog_peaks(img, start, sigma_w, sigma_b, n_iter, tol):  # pragma: no 
     alpha = (sigma_w * sigma_w) / (sigma_b * sigma_b)  # zero-sum kernel g_w - alpha g_b
     sw2 = sigma_w * sigma_w
     sb2 = sigma_b * sigma_b
-    for k in numba.prange(n):
+    for k in range(k0, k1):
         y = start[k, 0]
         x = start[k, 1]
         wyw = np.empty(size)
@@ -136,7 +133,6 @@ def _newton_dog_peaks(img, start, sigma_w, sigma_b, n_iter, tol):  # pragma: no 
             ok[k] = False
         out[k, 0] = y
         out[k, 1] = x
-    return out, ok
 
 
 def refine_dog(img: np.ndarray, peaks: np.ndarray, pitch: float,
@@ -159,8 +155,11 @@ def refine_dog(img: np.ndarray, peaks: np.ndarray, pitch: float,
     """
     start, ok0 = refine_parabolic(img, peaks, pitch, smoothed)
     img = np.ascontiguousarray(img, np.float32)
-    out, ok = _newton_dog_peaks(img, np.ascontiguousarray(start, np.float64), 0.25 * pitch, 0.5 * pitch, 5,
-                                NEWTON_TOL)
+    start = np.ascontiguousarray(start, np.float64)
+    out = np.empty((len(start), 2), np.float64)
+    ok = np.ones(len(start), bool)
+    run_in_blocks(lambda k0, k1: _newton_dog_peaks(img, start, 0.25 * pitch, 0.5 * pitch, 5, NEWTON_TOL, out, ok,
+                                                   k0, k1), len(start))
     return out, ok & ok0
 
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from plenodecode.calib import centroids as C
+from plenodecode.calib.centroids import flatten
 from plenodecode.calib.centroids.flatten import fix_hot_pixels_reference
 from plenodecode.synthetic import simulate_white
 from plenodecode.types import RawCapture
@@ -62,9 +63,10 @@ def test_fix_hot_pixels_keeps_the_gaps_of_a_binned_white():
     assert abs(again[c[0], c[1]] - raw[c[0], c[1]]) < 0.1
 
 
-def test_fix_hot_pixels_kernel_matches_the_opencv_reference():
+def test_fix_hot_pixels_kernel_matches_the_opencv_reference(monkeypatch):
     """The numba kernel and the cv2.dilate/erode reference repair the same pixels with the same medians,
     including defects on the border and in the corners (neighbours replicated there)."""
+    monkeypatch.setattr(flatten, "_KERNEL_MIN_PIXELS", 0)              # the kernel even for this small image
     rng = np.random.default_rng(7)
     yy, xx = np.mgrid[0:61, 0:83]
     img = (0.5 + 0.3 * np.sin(xx / 2.1) * np.cos(yy / 2.7) + 0.01 * rng.standard_normal((61, 83))).astype(np.float32)
