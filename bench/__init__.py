@@ -3,7 +3,8 @@
 Each ``run()`` returns a list of :class:`Figure`; this module measures and prints them.
 Peak memory is the peak of traced allocations (numpy registers its buffers with
 tracemalloc) during one call, so it is the working set a function adds, not the
-process's resident size.
+process's resident size; where arrays are mapped outside numpy's allocator (the decoded
+light field) :func:`peak_rss_growth` measures the growth of the resident set instead.
 """
 
 from __future__ import annotations
