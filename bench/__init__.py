@@ -3,7 +3,8 @@
 Each ``run()`` returns a list of :class:`Figure`; this module measures and prints them.
 Peak memory is the peak of traced allocations (numpy registers its buffers with
 tracemalloc) during one call, so it is the working set a function adds, not the
-process's resident size.
+process's resident size; where arrays are mapped outside numpy's allocator (the decoded
+light field) :func:`peak_rss_growth` measures the growth of the resident set instead.
 """
 
 from __future__ import annotations
@@ -51,6 +52,44 @@ def measure(fn: Callable[[], Any], *, repeat: int = 1, memory: bool = True) -> t
         tracemalloc.stop()
         peak = peak_b / 2**20
     return result, best, peak
+
+
+def peak_rss_growth(fn: Callable[[], Any], *, interval: float = 0.005) -> tuple[Any, float]:
+    """Run ``fn`` and return ``(result, peak growth of the resident set size in MB)``.
+
+    The resident set (``/proc/self/statm``, Linux) is sampled every ``interval`` s on a thread while
+    ``fn`` runs; unlike the traced peak of :func:`measure` it also counts memory that numpy's allocator
+    does not hand out (``decoding.decoder.small_page_empty`` maps the light field itself).  NaN where
+    ``/proc`` is missing.
+    """
+    import threading
+
+    page_mb = os.sysconf("SC_PAGE_SIZE") / 2**20
+
+    def rss() -> float:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * page_mb
+
+    try:
+        base = rss()
+    except OSError:
+        return fn(), float("nan")
+    peak = [base]
+    done = threading.Event()
+
+    def sample() -> None:
+        while not done.wait(interval):
+            peak[0] = max(peak[0], rss())
+
+    gc.collect()
+    watcher = threading.Thread(target=sample, daemon=True)
+    watcher.start()
+    try:
+        result = fn()
+    finally:
+        done.set()
+        watcher.join()
+    return result, max(peak[0], rss()) - base
 
 
 def machine() -> str:

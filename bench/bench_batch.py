@@ -80,20 +80,12 @@ def _peaks(summary: dict) -> dict[str, float]:
 
 
 def _figure(name: str, seconds: float, summary: dict, base: float | None, extra_note: str = "") -> Figure:
-    import numpy as np
-
     peaks = _peaks(summary)
     per_min = N_RAWS / seconds * 60.0
-    first: dict[str, float] = {}
-    rest = []
-    for r in summary["results"]:          # a worker's first task includes its imports and numba cache loads
-        if r["worker"] in first:
-            rest.append(r["seconds"])
-        else:
-            first[r["worker"]] = r["seconds"]
+    steady = summary["steady_task_s"]          # BatchSummary.latency: a worker's first task pays imports and kernels
     note = (f"{per_min:.1f} raws/min; {len(peaks)} worker(s), peak RSS per worker "
             f"{'/'.join(f'{p:.0f}' for p in sorted(peaks.values()))} MB; task median "
-            f"{np.median(rest) if rest else float('nan'):.2f} s, first task {max(first.values()):.1f} s"
+            f"{float('nan') if steady is None else steady:.2f} s, first task {summary['first_task_s']:.1f} s"
             f"{extra_note}")
     return Figure(name, seconds, max(peaks.values()) if peaks else None,
                   ratio=None if base is None else base / seconds,

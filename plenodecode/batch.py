@@ -37,7 +37,6 @@ import hashlib
 import json
 import logging
 import math
-import multiprocessing
 import os
 import socket
 import time
@@ -52,6 +51,7 @@ from .errors import PlenodecodeError
 from .io.atomic import (OLD_MARK, TEMP_MARK, atomic_output, discard, is_temporary, remove_stale_temporaries,
                         write_text_atomic)
 from .registry import lookup
+from .threads import limit_threads, worker_pool
 
 log = logging.getLogger(__name__)
 
@@ -247,6 +247,9 @@ class TaskResult:
         ``host:pid`` of the process that ran the task.
     worker_peak_mb : float or None
         Peak resident memory of that process so far (``ru_maxrss``), MB.
+    started : float
+        When the task started on the worker (``time.time()``, s): the earliest task of each worker is the one
+        that paid its imports and kernel loading (:meth:`BatchSummary.latency`).
     """
 
     source: str
@@ -257,6 +260,7 @@ class TaskResult:
     seconds: float = 0.0
     worker: str = ""
     worker_peak_mb: float | None = None
+    started: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -275,11 +279,41 @@ class BatchSummary:
         """The failed results."""
         return tuple(r for r in self.results if r.status == "failed")
 
+    def latency(self) -> dict[str, float | None]:
+        """Start-up cost against steady state, from the decoded ('done') tasks.
+
+        A worker's first task also pays for its imports and for loading (or compiling) the numba
+        kernels; the others show the steady state.
+
+        Returns
+        -------
+        dict
+            ``first_task_s``: the longest first task of a worker; ``steady_task_s``: the median of the
+            other tasks; ``worker_peak_mb``: the largest peak resident memory of a worker, MB.  None where
+            there is no such task.
+        """
+        done = sorted((r for r in self.results if r.status == "done"), key=lambda r: r.started)
+        first: dict[str, float] = {}
+        rest: list[float] = []
+        for r in done:
+            if r.worker in first:
+                rest.append(r.seconds)
+            else:
+                first[r.worker] = r.seconds
+        rest.sort()
+        steady = None
+        if rest:
+            mid = len(rest) // 2
+            steady = rest[mid] if len(rest) % 2 else 0.5 * (rest[mid - 1] + rest[mid])
+        peaks = [r.worker_peak_mb for r in self.results if r.worker_peak_mb is not None]
+        return {"first_task_s": max(first.values()) if first else None, "steady_task_s": steady,
+                "worker_peak_mb": max(peaks) if peaks else None}
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-serialisable form (what ``summary.json`` holds)."""
         return {"format": SUMMARY_FORMAT, "version": 1, "seconds": self.seconds,
                 "total": len(self.results), "done": self.count("done"), "skipped": self.count("skipped"),
-                "failed": self.count("failed"), "results": [asdict(r) for r in self.results]}
+                "failed": self.count("failed"), **self.latency(), "results": [asdict(r) for r in self.results]}
 
 
 # ---------------------------------------------------------------------------- discovery
@@ -377,7 +411,7 @@ def _read_marker(folder: Path) -> dict[str, Any] | None:
     return doc if isinstance(doc, dict) else None
 
 
-def _skip_result(src: Path, target: Path, key: str, t0: float) -> TaskResult | None:
+def _skip_result(src: Path, target: Path, key: str, t0: float, started: float) -> TaskResult | None:
     done = _read_marker(target)
     if not done or done.get("key") != key:
         return None
@@ -386,18 +420,8 @@ def _skip_result(src: Path, target: Path, key: str, t0: float) -> TaskResult | N
         return None
     thumbs = tuple(None if t is None else str(target / t) for t in done.get("thumbnails", [None] * len(outs)))
     return TaskResult(str(src), "skipped", tuple(str(o) for o in outs), thumbs,
-                      seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb())
-
-
-def _set_threads(threads: int | None) -> None:
-    if threads is None:
-        return
-    try:
-        import numba
-
-        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
-    except Exception:  # pragma: no cover - numba missing or threading layer refuses
-        log.debug("could not set numba threads", exc_info=True)
+                      seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb(),
+                      started=started)
 
 
 def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: BatchOptions, *,
@@ -427,19 +451,21 @@ def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: Ba
         (a bug) too, with its traceback logged.
     """
     t0 = time.perf_counter()
+    started = time.time()
     src = Path(path)
     out = Path(out_dir)
     target = out / (name or src.stem)
     try:
         key = task_key(src, options)
         if not overwrite:
-            skipped = _skip_result(src, target, key, t0)
+            skipped = _skip_result(src, target, key, t0, started)
             if skipped is not None:
                 return skipped
             if target.exists() and _read_marker(target) is None:
                 raise FileExistsError(f"{target} exists and was not written by a batch run; "
                                       "pass --overwrite (overwrite=True) to replace it")
-        _set_threads(threads)
+        if threads is not None:
+            limit_threads(threads)
         from .optics import MicroscopeOptics
         from .pipeline import open_raw
 
@@ -454,15 +480,17 @@ def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: Ba
             (staging / DONE_MARKER).write_text(json.dumps(marker, indent=1), encoding="utf-8")
         return TaskResult(str(src), "done", tuple(str(target / o) for o in rel_out),
                           tuple(None if t is None else str(target / t) for t in rel_thumb),
-                          seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb())
+                          seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb(),
+                          started=started)
     except (PlenodecodeError, OSError) as exc:
         log.info("%s failed: %s", src, exc)
         return TaskResult(str(src), "failed", error=_one_line(exc), seconds=time.perf_counter() - t0,
-                          worker=_worker_id(), worker_peak_mb=_peak_mb())
+                          worker=_worker_id(), worker_peak_mb=_peak_mb(), started=started)
     except Exception as exc:  # a bug, not bad data: keep the batch going, keep the traceback in the log
         log.error("unexpected error on %s:\n%s", src, traceback.format_exc())
         return TaskResult(str(src), "failed", error=f"internal error: {_one_line(exc)}",
-                          seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb())
+                          seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb(),
+                          started=started)
 
 
 # ---------------------------------------------------------------------------- products
@@ -641,16 +669,19 @@ def _lost(path: Path, exc: BaseException) -> TaskResult:
 
 def _run_pool(tasks: list[tuple[Path, str]], out: Path, options: BatchOptions, jobs: int, limit: int,
               overwrite: bool, threads: int, progress: Progress) -> list[TaskResult]:
-    """Local worker processes (spawned, so no state is inherited), at most ``limit`` tasks submitted.
+    """Local worker processes (spawned, so no state is inherited), at most ``limit`` tasks submitted; each
+    worker's thread pools are capped at ``threads`` (:func:`plenodecode.threads.worker_pool`).
 
     A worker that dies (e.g. killed for memory) fails the tasks in flight and the pool is restarted
     for the rest.
     """
-    ctx = multiprocessing.get_context("spawn")
+    def new_pool() -> ProcessPoolExecutor:
+        return worker_pool(jobs, threads)
+
     results: list[TaskResult | None] = [None] * len(tasks)
     pending: dict[Future, int] = {}
     nxt = finished = 0
-    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx)
+    pool = new_pool()
     try:
         while nxt < len(tasks) or pending:
             while nxt < len(tasks) and len(pending) < limit:
@@ -659,7 +690,7 @@ def _run_pool(tasks: list[tuple[Path, str]], out: Path, options: BatchOptions, j
                     fut = pool.submit(process_raw, f, out, options, name=n, overwrite=overwrite, threads=threads)
                 except BrokenProcessPool:
                     pool.shutdown(wait=False, cancel_futures=True)
-                    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx)
+                    pool = new_pool()
                     continue
                 pending[fut] = nxt
                 nxt += 1

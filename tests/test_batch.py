@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from plenodecode.batch import (BATCH_OUTPUTS, DONE_MARKER, BatchOptions, BatchSummary, find_raws, output_names,
-                               run_batch, task_key, write_summary)
+from plenodecode.batch import (BATCH_OUTPUTS, DONE_MARKER, BatchOptions, BatchSummary, TaskResult, find_raws,
+                               output_names, run_batch, task_key, write_summary)
 from plenodecode.cli.main import cli
 
 SHAPE = (200, 280)
@@ -426,6 +426,12 @@ def test_cli_runs_reports_and_exits_1_on_failures(data, tmp_path):
     for name, what in (("corrupt.lfr", "FormatError"), ("stranger.LFR", "CalibrationError")):
         assert any(line.startswith(name) and "failed" in line and what in line for line in lines)
     assert "3 done, 0 skipped, 3 failed" in res.stdout
+    # start-up (imports, kernels) apart from the steady state, and the memory of the worker
+    lat = {k: json.loads((out / "summary.json").read_text())[k] for k in ("first_task_s", "steady_task_s",
+                                                                         "worker_peak_mb")}
+    assert lat["worker_peak_mb"] > 10 and lat["first_task_s"] > 0 and lat["steady_task_s"] > 0
+    assert (f"(first task {lat['first_task_s']:.1f} s, then {lat['steady_task_s']:.1f} s per raw; "
+            f"peak {lat['worker_peak_mb']:.0f} MB per worker)") in res.stdout
     assert res.stderr.strip().splitlines()[-1].startswith("error: 3 of 6 raws failed")
     assert (out / "scene1" / "refocus_s+0.25.png").is_file() and (out / "index.html").is_file()
     views = sorted((out / "scene1" / "views").glob("input_Cam*.png"))
@@ -455,6 +461,57 @@ def test_cli_no_raws_is_a_usage_error(data, tmp_path):
 
 
 # -------------------------------------------------------------------- processes and Dask
+def test_latency_separates_each_workers_first_task():
+    def res(worker, started, seconds, status="done"):
+        return TaskResult(f"{worker}{started}.lfr", status, seconds=seconds, worker=worker, started=started,
+                          worker_peak_mb=100.0 + started)
+
+    # input order is not start order: w1's first task is the one that started first
+    s = BatchSummary((res("w1", 5.0, 1.0), res("w1", 1.0, 4.0), res("w2", 2.0, 3.0), res("w2", 6.0, 2.0),
+                      res("w1", 9.0, 0.5), res("w2", 0.5, 9.0, "skipped")))
+    assert s.latency() == {"first_task_s": 4.0, "steady_task_s": 1.0, "worker_peak_mb": 109.0}
+    assert BatchSummary((res("w1", 1.0, 2.0, "failed"),)).latency()["first_task_s"] is None
+    assert s.to_dict()["steady_task_s"] == 1.0
+
+
+def _openblas_threads():
+    """Threads of the OpenBLAS bundled with numpy (None when numpy uses another BLAS)."""
+    import ctypes
+    import glob
+
+    libs = glob.glob(os.path.join(os.path.dirname(np.__file__), os.pardir, "numpy.libs", "lib*openblas*"))
+    for lib in map(ctypes.CDLL, libs):
+        for name in ("scipy_openblas_get_num_threads64_", "openblas_get_num_threads64_", "openblas_get_num_threads"):
+            if hasattr(lib, name):
+                return int(getattr(lib, name)())
+    return None
+
+
+def _pool_probe(_):
+    import time
+
+    from plenodecode.threads import thread_counts
+
+    time.sleep(0.3)                       # long enough that every worker takes a probe
+    return os.getpid(), {**thread_counts(), "openblas": _openblas_threads()}
+
+
+def test_pool_workers_together_use_at_most_the_cores():
+    """numba, OpenCV and BLAS of each of 2 workers get cores // 2 threads (measured in the workers)."""
+    from plenodecode.threads import THREAD_ENV_VARS, worker_pool
+
+    before = {v: os.environ.get(v) for v in THREAD_ENV_VARS}
+    jobs = 2
+    threads = max(1, (os.cpu_count() or 1) // jobs)
+    with worker_pool(jobs, threads) as pool:
+        seen = dict(pool.map(_pool_probe, range(4)))
+    assert len(seen) == jobs
+    for counts in seen.values():
+        assert counts["numba"] == threads and counts["opencv"] == threads and counts["blas"] == threads
+        assert counts["openblas"] in (None, threads)
+    assert {v: os.environ.get(v) for v in THREAD_ENV_VARS} == before       # this process keeps its settings
+
+
 def test_process_pool_and_dask_cluster_equal_the_local_run(data, local_run, tmp_path):
     """jobs=2 and a two-worker LocalCluster write the same bytes as the in-process run (PNG, PFM, npy, markers)."""
     from distributed import Client, LocalCluster

@@ -22,6 +22,16 @@ def _parse_outputs(ctx: click.Context, param: click.Parameter, value: str) -> tu
     return items
 
 
+def _latency_note(summary) -> str:
+    """' (first task 4.4 s, then 0.8 s per raw; peak 420 MB per worker)', or '' when nothing was decoded."""
+    lat = summary.latency()
+    if lat["first_task_s"] is None:
+        return ""
+    steady = "" if lat["steady_task_s"] is None else f", then {lat['steady_task_s']:.1f} s per raw"
+    peak = "" if lat["worker_peak_mb"] is None else f"; peak {lat['worker_peak_mb']:.0f} MB per worker"
+    return f" (first task {lat['first_task_s']:.1f} s{steady}{peak})"
+
+
 def _echo_table(summary) -> None:
     """The summary table: one line per raw (its error when it failed)."""
     names = [Path(r.source).name for r in summary.results]
@@ -124,7 +134,8 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
     if not quiet:
         _echo_table(summary)
         click.echo(f"{summary.count('done')} done, {summary.count('skipped')} skipped, "
-                   f"{summary.count('failed')} failed in {summary.seconds:.1f} s; summary: {js}; index: {index}")
+                   f"{summary.count('failed')} failed in {summary.seconds:.1f} s{_latency_note(summary)}; "
+                   f"summary: {js}; index: {index}")
     n_failed = summary.count("failed")
     if n_failed:
         click.echo(f"error: {n_failed} of {len(summary.results)} raws failed; see {index}", err=True)

@@ -6,6 +6,7 @@ The pipeline and the output size it produces are described in :mod:`plenodecode.
 from __future__ import annotations
 
 import logging
+import mmap
 import os
 import threading
 import time
@@ -53,12 +54,44 @@ def _as_plane(img, name: str, raw: RawCapture):
     return arr, black, white
 
 
+#: Arrays at least this large (bytes) are mapped by :func:`small_page_empty`, smaller ones by ``np.empty``.
+SMALL_PAGE_MIN_BYTES = 1 << 24
+
+
+def small_page_empty(shape: tuple[int, ...], dtype) -> np.ndarray:
+    """An uninitialised array in ordinary (4 kB) pages: ``np.empty`` without transparent huge pages.
+
+    numpy asks Linux for transparent huge pages on every large array (``madvise(MADV_HUGEPAGE)``);
+    where the kernel compacts memory on demand for such regions (``defrag = madvise``, the default),
+    the first touch of a fresh gigabyte-sized light field stalls in compaction: a full Illum decode
+    spent 2.3-2.5 CPU s in hex -> rect (where the output is first written) instead of 1.05 s
+    (``bench/bench_decode.py``, fresh processes).  A private anonymous ``mmap`` is not advised, so it
+    gets ordinary pages, faulted in by the band threads as they write.  The array owns the mapping
+    (through its ``base``); it is unmapped when the last view of it goes.
+
+    Parameters
+    ----------
+    shape : tuple of int
+    dtype : numpy dtype
+
+    Returns
+    -------
+    ndarray, C-contiguous, writable, contents undefined (zeros in practice).
+    """
+    dtype = np.dtype(dtype)
+    n = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+    if n < SMALL_PAGE_MIN_BYTES or not hasattr(mmap, "MAP_ANONYMOUS"):
+        return np.empty(shape, dtype)
+    buf = mmap.mmap(-1, n, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
+    return np.frombuffer(buf, dtype).reshape(shape)
+
+
 class _Scratch:
     """Per-thread work buffers reused from band to band.
 
-    Fresh multi-megabyte arrays are page-faulted on first touch (and numpy asks the kernel for
-    huge pages, whose compaction can stall); reusing one buffer per name and thread keeps that
-    cost to the first band.
+    Fresh multi-megabyte arrays are page-faulted on first touch; reusing one buffer per name and
+    thread keeps that cost to the first band (and :func:`small_page_empty` keeps it free of huge-page
+    compaction).
     """
 
     def __init__(self) -> None:
@@ -70,7 +103,7 @@ class _Scratch:
         n = int(np.prod(shape)) * dtype.itemsize
         buf = bufs.get(name)
         if buf is None or buf.size < n:
-            buf = np.empty(n, np.uint8)
+            buf = small_page_empty((n,), np.uint8)
             bufs[name] = buf
         return buf[:n].view(dtype).reshape(shape)
 
@@ -203,8 +236,8 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
     window = int(round(grid.pitch)) + 2
     bands = plan_bands(grid, max_pixels=1_500_000, margin=4)
 
-    data = np.empty((nv, nv, ny, nx, nch), np.float32)
-    weight = np.empty((nv, nv, ny, nx), np.float32)
+    data = small_page_empty((nv, nv, ny, nx, nch), np.float32)
+    weight = small_page_empty((nv, nv, ny, nx), np.float32)
 
     scratch = _Scratch()
     black = np.asarray(raw.black)

@@ -76,9 +76,9 @@ def bilinear_kernel(x, labels, interior, cmap, nch, malvar, mdy, mdx, winv, out)
     """
     # In a Bayer 3x3 window every site of a given colour other than the centre is at the same
     # distance (cross or diagonal), so the bilinear kernel restricted to one colour is a plain mean.
-    # Fast path: away from the border, when every tap of the stencil has this pixel's label and a
-    # value, the means and Malvar's corrections are written out per Bayer phase; otherwise (or if
-    # a tap is NaN, which the result then shows) the general per-tap path below runs.
+    # Fast path: away from the border, when the 3x3 window has this pixel's label and values, the
+    # means (and Malvar's corrections where his whole stencil has them too) are written out per Bayer
+    # phase; otherwise (or if a tap is NaN, which the result then shows) the general per-tap path runs.
     h, w = x.shape
     nan = np.float32(np.nan)
     q = np.float32(0.25)
@@ -92,15 +92,15 @@ def bilinear_kernel(x, labels, interior, cmap, nch, malvar, mdy, mdx, winv, out)
                     out[y, xx, k] = nan
                 continue
             if nch == 3 and inner_row and xx >= 2 and xx < w - 2:
-                same = interior[y, xx]
+                same = interior[y, xx]          # the 3x3 window in this micro-image
+                ring = same                     # and the 4 taps 2 px away (Malvar's stencil)
                 if not same:
                     same = (labels[y - 1, xx - 1] == lab and labels[y - 1, xx] == lab and labels[y - 1, xx + 1] == lab
                             and labels[y, xx - 1] == lab and labels[y, xx + 1] == lab
                             and labels[y + 1, xx - 1] == lab and labels[y + 1, xx] == lab
                             and labels[y + 1, xx + 1] == lab)
-                    if same and malvar:
-                        same = (labels[y - 2, xx] == lab and labels[y + 2, xx] == lab
-                                and labels[y, xx - 2] == lab and labels[y, xx + 2] == lab)
+                    ring = (same and malvar and labels[y - 2, xx] == lab and labels[y + 2, xx] == lab
+                            and labels[y, xx - 2] == lab and labels[y, xx + 2] == lab)
                 if same:
                     v0 = x[y, xx]
                     vn = x[y - 1, xx]
@@ -109,13 +109,20 @@ def bilinear_kernel(x, labels, interior, cmap, nch, malvar, mdy, mdx, winv, out)
                     ve = x[y, xx + 1]
                     diag = x[y - 1, xx - 1] + x[y - 1, xx + 1] + x[y + 1, xx - 1] + x[y + 1, xx + 1]
                     own = cmap[y & 1, xx & 1]
+                    # Malvar's correction needs the whole stencil in this micro-image and known; without it
+                    # the pixel stays bilinear, as on the general path
+                    correct = False
+                    row2 = np.float32(0.0)
+                    col2 = np.float32(0.0)
+                    if malvar and ring:
+                        row2 = x[y, xx - 2] + x[y, xx + 2]
+                        col2 = x[y - 2, xx] + x[y + 2, xx]
+                        correct = row2 == row2 and col2 == col2
                     if own == 1:
                         g = v0
                         hm = half * (vw + ve)
                         vm = half * (vn + vs)
-                        if malvar:
-                            row2 = x[y, xx - 2] + x[y, xx + 2]
-                            col2 = x[y - 2, xx] + x[y + 2, xx]
+                        if correct:
                             # G site: beta * (G - (diag + along2 - across2 / 2) / 5), eq. (2)
                             hm += np.float32(0.625) * (v0 - (diag + row2 - half * col2) * np.float32(0.2))
                             vm += np.float32(0.625) * (v0 - (diag + col2 - half * row2) * np.float32(0.2))
@@ -128,8 +135,8 @@ def bilinear_kernel(x, labels, interior, cmap, nch, malvar, mdy, mdx, winv, out)
                     else:
                         g = q * (vn + vs + vw + ve)
                         other = q * diag
-                        if malvar:
-                            d = v0 - q * (x[y, xx - 2] + x[y, xx + 2] + x[y - 2, xx] + x[y + 2, xx])
+                        if correct:
+                            d = v0 - q * (row2 + col2)
                             g += half * d                        # alpha, eq. (1)
                             other += np.float32(0.75) * d        # gamma, eq. (3)
                         if own == 0:
