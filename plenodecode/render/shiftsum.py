@@ -42,6 +42,8 @@ _TILED_MIN_SLOPES = 8
 #: ... and from this many samples V U Y X on (a full Illum light field has 61 M), even one photograph: there the
 #: kernel saves 0.1-0.5 CPU s per photograph (3x with a weight), which repays its compile time within a session.
 _TILED_MIN_SAMPLES = 16_000_000
+#: Contiguous blocks of view columns the OpenCV path sums separately (on as many threads as OpenCV has, up to this).
+_COLUMN_BLOCKS = 4
 
 
 def _sum_shifted_views_opencv(data: np.ndarray, weight: np.ndarray | None, vmask: np.ndarray,
@@ -49,8 +51,10 @@ def _sum_shifted_views_opencv(data: np.ndarray, weight: np.ndarray | None, vmask
                               chunks: int, step: Callable[[], None]) -> np.ndarray:
     """:func:`sum_shifted_views` by separable OpenCV filters (see the module docstring).
 
-    The view columns are split in ``cv2.getNumThreads()`` contiguous blocks summed on as many threads (OpenCV
-    releases the GIL), each block's partial sums added in block order.  ``step()`` is called ``chunks`` times,
+    The view columns are split in ``_COLUMN_BLOCKS`` contiguous blocks summed on up to ``cv2.getNumThreads()``
+    threads (OpenCV releases the GIL), each block's partial sums added in block order: the blocks do not depend
+    on the thread count, so neither does the float32 result (a batch worker capped to one thread writes the
+    photograph the command line writes).  ``step()`` is called ``chunks`` times,
     from the calling thread: after each part of the columns with one thread, at the end with several.
     """
     nv, nu, ny, nx, nc = data.shape
@@ -97,14 +101,15 @@ def _sum_shifted_views_opencv(data: np.ndarray, weight: np.ndarray | None, vmask
                 report()
         return acc
 
-    blocks = np.linspace(0, nu, min(nu, max(1, cv2.getNumThreads())) + 1).round().astype(int)
-    if len(blocks) > 2:
-        with ThreadPoolExecutor(len(blocks) - 1) as pool:
+    blocks = np.linspace(0, nu, min(nu, _COLUMN_BLOCKS) + 1).round().astype(int)
+    threads = min(len(blocks) - 1, max(1, cv2.getNumThreads()))
+    if threads > 1:
+        with ThreadPoolExecutor(threads) as pool:
             parts = list(pool.map(columns, blocks[:-1].tolist(), blocks[1:].tolist()))
         for _ in range(chunks):
             step()
     else:
-        parts = [columns(0, nu, step)]
+        parts = [columns(u0, u1, step) for u0, u1 in zip(blocks[:-1].tolist(), blocks[1:].tolist())]
     acc = parts[0]
     for part in parts[1:]:
         np.add(acc, part, out=acc)

@@ -534,3 +534,22 @@ def test_progress_counts_up_to_its_total_on_both_paths(monkeypatch, threads, slo
         np.testing.assert_allclose(out, shift_sum(lf, slopes, upsample=2), atol=1e-6)
     finally:
         cv2.setNumThreads(before)
+
+
+def test_photograph_does_not_depend_on_the_opencv_thread_count():
+    """Batch workers run with one OpenCV thread, the command line with all: the same photograph, bit for bit."""
+    import cv2
+
+    from plenodecode.render import refocus
+
+    rng = np.random.default_rng(0)
+    lf = LightField(data=rng.random((9, 9, 40, 50, 3), dtype=np.float32))
+    before = cv2.getNumThreads()
+    try:
+        images = []
+        for threads in (1, 2, 3):
+            cv2.setNumThreads(threads)
+            images.append(np.asarray(refocus(lf, slope=0.37)))
+    finally:
+        cv2.setNumThreads(before)
+    assert all(np.array_equal(images[0], image) for image in images[1:])
