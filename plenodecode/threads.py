@@ -18,6 +18,15 @@ THREAD_ENV_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                    "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
 
 
+def task_threads(limit: int | None = None) -> int:
+    """Threads a computation running in the calling thread may start (its own Python thread pool, say):
+    numba's setting for this thread (every core unless :func:`limit_threads` capped it), at most ``limit``."""
+    import numba
+
+    n = int(numba.get_num_threads())
+    return max(1, n if limit is None else min(n, int(limit)))
+
+
 def thread_counts() -> dict[str, int | None]:
     """The thread pools this process would use: numba (this thread's setting), OpenCV and BLAS.
 

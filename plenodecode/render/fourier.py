@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Callable
@@ -33,18 +32,11 @@ import scipy.fft
 import scipy.special
 
 from .._numba import njit, run_in_blocks
+from ..threads import task_threads
 from ..types import LightField
 from ._common import aperture_mask, check_lightfield, check_upsample
 
 log = logging.getLogger(__name__)
-
-
-def _cpu_count() -> int:
-    """CPUs this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:                      # not Linux
-        return os.cpu_count() or 1
 
 
 def kaiser_bessel(x: np.ndarray, width: float, beta: float) -> np.ndarray:
@@ -249,7 +241,7 @@ class FourierRefocuser:
         xr = xp // 2 + 1
         spec = np.zeros((pv, pu, yp, xr, nch), np.complex64)   # pages are mapped when first written
         views = [(v, u) for v in range(nv) for u in range(nu) if mask[v, u] > 0]
-        n_threads = max(1, min(len(views), _cpu_count()))
+        n_threads = min(len(views), task_threads())
 
         def spatial(i: int) -> None:
             """Periodic padding and the spatial 2D FFT of view i, stored at its angular bin (a mod Pv, b mod Pu)."""
