@@ -10,6 +10,8 @@ from .common import FINITE, POSITIVE, RegistryChoice, check_output, overwrite_op
 
 #: The simulated cameras, for the PRESET argument (:mod:`plenodecode.synthetic.presets` imports no numba).
 PRESET_CHOICE = RegistryChoice("plenodecode.synthetic.presets", "PRESETS")
+#: The named scenes, for --scene (:mod:`plenodecode.synthetic.thin` imports no numba either).
+SCENE_CHOICE = RegistryChoice("plenodecode.synthetic.thin", "THIN_SCENES")
 
 
 @click.command("synth")
@@ -25,6 +27,11 @@ PRESET_CHOICE = RegistryChoice("plenodecode.synthetic.presets", "PRESETS")
 @click.option("--shape", type=(click.IntRange(min=1), click.IntRange(min=1)), default=None, metavar="H W", help="Sensor size override.")
 @click.option("--name", default="scene", show_default=True, help="File stem of the scene raw and truth files.")
 @click.option("--no-noise", is_flag=True, help="No shot/read noise and no hot pixels.")
+@click.option("--scene", "scene_name", type=SCENE_CHOICE, default=None, metavar="NAME",
+              help="A named thin-structure scene instead of the default one (unfocused presets): "
+                   "slats|slits-h|v|o-j0.5|j1|j2-tex|weak, e.g. slats-v-j1-tex (thin near slats 1/2/3/5 px wide in "
+                   "front of a far plane, or slits in a near surface; disparity jump; horizontal, vertical or oblique; "
+                   "textured or weakly textured far plane).")
 @click.option("--archive", type=click.Choice(["illum-tar", "f01-datac"]), default=None,
               help="Also put the white image into the camera's calibration archive in the output folder: the Illum "
                    "backup caldata-<serial>.tar or the F01 volume data.C.0 (for 'calibrate --database DIR ARCHIVE').")
@@ -34,7 +41,7 @@ PRESET_CHOICE = RegistryChoice("plenodecode.synthetic.presets", "PRESETS")
 @click.pass_context
 def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: float | None, rotation: float | None,
             offset: tuple[float, float] | None, shape: tuple[int, int] | None, name: str, no_noise: bool,
-            lightfield: bool | None, archive: str | None, overwrite: bool) -> None:
+            scene_name: str | None, lightfield: bool | None, archive: str | None, overwrite: bool) -> None:
     """Generate a synthetic plenoptic raw of PRESET with exact ground truth.
 
     Writes the scene raw in the camera's own format (Illum .lfr, F01 .lfp, a 16-bit PNG
@@ -45,10 +52,18 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
     Example:
       plenodecode synth illum-mini -o out/ --seed 3 --offset 0.25 -0.4
       plenodecode synth illum-mini -o out/ --archive illum-tar
+      plenodecode synth illum-mini -o out/ --scene slats-o-j1-weak --no-noise
     """
     from ..synthetic import get_preset, simulate, simulation_files, write_simulation
     from ..synthetic.archives import archive_name, write_calibration_archive
 
+    scene = None
+    if scene_name is not None:
+        if get_preset(preset).focused:
+            raise click.BadParameter(f"named scenes are for unfocused presets, not {preset!r}", param_hint="--scene")
+        from ..synthetic.thin import THIN_SCENES
+
+        scene = THIN_SCENES[scene_name]
     out = Path(out_dir)
     try:
         names = simulation_files(preset, name)
@@ -63,7 +78,7 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
             check_output(out / fname, overwrite)
     try:
         sim = simulate(preset, seed=seed, pitch=pitch, rotation=rotation, offset=offset, noise=not no_noise,
-                       shape=shape, progress=progress_bar(f"simulating {preset}", ctx))
+                       shape=shape, scene=scene, progress=progress_bar(f"simulating {preset}", ctx))
     except ValueError as exc:
         raise click.BadParameter(str(exc)) from exc
     try:

@@ -31,8 +31,9 @@ Modules, each importing only those listed before it: :mod:`.presets` (the simula
 :mod:`.lattice` (the true lenslet grid, pixel -> lens assignment), :mod:`.kernels` (the compiled
 kernels), :mod:`.scene` (planes, textures, radiance), :mod:`.sensor` (disk response,
 vignetting, noise, rendering the mosaic), :mod:`.truth` (:class:`Simulation`, ground-truth
-files), :mod:`.archives` (white images in the cameras' calibration archives), :mod:`.focused`
-(the focused camera), :mod:`.forward` (:func:`simulate`, :func:`simulate_white`).  Importing the package loads only :mod:`.presets`; the other names load on first
+files), :mod:`.thin` (thin-structure scenes), :mod:`.archives` (white images in the cameras' calibration
+archives), :mod:`.focused` (the focused camera), :mod:`.forward` (:func:`simulate`, :func:`simulate_ideal`,
+:func:`simulate_white`).  Importing the package loads only :mod:`.presets`; the other names load on first
 access.
 """
 
@@ -46,16 +47,17 @@ _LAZY = {
     **dict.fromkeys(["assign_pixels", "make_grid", "raytrix_lens_types"], "plenodecode.synthetic.lattice"),
     **dict.fromkeys(["Plane", "Scene", "default_scene", "dot_chart"], "plenodecode.synthetic.scene"),
     **dict.fromkeys(["BAND_ROWS", "disk_profile", "disk_response", "vignetting"], "plenodecode.synthetic.sensor"),
-    **dict.fromkeys(["simulate", "simulate_white"], "plenodecode.synthetic.forward"),
+    **dict.fromkeys(["simulate", "simulate_ideal", "simulate_white"], "plenodecode.synthetic.forward"),
     **dict.fromkeys(["Simulation", "Truth", "load_truth", "simulation_files", "truth_document", "write_simulation"],
                     "plenodecode.synthetic.truth"),
+    **dict.fromkeys(["THIN_SCENES", "thin_scene"], "plenodecode.synthetic.thin"),
     **dict.fromkeys(["ARCHIVE_KINDS", "WrittenArchive", "write_calibration_archive"], "plenodecode.synthetic.archives"),
 }
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 
 __all__ = ["Preset", "PRESETS", "get_preset", "make_grid", "raytrix_lens_types", "assign_pixels", "disk_profile",
-           "disk_response", "vignetting", "simulate_white", "Simulation", "simulate", "write_simulation",
-           "simulation_files", "truth_document", "Truth", "load_truth", "SUBSAMPLES", "BAND_ROWS",
-           "Plane", "Scene", "default_scene", "dot_chart", "ARCHIVE_KINDS", "WrittenArchive",
-           "write_calibration_archive"]
+           "disk_response", "vignetting", "simulate_white", "simulate_ideal", "Simulation", "simulate",
+           "write_simulation", "simulation_files", "truth_document", "Truth", "load_truth", "SUBSAMPLES", "BAND_ROWS",
+           "Plane", "Scene", "default_scene", "dot_chart", "THIN_SCENES", "thin_scene", "ARCHIVE_KINDS",
+           "WrittenArchive", "write_calibration_archive"]

@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..types import CameraMetadata, LensletGrid, RawCapture
+from ..types import CameraMetadata, LensletGrid, LightField, RawCapture
 from .focused import simulate_focused
 from .lattice import make_grid
 from .presets import Preset, get_preset
 from .scene import as_scene, build_textures, default_scene, front_disparity
 from .sensor import BAND_ROWS, Progress, levels, render_sensor
-from .truth import Simulation
+from .truth import Simulation, finite_range, ideal_lightfield
 
 
 def _metadata(p: Preset, grid: LensletGrid, *, white: bool, seed: int, offset: tuple[float, float]) -> CameraMetadata:
@@ -90,6 +90,19 @@ def simulate_white(preset: str | Preset, *, seed: int = 0, pitch: float | None =
     return raw, grid
 
 
+def _scene_truth(p: Preset, grid: LensletGrid, scene, seed: int):
+    """The scene (default, builder or given), its textures and its disparity over the decoded field."""
+    smp = grid.decoded_sampling()
+    ny, nx = int(smp["Y"]), int(smp["X"])
+    if scene is None:
+        sc = default_scene(ny, nx, seed)
+    else:
+        sc = as_scene(scene(ny, nx, seed) if callable(scene) else scene)
+    tex = build_textures(sc, ny, nx, mono=p.mono, cam_matrix=p.camera_matrix())
+    yy, xx = np.meshgrid(np.arange(ny, dtype=np.float64), np.arange(nx, dtype=np.float64), indexing="ij")
+    return sc, tex, front_disparity(tex, yy, xx)
+
+
 def simulate(preset: str | Preset, *, seed: int = 0, pitch: float | None = None, rotation: float | None = None,
              offset: tuple[float, float] | None = None, noise: bool = True, scene=None,
              shape: tuple[int, int] | None = None, progress: Progress = None) -> Simulation:
@@ -109,8 +122,10 @@ def simulate(preset: str | Preset, *, seed: int = 0, pitch: float | None = None,
         Overrides, as in :func:`simulate_white`.
     noise : bool
         False: no shot/read noise, no hot pixels.
-    scene : Scene, list of Plane or list of plane dicts, optional
-        Planes in decoded coordinates (see :class:`plenodecode.synthetic.scene.Plane`);
+    scene : Scene, list of Plane, list of plane dicts or callable, optional
+        Planes in decoded coordinates (see :class:`plenodecode.synthetic.scene.Plane`), or a builder
+        ``(n_y, n_x, seed) -> Scene`` called with the decoded size (e.g. a value of
+        :data:`plenodecode.synthetic.thin.THIN_SCENES`; unfocused presets only);
         default :func:`plenodecode.synthetic.scene.default_scene` for the decoded size.
     progress : callable(done, total), optional
 
@@ -121,13 +136,12 @@ def simulate(preset: str | Preset, *, seed: int = 0, pitch: float | None = None,
     p, grid, off = _resolve(preset, pitch, rotation, offset, shape)
     rngs = _rngs(seed)
     if p.focused:
+        if callable(scene):
+            raise ValueError(f"a scene builder (decoded-size scene) needs an unfocused preset, got {p.name!r}")
         return simulate_focused(p, grid, off, seed=seed, rngs=rngs if noise else None, scene=scene,
                                 metadata=lambda white: _metadata(p, grid, white=white, seed=seed, offset=off),
                                 progress=progress)
-    smp = grid.decoded_sampling()
-    ny, nx = int(smp["Y"]), int(smp["X"])
-    sc = default_scene(ny, nx, seed) if scene is None else as_scene(scene)
-    tex = build_textures(sc, ny, nx, mono=p.mono, cam_matrix=p.camera_matrix())
+    sc, tex, disp = _scene_truth(p, grid, scene, seed)
     total = 2 * ((grid.sensor_shape[0] + BAND_ROWS - 1) // BAND_ROWS)
     half = total // 2
 
@@ -143,10 +157,33 @@ def simulate(preset: str | Preset, *, seed: int = 0, pitch: float | None = None,
                      metadata=_metadata(p, grid, white=False, seed=seed, offset=off))
     wcap = RawCapture(mosaic=white_mosaic, cfa=p.cfa, black=black, white=white,
                       metadata=_metadata(p, grid, white=True, seed=seed, offset=off))
-    yy, xx = np.meshgrid(np.arange(ny, dtype=np.float64), np.arange(nx, dtype=np.float64), indexing="ij")
-    disp = front_disparity(tex, yy, xx)
     return Simulation(raw=raw, white=wcap, grid=grid, disparity=disp, scene=sc, preset=p, seed=int(seed),
                       noise=bool(noise), textures=tex)
 
 
-__all__ = ["simulate", "simulate_white"]
+def simulate_ideal(preset: str | Preset, *, seed: int = 0, scene=None, pitch: float | None = None,
+                   rotation: float | None = None, offset: tuple[float, float] | None = None,
+                   shape: tuple[int, int] | None = None, n_views: int | None = None,
+                   progress: Progress = None) -> tuple[LightField, np.ndarray]:
+    """The ideal (noise-free, lens-free) light field and the disparity of a scene, without rendering the raw.
+
+    The same as ``simulate(...).ground_truth_lightfield(n_views)`` and ``simulate(...).disparity`` (arguments
+    as :func:`simulate`), at a fraction of the cost: the benchmark's ground-truth scenes.
+
+    Returns
+    -------
+    lightfield : LightField
+        data (V, U, Y, X, C) float32 (see :meth:`Simulation.ground_truth_lightfield`).
+    disparity : ndarray (Y, X) float32
+    """
+    p, grid, off = _resolve(preset, pitch, rotation, offset, shape)
+    _rngs(seed)                     # checks the seed as simulate does
+    if p.focused:
+        raise ValueError(f"simulate_ideal needs an unfocused preset, got {p.name!r}")
+    _, tex, disp = _scene_truth(p, grid, scene, seed)
+    lf = ideal_lightfield(tex, grid, p, _metadata(p, grid, white=False, seed=seed, offset=off), seed=int(seed),
+                          disparity_range=finite_range(disp), n_views=n_views, progress=progress)
+    return lf, disp
+
+
+__all__ = ["simulate", "simulate_ideal", "simulate_white"]

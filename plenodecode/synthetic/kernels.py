@@ -41,20 +41,32 @@ def _bilinear(tex, k, c, py, px, y0, x0, scale):
 
 
 @njit(cache=True, inline="always")
+def _box_distance(y0, x0, y1, x1, py, px):
+    """Signed distance of (py, px) to the box y0 <= y <= y1, x0 <= x <= x1 (Euclidean outside a corner)."""
+    dy = max(y0 - py, py - y1)
+    dx = max(x0 - px, px - x1)
+    if dy > 0.0 and dx > 0.0:
+        return math.sqrt(dy * dy + dx * dx)
+    return max(dy, dx)
+
+
+@njit(cache=True, inline="always")
 def _coverage(kd, prm, k, py, px, width):
-    """Alpha of plane k's support at texture point (py, px): smoothstep of the signed distance."""
+    """Alpha of plane k's support at texture point (py, px): smoothstep of the signed distance over the
+    rim width[k]; a hard step when width[k] is 0.  Stripes: see ``scene.stripes_signed_distance``."""
     if kd == 0:
         return 1.0
     if kd == 1:
-        dy = max(prm[k, 0] - py, py - prm[k, 2])
-        dx = max(prm[k, 1] - px, px - prm[k, 3])
-        if dy > 0.0 and dx > 0.0:
-            sd = math.sqrt(dy * dy + dx * dx)
-        else:
-            sd = max(dy, dx)
-    else:
+        sd = _box_distance(prm[k, 0], prm[k, 1], prm[k, 2], prm[k, 3], py, px)
+    elif kd == 2:
         sd = math.sqrt((py - prm[k, 0]) ** 2 + (px - prm[k, 1]) ** 2) - prm[k, 2]
-    t = 0.5 - sd / width
+    else:
+        c = py * prm[k, 0] + px * prm[k, 1] - prm[k, 4] - 0.5 * prm[k, 2]
+        r = c - prm[k, 3] * math.floor(c / prm[k, 3] + 0.5)
+        sd = max(abs(r) - 0.5 * prm[k, 2], _box_distance(prm[k, 5], prm[k, 6], prm[k, 7], prm[k, 8], py, px))
+    if width[k] <= 0.0:
+        return 1.0 if sd < 0.0 else (0.5 if sd == 0.0 else 0.0)
+    t = 0.5 - sd / width[k]
     if t <= 0.0:
         return 0.0
     if t >= 1.0:
@@ -66,7 +78,8 @@ def _coverage(kd, prm, k, py, px, width):
 def _ray(y, x, a, b, c, tex, y0, x0, scale, d0, gy, gx, kind, prm, width):
     """Radiance of channel c along the ray of lattice offset (a, b) at decoded (y, x).
 
-    Planes are composited front to back with their support coverage as alpha.
+    Planes are composited front to back with their support coverage as alpha; ``width`` (K,) holds each
+    plane's rim.
     """
     acc = 0.0
     trans = 1.0

@@ -11,8 +11,11 @@ closed form by Sherman-Morrison)::
     q = p + d0 * o,     P = q + o * (g . q) / (1 - g . o)
 
 The visible plane is the front-most (lowest ``depth_order``) whose support contains its
-hit point; support rims are soft (alpha = smoothstep over :data:`SUPPORT_EDGE` px across the
-boundary, composited front to back), so occlusion edges are band-limited like the textures.
+hit point; support rims are soft (alpha = smoothstep over the plane's ``rim``, by default
+:data:`SUPPORT_EDGE` px, across the boundary, composited front to back), so occlusion edges are
+band-limited like the textures.  The ground-truth disparity of a ray is that of the front-most plane
+whose support *contains* its hit point (signed distance <= 0, i.e. coverage >= 0.5): a rim pixel takes
+the side of the boundary its centre lies on.
 
 Textures are band-limited random colour fields in linear sRGB: low-pass colour noise
 (Gaussian, sigma 2.5 decoded px), smooth colour ramps and straight edges blurred by a
@@ -42,10 +45,16 @@ MARGIN = 12.0
 #: Rec. 709 / sRGB luminance weights.
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 
-SUPPORT_KINDS = {"all": 0, "rect": 1, "disk": 2}
-#: Width (decoded px) of the soft rim of a plane's support: coverage (alpha) is the
-#: smoothstep of ``0.5 - signed_distance / SUPPORT_EDGE``; 0.5 on the support's boundary.
+SUPPORT_KINDS = {"all": 0, "rect": 1, "disk": 2, "stripes": 3}
+#: Numbers each support kind takes (stripes: 4, or 8 with a bounding box).
+_SUPPORT_SIZES = {"all": (0,), "rect": (4,), "disk": (3,), "stripes": (4, 8)}
+#: Default width (decoded px) of the soft rim of a plane's support: coverage (alpha) is the
+#: smoothstep of ``0.5 - signed_distance / rim``; 0.5 on the support's boundary.
 SUPPORT_EDGE = 2.0
+#: Columns of :attr:`Textures.prm`: a stripes support stores (cos, sin, width, period, phase, y0, x0, y1, x1).
+_PRM_COLUMNS = 9
+#: Half-size of the bounding box of a stripes support given without one (unbounded in practice).
+_UNBOUNDED = 1e9
 
 
 @dataclass(frozen=True)
@@ -59,9 +68,14 @@ class Plane:
     gradient : (float, float)
         ``(dd/dy, dd/dx)`` per decoded pixel; non-zero for a slanted plane.
     support : tuple
-        ``('all',)``, ``('rect', y0, x0, y1, x1)`` (``y0 <= y <= y1``, ``x0 <= x <= x1``) or
-        ``('disk', cy, cx, r)``, in decoded coordinates of the texture point.  The rim is
-        soft: coverage 0.5 on the boundary, 1 from :data:`SUPPORT_EDGE` / 2 inside it.
+        ``('all',)``, ``('rect', y0, x0, y1, x1)`` (``y0 <= y <= y1``, ``x0 <= x <= x1``),
+        ``('disk', cy, cx, r)`` or ``('stripes', angle, width, period, phase[, y0, x0, y1, x1])``, in
+        decoded coordinates of the texture point.  Stripes are parallel slats at ``angle`` degrees from
+        the image rows (0: horizontal slats, 90: vertical); with the across coordinate
+        ``u = y cos(angle) + x sin(angle)``, slat ``m`` (any integer) covers
+        ``phase + m period <= u <= phase + m period + width``, optionally only inside the box
+        ``y0 <= y <= y1``, ``x0 <= x <= x1``.  The rim is soft: coverage 0.5 on the boundary, 1 from
+        ``rim / 2`` inside it.
     depth_order : int
         0 is the front-most; ties keep the list order.
     texture_seed : int
@@ -69,6 +83,11 @@ class Plane:
     colour : (r, g, b) or None
         A constant linear-sRGB colour instead of a random texture (any values; negative
         camera values are clipped by the sensor).
+    rim : float
+        Width (decoded px) of the soft rim of the support, >= 0; 0 is a hard edge (coverage 1 inside,
+        0 outside).  Thin structures (1 px slats) need a rim below 1 px.
+    contrast : float
+        Scale of the random texture about its mean colour, in (0, 1]: below 1 a weakly textured plane.
     """
 
     d0: float
@@ -77,15 +96,25 @@ class Plane:
     depth_order: int = 0
     texture_seed: int = 0
     colour: tuple[float, float, float] | None = None
+    rim: float = SUPPORT_EDGE
+    contrast: float = 1.0
 
     def __post_init__(self) -> None:
         sup = tuple(self.support)
         if not sup or sup[0] not in SUPPORT_KINDS:
             raise ValueError(f"support must start with one of {sorted(SUPPORT_KINDS)}, got {self.support!r}")
-        n = {"all": 1, "rect": 5, "disk": 4}[sup[0]]
-        if len(sup) != n:
-            raise ValueError(f"support {sup[0]!r} takes {n - 1} numbers, got {sup!r}")
+        sizes = _SUPPORT_SIZES[sup[0]]
+        if len(sup) - 1 not in sizes:
+            raise ValueError(f"support {sup[0]!r} takes {' or '.join(map(str, sizes))} numbers, got {sup!r}")
+        if sup[0] == "stripes" and not (float(sup[3]) > float(sup[2]) > 0):
+            raise ValueError(f"stripes support needs 0 < width < period, got {sup!r}")
         object.__setattr__(self, "support", (sup[0], *(float(v) for v in sup[1:])))
+        if not (math.isfinite(self.rim) and self.rim >= 0):
+            raise ValueError(f"rim must be a finite number >= 0, got {self.rim!r}")
+        if not (0 < self.contrast <= 1):
+            raise ValueError(f"contrast must be in (0, 1], got {self.contrast!r}")
+        object.__setattr__(self, "rim", float(self.rim))
+        object.__setattr__(self, "contrast", float(self.contrast))
         object.__setattr__(self, "gradient", (float(self.gradient[0]), float(self.gradient[1])))
         if self.colour is not None:
             object.__setattr__(self, "colour", tuple(float(c) for c in self.colour))
@@ -95,16 +124,24 @@ class Plane:
         return self.d0 + self.gradient[0] * np.asarray(y) + self.gradient[1] * np.asarray(x)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"d0": self.d0, "gradient": list(self.gradient), "support": list(self.support),
-                "depth_order": self.depth_order, "texture_seed": self.texture_seed,
-                "colour": None if self.colour is None else list(self.colour)}
+        """The plane as a JSON-able dict; ``rim`` and ``contrast`` only when not the defaults (so older
+        truth documents stay the same)."""
+        d = {"d0": self.d0, "gradient": list(self.gradient), "support": list(self.support),
+             "depth_order": self.depth_order, "texture_seed": self.texture_seed,
+             "colour": None if self.colour is None else list(self.colour)}
+        if self.rim != SUPPORT_EDGE:
+            d["rim"] = self.rim
+        if self.contrast != 1.0:
+            d["contrast"] = self.contrast
+        return d
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "Plane":
         return cls(d0=float(d["d0"]), gradient=tuple(d.get("gradient", (0.0, 0.0))),
                    support=tuple(d.get("support", ("all",))), depth_order=int(d.get("depth_order", 0)),
                    texture_seed=int(d.get("texture_seed", 0)),
-                   colour=None if d.get("colour") is None else tuple(d["colour"]))
+                   colour=None if d.get("colour") is None else tuple(d["colour"]),
+                   rim=float(d.get("rim", SUPPORT_EDGE)), contrast=float(d.get("contrast", 1.0)))
 
 
 @dataclass(frozen=True)
@@ -214,7 +251,10 @@ class Textures:
         Raster sample ``(r, c)`` sits at decoded ``(y0 + r / scale, x0 + c / scale)``.
     d0, gy, gx : ndarray (K,) float64
     kind : ndarray (K,) int64
-        Support kind (0 all, 1 rect, 2 disk); ``prm`` (K, 4) float64 its numbers.
+        Support kind (0 all, 1 rect, 2 disk, 3 stripes); ``prm`` (K, 9) float64 its numbers (rect, disk:
+        as in the support; stripes: cos, sin of the angle, width, period, phase, bounding box).
+    rim : ndarray (K,) float64
+        Width of each plane's soft rim (px).
     """
 
     srgb: np.ndarray
@@ -227,6 +267,7 @@ class Textures:
     gx: np.ndarray
     kind: np.ndarray
     prm: np.ndarray
+    rim: np.ndarray
     planes: tuple[Plane, ...] = field(default=())
 
 
@@ -270,6 +311,9 @@ def _random_texture(plane: Plane, ny: int, nx: int, y_min: float, x_min: float, 
         for step, amp in edges:
             img[ch] += amp[ch] * step
     img = np.clip(img, 0.03, 0.9)
+    if plane.contrast != 1.0:
+        mean = img.mean(axis=(1, 2), keepdims=True)
+        img = (mean + plane.contrast * (img - mean)).astype(np.float32)
     if mono:
         return (LUMA[0] * img[0] + LUMA[1] * img[1] + LUMA[2] * img[2])[None].astype(np.float32)
     return _into_gamut(img, cam_matrix).astype(np.float32)
@@ -320,15 +364,30 @@ def build_textures(scene: Scene, n_y: int, n_x: int, *, mono: bool, cam_matrix: 
         camera = srgb
     else:
         camera = np.einsum("ij,kjyx->kiyx", cam_matrix.astype(np.float32), srgb).astype(np.float32)
-    prm = np.zeros((len(planes), 4))
+    prm = np.zeros((len(planes), _PRM_COLUMNS))
     for k, p in enumerate(planes):
-        prm[k, : len(p.support) - 1] = p.support[1:]
+        prm[k] = _support_numbers(p.support)
     return Textures(
         srgb=srgb, camera=np.ascontiguousarray(camera), y0=y_min, x0=x_min, scale=float(s),
         d0=np.array([p.d0 for p in planes]), gy=np.array([p.gradient[0] for p in planes]),
         gx=np.array([p.gradient[1] for p in planes]),
-        kind=np.array([SUPPORT_KINDS[p.support[0]] for p in planes], np.int64), prm=prm, planes=planes,
+        kind=np.array([SUPPORT_KINDS[p.support[0]] for p in planes], np.int64), prm=prm,
+        rim=np.array([p.rim for p in planes]), planes=planes,
     )
+
+
+def _support_numbers(support: tuple) -> np.ndarray:
+    """The :attr:`Textures.prm` row (9,) float64 of a support (see :class:`Textures`)."""
+    row = np.zeros(_PRM_COLUMNS)
+    if support[0] != "stripes":
+        row[: len(support) - 1] = support[1:]
+        return row
+    angle, width, period, phase = support[1:5]
+    box = support[5:] if len(support) > 5 else (-_UNBOUNDED, -_UNBOUNDED, _UNBOUNDED, _UNBOUNDED)
+    # exact 0 / 1 for the axis-aligned angles, so horizontal and vertical slat edges fall where asked
+    cos, sin = (0.0 if abs(v) < 1e-12 else v for v in (math.cos(math.radians(angle)), math.sin(math.radians(angle))))
+    row[:] = (cos, sin, width, period, phase, *box)
+    return row
 
 
 def front_disparity(tex: Textures, y: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -347,11 +406,41 @@ def front_disparity(tex: Textures, y: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 def _inside_np(kind: int, prm: np.ndarray, py: np.ndarray, px: np.ndarray) -> np.ndarray:
+    """Whether texture points ``(py, px)`` lie in a support (signed distance <= 0: coverage >= 0.5)."""
     if kind == 0:
         return np.ones(py.shape, bool)
     if kind == 1:
         return (py >= prm[0]) & (py <= prm[2]) & (px >= prm[1]) & (px <= prm[3])
-    return (py - prm[0]) ** 2 + (px - prm[1]) ** 2 <= prm[2] ** 2
+    if kind == 2:
+        return (py - prm[0]) ** 2 + (px - prm[1]) ** 2 <= prm[2] ** 2
+    return stripes_signed_distance(prm, py, px) <= 0.0
+
+
+def stripes_signed_distance(prm: np.ndarray, py: np.ndarray, px: np.ndarray) -> np.ndarray:
+    """Signed distance (px; < 0 inside) of points ``(py, px)`` to a stripes support, the model of the kernel.
+
+    With ``u = py cos + px sin``, ``c = u - phase - width / 2`` and ``r = c - period * round(c / period)``
+    (the offset from the nearest slat's centre line), the distance to the slats is ``|r| - width / 2``; the
+    bounding box cuts them as a rect support does (``max`` of the two signed distances, Euclidean outside
+    a corner).
+
+    Parameters
+    ----------
+    prm : ndarray (9,) float64
+        A :attr:`Textures.prm` row of a stripes support.
+    py, px : ndarray, same shape, float64
+
+    Returns
+    -------
+    ndarray, float64
+    """
+    cos, sin, width, period, phase, y0, x0, y1, x1 = prm
+    c = py * cos + px * sin - phase - 0.5 * width
+    r = c - period * np.floor(c / period + 0.5)
+    dy = np.maximum(y0 - py, py - y1)
+    dx = np.maximum(x0 - px, px - x1)
+    box = np.where((dy > 0) & (dx > 0), np.hypot(dy, dx), np.maximum(dy, dx))
+    return np.maximum(np.abs(r) - 0.5 * width, box)
 
 
 def box_radiance(tex: Textures, y, x, oa, ob, channel, *, space: str = "camera", box: float = 1.0) -> np.ndarray:
@@ -377,9 +466,9 @@ def box_radiance(tex: Textures, y, x, oa, ob, channel, *, space: str = "camera",
     raster = {"camera": tex.camera, "srgb": tex.srgb}[space]
     sub = SUBSAMPLES * float(box) if box > 0 else np.zeros(1)
     box_radiance_kernel(*flat, sub, raster, tex.y0, tex.x0, tex.scale, tex.d0, tex.gy, tex.gx, tex.kind,
-                        tex.prm, SUPPORT_EDGE, out)
+                        tex.prm, tex.rim, out)
     return out.reshape(arrs[0].shape)
 
 
 __all__ = ["Plane", "Scene", "as_scene", "default_scene", "dot_chart", "Textures", "build_textures", "front_disparity",
-           "box_radiance", "SUPPORT_EDGE", "SUPPORT_KINDS", "OVERSAMPLE", "MARGIN", "LUMA"]
+           "box_radiance", "stripes_signed_distance", "SUPPORT_EDGE", "SUPPORT_KINDS", "OVERSAMPLE", "MARGIN", "LUMA"]

@@ -19,7 +19,7 @@ import numpy as np
 from ..types import LensletGrid, cfa_channel_map
 from .kernels import SUBSAMPLES, sensor_band_kernel
 from .presets import Preset
-from .scene import SUPPORT_EDGE, Plane, Scene, Textures, build_textures
+from .scene import Plane, Scene, Textures, build_textures
 
 #: Progress callback ``progress(done, total)``, or None.
 Progress = Callable[[int, int], None] | None
@@ -175,7 +175,7 @@ def render_sensor(grid: LensletGrid, p: Preset, textures: Textures | None, rng: 
                            smp["a0"], smp["b0"], smp["step"], grid.radius, p.edge_px, p.disk_falloff, SUBSAMPLES,
                            (h - 1) / 2.0, (w - 1) / 2.0, _vignette_k(p), p.exposure, chmap,
                            textures is not None, tex.camera, tex.y0, tex.x0, tex.scale, tex.d0, tex.gy, tex.gx,
-                           tex.kind, tex.prm, SUPPORT_EDGE)
+                           tex.kind, tex.prm, tex.rim)
         if gain is not None:
             sig *= gain[r0:r1]
         out[r0:r1] = _to_dn(sig, p, rng)

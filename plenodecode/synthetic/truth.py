@@ -65,8 +65,7 @@ class Simulation:
     @property
     def disparity_range(self) -> tuple[float, float]:
         """``(min, max)`` disparity over the centre view."""
-        d = self.disparity[np.isfinite(self.disparity)]
-        return (float(d.min()), float(d.max())) if d.size else (0.0, 0.0)
+        return finite_range(self.disparity)
 
     def ground_truth_lightfield(self, n_views: int | None = None, *, progress: Progress = None) -> LightField:
         """The ideal decoded light field of the scene, from the continuous model (no lenses).
@@ -91,31 +90,8 @@ class Simulation:
         if self.preset.focused:
             raise ValueError("ground_truth_lightfield is defined for unfocused presets; a focused (Raytrix) "
                              "simulation has truth['total_focus'] and truth['virtual_depth'] instead")
-        n = self.grid.n_views() if n_views is None else int(n_views)
-        if n < 1 or n % 2 == 0:
-            raise ValueError(f"n_views must be a positive odd number, got {n_views!r}")
-        smp = self.grid.decoded_sampling()
-        ny, nx = int(smp["Y"]), int(smp["X"])
-        c = self.textures.srgb.shape[1]
-        half = n // 2
-        o = np.arange(n, dtype=np.float64) - half
-        yy, xx = np.meshgrid(np.arange(ny, dtype=np.float64), np.arange(nx, dtype=np.float64), indexing="ij")
-        data = np.empty((n, n, ny, nx, c), np.float32)
-        for v in range(n):
-            for ch in range(c):
-                data[v, :, :, :, ch] = box_radiance(self.textures, yy[None], xx[None], o[v],
-                                                    o[:, None, None], ch, space="srgb")
-            if progress is not None:
-                progress(v + 1, n)
-        weight = disk_response(o[:, None], o[None, :], self.grid.radius, edge_px=self.preset.edge_px,
-                               falloff=self.preset.disk_falloff).astype(np.float32)
-        weight = np.ascontiguousarray(np.broadcast_to(weight[:, :, None, None], (n, n, ny, nx)))
-        meta = {
-            "source": "plenodecode.io.synthetic", "preset": self.preset.name, "seed": self.seed,
-            "spatial_step_px": float(smp["step"]), "view_step_px": 1.0, "calibration": self.grid.to_dict(),
-            "camera": self.raw.metadata.to_dict(), "disparity_range": list(self.disparity_range),
-        }
-        return LightField(data=data, weight=weight, colour="linear-srgb", metadata=meta)
+        return ideal_lightfield(self.textures, self.grid, self.preset, self.raw.metadata, seed=self.seed,
+                                disparity_range=self.disparity_range, n_views=n_views, progress=progress)
 
     def ground_truth_photograph(self, scale: int = 1, *, progress: Progress = None) -> np.ndarray:
         """The centre view of the ideal light field sampled ``scale`` times finer: the exact photograph of a
@@ -156,6 +132,64 @@ class Simulation:
             if progress is not None:
                 progress(ch + 1, c)
         return out
+
+
+def finite_range(disparity: np.ndarray) -> tuple[float, float]:
+    """``(min, max)`` of the finite values of a disparity map; ``(0, 0)`` when there are none."""
+    d = disparity[np.isfinite(disparity)]
+    return (float(d.min()), float(d.max())) if d.size else (0.0, 0.0)
+
+
+def ideal_lightfield(textures: Any, grid: LensletGrid, preset: Preset, camera: Any, *, seed: int,
+                     disparity_range: tuple[float, float], n_views: int | None = None,
+                     progress: Progress = None) -> LightField:
+    """The ideal decoded light field of a rasterised scene: :meth:`Simulation.ground_truth_lightfield`
+    without a Simulation (no raw needs rendering; see :func:`plenodecode.synthetic.forward.simulate_ideal`).
+
+    Parameters
+    ----------
+    textures : Textures
+        The scene (:func:`plenodecode.synthetic.scene.build_textures` at the grid's decoded size).
+    grid : LensletGrid
+    preset : Preset
+        An unfocused preset (its disk edge and falloff give ``weight``).
+    camera : CameraMetadata
+        The scene raw's metadata, stored in the light field's.
+    seed : int
+    disparity_range : (float, float)
+    n_views, progress :
+        As :meth:`Simulation.ground_truth_lightfield`.
+
+    Returns
+    -------
+    LightField
+        data (V, U, Y, X, C) float32.
+    """
+    n = grid.n_views() if n_views is None else int(n_views)
+    if n < 1 or n % 2 == 0:
+        raise ValueError(f"n_views must be a positive odd number, got {n_views!r}")
+    smp = grid.decoded_sampling()
+    ny, nx = int(smp["Y"]), int(smp["X"])
+    c = textures.srgb.shape[1]
+    half = n // 2
+    o = np.arange(n, dtype=np.float64) - half
+    yy, xx = np.meshgrid(np.arange(ny, dtype=np.float64), np.arange(nx, dtype=np.float64), indexing="ij")
+    data = np.empty((n, n, ny, nx, c), np.float32)
+    for v in range(n):
+        for ch in range(c):
+            data[v, :, :, :, ch] = box_radiance(textures, yy[None], xx[None], o[v], o[:, None, None], ch,
+                                                space="srgb")
+        if progress is not None:
+            progress(v + 1, n)
+    weight = disk_response(o[:, None], o[None, :], grid.radius, edge_px=preset.edge_px,
+                           falloff=preset.disk_falloff).astype(np.float32)
+    weight = np.ascontiguousarray(np.broadcast_to(weight[:, :, None, None], (n, n, ny, nx)))
+    meta = {
+        "source": "plenodecode.io.synthetic", "preset": preset.name, "seed": seed,
+        "spatial_step_px": float(smp["step"]), "view_step_px": 1.0, "calibration": grid.to_dict(),
+        "camera": camera.to_dict(), "disparity_range": list(disparity_range),
+    }
+    return LightField(data=data, weight=weight, colour="linear-srgb", metadata=meta)
 
 
 # ---------------------------------------------------------------------------------------
@@ -320,5 +354,6 @@ def load_truth(path: str | os.PathLike) -> Truth:
                  disparity_range=(float(dr[0]), float(dr[1])), lightfield=lf, arrays=arrays, document=doc)
 
 
-__all__ = ["Simulation", "TRUTH_FORMAT", "TRUTH_VERSION", "simulation_files", "truth_document", "write_simulation",
+__all__ = ["Simulation", "ideal_lightfield", "finite_range",
+           "TRUTH_FORMAT", "TRUTH_VERSION", "simulation_files", "truth_document", "write_simulation",
            "Truth", "load_truth"]
