@@ -44,7 +44,7 @@ COSTVOLUME: dict[str, Any] = {
     "grey": True,             # match one luma channel (one third of the colour cost volume's work)
     "pattern": None,          # all views
     "contrast_weight": 0.07,  # normalised views stacked beside the intensities with this weight (None: replace)
-    "strips": 4,              # oriented strips of views for thin structures: number of orientations (0 = off)
+    "strips": 12,             # oriented strips of views for thin structures: orientations 15 deg apart (0 = off)
     "strip_width": 0.5,       # half-width of a strip, view steps
     "strip_radius": 2,        # radius of the 1-px line aggregation along a strip's orientation
     "strip_penalty": 4.0,     # factor on a strip's cost (a strip wins only where it is this much better)
