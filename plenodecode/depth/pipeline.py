@@ -212,6 +212,12 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
     for name in ("edge_visibility", "edge_coverage"):
         if not isinstance(p[name], (bool, np.bool_)):
             raise ValueError(f"{name} must be True or False, got {p[name]!r}")
+    for name in ("strip_width", "strip_penalty"):
+        if not float(p[name]) > 0:
+            raise ValueError(f"{name} must be positive, got {p[name]!r}")
+    for name in ("strips", "strip_radius", "gate_ratio", "gate_floor"):
+        if not float(p[name]) >= 0:
+            raise ValueError(f"{name} must be >= 0, got {p[name]!r}")
     if int(p["refine_samples"]) < 3:
         raise ValueError(f"refine_samples must be >= 3, got {p['refine_samples']!r}")
     return p
@@ -287,21 +293,23 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
               progress=stage(n_labels))
     disparity, confidence = winner(agg, labels)
     del agg
-    gate = {"ratio": float(p["gate_ratio"]), "floor": float(p["gate_floor"])}
-    gated = (lambda before, after: cost_gate(cost, labels, before, after, **gate)) if gate["ratio"] > 0 else \
-        (lambda before, after: after)
+    def gated(before: np.ndarray, after: np.ndarray) -> np.ndarray:
+        # a clean-up's result, except where the matching cost clearly prefers the value before it
+        if not float(p["gate_ratio"]) > 0:
+            return after
+        return cost_gate(cost, labels, before, after, ratio=float(p["gate_ratio"]), floor=float(p["gate_floor"]))
+
     disparity = gated(disparity, weighted_median(guide, disparity, int(p["median_radius"])))
     if n_refine:
         disparity = refine_disparity(views, disparity, half_range=float(p["refine_range"]) * step,
                                      samples=n_refine, radius=refine_radius, progress=stage(n_labels + n_paths),
                                      **{**strips, "strip_radius": max(strips["strip_radius"], refine_radius)})
     if int(p["edge_radius"]) > 0:
-        fixed = fix_occlusion_edges(views, disparity, colour_guide(lf), radius=int(p["edge_radius"]),
-                                    jump=float(p["edge_jump"]), ratio=float(p["edge_ratio"]),
-                                    wedge=int(p["edge_wedge"]), median_radius=int(p["edge_median_radius"]),
-                                    intensities=intensities, visibility=bool(p["edge_visibility"]),
-                                    coverage=bool(p["edge_coverage"]), gate=gated)
-        disparity = fixed
+        disparity = fix_occlusion_edges(views, disparity, colour_guide(lf), radius=int(p["edge_radius"]),
+                                        jump=float(p["edge_jump"]), ratio=float(p["edge_ratio"]),
+                                        wedge=int(p["edge_wedge"]), median_radius=int(p["edge_median_radius"]),
+                                        intensities=intensities, visibility=bool(p["edge_visibility"]),
+                                        coverage=bool(p["edge_coverage"]), gate=gated)
     del cost
     params = {**p, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
               "noise_sigma": noise, "contrast_eps_used": eps,
