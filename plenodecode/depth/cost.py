@@ -3,15 +3,17 @@
 * :func:`make_labels`: uniformly spaced disparity labels over a range.
 * :func:`half_plane_groups`: the used views per angular sector (:func:`sector_of`) and the weight of each
   group of consecutive sectors.
+* :func:`strip_groups`, :func:`line_kernel`: the views near a line through the centre view and the 1-px wide
+  segment that aggregates their cost along that line, for thin structures.
 * :func:`half_plane_cost_volume`: the photo-consistency cost of every label, the minimum over half-planes
-  of views (Kang, Szeliski & Chai, CVPR 2001), optionally around a per-pixel base disparity.
+  of views (Kang, Szeliski & Chai, CVPR 2001) and, when asked, over oriented strips of views, optionally
+  around a per-pixel base disparity.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-import os
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
 
@@ -19,6 +21,7 @@ import cv2
 import numpy as np
 
 from ..imaging import remap_view, shift_view
+from ..threads import task_threads
 from .views import Views
 
 log = logging.getLogger(__name__)
@@ -31,8 +34,9 @@ N_SECTORS = 8
 
 
 def worker_threads() -> int:
-    """Threads for the depth kernels that release the GIL: the CPU cores, at most 4."""
-    return max(1, min(4, os.cpu_count() or 1))
+    """Threads for the depth kernels that release the GIL: the calling thread's share of the cores
+    (:func:`plenodecode.threads.task_threads`: all of them, or a batch worker's cap), at most 4."""
+    return task_threads(4)
 
 
 def sector_of(dv: float, du: float, n: int = N_SECTORS) -> int:
@@ -72,10 +76,63 @@ def half_plane_groups(views: Views, n_sectors: int, span: int) -> tuple[list[lis
     return sectors, hw
 
 
+def strip_groups(views: Views, n_orientations: int, width: float
+                 ) -> list[tuple[float, list[tuple[int, int]], float]]:
+    """The used views within ``width`` view steps of a line through the centre view, per orientation.
+
+    Orientation ``k`` is the angle ``phi_k = k pi / n_orientations`` of a structure's edge in the image
+    (0 = horizontal, rows; ``pi / 2`` = vertical, columns); its unit direction is ``t = (sin phi, cos phi)``
+    as ``(y, x)`` and its normal ``n = (cos phi, -sin phi)``.  View ``o = (dv, du)`` belongs to strip ``k``
+    when ``|n . o| <= width``: the views that look past a thin occluder (or through a thin gap) of that
+    orientation along it rather than across it, which see a point between two occluding edges when both
+    half-planes of views are blocked (the line through the centre with the edge's orientation of Wang, Efros
+    & Ramamoorthi, ICCV 2015, narrowed from a half-plane to a strip).
+
+    Returns
+    -------
+    list of (phi, views, weight)
+        One entry per orientation with at least 2 used views; ``weight`` is their total view weight.
+    """
+    dv, du = views.offsets
+    used = views.used()
+    out = []
+    for k in range(int(n_orientations)):
+        phi = math.pi * k / n_orientations
+        ny, nx = math.cos(phi), -math.sin(phi)
+        members = [vu for vu in used if abs(ny * dv[vu] + nx * du[vu]) <= width + 1e-9]
+        if len(members) >= 2:
+            out.append((phi, members, sum(float(views.weight[vu]) for vu in members)))
+    return out
+
+
+def line_kernel(phi: float, radius: int) -> np.ndarray:
+    """A normalised 1-px wide segment along the direction ``(sin phi, cos phi)`` (y, x): (2 r + 1, 2 r + 1)
+    float32 summing to 1.
+
+    Its ``2 radius + 1`` points step one pixel along the axis the direction is closer to, ``k t / max(|t_y|,
+    |t_x|)`` for ``k = -r .. r``, and are splatted bilinearly: exact pixels for rows, columns and diagonals.
+    Aggregating a cost with it stays on a thin structure of that orientation (an oriented window, as the
+    parallelograms of Zhang et al.'s spinning parallelogram operator, 2016, are oriented)."""
+    r = int(radius)
+    k = np.zeros((2 * r + 1, 2 * r + 1), np.float32)
+    ty, tx = math.sin(phi), math.cos(phi)
+    scale = 1.0 / max(abs(ty), abs(tx))
+    for i in range(-r, r + 1):
+        y, x = r + i * ty * scale, r + i * tx * scale
+        y0, x0 = math.floor(y), math.floor(x)
+        fy, fx = y - y0, x - x0
+        for yy, xx, w in ((y0, x0, (1 - fy) * (1 - fx)), (y0 + 1, x0, fy * (1 - fx)),
+                          (y0, x0 + 1, (1 - fy) * fx), (y0 + 1, x0 + 1, fy * fx)):
+            if w > 1e-9 and 0 <= yy <= 2 * r and 0 <= xx <= 2 * r:
+                k[yy, xx] += w
+    return k / k.sum()
+
+
 def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2, interpolation: int = cv2.INTER_LINEAR,
                            base: np.ndarray | None = None, progress: Progress = None,
                            n_sectors: int = N_SECTORS, span: int | None = None,
-                           threads: int | None = None) -> np.ndarray:
+                           threads: int | None = None, strips: int = 0, strip_width: float = 0.5,
+                           strip_radius: int = 2, strip_penalty: float = 1.0) -> np.ndarray:
     """Occlusion-aware matching cost for every label.
 
     For label ``d`` every used view is shifted onto the centre view (:func:`shift_view`), and the
@@ -86,6 +143,15 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
     the box-aggregated (``(2 radius + 1)^2``) mean squared difference::
 
         C(p, d) = min_h  box_r[ sum_{(v,u) in h} w_vu |I_vu(p - d o_vu) - I_c(p)|^2 ] / sum_{h} w_vu
+
+    A thin structure (a slat, a gap, a slit of a few pixels) breaks both assumptions: a point seen through a
+    gap is hidden from the views on *both* sides, and a square box around a 1-px slat is mostly background.
+    With ``strips > 0`` the minimum also runs over ``strips`` oriented strips of views
+    (:func:`strip_groups`), each aggregated along a 1-px segment of its own orientation
+    (:func:`line_kernel`, radius ``strip_radius``) and scaled by ``strip_penalty`` (>= 1 makes a strip win
+    only where it is clearly better, as it averages fewer views)::
+
+        C(p, d) = min( min_h ..., min_k  penalty * line_k[ sum_{(v,u) in strip k} w_vu |...|^2 ] / sum_k w_vu )
 
     Parameters
     ----------
@@ -107,6 +173,9 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
         ``span * 360 / n_sectors`` degrees) leaves out more of the views that look past the occluder's edge.
     threads : int, optional
         Labels computed concurrently (OpenCV releases the GIL); default: the number of CPU cores, at most 4.
+    strips, strip_width, strip_radius, strip_penalty
+        Number of strip orientations (0 = none), their half-width in view steps, the radius of their line
+        aggregation and the factor on their cost (see above).
 
     Returns
     -------
@@ -134,7 +203,14 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
     out = np.empty((Y, X, L), np.float32)
     ones = np.ones((1, C), np.float32)
     ksize = (2 * radius + 1, 2 * radius + 1)
-    sqrt_w = {vu: math.sqrt(float(views.weight[vu])) for s in sectors for vu in s}
+    sector_of_view = {vu: i for i, s in enumerate(sectors) for vu in s}
+    lines = strip_groups(views, strips, strip_width) if strips > 0 else []
+    line_kernels = [line_kernel(phi, strip_radius) for phi, _, _ in lines]
+    strips_of_view: dict[tuple[int, int], list[int]] = {vu: [] for vu in sector_of_view}
+    for i, (_, members, _) in enumerate(lines):
+        for vu in members:
+            strips_of_view[vu].append(i)
+    weights = {vu: np.float32(views.weight[vu]) for vu in sector_of_view}
     grid = None
     if base is not None:
         base = np.ascontiguousarray(base, np.float32)
@@ -142,25 +218,27 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
             raise ValueError(f"base must have shape {(Y, X)}, got {base.shape}")
         yy, xx = np.mgrid[0:Y, 0:X].astype(np.float32)
         grid = (yy, xx)
+
     def one_label(k: int) -> None:
         # one label's cost into out[:, :, k]; own buffers, so labels can run on several threads (OpenCV
         # releases the GIL)
         d = labels[k]
-        acc = np.empty(centre.shape, np.float32)
-        sums = []
+        sums = [np.zeros((Y, X), np.float32) for _ in range(n_sectors)]
+        line_sums = [np.zeros((Y, X), np.float32) for _ in lines]
         dmap = None if base is None else base + np.float32(d)
-        for s in sectors:
-            acc.fill(0.0)
-            for vu in s:
-                if dmap is None:
-                    warped = shift_view(data[vu], float(d), dv[vu], du[vu], interpolation)
-                else:
-                    warped = remap_view(data[vu], dmap, dv[vu], du[vu], grid, interpolation)
-                diff = cv2.subtract(warped, centre)
-                if sqrt_w[vu] != 1.0:
-                    diff *= np.float32(sqrt_w[vu])
-                cv2.accumulateSquare(diff, acc)
-            sums.append(cv2.transform(acc, ones).reshape(Y, X) if C > 1 else acc.copy())
+        for vu, sector in sector_of_view.items():
+            if dmap is None:
+                warped = shift_view(data[vu], float(d), dv[vu], du[vu], interpolation)
+            else:
+                warped = remap_view(data[vu], dmap, dv[vu], du[vu], grid, interpolation)
+            diff = cv2.subtract(warped, centre)
+            sq = cv2.multiply(diff, diff)
+            err = cv2.transform(sq, ones).reshape(Y, X) if C > 1 else sq
+            if weights[vu] != 1.0:
+                err *= weights[vu]
+            cv2.add(sums[sector], err, dst=sums[sector])
+            for i in strips_of_view[vu]:
+                cv2.add(line_sums[i], err, dst=line_sums[i])
         best = None
         for h in range(n_sectors):
             hsum = sums[h].copy()
@@ -170,6 +248,9 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
             if radius > 0:
                 hsum = cv2.boxFilter(hsum, -1, ksize)
             best = hsum if best is None else np.minimum(best, hsum, out=best)
+        for (_, _, weight), kernel, lsum in zip(lines, line_kernels, line_sums):
+            lsum = cv2.filter2D(lsum, -1, kernel * np.float32(strip_penalty / weight))
+            np.minimum(best, lsum, out=best)
         out[:, :, k] = best
 
     workers = min(max(1, int(threads)), L)
@@ -188,4 +269,4 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
 
 
 __all__ = ["N_SECTORS", "Progress", "worker_threads", "sector_of", "make_labels", "half_plane_groups",
-           "half_plane_cost_volume"]
+           "strip_groups", "line_kernel", "half_plane_cost_volume"]

@@ -44,6 +44,12 @@ COSTVOLUME: dict[str, Any] = {
     "grey": True,             # match one luma channel (one third of the colour cost volume's work)
     "pattern": None,          # all views
     "contrast_weight": 0.07,  # normalised views stacked beside the intensities with this weight (None: replace)
+    "strips": 12,             # oriented strips of views for thin structures: orientations 15 deg apart (0 = off)
+    "strip_width": 0.5,       # half-width of a strip, view steps
+    "strip_radius": 2,        # radius of the 1-px line aggregation along a strip's orientation
+    "strip_penalty": 4.0,     # factor on a strip's cost (a strip wins only where it is this much better)
+    "gate_ratio": 2.0,        # clean-ups may not raise a pixel's matching cost above this x its own (0 = off)
+    "gate_floor": 0.05,       # ... plus this (cost units: the median per-pixel cost span)
 }
 
 #: The fast method's own parameters: the star views, coarser labels, 4 paths, fewer refinement offsets.
@@ -61,6 +67,12 @@ FAST: dict[str, Any] = {
     "grey": True,             # match one luma channel
     "pattern": "star",        # the views on the 4 lines through the centre
     "contrast_weight": 0.05,  # normalised views stacked beside the intensities with this weight (None: replace)
+    "strips": 0,              # no strips: the star's few views make thin strips
+    "strip_width": 0.5,
+    "strip_radius": 2,
+    "strip_penalty": 1.0,
+    "gate_ratio": 0.0,
+    "gate_floor": 0.05,
 }
 
 #: Pipeline presets: method name -> its own parameters.

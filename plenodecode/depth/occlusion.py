@@ -13,7 +13,7 @@ from __future__ import annotations
 import logging
 import math
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any
+from typing import Any, Callable
 
 import cv2
 import numpy as np
@@ -128,7 +128,7 @@ def visibility_relabel(intensities: Views, disparity: np.ndarray, *, radius: int
     current map (:func:`nearest_surface`) has a surface nearer by more than ``jump / 2`` at its image: the
     occlusion reasoning of Kang, Szeliski & Chai (CVPR 2001) with the occluders taken from the map itself
     rather than from a fixed split of the views.  Fewer than ``min_visible`` of the view weight: no far
-    hypothesis.  A pixel moves to the other side when that side's cost is ``ratio`` times lower and it
+    hypothesis, and no move either way (a thin gap is seen by only the strip of views along it).  A pixel moves to the other side when that side's cost is ``ratio`` times lower and it
     touches that side, one pixel layer per round, up to ``radius`` rounds; a 3 x 3 median over the band
     then removes isolated decisions.
 
@@ -217,7 +217,9 @@ def visibility_relabel(intensities: Views, disparity: np.ndarray, *, radius: int
         next_to_near = cv2.dilate(near_map.astype(np.uint8), ring).astype(bool)[ys, xs]
         next_to_far = cv2.dilate((band & ~near_map).astype(np.uint8), ring).astype(bool)[ys, xs]
         to_far = side & (far_cost * r < near_cost) & next_to_far
-        to_near = ~side & (near_cost * r < far_cost) & next_to_near
+        # a far hypothesis too few views see is undecided, not refuted: a point seen through a gap of a few
+        # pixels is visible only in the strip of views along the gap
+        to_near = ~side & (near_cost * r < far_cost) & np.isfinite(far_cost) & next_to_near
         if not (to_far.any() or to_near.any()):
             break
         out[ys[to_far], xs[to_far]] = far_value[to_far]
@@ -415,8 +417,8 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
 
 def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, *, radius: int = 4,
                         jump: float = 0.5, ratio: float = 1.5, wedge: int = 2, median_radius: int = 5,
-                        intensities: Views | None = None, visibility: bool = True, coverage: bool = True
-                        ) -> np.ndarray:
+                        intensities: Views | None = None, visibility: bool = True, coverage: bool = True,
+                        gate: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> np.ndarray:
     """Remove the foreground fattening at depth discontinuities.
 
     Four steps, all restricted to the band within ``radius`` px of a disparity jump larger than ``jump``
@@ -455,6 +457,9 @@ def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, 
         The views without contrast channels, for steps 3 and 4 (None: both are skipped).
     visibility, coverage : bool
         Run step 3, step 4.
+    gate : callable(before, after) -> map, optional
+        Applied to the edge snapping of step 2 (:func:`plenodecode.depth.refinement.cost_gate`): the median
+        may not replace a thin structure that the matching cost supports by the surface around it.
 
     Returns
     -------
@@ -483,7 +488,8 @@ def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, 
 
         with ThreadPoolExecutor(max_workers=1) as own_thread:
             wm = own_thread.submit(seeded_weighted_median, np.ascontiguousarray(g), d).result()
-        d = np.where(band, wm, d).astype(np.float32)
+        snapped = np.where(band, wm, d).astype(np.float32)
+        d = snapped if gate is None else gate(d, snapped)
     if intensities is not None and visibility:
         d = visibility_relabel(intensities, d, radius=radius, jump=jump, ratio=ratio)
     if intensities is not None and coverage:

@@ -16,7 +16,11 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    point occluded in the views on one side of the centre still matches in the other half (Kang, Szeliski &
    Chai, CVPR 2001; Wang, Efros & Ramamoorthi, ICCV 2015, who split the angular patch at the occluder edge).
    Views are weighted by their ``lf.weight`` (Jeon et al., CVPR 2015 also build the volume over all views
-   against the centre view).
+   against the centre view).  A point seen through a gap of a few pixels is hidden from both half-planes,
+   and a square box around a thin slat is mostly background: with ``strips`` the minimum also runs over
+   oriented strips of views (those within ``strip_width`` of a line through the centre view), each
+   aggregated along a 1-px line of its orientation and weighted by ``strip_penalty``
+   (:func:`~plenodecode.depth.cost.strip_groups`).
 2. **Edge-aware regularisation** (:mod:`~plenodecode.depth.aggregation`): semi-global aggregation along
    ``paths`` directions (Hirschmueller, TPAMI 2008) whose large-jump penalty P2 falls at the centre view's
    intensity edges, so depth edges follow image edges.
@@ -25,11 +29,14 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    against its noise, the peak ratio of the aggregated cost and the agreement of all views with the best
    half-plane at the estimate (low on featureless areas, ambiguous cost curves and occlusions).
 4. **Clean-up** (:mod:`~plenodecode.depth.refinement`): an edge-aware weighted median guided by the centre
-   view (Ma et al., ICCV 2013).
+   view (Ma et al., ICCV 2013), gated by the matching cost (:func:`~plenodecode.depth.refinement.cost_gate`,
+   ``gate_ratio``, ``gate_floor``): a pixel keeps its value where the median's is clearly worse for the
+   views, so a median window across a thin structure does not wipe it out (the same gate guards the edge
+   snapping of step 6).
 5. **Sub-label refinement without the fronto-parallel bias**: a second, narrow cost volume of offsets
    ``+-refine_range`` labels around the estimate, every view warped per pixel by ``d(y, x) + offset``
    (bicubic), so slanted surfaces match exactly (SGM's label penalties favour fronto-parallel steps); its
-   parabolic minimum is added to the estimate.
+   parabolic minimum is added to the estimate.  Its strips aggregate along lines as long as its box.
 6. **Occlusion edges** (:mod:`~plenodecode.depth.occlusion`, parameters ``edge_*``): within ``edge_radius``
    px of a disparity jump, a pixel on the near side whose cost over *all* views (an occluder is seen by
    every view) exceeds ``edge_ratio`` x the far disparity's cost over the best wedge of views moves to the
@@ -58,7 +65,7 @@ from .aggregation import sgm, winner
 from .confidence import confident_winner
 from .cost import N_SECTORS, Progress, half_plane_cost_volume, make_labels
 from .occlusion import EDGE_DEFAULTS, fix_occlusion_edges
-from .refinement import refine_disparity, refine_radius_for, weighted_median
+from .refinement import cost_gate, refine_disparity, refine_radius_for, weighted_median
 from .views import Views, add_contrast, colour_guide, noise_sigma, prepare_views
 
 log = logging.getLogger(__name__)
@@ -165,7 +172,8 @@ def disparity_range(lf: LightField, views: Callable[[], Views], requested: Any =
 #: ones, :data:`VIEW_DEFAULTS` and :data:`EDGE_DEFAULTS` the rest (:func:`preset_defaults`).
 PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "median_radius", "refine_radius",
                  "refine_range", "refine_samples", "grey", "pattern", "contrast_sigma", "contrast_eps",
-                 "contrast_noise", "contrast_weight", "min_view_weight", "disparity_range", *EDGE_DEFAULTS)
+                 "contrast_noise", "contrast_weight", "min_view_weight", "disparity_range", "strips", "strip_width",
+                 "strip_radius", "strip_penalty", "gate_ratio", "gate_floor", *EDGE_DEFAULTS)
 
 
 def merge_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]) -> dict[str, Any]:
@@ -207,6 +215,12 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
     for name in ("edge_visibility", "edge_coverage"):
         if not isinstance(p[name], (bool, np.bool_)):
             raise ValueError(f"{name} must be True or False, got {p[name]!r}")
+    for name in ("strip_width", "strip_penalty"):
+        if not float(p[name]) > 0:
+            raise ValueError(f"{name} must be positive, got {p[name]!r}")
+    for name in ("strips", "strip_radius", "gate_ratio", "gate_floor"):
+        if not float(p[name]) >= 0:
+            raise ValueError(f"{name} must be >= 0, got {p[name]!r}")
     if int(p["refine_samples"]) < 3:
         raise ValueError(f"refine_samples must be >= 3, got {p['refine_samples']!r}")
     return p
@@ -271,27 +285,35 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
 
     log.info("cost volume: %d labels in [%.2f, %.2f] (%s), %d views", n_labels, labels[0], labels[-1], source,
              len(views.used()) + 1)
-    cost = half_plane_cost_volume(views, labels, radius=int(p["radius"]), progress=stage(0))
+    strips = {"strips": int(p["strips"]), "strip_width": float(p["strip_width"]),
+              "strip_radius": int(p["strip_radius"]), "strip_penalty": float(p["strip_penalty"])}
+    cost = half_plane_cost_volume(views, labels, radius=int(p["radius"]), progress=stage(0), **strips)
     sub = cost[::4, ::4]
     span = float(np.median(sub.max(axis=-1) - sub.min(axis=-1)))
     cost *= np.float32(1.0 / max(span, 1e-12))
     guide = views.guide()
     agg = sgm(cost, guide, p1=float(p["p1"]), p2=float(p["p2"]), sigma=float(p["edge_sigma"]), paths=n_paths,
               progress=stage(n_labels))
-    del cost
     disparity, confidence = confident_winner(agg, labels, views, radius=int(p["radius"]), weight=lf.weight)
     del agg
-    disparity = weighted_median(guide, disparity, int(p["median_radius"]))
+    def gated(before: np.ndarray, after: np.ndarray) -> np.ndarray:
+        # a clean-up's result, except where the matching cost clearly prefers the value before it
+        if not float(p["gate_ratio"]) > 0:
+            return after
+        return cost_gate(cost, labels, before, after, ratio=float(p["gate_ratio"]), floor=float(p["gate_floor"]))
+
+    disparity = gated(disparity, weighted_median(guide, disparity, int(p["median_radius"])))
     if n_refine:
         disparity = refine_disparity(views, disparity, half_range=float(p["refine_range"]) * step,
-                                     samples=n_refine, radius=refine_radius, progress=stage(n_labels + n_paths))
+                                     samples=n_refine, radius=refine_radius, progress=stage(n_labels + n_paths),
+                                     **{**strips, "strip_radius": max(strips["strip_radius"], refine_radius)})
     if int(p["edge_radius"]) > 0:
         disparity = fix_occlusion_edges(views, disparity, colour_guide(lf), radius=int(p["edge_radius"]),
                                         jump=float(p["edge_jump"]), ratio=float(p["edge_ratio"]),
-                                        wedge=int(p["edge_wedge"]),
-                                        median_radius=int(p["edge_median_radius"]),
+                                        wedge=int(p["edge_wedge"]), median_radius=int(p["edge_median_radius"]),
                                         intensities=intensities, visibility=bool(p["edge_visibility"]),
-                                        coverage=bool(p["edge_coverage"]))
+                                        coverage=bool(p["edge_coverage"]), gate=gated)
+    del cost
     params = {**p, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
               "noise_sigma": noise, "contrast_eps_used": eps,
               "disparity_range_source": source, "n_labels": n_labels, "views_used": len(views.used()) + 1}

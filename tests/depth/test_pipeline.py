@@ -16,3 +16,14 @@ def test_metadata_disparity_range():
     assert metadata_disparity_range({}) is None
     with pytest.raises(ValueError, match="disparity_range"):
         metadata_disparity_range({"disparity_range": [3, 1]})
+
+
+@pytest.mark.parametrize("name, value", [("strips", -1), ("strip_width", 0.0), ("strip_penalty", 0.0),
+                                         ("strip_radius", -2), ("gate_ratio", -1.0), ("gate_floor", -0.1)])
+def test_strip_and_gate_parameters_are_checked(name, value):
+    from plenodecode.depth.methods import COSTVOLUME
+    from plenodecode.depth.pipeline import check_params, preset_defaults
+
+    assert check_params("costvolume", preset_defaults(COSTVOLUME), {})["strips"] == 12
+    with pytest.raises(ValueError, match=name):
+        check_params("costvolume", preset_defaults(COSTVOLUME), {name: value})

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from plenodecode.depth.refinement import refine_disparity, refine_radius_for, weighted_median
+from plenodecode.depth.refinement import cost_at, cost_gate, refine_disparity, refine_radius_for, weighted_median
 from plenodecode.depth.views import prepare_views
 from tests.depth.test_methods import planes_lightfield
 
@@ -22,3 +22,25 @@ def test_refine_radius_and_median_off():
     assert refine_radius_for((64, 48), 2) == 2
     d = np.random.default_rng(0).uniform(0, 1, (10, 12)).astype(np.float32)
     assert weighted_median(np.zeros((10, 12), np.float32), d, 0) is d
+
+
+def test_cost_at_reads_the_volume_linearly_between_labels():
+    labels = np.linspace(-1.0, 1.0, 5)                                  # step 0.5
+    cost = np.broadcast_to(np.array([4.0, 3.0, 0.0, 1.0, 2.0], np.float32), (2, 3, 5)).copy()
+    d = np.array([[-1.0, -0.75, 0.25], [1.0, 2.0, -3.0]], np.float32)   # off the range: clipped to the ends
+    np.testing.assert_allclose(cost_at(cost, labels, d), [[4.0, 3.5, 0.5], [2.0, 2.0, 4.0]], atol=1e-6)
+
+
+def test_cost_gate_keeps_what_the_views_support():
+    """A 1-px slat (label 3) that a median replaced by the background (label 1): its cost there is 10 x its
+    own, so it stays; a noisy pixel whose median value costs about the same as its own takes the median."""
+    labels = np.arange(5, dtype=np.float64)
+    cost = np.ones((1, 3, 5), np.float32)
+    cost[0, 0] = [1.0, 1.0, 1.0, 0.1, 1.0]       # the slat matches at 3 only
+    cost[0, 1] = [0.5, 0.2, 0.5, 0.25, 0.5]      # ambiguous: 1 and 3 about equal
+    cost[0, 2] = [1.0, 0.1, 1.0, 1.0, 1.0]       # the median moves it onto its minimum
+    before = np.array([[3.0, 3.0, 3.0]], np.float32)
+    after = np.array([[1.0, 1.0, 1.0]], np.float32)
+    out = cost_gate(cost, labels, before, after, ratio=2.0, floor=0.05)
+    np.testing.assert_array_equal(out, [[3.0, 1.0, 1.0]])
+    assert out.dtype == np.float32
