@@ -67,12 +67,12 @@ def _sum_shifted_views_opencv(data: np.ndarray, weight: np.ndarray | None, vmask
     left, right = max(0, -int(bx.min())), max(0, int(bx.max()) + tx - 1)
     width = left + nx + right
     one = np.ones(1, np.float32)
+    ends = np.linspace(0, nu, chunks + 1).round().astype(int)[1:]     # the column after which step() is due
 
     def columns(u0: int, u1: int, report: Callable[[], None] = lambda: None) -> np.ndarray:
         acc = np.zeros((ns, ny, nx, cp), np.float32)
         column_sum = np.empty((ns, ny, width * cp), np.float32)
         filtered = np.empty((ny + ty - 1, width * cp), np.float32)
-        ends = np.linspace(u0, u1, chunks + 1).round().astype(int)[1:]
         for u in range(u0, u1):
             views = np.flatnonzero(vmask[:, u])
             column_sum.fill(0.0)
