@@ -5,7 +5,9 @@
 * ``illum-mini`` scene + white, and its 15 x 15 ground-truth light field;
 * the white image alone, compiled kernel against the plain-numpy reference model
   (``assign_pixels`` + ``disk_response`` + ``vignetting``, the functions the tests check the
-  kernel with) on ``illum-mini``.
+  kernel with) on ``illum-mini``;
+* the checkerboard radiance kernel against its numpy model on the rays of one F01 calibration raw,
+  and a calibration set of 12 F01 raws (target <= 60 s).
 
 The first call compiles the numba kernels (cached on disk afterwards); a warm-up on a tiny
 sensor runs before any timing.
@@ -53,4 +55,35 @@ def run() -> list[Figure]:
                           note="bit-identical" if same else "DIFFERS from the reference"))
     (white, _), t, peak = measure(lambda: syn.simulate_white("illum", seed=1))
     figures.append(Figure("synthetic: white illum 7728x5368 with noise", t, peak, target_s=30.0))
+    figures.extend(_checkerboard())
     return figures
+
+
+def _checkerboard() -> list[Figure]:
+    """The board radiance kernel against its numpy model on the rays of one F01 calibration raw, and a set of 12."""
+    from plenodecode.raymodel import GeometricCalibration
+    from plenodecode.synthetic import checkerboard as cb
+    from plenodecode.synthetic import make_grid
+
+    grid = cb.pipeline_grid(make_grid("f01", shape=cb.set_sensor_shape("f01")))
+    lf_shape = cb.decoded_shape(grid)
+    camera = GeometricCalibration(cb.default_intrinsics(lf_shape), [0.1, -0.2, 0.0, 0.003, -0.001], lf_shape=lf_shape)
+    board, pose = cb.Board(6, 8, 0.0036), (-0.012, -0.009, 0.45, 0.35, -0.45, 0.08)
+    h, w = grid.sensor_shape
+    rows, cols = np.meshgrid(np.arange(h, dtype=np.float64), np.arange(w, dtype=np.float64), indexing="ij")
+    samples = cb.pixel_samples(grid, rows, cols, lf_shape[0]).reshape(-1, 4)
+    samples = samples[np.hypot(samples[:, 0] - 4.0, samples[:, 1] - 4.0) < 5.6]
+    offsets = cb.footprint_offsets(4)
+    args = (camera.intrinsics, camera.distortion, board, pose)
+    cb.board_radiance(*args, samples[:10], offsets)                       # compile / load the kernel
+    fast, t_fast, peak = measure(lambda: cb.board_radiance(*args, samples, offsets), repeat=3)
+    slow, t_slow, _ = measure(lambda: cb.board_radiance_numpy(*args, samples, offsets), memory=False)
+    same = np.abs(fast - slow).max() < 1e-12
+    figures = [Figure(f"synthetic: board radiance, {len(samples) / 1e6:.2f} M samples x 64 rays", t_fast, peak,
+                      ratio=t_slow / t_fast, baseline="numpy model",
+                      note="equal to 1e-12" if same else "DIFFERS from the numpy model")]
+    _, t, peak = measure(lambda: cb.simulate_checkerboard_set("f01", board, 12, seed=1))
+    figures.append(Figure("synthetic: checkerboard set, 12 F01 raws " + "x".join(map(str, grid.sensor_shape)), t,
+                          peak, target_s=60.0))
+    return figures
+

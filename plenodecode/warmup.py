@@ -5,7 +5,8 @@ raw cut to ``SHAPE``), so the kernels are compiled for the argument types the co
 the user cache directory (:mod:`plenodecode._numba`); later commands then load them instead of
 compiling.  Groups, in order (each needs the one before):
 
-``synthetic``   the forward model (:func:`plenodecode.synthetic.simulate`), which makes the inputs;
+``synthetic``   the forward model (:func:`plenodecode.synthetic.simulate`), which makes the inputs, and the
+                checkerboard renderer (:func:`plenodecode.synthetic.board_lightfield`);
 ``calibration`` :func:`plenodecode.calib.calibrate` on the white image;
 ``decode``      :func:`plenodecode.pipeline.decode_raw` (devignette, demosaic, slice, hex -> rect);
 ``refocus``     shift-sum and Fourier-slice photographs (:func:`plenodecode.pipeline.render_product`);
@@ -26,9 +27,10 @@ WARMUP_GROUPS = ("synthetic", "calibration", "decode", "refocus", "depth", "tota
 
 
 def _synthetic(state: dict[str, Any]) -> None:
-    from .synthetic import simulate
+    from .synthetic import board_lightfield, default_intrinsics, simulate
 
     state["sim"] = simulate("illum-mini", seed=0, shape=SHAPE)
+    board_lightfield(default_intrinsics((3, 3, 8, 8)), (2, 2, 0.01), (0.0, 0.0, 0.4, 0.0, 0.0, 0.0), (3, 3, 8, 8))
 
 
 def _calibration(state: dict[str, Any]) -> None:

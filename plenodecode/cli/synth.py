@@ -1,4 +1,5 @@
-"""``plenodecode synth PRESET -o OUT_DIR``: a synthetic raw, its white image and the ground truth."""
+"""``plenodecode synth PRESET -o OUT_DIR``: a synthetic raw, its white image and the ground truth; with
+``--checkerboard ROWSxCOLSxSQUARE`` a geometric calibration set (checkerboard raws, white, true H and poses)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from .common import FINITE, POSITIVE, RegistryChoice, check_output, overwrite_option, progress_bar
+from .common import BOARD, FINITE, POSITIVE, RegistryChoice, check_output, overwrite_option, progress_bar
 
 #: The simulated cameras, for the PRESET argument (:mod:`plenodecode.synthetic.presets` imports no numba).
 PRESET_CHOICE = RegistryChoice("plenodecode.synthetic.presets", "PRESETS")
@@ -23,33 +24,69 @@ PRESET_CHOICE = RegistryChoice("plenodecode.synthetic.presets", "PRESETS")
 @click.option("--offset", type=(FINITE, FINITE), default=None, metavar="ROW COL",
               help="Sub-pixel shift of the lattice from the sensor centre, px.")
 @click.option("--shape", type=(click.IntRange(min=1), click.IntRange(min=1)), default=None, metavar="H W", help="Sensor size override.")
-@click.option("--name", default="scene", show_default=True, help="File stem of the scene raw and truth files.")
+@click.option("--name", default=None, help="File stem of the raws and truth files [default: scene; board with "
+                                            "--checkerboard].")
 @click.option("--no-noise", is_flag=True, help="No shot/read noise and no hot pixels.")
 @click.option("--archive", type=click.Choice(["illum-tar", "f01-datac"]), default=None,
               help="Also put the white image into the camera's calibration archive in the output folder: the Illum "
                    "backup caldata-<serial>.tar or the F01 volume data.C.0 (for 'calibrate --database DIR ARCHIVE').")
 @click.option("--lightfield/--no-lightfield", default=None,
               help="Store the ground-truth light field in the truth .npz (default: only for sensors up to 2 Mpx).")
+@click.option("--checkerboard", "board", type=BOARD, default=None,
+              help="Write a geometric calibration set instead of a scene: raws of a checkerboard of ROWS x COLS inner "
+                   "corners and SQUARE m squares (e.g. 8x6x0.0036) at 0.3-0.6 m, tilted up to 35 degrees, with the "
+                   "white image and geometry_truth.json (H, distortion, poses).")
+@click.option("--captures", type=click.IntRange(1, 100), default=None,
+              help="With --checkerboard: number of raws.  [default: 12]")
+@click.option("--distortion", type=(FINITE,) * 5, default=None, metavar="K1 K2 K3 B1 B2",
+              help="With --checkerboard: lens distortion of the simulated camera (toolbox convention) [default: none].")
+@click.option("--distances", type=(POSITIVE, POSITIVE), default=None, metavar="NEAR FAR",
+              help="With --checkerboard: range of board distances in m.  [default: 0.3 0.6]")
+@click.option("--geometry", "geometry_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              default=None, help="With --checkerboard: take H and the distortion from this calibration (JSON of "
+                                 "'calibrate-geometry' or a toolbox CalInfo.json) [default: a plausible H for the "
+                                 "decoded shape, no distortion; --distortion overrides the file's].")
+@click.option("--views", "n_views", type=click.IntRange(min=1), default=None,
+              help="With --checkerboard: views per axis of the decoded light fields the truth is for (odd; decode "
+                   "with the same --views) [default: the decoder's].")
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: float | None, rotation: float | None,
-            offset: tuple[float, float] | None, shape: tuple[int, int] | None, name: str, no_noise: bool,
-            lightfield: bool | None, archive: str | None, overwrite: bool) -> None:
+            offset: tuple[float, float] | None, shape: tuple[int, int] | None, name: str | None, no_noise: bool,
+            lightfield: bool | None, archive: str | None, board: tuple[int, int, float] | None, captures: int | None,
+            distortion: tuple[float, ...] | None, distances: tuple[float, float] | None, geometry_file: Path | None,
+            n_views: int | None, overwrite: bool) -> None:
     """Generate a synthetic plenoptic raw of PRESET with exact ground truth.
 
     Writes the scene raw in the camera's own format (Illum .lfr, F01 .lfp, a 16-bit PNG
     with JSON sidecar, or PNG + RayCalibData XML), its white image (MOD_0000.RAW + .TXT for
     Lytro presets) and NAME.truth.json / NAME.truth.npz (grid, lens centres, disparity).
 
+    With --checkerboard: board_00.lfp ... (the camera's format), one white image and geometry_truth.json,
+    the ground truth of 'plenodecode calibrate-geometry' for light fields decoded with that white image.
+
     \b
     Example:
       plenodecode synth illum-mini -o out/ --seed 3 --offset 0.25 -0.4
       plenodecode synth illum-mini -o out/ --archive illum-tar
+      plenodecode synth f01 -o boards/ --checkerboard 8x6x0.0036 --captures 12
     """
     from ..synthetic import get_preset, simulate, simulation_files, write_simulation
     from ..synthetic.archives import archive_name, write_calibration_archive
 
     out = Path(out_dir)
+    if board is not None:
+        _checkerboard_set(ctx, preset, out, board=board, captures=12 if captures is None else captures,
+                          distortion=distortion, distances=distances, geometry_file=geometry_file, n_views=n_views,
+                          seed=seed, pitch=pitch, rotation=rotation,
+                          offset=offset, shape=shape, name=name or "board", noise=not no_noise, archive=archive,
+                          lightfield=lightfield, overwrite=overwrite)
+        return
+    for option, value in (("--captures", captures), ("--distortion", distortion), ("--distances", distances),
+                          ("--geometry", geometry_file), ("--views", n_views)):
+        if value is not None:
+            raise click.UsageError(f"{option} needs --checkerboard")
+    name = name or "scene"
     try:
         names = simulation_files(preset, name)
     except ValueError as exc:
@@ -76,3 +113,64 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
         paths = {**paths, "archive": written.paths[0]}
     for key, path in paths.items():
         click.echo(f"{key:11s} {path}")
+
+
+def _checkerboard_set(ctx: click.Context, preset: str, out: Path, *, board: tuple[int, int, float], captures: int,
+                      distortion: tuple[float, ...] | None, distances: tuple[float, float] | None,
+                      geometry_file: Path | None, n_views: int | None, seed: int,
+                      pitch: float | None, rotation: float | None, offset: tuple[float, float] | None,
+                      shape: tuple[int, int] | None, name: str, noise: bool, archive: str | None,
+                      lightfield: bool | None, overwrite: bool) -> None:
+    """``synth --checkerboard``: check the options, simulate the set, write it, list the files."""
+    from ..synthetic import get_preset, simulation_files
+    from ..synthetic.checkerboard import SET_TRUTH_NAME, simulate_checkerboard_set, write_checkerboard_set
+
+    for option, value in (("--archive", archive), ("--lightfield/--no-lightfield", lightfield)):
+        if value is not None:
+            raise click.UsageError(f"{option} does not apply to --checkerboard sets")
+    if distances is not None and not distances[0] <= distances[1]:
+        raise click.BadParameter(f"NEAR must not exceed FAR, got {distances[0]:g} {distances[1]:g}",
+                                 param_hint="--distances")
+    if n_views is not None and n_views % 2 == 0:
+        raise click.BadParameter(f"must be odd, got {n_views}", param_hint="--views")
+    intrinsics = None
+    if geometry_file is not None:
+        from ..errors import FormatError
+        from ..io.calinfo import load_geometric_calibration
+
+        try:
+            camera = load_geometric_calibration(geometry_file)
+        except FormatError as exc:
+            raise click.BadParameter(str(exc), param_hint="--geometry") from exc
+        intrinsics = camera.intrinsics
+        distortion = camera.distortion if distortion is None else distortion
+    if get_preset(preset).focused:
+        raise click.BadParameter(f"{preset!r} is a focused (Raytrix) camera; checkerboard sets need an unfocused "
+                                 "preset", param_hint="PRESET")
+    try:
+        names = [simulation_files(preset, f"{name}_{q:02d}")["raw"] for q in range(captures)]
+        names.append(simulation_files(preset, name)["white"])
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--name") from exc
+    if not overwrite:
+        for fname in (*names, SET_TRUTH_NAME):
+            check_output(out / fname, overwrite)
+    try:
+        extra = {} if distances is None else {"distances": distances}
+        cset = simulate_checkerboard_set(preset, board, captures, intrinsics=intrinsics, distortion=distortion,
+                                         n_views=n_views, seed=seed, shape=shape,
+                                         pitch=pitch, rotation=rotation, offset=offset, noise=noise, **extra,
+                                         progress=progress_bar(f"checkerboard set of {preset}", ctx))
+    except ValueError as exc:
+        if "does not fit" in str(exc):
+            raise click.BadParameter(f"{exc} (--distances)", param_hint="--checkerboard") from exc
+        raise click.UsageError(str(exc)) from exc
+    try:
+        paths = write_checkerboard_set(cset, out, name=name, overwrite=overwrite)
+    except FileExistsError as exc:   # appeared while simulating
+        raise click.UsageError(f"{exc}; pass --overwrite to replace it") from exc
+    lf_shape = "x".join(str(v) for v in cset.truth.lf_shape)
+    for key, path in paths.items():
+        click.echo(f"{key:11s} {path}")
+    views = f" --views {n_views}" if n_views is not None else ""
+    click.echo(f"light field {lf_shape} (V x U x Y x X) when decoded with -w {paths['white'].name}{views}")

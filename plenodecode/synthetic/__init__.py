@@ -32,7 +32,8 @@ Modules, each importing only those listed before it: :mod:`.presets` (the simula
 kernels), :mod:`.scene` (planes, textures, radiance), :mod:`.sensor` (disk response,
 vignetting, noise, rendering the mosaic), :mod:`.truth` (:class:`Simulation`, ground-truth
 files), :mod:`.archives` (white images in the cameras' calibration archives), :mod:`.focused`
-(the focused camera), :mod:`.forward` (:func:`simulate`, :func:`simulate_white`).  Importing the package loads only :mod:`.presets`; the other names load on first
+(the focused camera), :mod:`.forward` (:func:`simulate`, :func:`simulate_white`), :mod:`.checkerboard`
+(checkerboard captures with geometric ground truth: the ray model of :mod:`plenodecode.raymodel`).  Importing the package loads only :mod:`.presets`; the other names load on first
 access.
 """
 
@@ -50,6 +51,9 @@ _LAZY = {
     **dict.fromkeys(["Simulation", "Truth", "load_truth", "simulation_files", "truth_document", "write_simulation"],
                     "plenodecode.synthetic.truth"),
     **dict.fromkeys(["ARCHIVE_KINDS", "WrittenArchive", "write_calibration_archive"], "plenodecode.synthetic.archives"),
+    **dict.fromkeys(["Board", "board_lightfield", "board_corners", "default_intrinsics", "CheckerboardSet",
+                     "simulate_checkerboard_set", "write_checkerboard_set"],
+                    "plenodecode.synthetic.checkerboard"),
 }
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY)
@@ -58,4 +62,5 @@ __all__ = ["Preset", "PRESETS", "get_preset", "make_grid", "raytrix_lens_types",
            "disk_response", "vignetting", "simulate_white", "Simulation", "simulate", "write_simulation",
            "simulation_files", "truth_document", "Truth", "load_truth", "SUBSAMPLES", "BAND_ROWS",
            "Plane", "Scene", "default_scene", "dot_chart", "ARCHIVE_KINDS", "WrittenArchive",
-           "write_calibration_archive"]
+           "write_calibration_archive", "Board", "board_lightfield", "board_corners", "default_intrinsics",
+           "CheckerboardSet", "simulate_checkerboard_set", "write_checkerboard_set"]

@@ -187,4 +187,83 @@ def sensor_band_kernel(r0, out, origin_r, origin_c, cos_t, sin_t, pitch, rs, shi
             out[rr, col] = sig
 
 
-__all__ = ["SUBSAMPLES", "box_radiance_kernel", "sensor_band_kernel"]
+@njit(cache=True, inline="always")
+def _board_point(n0, n1, n2, n3, h, distortion, rot, trans, square):
+    """Board-frame point ``(x_b, y_b) / square`` hit by the ray of sample ``(n0, n1, n2, n3)``; NaN for a miss."""
+    k1, k2, k3, b1, b2 = distortion[0], distortion[1], distortion[2], distortion[3], distortion[4]
+    s = h[0, 0] * n0 + h[0, 1] * n1 + h[0, 2] * n2 + h[0, 3] * n3 + h[0, 4]
+    t = h[1, 0] * n0 + h[1, 1] * n1 + h[1, 2] * n2 + h[1, 3] * n3 + h[1, 4]
+    cu = h[2, 0] * n0 + h[2, 1] * n1 + h[2, 2] * n2 + h[2, 3] * n3 + h[2, 4] - b1
+    cv = h[3, 0] * n0 + h[3, 1] * n1 + h[3, 2] * n2 + h[3, 3] * n3 + h[3, 4] - b2
+    r2 = cu * cu + cv * cv
+    f = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    du = f * cu + b1
+    dv = f * cv + b2
+    along = du * rot[0, 2] + dv * rot[1, 2] + rot[2, 2]
+    if abs(along) <= 1e-12:
+        return math.nan, math.nan
+    z = ((trans[0] - s) * rot[0, 2] + (trans[1] - t) * rot[1, 2] + trans[2] * rot[2, 2]) / along
+    if not z > 0.0:
+        return math.nan, math.nan
+    hx = s + z * du - trans[0]
+    hy = t + z * dv - trans[1]
+    hz = z - trans[2]
+    return ((hx * rot[0, 0] + hy * rot[1, 0] + hz * rot[2, 0]) / square,
+            (hx * rot[0, 1] + hy * rot[1, 1] + hz * rot[2, 1]) / square)
+
+
+@njit(cache=True, inline="always")
+def _board_level(x, y, rows, cols, margin, levels):
+    """Radiance at board point ``(x, y)`` (in squares): dark / light square, light margin, grey beyond."""
+    if not (-1.0 - margin <= x < cols + margin and -1.0 - margin <= y < rows + margin):
+        return levels[2]
+    if -1.0 <= x < cols and -1.0 <= y < rows and (math.floor(x) + math.floor(y)) % 2 == 0:
+        return levels[0]
+    return levels[1]
+
+
+@njit(parallel=True, cache=True)
+def board_radiance_kernel(samples, offsets, h, distortion, rot, trans, rows, cols, square, margin, levels, out):
+    """Mean checkerboard radiance over each sample's footprint: the compiled twin of
+    :func:`plenodecode.synthetic.checkerboard.board_radiance_numpy` (samples (N, 4), offsets (M, 4),
+    ``H`` (5, 5), distortion (5,), board rotation (3, 3) and translation (3,), levels (dark, light, grey),
+    an integer ``margin``).
+
+    Shortcut: the radiance is constant on every unit cell ``(floor x, floor y)`` of the board plane (square
+    boundaries, margin and outline are on integer lines).  The footprint's hit points lie within
+    ``e = 1.25 sum_c |P(n + w_c e_c) - P(n)|`` of the centre's ``P(n)`` (``w_c`` the largest offset along
+    sample axis ``c``: the map is near-affine over one footprint, 1.25 covers its curvature); when that box
+    stays inside one cell, the mean is that cell's level and the sub-samples are skipped.
+    """
+    n = samples.shape[0]
+    m = offsets.shape[0]
+    reach = np.empty(4)
+    for c in range(4):
+        reach[c] = max(abs(offsets[:, c].min()), abs(offsets[:, c].max()))
+    for p in numba.prange(n):
+        n0, n1, n2, n3 = samples[p, 0], samples[p, 1], samples[p, 2], samples[p, 3]
+        x0, y0 = _board_point(n0, n1, n2, n3, h, distortion, rot, trans, square)
+        if math.isfinite(x0):
+            ex = 0.0
+            ey = 0.0
+            for c in range(4):
+                x, y = _board_point(n0 + (reach[0] if c == 0 else 0.0), n1 + (reach[1] if c == 1 else 0.0),
+                                    n2 + (reach[2] if c == 2 else 0.0), n3 + (reach[3] if c == 3 else 0.0),
+                                    h, distortion, rot, trans, square)
+                ex += abs(x - x0)
+                ey += abs(y - y0)
+            ex *= 1.25
+            ey *= 1.25
+            if (math.isfinite(ex) and math.isfinite(ey) and math.floor(x0 - ex) == math.floor(x0 + ex)
+                    and math.floor(y0 - ey) == math.floor(y0 + ey)):
+                out[p] = _board_level(x0, y0, rows, cols, margin, levels)
+                continue
+        acc = 0.0
+        for q in range(m):
+            x, y = _board_point(samples[p, 0] + offsets[q, 0], samples[p, 1] + offsets[q, 1],
+                                samples[p, 2] + offsets[q, 2], samples[p, 3] + offsets[q, 3],
+                                h, distortion, rot, trans, square)
+            acc += _board_level(x, y, rows, cols, margin, levels) if math.isfinite(x) else levels[2]
+        out[p] = acc / m
+
+__all__ = ["SUBSAMPLES", "box_radiance_kernel", "sensor_band_kernel", "board_radiance_kernel"]

@@ -187,6 +187,31 @@ def _raw_names(p: Preset, name: str) -> dict[str, str]:
             "white_json": f"{name}_white.json"}
 
 
+def write_camera_file(p: Preset, path: str | os.PathLike, capture: RawCapture, grid: LensletGrid, *,
+                      overwrite: bool = False) -> None:
+    """Write one capture in the preset camera's own format (the names of :func:`simulation_files`).
+
+    Lytro presets: a scene as Illum ``.lfr`` / F01 ``.lfp``, a white image (``capture.metadata.is_white_image``)
+    as ``MOD_NNNN.RAW`` + ``.TXT``; focused presets: PNG + RayCalibData XML of ``grid``; others: 16-bit PNG +
+    JSON sidecar.  Each file is written by :mod:`plenodecode.io` to a temporary name and renamed.
+    """
+    if p.model == "ILLUM" or p.model == "F01":
+        from ..io import lytro
+
+        if capture.metadata.is_white_image:
+            lytro.write_raw_pair(path, capture, overwrite=overwrite)
+        else:
+            (lytro.write_lfr if p.model == "ILLUM" else lytro.write_lfp)(path, capture, overwrite=overwrite)
+    elif p.focused:
+        from ..io.raytrix import write_raytrix
+
+        write_raytrix(path, capture, grid, overwrite=overwrite)
+    else:
+        from ..io.generic import write_mosaic
+
+        write_mosaic(path, capture, overwrite=overwrite)
+
+
 def truth_document(sim: Simulation, files: Mapping[str, str] | None = None) -> dict[str, Any]:
     """The JSON ground-truth document of a simulation (see :func:`write_simulation`)."""
     smp = sim.grid.decoded_sampling()
@@ -230,21 +255,8 @@ def write_simulation(sim: Simulation, out_dir: str | os.PathLike, *, name: str =
     p = sim.preset
     paths = {k: out / v for k, v in simulation_files(p, name).items()}
     refuse_existing(paths.values(), overwrite)
-    if p.model == "ILLUM" or p.model == "F01":
-        from ..io import lytro
-
-        (lytro.write_lfr if p.model == "ILLUM" else lytro.write_lfp)(paths["raw"], sim.raw, overwrite=overwrite)
-        lytro.write_raw_pair(paths["white"], sim.white, overwrite=overwrite)
-    elif p.focused:
-        from ..io.raytrix import write_raytrix
-
-        write_raytrix(paths["raw"], sim.raw, sim.grid, overwrite=overwrite)
-        write_raytrix(paths["white"], sim.white, sim.grid, overwrite=overwrite)
-    else:
-        from ..io.generic import write_mosaic
-
-        write_mosaic(paths["raw"], sim.raw, overwrite=overwrite)
-        write_mosaic(paths["white"], sim.white, overwrite=overwrite)
+    write_camera_file(p, paths["raw"], sim.raw, sim.grid, overwrite=overwrite)
+    write_camera_file(p, paths["white"], sim.white, sim.grid, overwrite=overwrite)
     arrays: dict[str, np.ndarray] = {"centres": sim.grid.centres(), "disparity": sim.disparity}
     for key, val in sim.truth.items():
         if isinstance(val, np.ndarray):
@@ -321,4 +333,5 @@ def load_truth(path: str | os.PathLike) -> Truth:
 
 
 __all__ = ["Simulation", "TRUTH_FORMAT", "TRUTH_VERSION", "simulation_files", "truth_document", "write_simulation",
+           "write_camera_file",
            "Truth", "load_truth"]

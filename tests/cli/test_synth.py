@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import numpy as np
+import pytest
+
 from plenodecode import synthetic as syn
 
 
@@ -24,3 +27,95 @@ def test_cli_synth_writes_files_and_refuses_to_overwrite(tmp_path):
     assert res.exit_code == 2 and "--overwrite" in res.output
     res = CliRunner().invoke(cli, [*args, "--overwrite"])
     assert res.exit_code == 0, res.output
+
+
+def test_cli_synth_checkerboard_set(tmp_path):
+    """``synth --checkerboard`` writes the raws, the white image and the truth; decoded, the board's dark and
+    light squares sit where the truth projects them."""
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+    from plenodecode.io.calinfo import load_geometric_calibration
+    from plenodecode.pipeline import choose_calibration, decode_raw, open_raw
+    from plenodecode.raymodel import pose_transform
+    from plenodecode.synthetic.checkerboard import BOARD_LEVELS, Board
+
+    args = ["synth", "f01", "-o", str(tmp_path), "--checkerboard", "3x4x0.008", "--captures", "2", "--shape", "420",
+            "500", "--distances", "0.4", "0.5", "--distortion", "0.1", "0", "0", "0", "0", "--no-noise"]
+    res = CliRunner().invoke(cli, args)
+    assert res.exit_code == 0, res.output
+    assert "board_01.lfp" in res.output and "MOD_0000.RAW" in res.output and "9x9x49x58" in res.output
+    truth = load_geometric_calibration(tmp_path / "geometry_truth.json")
+    assert truth.poses.shape == (2, 6) and truth.distortion[0] == 0.1 and truth.info["noise"] is False
+    board = Board(3, 4, 0.008)
+    assert truth.info["board"] == board.to_dict()
+    white = open_raw(tmp_path / "MOD_0000.RAW")
+    raw = open_raw(tmp_path / "board_00.lfp")
+    centre = decode_raw(raw, choose_calibration(raw, white=white)).data[4, 4].mean(axis=-1)
+    # the centres of the 4 x 5 squares: dark where (col + row) of the square is even
+    s = board.square_m
+    cols, rows = np.meshgrid(np.arange(-1, board.cols), np.arange(-1, board.rows))
+    middles = np.stack([(cols.ravel() + 0.5) * s, (rows.ravel() + 0.5) * s, np.zeros(cols.size)], axis=-1)
+    kl = truth.project(pose_transform(truth.poses[0], middles), (4, 4))
+    values = centre[np.rint(kl[:, 1]).astype(int), np.rint(kl[:, 0]).astype(int)]
+    dark = (cols.ravel() + rows.ravel()) % 2 == 0
+    np.testing.assert_allclose(values[dark], BOARD_LEVELS["dark"], atol=0.03)
+    np.testing.assert_allclose(values[~dark], BOARD_LEVELS["light"], atol=0.05)
+    res = CliRunner().invoke(cli, args)
+    assert res.exit_code == 2 and "--overwrite" in res.output
+
+
+@pytest.mark.parametrize("extra,message", [
+    (["--checkerboard", "8x6"], "--checkerboard"),
+    (["--checkerboard", "1x6x0.004"], "--checkerboard"),
+    (["--checkerboard", "8x6x-0.004"], "--checkerboard"),
+    (["--captures", "3"], "--captures needs --checkerboard"),
+    (["--checkerboard", "3x4x0.008", "--captures", "0"], "--captures"),
+    (["--checkerboard", "3x4x0.008", "--distances", "0.5", "0.4"], "--distances"),
+    (["--checkerboard", "3x4x0.008", "--archive", "f01-datac"], "--archive"),
+    (["--checkerboard", "8x10x0.02", "--shape", "300", "360"], "--checkerboard"),
+    (["--checkerboard", "3x4x0.008", "--views", "8"], "--views"),
+    (["--views", "7"], "--views needs --checkerboard"),
+])
+def test_cli_synth_checkerboard_refuses_bad_options(tmp_path, extra, message):
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+
+    res = CliRunner().invoke(cli, ["synth", "f01", "-o", str(tmp_path / "out"), *extra])
+    assert res.exit_code == 2, res.output
+    assert message in res.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_cli_synth_checkerboard_refuses_a_focused_preset(tmp_path):
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+
+    res = CliRunner().invoke(cli, ["synth", "raytrix", "-o", str(tmp_path), "--checkerboard", "3x4x0.008"])
+    assert res.exit_code == 2 and "PRESET" in res.output and "unfocused" in res.output
+
+
+def test_cli_synth_checkerboard_takes_the_camera_from_a_calibration_file(tmp_path):
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+    from plenodecode.io.calinfo import load_geometric_calibration, save_geometric_calibration
+    from plenodecode.raymodel import GeometricCalibration
+    from plenodecode.synthetic.checkerboard import default_intrinsics
+
+    h = default_intrinsics((7, 7, 49, 58), field_of_view=0.2, focus_distance_m=0.5)
+    save_geometric_calibration(GeometricCalibration(h, [0.05, 0, 0, 0, 0]), tmp_path / "camera.json")
+    (tmp_path / "bad.json").write_text("{}")
+    args = ["synth", "f01", "-o", str(tmp_path / "set"), "--checkerboard", "3x4x0.008", "--captures", "1",
+            "--shape", "420", "500", "--distances", "0.4", "0.5", "--views", "7", "--no-noise"]
+    res = CliRunner().invoke(cli, [*args, "--geometry", str(tmp_path / "bad.json")])
+    assert res.exit_code == 2 and "--geometry" in res.output
+    res = CliRunner().invoke(cli, [*args, "--geometry", str(tmp_path / "camera.json"), "--distortion", "0.1", "0",
+                                   "0", "0", "0"])
+    assert res.exit_code == 0, res.output
+    assert "7x7x49x58" in res.output and "--views 7" in res.output
+    truth = load_geometric_calibration(tmp_path / "set" / "geometry_truth.json")
+    np.testing.assert_array_equal(truth.intrinsics, h)
+    assert truth.lf_shape == (7, 7, 49, 58) and truth.distortion[0] == 0.1
