@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
@@ -71,12 +71,15 @@ def _quality(errors: Reprojection, names: Sequence[str], corners: Sequence[ViewC
     return {"rms_ray_m": errors.rms_m(), "rms_px": errors.rms_px(), "per_capture": per_capture}
 
 
-def run_geometric_calibration(raws_or_lightfields: Sequence[LightField | RawCapture],
+def run_geometric_calibration(raws_or_lightfields: Iterable[LightField | RawCapture],
                               board: Board | tuple[int, int, float] | str, *, names: Sequence[str] | None = None,
                               grid: LensletGrid | None = None, white: RawCapture | None = None,
                               distortion: bool = True, min_weight: float = MIN_VIEW_WEIGHT,
                               progress: Callable[[int, int], None] | None = None) -> GeometryRun:
     """:func:`calibrate_geometry` with its detections, residuals and skipped captures (for reports).
+
+    ``raws_or_lightfields`` may be a generator (decoded one by one); ``progress`` is called only when
+    ``names`` gives the number of captures.
 
     Raises
     ------
@@ -84,13 +87,15 @@ def run_geometric_calibration(raws_or_lightfields: Sequence[LightField | RawCapt
         Fewer than :data:`MIN_CAPTURES` captures show the whole board, or the light fields differ in shape.
     """
     board = Board.of(board)
-    items = list(raws_or_lightfields)
-    names = [f"capture {n + 1}" for n in range(len(items))] if names is None else [str(n) for n in names]
-    if len(names) != len(items):
-        raise ValueError(f"names has {len(names)} entries for {len(items)} captures")
+    names = None if names is None else [str(n) for n in names]
+    total = None if names is None else len(names)
     used, corners, skipped = [], [], []
     shape = None
-    for n, (name, item) in enumerate(zip(names, items)):
+    n = -1
+    for n, item in enumerate(raws_or_lightfields):     # one light field in memory at a time
+        if names is not None and n >= len(names):
+            raise ValueError(f"names has {len(names)} entries for more captures")
+        name = f"capture {n + 1}" if names is None else names[n]
         lf = _as_lightfield(item, grid, white)
         if shape is not None and lf.shape[:4] != shape:
             raise CalibrationError(f"{name}: light field of shape {lf.shape[:4]}, the others {shape}; decode every "
@@ -105,10 +110,12 @@ def run_geometric_calibration(raws_or_lightfields: Sequence[LightField | RawCapt
             log.info("%s: board found in %d of %d views", name, found.count, found.searched)
             used.append(name)
             corners.append(found)
-        if progress is not None:
-            progress(n + 1, len(items))
+        if progress is not None and total is not None:
+            progress(n + 1, total)
+    if names is not None and n + 1 != len(names):
+        raise ValueError(f"names has {len(names)} entries for {n + 1} captures")
     if len(corners) < MIN_CAPTURES:
-        raise CalibrationError(f"the board ({board.describe()}) was found in {len(corners)} of {len(items)} "
+        raise CalibrationError(f"the board ({board.describe()}) was found in {len(corners)} of {n + 1} "
                                f"captures; a calibration needs at least {MIN_CAPTURES}: check --board (inner "
                                "corners, not squares) and take captures that show the whole board")
     obs = Observations.of(corners, board)
@@ -127,7 +134,7 @@ def run_geometric_calibration(raws_or_lightfields: Sequence[LightField | RawCapt
     return GeometryRun(calibration=cal, board=board, names=used, corners=corners, errors=errors, skipped=skipped)
 
 
-def calibrate_geometry(raws_or_lightfields: Sequence[LightField | RawCapture],
+def calibrate_geometry(raws_or_lightfields: Iterable[LightField | RawCapture],
                        board: Board | tuple[int, int, float] | str, *, names: Sequence[str] | None = None,
                        grid: LensletGrid | None = None, white: RawCapture | None = None, distortion: bool = True,
                        min_weight: float = MIN_VIEW_WEIGHT,
@@ -143,7 +150,7 @@ def calibrate_geometry(raws_or_lightfields: Sequence[LightField | RawCapture],
 
     Parameters
     ----------
-    raws_or_lightfields : sequence of LightField or RawCapture
+    raws_or_lightfields : iterable of LightField or RawCapture
         10-20 captures of a flat checkerboard at various distances and tilts, same zoom and focus.
     board : Board, (rows, cols, square_m) or 'ROWSxCOLSxSQUARE_M'
         Inner corners (not squares) and their spacing in metres.
@@ -165,5 +172,7 @@ def calibrate_geometry(raws_or_lightfields: Sequence[LightField | RawCapture],
         ``lf_shape``, ``poses`` (N, 6) of the captures used, ``info`` with the board, the captures used and
         skipped, and the RMS ray (m) and pixel reprojection errors, overall and per capture.
     """
-    return run_geometric_calibration(raws_or_lightfields, board, names=names, grid=grid, white=white,
+    items = list(raws_or_lightfields)
+    names = [f"capture {n + 1}" for n in range(len(items))] if names is None else names
+    return run_geometric_calibration(items, board, names=names, grid=grid, white=white,
                                      distortion=distortion, min_weight=min_weight, progress=progress).calibration

@@ -26,6 +26,9 @@ log = logging.getLogger(__name__)
 
 #: Views whose mean weight is below this fraction of the central view's are not searched.
 MIN_VIEW_WEIGHT = 0.5
+#: A view whose corners, mapped onto the capture's median corners by the best affine map, miss them by more
+#: than this (px) is dropped as a misdetection (the views of a plane differ by a near-affine parallax).
+MAX_VIEW_MISFIT_PX = 1.0
 #: Views smaller than this (px, shorter side) are enlarged before detection: the sector detector
 #: needs several pixels per square.
 MIN_DETECTION_SIZE = 240
@@ -62,11 +65,15 @@ class Board:
 
     @classmethod
     def of(cls, board: "Board | tuple[int, int, float] | str") -> "Board":
-        """A Board from a Board, a ``(rows, cols, square_m)`` tuple or a ``'8x6x0.0036'`` string."""
+        """A Board from a Board, anything with ``rows``, ``cols`` and ``square_m`` (the generator's
+        :class:`plenodecode.synthetic.checkerboard.Board`), a ``(rows, cols, square_m)`` tuple or a
+        ``'8x6x0.0036'`` string."""
         if isinstance(board, Board):
             return board
         if isinstance(board, str):
             return cls.parse(board)
+        if all(hasattr(board, name) for name in ("rows", "cols", "square_m")):
+            return cls(board.rows, board.cols, board.square_m)
         rows, cols, square = board
         return cls(rows, cols, square)
 
@@ -148,6 +155,27 @@ def detect_view(image: np.ndarray, board: Board) -> np.ndarray | None:
     return canonical_order(xy, board.rows, board.cols)
 
 
+def consistent_views(views: np.ndarray, corners: np.ndarray, *,
+                     max_misfit_px: float = MAX_VIEW_MISFIT_PX) -> np.ndarray:
+    """Mask (n,) of the views whose detection agrees with the others.
+
+    The views of a flat board differ by a homography close to an affine map (small baseline); each
+    view's corners (n, P, 2) are fitted to the per-corner median over views by least squares
+    ``median ~ [x, y, 1] A`` and a view is kept when no corner misses by more than ``max_misfit_px``.
+    A single view is kept.
+    """
+    corners = np.asarray(corners, dtype=np.float64)
+    if len(corners) < 3:
+        return np.ones(len(corners), bool)
+    median = np.median(corners, axis=0)
+    keep = np.empty(len(corners), bool)
+    for n, xy in enumerate(corners):
+        design = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)
+        affine = np.linalg.lstsq(design, median, rcond=None)[0]
+        keep[n] = np.abs(design @ affine - median).max() <= max_misfit_px
+    return keep
+
+
 def view_weights(lf: LightField) -> np.ndarray:
     """Mean weight of each view, (V, U) float64 (mean luma when the light field has no weight)."""
     if lf.weight is not None:
@@ -172,7 +200,8 @@ def detect_corners(lf: LightField, board: Board | tuple[int, int, float] | str, 
     Returns
     -------
     ViewCorners
-        Only the views where all ``rows * cols`` corners were found.
+        Only the views where all ``rows * cols`` corners were found, consistently with the other views
+        (:func:`consistent_views`).
     """
     board = Board.of(board)
     if not 0 <= min_weight <= 1:
@@ -189,7 +218,9 @@ def detect_corners(lf: LightField, board: Board | tuple[int, int, float] | str, 
             found.append(xy)
         if progress is not None:
             progress(n + 1, len(todo))
-    log.debug("board found in %d of %d views searched", len(views), len(todo))
     corners = np.array(found, dtype=np.float64).reshape(-1, board.rows * board.cols, 2)
-    return ViewCorners(views=np.array(views, dtype=np.int64).reshape(-1, 2), corners=corners,
-                       searched=len(todo), lf_shape=(V, U, Y, X))
+    views = np.array(views, dtype=np.int64).reshape(-1, 2)
+    keep = consistent_views(views, corners)
+    log.debug("board found in %d of %d views searched, %d inconsistent dropped", len(views), len(todo),
+              int(np.sum(~keep)))
+    return ViewCorners(views=views[keep], corners=corners[keep], searched=len(todo), lf_shape=(V, U, Y, X))

@@ -25,20 +25,21 @@ def solved():
 
 
 def test_initial_estimate_is_close_enough_to_start_from(solved):
+    """The closed form ignores the distortion (here up to ~10 % of a direction at the edges)."""
     h, _ = solved["truth"]
     h0, _ = solved["initial"]
     for r, c in ((0, 0), (2, 2), (3, 3)):
-        assert h0[r, c] == pytest.approx(h[r, c], rel=0.1)
+        assert h0[r, c] == pytest.approx(h[r, c], rel=0.2)
 
 
 def test_intrinsics_within_half_a_percent(solved):
     h, _ = solved["truth"]
     h1, _, _ = solved["solved"]
-    V, U, Y, X = LF_SHAPE
     for r, c in ((0, 0), (2, 0), (2, 2), (1, 1), (3, 1), (3, 3), (0, 4), (1, 4), (2, 4), (3, 4)):
         assert h1[r, c] == pytest.approx(h[r, c], rel=0.005), (r, c)
-    # H13 is 0 in the truth: the t it adds at the field's edge stays below 0.5 % of the aperture's extent
-    assert abs(h1[1, 3]) * (Y - 1) / 2 < 0.005 * abs(h[1, 1]) * (V - 1) / 2
+    # H13 (t per spatial row) is 0 in the truth: below 0.5 % of what one spatial row moves a ray sideways at the
+    # nearest board (H33 x 0.15 m)
+    assert abs(h1[1, 3]) < 0.005 * abs(h[3, 3]) * 0.15
     assert h1[0, 2] == 0.0
 
 
@@ -78,15 +79,16 @@ def test_noise_free_observations_are_fitted_exactly():
 
 
 def test_gauge_moves_keep_every_ray():
-    """Moving the reference plane changes H and the poses but no point-to-ray distance; to_solver_gauge
-    undoes a move."""
+    """Without distortion, moving the reference plane changes H and the poses but no point-to-ray distance
+    (with distortion it does: s is not corrected, so the plane is where positions are undistorted);
+    to_solver_gauge undoes a move."""
     h, poses = true_intrinsics(), true_poses(3)
-    found = observe(h, DISTORTION, poses, noise_px=0.1)
+    found = observe(h, np.zeros(5), poses, noise_px=0.1)
     obs = Observations.of(found, BOARD)
     moved_h, moved_poses = move_reference_plane(h, poses, 0.02)
     assert moved_h[0, 2] != 0.0
-    np.testing.assert_allclose(reprojection(obs, moved_h, DISTORTION, moved_poses).ray_m,
-                               reprojection(obs, h, DISTORTION, poses).ray_m, atol=1e-12)
+    np.testing.assert_allclose(reprojection(obs, moved_h, np.zeros(5), moved_poses).ray_m,
+                               reprojection(obs, h, np.zeros(5), poses).ray_m, rtol=1e-9, atol=1e-15)
     back_h, back_poses = to_solver_gauge(moved_h, moved_poses, LF_SHAPE)
     np.testing.assert_allclose(back_h, h, atol=1e-15)
     np.testing.assert_allclose(back_poses, poses, atol=1e-12)
