@@ -12,21 +12,19 @@ project's, or the toolbox's ``CalInfo.json`` layout) and the HTML report.
 
 from __future__ import annotations
 
-import logging
 import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterator, Sequence
 
 from ..types import LightField
 from .calibration import Calibration, choose_calibration
-from .inputs import Progress, is_lightfield_path, open_input
+from .inputs import Progress, open_input
 from .source import decode_raw
 
 if TYPE_CHECKING:
     from ..calib.geometry.captures import GeometryRun
     from ..io.mosaic_levels import MosaicOptions
 
-log = logging.getLogger(__name__)
 
 
 def geometry_captures(inputs: Sequence[str | os.PathLike]) -> list[Path]:
@@ -58,8 +56,7 @@ def _lightfields(paths: Sequence[Path], calibration_options: dict[str, Any], mos
             yield item
         else:
             if chosen is None:
-                chosen = choose_calibration(item, mosaic=mosaic, **calibration_options)
-                log.info(chosen.describe())
+                chosen = choose_calibration(item, mosaic=mosaic, **calibration_options)   # logs its choice
             yield decode_raw(item, chosen)
         if progress is not None:
             progress(n + 1, len(paths))
