@@ -25,6 +25,7 @@ _LAZY = {
     "read_raw": "plenodecode.io",
     "simulate": "plenodecode.synthetic",
     "calibrate": "plenodecode.calib",
+    "calibrate_geometry": "plenodecode.calib.geometry",
     "decode": "plenodecode.decoding",
     "refocus": "plenodecode.render",
     "focal_stack": "plenodecode.render",

@@ -141,17 +141,27 @@ def samples_of_rays(h: np.ndarray, distortion: Any, rays: np.ndarray, *,
     return measured @ inverse[:4, :4].T + inverse[:4, 4]
 
 
-def point_ray_distance(points: np.ndarray, rays: np.ndarray) -> np.ndarray:
-    """Distance (m) from 3-D points (..., 3) to rays (..., 4) ``(s, t, u, v)``.
+def point_ray_offset(points: np.ndarray, rays: np.ndarray) -> np.ndarray:
+    """The vector ``(P - o) x d / |d|`` (..., 3) of 3-D points (..., 3) and rays (..., 4) ``(s, t, u, v)``.
 
-    The ray passes through ``o = (s, t, 0)`` with direction ``d = (u, v, 1)``;
-    distance = ``|(P - o) x d| / |d|``.
+    The ray passes through ``o = (s, t, 0)`` with direction ``d = (u, v, 1)``; the vector is
+    perpendicular to ``d`` and its length is the point-to-ray distance (m), so it serves as a
+    smooth 3-component residual whose squared norm is the squared distance.
     """
     p = np.asarray(points, dtype=np.float64)
     r = np.asarray(rays, dtype=np.float64)
     offset = np.stack([p[..., 0] - r[..., 0], p[..., 1] - r[..., 1], p[..., 2]], axis=-1)
     direction = np.stack([r[..., 2], r[..., 3], np.ones_like(r[..., 2])], axis=-1)
-    return np.linalg.norm(np.cross(offset, direction), axis=-1) / np.linalg.norm(direction, axis=-1)
+    return np.cross(offset, direction) / np.linalg.norm(direction, axis=-1, keepdims=True)
+
+
+def point_ray_distance(points: np.ndarray, rays: np.ndarray) -> np.ndarray:
+    """Distance (m) from 3-D points (..., 3) to rays (..., 4) ``(s, t, u, v)``.
+
+    The ray passes through ``o = (s, t, 0)`` with direction ``d = (u, v, 1)``;
+    distance = ``|(P - o) x d| / |d|`` (the length of :func:`point_ray_offset`).
+    """
+    return np.linalg.norm(point_ray_offset(points, rays), axis=-1)
 
 
 def project_points(h: np.ndarray, distortion: Any, points: np.ndarray, view: tuple[float, float], *,

@@ -23,6 +23,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "info": ("plenodecode.cli.info", "Describe a raw or container: camera, serial, kind, sizes, sections."),
     "synth": ("plenodecode.cli.synth", "Generate a synthetic plenoptic raw with exact ground truth."),
     "calibrate": ("plenodecode.cli.calibrate", "Fit the lenslet grid from white images; build a calibration database."),
+    "calibrate-geometry": ("plenodecode.cli.calibrate_geometry",
+                           "Fit the camera's ray geometry (H, distortion) from checkerboard captures."),
     "decode": ("plenodecode.cli.decode", "Decode a raw into a 4D light field and write it."),
     "export": ("plenodecode.cli.export", "Convert a saved light field to another format."),
     "extract": ("plenodecode.cli.extract", "Write the JPEGs, depth maps and H.264 streams embedded in a Lytro file."),

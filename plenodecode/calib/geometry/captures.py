@@ -1,0 +1,178 @@
+"""Geometric calibration from a set of checkerboard captures: detect, initialise, refine, report quality.
+
+:func:`calibrate_geometry` is the public entry (``plenodecode.calibrate_geometry``);
+:func:`run_geometric_calibration` returns everything a report needs (:class:`GeometryRun`).
+Files are opened by :mod:`plenodecode.pipeline.geometry`; this module takes light fields (or raws
+with their lenslet grid) in memory.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable, Sequence
+
+import numpy as np
+
+from ...errors import CalibrationError
+from ...raymodel import GeometricCalibration
+from ...types import LightField, RawCapture, LensletGrid
+from .corners import MIN_VIEW_WEIGHT, Board, ViewCorners, detect_corners
+from .initial import initial_estimate
+from .solve import Observations, Reprojection, reprojection, solve
+
+log = logging.getLogger(__name__)
+
+#: Fewest captures with a board found that a calibration accepts.
+MIN_CAPTURES = 3
+
+
+@dataclass(frozen=True)
+class GeometryRun:
+    """A geometric calibration with what it was made from.
+
+    Attributes
+    ----------
+    calibration : GeometricCalibration
+    board : Board
+    names : list of str
+        The captures used, in the order of ``calibration.poses``.
+    corners : list of ViewCorners
+        Their detections.
+    errors : Reprojection
+        Final residuals of every observation (``errors.capture`` indexes ``names``).
+    skipped : list of (name, reason)
+        Captures left out.
+    """
+
+    calibration: GeometricCalibration
+    board: Board
+    names: list[str]
+    corners: list[ViewCorners]
+    errors: Reprojection
+    skipped: list[tuple[str, str]]
+
+
+def _as_lightfield(item: LightField | RawCapture, grid: LensletGrid | None, white: RawCapture | None) -> LightField:
+    if isinstance(item, LightField):
+        return item
+    if isinstance(item, RawCapture):
+        if grid is None:
+            raise ValueError("raws need grid= (the lenslet grid of the white image the captures are decoded with)")
+        from ...decoding import decode
+
+        return decode(item, grid, white=white)
+    raise TypeError(f"expected LightField or RawCapture, got {type(item).__name__}")
+
+
+def _quality(errors: Reprojection, names: Sequence[str], corners: Sequence[ViewCorners]) -> dict[str, Any]:
+    per_capture = [{"capture": name, "views": found.count, "rms_ray_m": errors.rms_m(c), "rms_px": errors.rms_px(c)}
+                   for c, (name, found) in enumerate(zip(names, corners))]
+    return {"rms_ray_m": errors.rms_m(), "rms_px": errors.rms_px(), "per_capture": per_capture}
+
+
+def run_geometric_calibration(raws_or_lightfields: Iterable[LightField | RawCapture],
+                              board: Board | tuple[int, int, float] | str, *, names: Sequence[str] | None = None,
+                              grid: LensletGrid | None = None, white: RawCapture | None = None,
+                              distortion: bool = True, min_weight: float = MIN_VIEW_WEIGHT,
+                              progress: Callable[[int, int], None] | None = None) -> GeometryRun:
+    """:func:`calibrate_geometry` with its detections, residuals and skipped captures (for reports).
+
+    ``raws_or_lightfields`` may be a generator (decoded one by one); ``progress`` is called only when
+    ``names`` gives the number of captures.
+
+    Raises
+    ------
+    CalibrationError
+        Fewer than :data:`MIN_CAPTURES` captures show the whole board, or the light fields differ in shape.
+    """
+    board = Board.of(board)
+    names = None if names is None else [str(n) for n in names]
+    total = None if names is None else len(names)
+    used, corners, skipped = [], [], []
+    shape = None
+    n = -1
+    for n, item in enumerate(raws_or_lightfields):     # one light field in memory at a time
+        if names is not None and n >= len(names):
+            raise ValueError(f"names has {len(names)} entries for more captures")
+        name = f"capture {n + 1}" if names is None else names[n]
+        lf = _as_lightfield(item, grid, white)
+        if shape is not None and lf.shape[:4] != shape:
+            raise CalibrationError(f"{name}: light field of shape {lf.shape[:4]}, the others {shape}; decode every "
+                                   "capture with the same white image and grid")
+        shape = lf.shape[:4]
+        found = detect_corners(lf, board, min_weight=min_weight)
+        if found.count == 0:
+            reason = f"no complete {board.rows} x {board.cols} board in the {found.searched} views searched"
+            log.warning("%s: %s; skipped", name, reason)
+            skipped.append((name, reason))
+        else:
+            log.info("%s: board found in %d of %d views", name, found.count, found.searched)
+            used.append(name)
+            corners.append(found)
+        if progress is not None and total is not None:
+            progress(n + 1, total)
+    if names is not None and n + 1 != len(names):
+        raise ValueError(f"names has {len(names)} entries for {n + 1} captures")
+    if len(corners) < MIN_CAPTURES:
+        raise CalibrationError(f"the board ({board.describe()}) was found in {len(corners)} of {n + 1} "
+                               f"captures; a calibration needs at least {MIN_CAPTURES}: check --board (inner "
+                               "corners, not squares) and take captures that show the whole board")
+    obs = Observations.of(corners, board)
+    h, poses = initial_estimate(corners, board)
+    initial = reprojection(obs, h, np.zeros(5), poses)
+    h, dist, poses = solve(obs, h, poses, distortion=distortion)
+    errors = reprojection(obs, h, dist, poses)
+    log.info("ray reprojection RMS %.4g mm (initial %.4g mm), %.3g px", errors.rms_m() * 1e3,
+             initial.rms_m() * 1e3, errors.rms_px())
+    info = {"method": "plenodecode checkerboard calibration (Dansereau et al. 2013 ray model)",
+            "board": {"corners": [board.rows, board.cols], "spacing_m": [board.square_m, board.square_m]},
+            "captures": list(used), "skipped": [{"capture": n, "reason": r} for n, r in skipped],
+            "initial_rms_ray_m": initial.rms_m(), "distortion_estimated": bool(distortion),
+            **_quality(errors, used, corners)}
+    cal = GeometricCalibration(intrinsics=h, distortion=dist, lf_shape=shape, poses=poses, info=info)
+    return GeometryRun(calibration=cal, board=board, names=used, corners=corners, errors=errors, skipped=skipped)
+
+
+def calibrate_geometry(raws_or_lightfields: Iterable[LightField | RawCapture],
+                       board: Board | tuple[int, int, float] | str, *, names: Sequence[str] | None = None,
+                       grid: LensletGrid | None = None, white: RawCapture | None = None, distortion: bool = True,
+                       min_weight: float = MIN_VIEW_WEIGHT,
+                       progress: Callable[[int, int], None] | None = None) -> GeometricCalibration:
+    """Calibrate a plenoptic camera's ray geometry from checkerboard captures (Dansereau et al., CVPR 2013).
+
+    Each capture is decoded without rectification (raws: with ``grid`` and ``white``, the same for all),
+    the board's inner corners are found in its sub-aperture views (:func:`.corners.detect_corners`),
+    ``H`` and the poses are initialised in closed form (:mod:`.initial`), then ``H``, the distortion
+    ``[k1, k2, k3, b1, b2]`` and the poses are refined jointly by minimising the 3-D distance between each
+    corner and the ray of each sample that sees it (:mod:`.solve`).  A capture without a complete board is
+    skipped (logged, and listed in ``info['skipped']``).
+
+    Parameters
+    ----------
+    raws_or_lightfields : iterable of LightField or RawCapture
+        10-20 captures of a flat checkerboard at various distances and tilts, same zoom and focus.
+    board : Board, (rows, cols, square_m) or 'ROWSxCOLSxSQUARE_M'
+        Inner corners (not squares) and their spacing in metres.
+    names : sequence of str, optional
+        Names of the captures, for logs and the report.
+    grid, white : LensletGrid, RawCapture, optional
+        How raws are decoded.
+    distortion : bool
+        Estimate the distortion (else it stays 0).
+    min_weight : float
+        Views darker than this fraction of the central view's weight are not searched.
+    progress : callable(done, total), optional
+        Called after each capture's detection.
+
+    Returns
+    -------
+    GeometricCalibration
+        ``intrinsics`` (5, 5) for 0-based samples (re-centred, ``H02 = 0``: :mod:`.gauge`), ``distortion``,
+        ``lf_shape``, ``poses`` (N, 6) of the captures used, ``info`` with the board, the captures used and
+        skipped, and the RMS ray (m) and pixel reprojection errors, overall and per capture.
+    """
+    items = list(raws_or_lightfields)
+    names = [f"capture {n + 1}" for n in range(len(items))] if names is None else names
+    return run_geometric_calibration(items, board, names=names, grid=grid, white=white,
+                                     distortion=distortion, min_weight=min_weight, progress=progress).calibration

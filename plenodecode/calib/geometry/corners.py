@@ -1,0 +1,226 @@
+"""Checkerboard corners in the sub-aperture views of a light field.
+
+Every view ``lf.data[j, i]`` of a capture is searched for the board's ``rows x cols`` inner corners
+with OpenCV's sector-based detector (``cv2.findChessboardCornersSB``, sub-pixel accurate with
+``CALIB_CB_ACCURACY``); only complete detections count.  Views darker than ``min_weight`` of the
+central view's weight (the vignetted border of the angular disk) are not searched.
+
+The detector may start its corner list at any corner of the board; :func:`canonical_order` puts the
+list of every view in the same order (rows running to the image's right, columns down), so that the
+board frame is the same in all views of a capture and right-handed like the camera frame.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ...imaging import luma
+from ...types import LightField
+
+log = logging.getLogger(__name__)
+
+#: Views whose mean weight is below this fraction of the central view's are not searched.
+MIN_VIEW_WEIGHT = 0.5
+#: A view whose corners, mapped onto the capture's median corners by the best affine map, miss them by more
+#: than this (px) is dropped as a misdetection (the views of a plane differ by a near-affine parallax).
+MAX_VIEW_MISFIT_PX = 1.0
+#: Views smaller than this (px, shorter side) are enlarged before detection: the sector detector
+#: needs several pixels per square.
+MIN_DETECTION_SIZE = 240
+
+
+@dataclass(frozen=True)
+class Board:
+    """A checkerboard target: ``rows x cols`` inner corners ``square_m`` (m) apart."""
+
+    rows: int
+    cols: int
+    square_m: float
+
+    def __post_init__(self) -> None:
+        if int(self.rows) != self.rows or int(self.cols) != self.cols or self.rows < 2 or self.cols < 2:
+            raise ValueError(f"board must have at least 2 x 2 inner corners, got {self.rows} x {self.cols}")
+        if not (np.isfinite(self.square_m) and self.square_m > 0):
+            raise ValueError(f"board square size must be a positive length in metres, got {self.square_m!r}")
+        object.__setattr__(self, "rows", int(self.rows))
+        object.__setattr__(self, "cols", int(self.cols))
+        object.__setattr__(self, "square_m", float(self.square_m))
+
+    @classmethod
+    def parse(cls, text: str) -> "Board":
+        """``'8x6x0.0036'`` (rows x cols x square in metres) -> Board; ValueError otherwise."""
+        match = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*[xX]\s*([0-9.eE+-]+)\s*", str(text))
+        if match is None:
+            raise ValueError(f"expected ROWSxCOLSxSQUARE_M (e.g. 8x6x0.0036), got {text!r}")
+        try:
+            square = float(match.group(3))
+        except ValueError:
+            raise ValueError(f"expected ROWSxCOLSxSQUARE_M (e.g. 8x6x0.0036), got {text!r}") from None
+        return cls(int(match.group(1)), int(match.group(2)), square)
+
+    @classmethod
+    def of(cls, board: "Board | tuple[int, int, float] | str") -> "Board":
+        """A Board from a Board, anything with ``rows``, ``cols`` and ``square_m`` (the generator's
+        :class:`plenodecode.synthetic.checkerboard.Board`), a ``(rows, cols, square_m)`` tuple or a
+        ``'8x6x0.0036'`` string."""
+        if isinstance(board, Board):
+            return board
+        if isinstance(board, str):
+            return cls.parse(board)
+        if all(hasattr(board, name) for name in ("rows", "cols", "square_m")):
+            return cls(board.rows, board.cols, board.square_m)
+        rows, cols, square = board
+        return cls(rows, cols, square)
+
+    def points(self) -> np.ndarray:
+        """Corners in the board frame, (rows * cols, 3) float64 (:func:`plenodecode.raymodel.board_points`)."""
+        from ...raymodel import board_points
+
+        return board_points(self.rows, self.cols, self.square_m)
+
+    def describe(self) -> str:
+        return f"{self.rows} x {self.cols} corners, {self.square_m * 1e3:g} mm squares"
+
+
+@dataclass(frozen=True)
+class ViewCorners:
+    """The board corners found in the views of one capture.
+
+    Attributes
+    ----------
+    views : (n, 2) int64
+        ``(i, j)`` (angular column, row) of each view with a complete detection.
+    corners : (n, rows * cols, 2) float64
+        ``(k, l)`` (spatial column, row, 0-based, pixel centres at integers) of each corner, in the
+        order of :meth:`Board.points`.
+    searched : int
+        Views searched (bright enough).
+    lf_shape : (V, U, Y, X)
+    """
+
+    views: np.ndarray
+    corners: np.ndarray
+    searched: int
+    lf_shape: tuple[int, int, int, int]
+
+    @property
+    def count(self) -> int:
+        return int(len(self.views))
+
+
+def canonical_order(corners: np.ndarray, rows: int, cols: int) -> np.ndarray:
+    """Corners (rows * cols, 2) ``(x, y)`` re-ordered so rows run to the right and columns down.
+
+    Of the symmetries of the ``rows x cols`` grid (flips of either axis, and transposition when the
+    board is square) the one maximising ``(c[0, -1] - c[0, 0]) . (1, 0) + (c[-1, 0] - c[0, 0]) . (0, 1)``
+    is kept: every view of a capture then lists the corners alike, whatever corner the detector
+    started from.
+    """
+    grid = np.asarray(corners, dtype=np.float64).reshape(rows, cols, 2)
+    candidates = [grid[::a, ::b] for a in (1, -1) for b in (1, -1)]
+    if rows == cols:
+        candidates += [c.transpose(1, 0, 2) for c in candidates]
+    scores = [(c[0, -1, 0] - c[0, 0, 0]) + (c[-1, 0, 1] - c[0, 0, 1]) for c in candidates]
+    return np.ascontiguousarray(candidates[int(np.argmax(scores))]).reshape(-1, 2)
+
+
+def detect_view(image: np.ndarray, board: Board) -> np.ndarray | None:
+    """Inner corners of ``board`` in one grey image (Y, X) float: (rows * cols, 2) float64 ``(x, y)``
+    in :func:`canonical_order`, or None when the detection is not complete.
+
+    The image is stretched to 8 bits between its 1st and 99th percentiles and, when its shorter side is
+    below :data:`MIN_DETECTION_SIZE`, enlarged by ``f`` (bicubic); corners map back by
+    ``x = (x' + 0.5) / f - 0.5``.
+    """
+    import cv2
+
+    img = np.asarray(image, dtype=np.float32)
+    lo, hi = np.percentile(img, (1.0, 99.0))
+    if not hi > lo:
+        return None
+    img8 = np.clip((img - lo) * (255.0 / (hi - lo)), 0, 255).astype(np.uint8)
+    factor = max(1, int(np.ceil(MIN_DETECTION_SIZE / min(img8.shape))))
+    if factor > 1:
+        img8 = cv2.resize(img8, None, fx=factor, fy=factor, interpolation=cv2.INTER_CUBIC)
+    flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
+    found, corners = cv2.findChessboardCornersSB(img8, (board.cols, board.rows), flags=flags)
+    if not found or corners is None or len(corners) != board.rows * board.cols:
+        return None
+    xy = (corners.reshape(-1, 2).astype(np.float64) + 0.5) / factor - 0.5
+    return canonical_order(xy, board.rows, board.cols)
+
+
+def consistent_views(views: np.ndarray, corners: np.ndarray, *,
+                     max_misfit_px: float = MAX_VIEW_MISFIT_PX) -> np.ndarray:
+    """Mask (n,) of the views whose detection agrees with the others.
+
+    The views of a flat board differ by a homography close to an affine map (small baseline); each
+    view's corners (n, P, 2) are fitted to the per-corner median over views by least squares
+    ``median ~ [x, y, 1] A`` and a view is kept when no corner misses by more than ``max_misfit_px``.
+    A single view is kept.
+    """
+    corners = np.asarray(corners, dtype=np.float64)
+    if len(corners) < 3:
+        return np.ones(len(corners), bool)
+    median = np.median(corners, axis=0)
+    keep = np.empty(len(corners), bool)
+    for n, xy in enumerate(corners):
+        design = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)
+        affine = np.linalg.lstsq(design, median, rcond=None)[0]
+        keep[n] = np.abs(design @ affine - median).max() <= max_misfit_px
+    return keep
+
+
+def view_weights(lf: LightField) -> np.ndarray:
+    """Mean weight of each view, (V, U) float64 (mean luma when the light field has no weight)."""
+    if lf.weight is not None:
+        return lf.weight.mean(axis=(2, 3), dtype=np.float64)
+    return luma(lf.data).mean(axis=(2, 3), dtype=np.float64)
+
+
+def detect_corners(lf: LightField, board: Board | tuple[int, int, float] | str, *,
+                   min_weight: float = MIN_VIEW_WEIGHT,
+                   progress: Callable[[int, int], None] | None = None) -> ViewCorners:
+    """The board's corners in every bright-enough sub-aperture view of ``lf``.
+
+    Parameters
+    ----------
+    lf : LightField
+        Decoded without rectification, ``data`` (V, U, Y, X, C) float32.
+    board : Board, (rows, cols, square_m) or 'ROWSxCOLSxSQUARE'
+    min_weight : float
+        Views with a mean weight below ``min_weight`` x the central view's are skipped.
+    progress : callable(done, total), optional
+
+    Returns
+    -------
+    ViewCorners
+        Only the views where all ``rows * cols`` corners were found, consistently with the other views
+        (:func:`consistent_views`).
+    """
+    board = Board.of(board)
+    if not 0 <= min_weight <= 1:
+        raise ValueError(f"min_weight must be in [0, 1], got {min_weight!r}")
+    V, U, Y, X, _ = lf.shape
+    weights = view_weights(lf)
+    bright = weights >= min_weight * weights[V // 2, U // 2]
+    todo = [(i, j) for j in range(V) for i in range(U) if bright[j, i]]
+    views, found = [], []
+    for n, (i, j) in enumerate(todo):
+        xy = detect_view(luma(lf.data[j, i]), board)
+        if xy is not None:
+            views.append((i, j))
+            found.append(xy)
+        if progress is not None:
+            progress(n + 1, len(todo))
+    corners = np.array(found, dtype=np.float64).reshape(-1, board.rows * board.cols, 2)
+    views = np.array(views, dtype=np.int64).reshape(-1, 2)
+    keep = consistent_views(views, corners)
+    log.debug("board found in %d of %d views searched, %d inconsistent dropped", len(views), len(todo),
+              int(np.sum(~keep)))
+    return ViewCorners(views=views[keep], corners=corners[keep], searched=len(todo), lf_shape=(V, U, Y, X))

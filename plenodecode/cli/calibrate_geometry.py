@@ -1,0 +1,77 @@
+"""``plenodecode calibrate-geometry``: the camera's ray geometry (H, distortion) from checkerboard captures."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from .common import (calibration_kwargs, check_output, database_option, mosaic_options, overwrite_option,
+                     progress_bar, quiet, usage_errors)
+
+
+def _parse_board(ctx: click.Context, param: click.Parameter, value: str):
+    """``--board ROWSxCOLSxSQUARE_M`` -> Board; a one-line usage error naming --board otherwise."""
+    from ..calib.geometry.corners import Board
+
+    try:
+        return Board.parse(value)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), ctx=ctx, param=param) from None
+
+
+@click.command("calibrate-geometry")
+@click.argument("inputs", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path), metavar="DIR...")
+@click.option("--board", required=True, callback=_parse_board, metavar="ROWSxCOLSxSQUARE_M",
+              help="Inner corners (rows x columns, not squares) and the square size in metres, e.g. 8x6x0.0036.")
+@click.option("-o", "--output", type=click.Path(path_type=Path, dir_okay=False), required=True,
+              help="Calibration JSON to write.")
+@click.option("--report", type=click.Path(path_type=Path, dir_okay=False), default=None,
+              help="Also write a self-contained HTML report (H, distortion, errors per capture, distortion field).")
+@click.option("--toolbox", is_flag=True, help="Write the Light Field Toolbox's CalInfo.json layout (1-based H).")
+@click.option("--no-distortion", is_flag=True, help="Keep the distortion at zero (H and poses only).")
+@click.option("--calibration", "-g", "calibration", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              default=None, help="Lenslet grid JSON the raws are decoded with.")
+@click.option("--white", "-w", "white", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
+              help="White image of the same zoom/focus the raws are decoded with.")
+@database_option
+@mosaic_options
+@overwrite_option
+@click.pass_context
+def command(ctx: click.Context, inputs: tuple[Path, ...], board, output: Path, report: Path | None, toolbox: bool,
+            no_distortion: bool, calibration: Path | None, white: Path | None, database: Path | None,
+            overwrite: bool) -> None:
+    """Calibrate the camera's ray model from checkerboard captures (raws or saved light fields) in DIR.
+
+    Every raw is decoded with the same lenslet calibration (--calibration / --white / --database, as
+    'plenodecode decode'; never rectified), the board's corners are found in each sub-aperture view,
+    and H, the distortion and the board poses are fitted by ray reprojection (Dansereau et al. 2013).
+    A capture without the whole board is reported and skipped; at least 3 must remain.
+
+    \b
+    Examples:
+      plenodecode calibrate-geometry captures/ --board 8x6x0.0036 -w captures/MOD_0000.RAW -o cal.json
+      plenodecode calibrate-geometry captures/ --board 19x19x0.00361 -o CalInfo.json --toolbox --report cal.html
+    """
+    from ..pipeline.geometry import calibrate_geometry_files, write_geometry_outputs
+
+    if database is not None and (calibration is not None or white is not None):
+        raise click.UsageError("--database cannot be combined with --calibration or --white")
+    check_output(output, overwrite)
+    if report is not None:
+        check_output(report, overwrite)
+        if report.resolve() == output.resolve():
+            raise click.BadParameter("must differ from -o/--output", param_hint="--report")
+    options = calibration_kwargs(calibration, white, database, False)
+    run = calibrate_geometry_files(inputs, board, grid=options["grid"], white=options["white"],
+                                   database=options["database"], mosaic=options["mosaic"],
+                                   distortion=not no_distortion, progress=progress_bar("captures", ctx))
+    with usage_errors():
+        written = write_geometry_outputs(run, output, report=report, toolbox=toolbox, overwrite=overwrite)
+    for name, reason in run.skipped:
+        click.echo(f"skipped {name}: {reason}", err=True)
+    if not quiet(ctx):
+        info = run.calibration.info
+        click.echo(f"{len(run.names)} captures, {sum(c.count for c in run.corners)} views: ray RMS "
+                   f"{info['rms_ray_m'] * 1e3:.4f} mm, {info['rms_px']:.3f} px")
+        click.echo("wrote " + ", ".join(str(p) for p in written))

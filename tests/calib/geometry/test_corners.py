@@ -1,0 +1,38 @@
+"""Corner ordering, view consistency and the board description."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from plenodecode.calib.geometry.corners import Board, canonical_order, consistent_views
+
+
+def _grid(rows, cols):
+    r, c = np.mgrid[0:rows, 0:cols]
+    return np.stack([10.0 + 5 * c.ravel(), 20.0 + 5 * r.ravel()], axis=-1)
+
+
+@pytest.mark.parametrize("rows, cols", [(3, 4), (4, 4)])
+def test_canonical_order_undoes_every_starting_corner(rows, cols):
+    grid = _grid(rows, cols)
+    shaped = grid.reshape(rows, cols, 2)
+    variants = [shaped[::-1, ::-1], shaped[::-1], shaped[:, ::-1]] + ([shaped.transpose(1, 0, 2)] if rows == cols else [])
+    for v in variants:
+        np.testing.assert_array_equal(canonical_order(v.reshape(-1, 2), rows, cols), grid)
+
+
+def test_inconsistent_view_is_dropped():
+    grid = _grid(3, 4)
+    views = np.array([(0, 0), (1, 0), (2, 0), (3, 0)])
+    corners = np.array([grid + [0.7 * n, 0.0] for n in range(4)])   # parallax: a shift per view
+    corners[2, 5] += [3.0, 0.0]                                       # one misplaced corner
+    np.testing.assert_array_equal(consistent_views(views, corners), [True, True, False, True])
+
+
+def test_board_parse():
+    assert Board.parse("8x6x0.0036") == Board(8, 6, 0.0036)
+    assert Board.of((8, 6, 0.01)).points().shape == (48, 3)
+    for bad in ("8x6", "8x6x0", "1x6x0.01", "8x6x-1", "8x6xnan"):
+        with pytest.raises(ValueError):
+            Board.parse(bad)
