@@ -31,6 +31,8 @@ at ``R(r) X_b + t`` in the camera frame, ``R`` the rotation of the Rodrigues vec
 
 from __future__ import annotations
 
+import math
+import re
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
@@ -222,6 +224,82 @@ def board_points(rows: int, cols: int, square_m: float) -> np.ndarray:
     row-major (``x_b = c * square``, ``y_b = r * square``), origin at the first corner."""
     r, c = np.mgrid[0:rows, 0:cols]
     return np.stack([c.ravel() * square_m, r.ravel() * square_m, np.zeros(rows * cols)], axis=-1)
+
+
+@dataclass(frozen=True)
+class Board:
+    """A planar checkerboard target.
+
+    Attributes
+    ----------
+    rows, cols : int
+        Inner corners per column and per row (OpenCV's ``patternSize`` is ``(cols, rows)``).
+    square_m : float
+        Side of one square (m).
+    margin : int
+        Width of the light border around the checkers, in whole squares (>= 1, which OpenCV's
+        detectors need).
+    """
+
+    rows: int
+    cols: int
+    square_m: float
+    margin: int = 1
+
+    def __post_init__(self) -> None:
+        if int(self.rows) != self.rows or int(self.cols) != self.cols or self.rows < 2 or self.cols < 2:
+            raise ValueError(f"board needs at least 2 x 2 inner corners, got {self.rows} x {self.cols}")
+        if not (math.isfinite(self.square_m) and self.square_m > 0):
+            raise ValueError(f"board square size must be a positive length in m, got {self.square_m!r}")
+        if int(self.margin) != self.margin or self.margin < 1:
+            raise ValueError(f"board margin must be a whole number of squares >= 1, got {self.margin!r}")
+        object.__setattr__(self, "rows", int(self.rows))
+        object.__setattr__(self, "cols", int(self.cols))
+        object.__setattr__(self, "square_m", float(self.square_m))
+        object.__setattr__(self, "margin", int(self.margin))
+
+    def corners(self) -> np.ndarray:
+        """Inner corners in the board frame, (rows * cols, 3) float64, row-major (:func:`board_points`)."""
+        return board_points(self.rows, self.cols, self.square_m)
+
+    def outline(self) -> np.ndarray:
+        """The 4 corners (4, 3) float64 of the board including its light margin, in the board frame."""
+        s, m = self.square_m, self.margin
+        x0, x1 = -(1.0 + m) * s, (self.cols + m) * s
+        y0, y1 = -(1.0 + m) * s, (self.rows + m) * s
+        return np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]])
+
+    def describe(self) -> str:
+        return f"{self.rows} x {self.cols} corners, {self.square_m * 1e3:g} mm squares"
+
+    @classmethod
+    def parse(cls, text: str) -> "Board":
+        """``'8x6x0.0036'`` (rows x cols x square in metres) -> Board; ValueError otherwise."""
+        match = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*[xX]\s*([0-9.eE+-]+)\s*", str(text))
+        try:
+            if match is None:
+                raise ValueError
+            square = float(match.group(3))
+        except ValueError:
+            raise ValueError(f"expected ROWSxCOLSxSQUARE_M (e.g. 8x6x0.0036), got {text!r}") from None
+        return cls(int(match.group(1)), int(match.group(2)), square)
+
+    @classmethod
+    def of(cls, board: "Board | Sequence[float] | str") -> "Board":
+        """A Board from a Board, a ``(rows, cols, square_m)`` tuple or a ``'8x6x0.0036'`` string;
+        ValueError naming ``board`` otherwise."""
+        if isinstance(board, Board):
+            return board
+        if isinstance(board, str):
+            return cls.parse(board)
+        try:
+            rows, cols, square = board
+        except (TypeError, ValueError):
+            raise ValueError(f"board must be (rows, cols, square_m), got {board!r}") from None
+        return cls(rows, cols, float(square))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"rows": self.rows, "cols": self.cols, "square_m": self.square_m, "margin": self.margin}
 
 
 def pose_transform(pose: Sequence[float], points: np.ndarray) -> np.ndarray:

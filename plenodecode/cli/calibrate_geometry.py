@@ -6,23 +6,13 @@ from pathlib import Path
 
 import click
 
-from .common import (calibration_kwargs, check_output, database_option, mosaic_options, overwrite_option,
+from .common import (BOARD, calibration_kwargs, check_output, database_option, mosaic_options, overwrite_option,
                      progress_bar, quiet, usage_errors)
-
-
-def _parse_board(ctx: click.Context, param: click.Parameter, value: str):
-    """``--board ROWSxCOLSxSQUARE_M`` -> Board; a one-line usage error naming --board otherwise."""
-    from ..calib.geometry.corners import Board
-
-    try:
-        return Board.parse(value)
-    except ValueError as exc:
-        raise click.BadParameter(str(exc), ctx=ctx, param=param) from None
 
 
 @click.command("calibrate-geometry")
 @click.argument("inputs", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path), metavar="DIR...")
-@click.option("--board", required=True, callback=_parse_board, metavar="ROWSxCOLSxSQUARE_M",
+@click.option("--board", required=True, type=BOARD, metavar="ROWSxCOLSxSQUARE_M",
               help="Inner corners (rows x columns, not squares) and the square size in metres, e.g. 8x6x0.0036.")
 @click.option("-o", "--output", type=click.Path(path_type=Path, dir_okay=False), required=True,
               help="Calibration JSON to write.")

@@ -369,25 +369,18 @@ UNIT_INTERVAL = FiniteFloat(min=0, max=1)
 
 class BoardSpec(click.ParamType):
     """A checkerboard ``ROWSxCOLSxSQUARE``: inner corners per column and per row, square side in m
-    (``8x6x0.0036``) -> ``(rows, cols, square_m)``; a malformed value is a usage error naming the option."""
+    (``8x6x0.0036``) -> :class:`plenodecode.raymodel.Board`; a malformed value is a usage error naming the option."""
 
     name = "ROWSxCOLSxSQUARE"
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
-        if isinstance(value, tuple):
-            return value
-        parts = str(value).lower().split("x")
+        from ..raymodel import Board
+
         try:
-            if len(parts) != 3:
-                raise ValueError
-            rows, cols, square = int(parts[0]), int(parts[1]), float(parts[2])
-        except ValueError:
-            self.fail(f"{value!r} is not ROWSxCOLSxSQUARE (inner corners and square size in m, e.g. 8x6x0.0036).",
-                      param, ctx)
-        if rows < 2 or cols < 2 or not (math.isfinite(square) and square > 0):
-            self.fail(f"{value!r}: a board needs at least 2 x 2 inner corners and a positive square size in m.",
-                      param, ctx)
-        return rows, cols, square
+            return Board.of(value)
+        except ValueError as exc:
+            self.fail(f"{value!r}: {exc} (a board needs at least 2 x 2 inner corners and a positive square size "
+                      "in m, e.g. 8x6x0.0036).", param, ctx)
 
 
 #: ``--board`` / ``--checkerboard`` values.

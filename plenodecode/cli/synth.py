@@ -4,8 +4,12 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
+
+if TYPE_CHECKING:
+    from ..raymodel import Board
 
 from .common import BOARD, FINITE, POSITIVE, RegistryChoice, check_output, overwrite_option, progress_bar
 
@@ -60,7 +64,7 @@ SCENE_CHOICE = RegistryChoice("plenodecode.synthetic.thin", "THIN_SCENES")
 @click.pass_context
 def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: float | None, rotation: float | None,
             offset: tuple[float, float] | None, shape: tuple[int, int] | None, name: str | None, no_noise: bool,
-            scene_name: str | None, lightfield: bool | None, archive: str | None, board: tuple[int, int, float] | None, captures: int | None,
+            scene_name: str | None, lightfield: bool | None, archive: str | None, board: Board | None, captures: int | None,
             distortion: tuple[float, ...] | None, distances: tuple[float, float] | None, geometry_file: Path | None,
             n_views: int | None, overwrite: bool) -> None:
     """Generate a synthetic plenoptic raw of PRESET with exact ground truth.
@@ -132,7 +136,7 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
         click.echo(f"{key:11s} {path}")
 
 
-def _checkerboard_set(ctx: click.Context, preset: str, out: Path, *, board: tuple[int, int, float], captures: int,
+def _checkerboard_set(ctx: click.Context, preset: str, out: Path, *, board: Board, captures: int,
                       distortion: tuple[float, ...] | None, distances: tuple[float, float] | None,
                       geometry_file: Path | None, n_views: int | None, seed: int,
                       pitch: float | None, rotation: float | None, offset: tuple[float, float] | None,

@@ -53,7 +53,8 @@ _LAZY = {
                     "plenodecode.synthetic.truth"),
     **dict.fromkeys(["THIN_SCENES", "thin_scene"], "plenodecode.synthetic.thin"),
     **dict.fromkeys(["ARCHIVE_KINDS", "WrittenArchive", "write_calibration_archive"], "plenodecode.synthetic.archives"),
-    **dict.fromkeys(["Board", "board_lightfield", "board_corners", "default_intrinsics", "CheckerboardSet",
+    "Board": "plenodecode.raymodel",
+    **dict.fromkeys(["board_lightfield", "board_corners", "default_intrinsics", "CheckerboardSet",
                      "simulate_checkerboard_set", "write_checkerboard_set"],
                     "plenodecode.synthetic.checkerboard"),
 }

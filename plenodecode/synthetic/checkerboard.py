@@ -41,7 +41,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..raymodel import (GeometricCalibration, board_points, check_distortion, check_intrinsics, pose_transform,
+from ..raymodel import (Board, GeometricCalibration, check_distortion, check_intrinsics, pose_transform,
                         project_points, rotation_matrix, sample_rays)
 from ..io.atomic import refuse_existing
 from ..types import LensletGrid, LightField, RawCapture, cfa_channel_map
@@ -56,64 +56,6 @@ from .truth import simulation_files, write_camera_file
 BOARD_LEVELS = {"dark": 0.06, "light": 0.82, "background": 0.35}
 #: Samples (continuous ``(i, j, k, l)``) evaluated per batch: bounds memory to a few hundred MB.
 _BATCH = 1 << 20
-
-
-@dataclass(frozen=True)
-class Board:
-    """A planar checkerboard target.
-
-    Attributes
-    ----------
-    rows, cols : int
-        Inner corners per column and per row (OpenCV's ``patternSize`` is ``(cols, rows)``).
-    square_m : float
-        Side of one square (m).
-    margin : int
-        Width of the light border around the checkers, in whole squares (>= 1, which OpenCV's
-        detectors need).
-    """
-
-    rows: int
-    cols: int
-    square_m: float
-    margin: int = 1
-
-    def __post_init__(self) -> None:
-        if int(self.rows) != self.rows or int(self.cols) != self.cols or self.rows < 2 or self.cols < 2:
-            raise ValueError(f"board needs at least 2 x 2 inner corners, got {self.rows} x {self.cols}")
-        if not (math.isfinite(self.square_m) and self.square_m > 0):
-            raise ValueError(f"board square size must be a positive length in m, got {self.square_m!r}")
-        if int(self.margin) != self.margin or self.margin < 1:
-            raise ValueError(f"board margin must be a whole number of squares >= 1, got {self.margin!r}")
-        object.__setattr__(self, "rows", int(self.rows))
-        object.__setattr__(self, "cols", int(self.cols))
-        object.__setattr__(self, "square_m", float(self.square_m))
-        object.__setattr__(self, "margin", int(self.margin))
-
-    def corners(self) -> np.ndarray:
-        """Inner corners in the board frame, (rows * cols, 3) float64, row-major (:func:`raymodel.board_points`)."""
-        return board_points(self.rows, self.cols, self.square_m)
-
-    def outline(self) -> np.ndarray:
-        """The 4 corners (4, 3) float64 of the board including its light margin, in the board frame."""
-        s, m = self.square_m, self.margin
-        x0, x1 = -(1.0 + m) * s, (self.cols + m) * s
-        y0, y1 = -(1.0 + m) * s, (self.rows + m) * s
-        return np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]])
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"rows": self.rows, "cols": self.cols, "square_m": self.square_m, "margin": self.margin}
-
-
-def as_board(board: Board | Sequence[float]) -> Board:
-    """A :class:`Board` from a Board or ``(rows, cols, square_m)``; ValueError naming ``board`` otherwise."""
-    if isinstance(board, Board):
-        return board
-    try:
-        rows, cols, square = board
-    except (TypeError, ValueError):
-        raise ValueError(f"board must be (rows, cols, square_m), got {board!r}") from None
-    return Board(rows, cols, float(square))
 
 
 def board_values(board: Board, xy: np.ndarray) -> np.ndarray:
@@ -264,7 +206,7 @@ def board_lightfield(calibration: GeometricCalibration | np.ndarray, board: Boar
         ``checkerboard`` (board, pose, H, distortion).
     """
     cal = _as_calibration(calibration, distortion)
-    board = as_board(board)
+    board = Board.of(board)
     shape = _check_lf_shape(cal.lf_shape if lf_shape is None else lf_shape)
     n_v, n_u, n_y, n_x = shape
     jj, ii, ll, kk = np.meshgrid(*(np.arange(n, dtype=np.float64) for n in shape), indexing="ij")
@@ -289,7 +231,7 @@ def board_corners(calibration: GeometricCalibration | np.ndarray, board: Board |
         (:func:`plenodecode.raymodel.project_points` of the posed :meth:`Board.corners`).
     """
     cal = _as_calibration(calibration, distortion)
-    board = as_board(board)
+    board = Board.of(board)
     n_v, n_u, _, _ = _check_lf_shape(cal.lf_shape if lf_shape is None else lf_shape)
     points = pose_transform(pose, board.corners())
     out = np.empty((n_v, n_u, points.shape[0], 2))
@@ -579,7 +521,7 @@ def simulate_checkerboard_set(preset: str | Preset, board: Board | Sequence[floa
     p = get_preset(preset)
     if p.focused:
         raise ValueError(f"preset must be an unfocused camera for a checkerboard set, got {p.name!r} (focused)")
-    board = as_board(board)
+    board = Board.of(board)
     if not (isinstance(n_captures, (int, np.integer)) and 1 <= n_captures <= 100):
         raise ValueError(f"n_captures must be an integer from 1 to 100, got {n_captures!r}")
     if not 0.0 <= max_tilt < math.pi / 2:
@@ -654,7 +596,7 @@ def write_checkerboard_set(cset: CheckerboardSet, out_dir: str | os.PathLike, *,
     save_geometric_calibration(truth, paths["truth"], overwrite=overwrite)
     return paths
 
-__all__ = ["BOARD_LEVELS", "Board", "as_board", "board_values", "footprint_offsets", "board_radiance",
+__all__ = ["BOARD_LEVELS", "Board", "board_values", "footprint_offsets", "board_radiance",
            "board_radiance_numpy",
            "board_lightfield", "board_corners", "default_intrinsics", "pipeline_grid", "pixel_samples",
            "render_board_mosaic", "SET_SAMPLES", "SET_DISTANCES", "SET_MAX_TILT", "SET_BORDER", "SET_TRUTH_NAME",

@@ -22,12 +22,12 @@ BOARD = (7, 5, 0.004)
 @pytest.fixture(scope="module")
 def captures(tmp_path_factory):
     from plenodecode.io.lightfield import save_lightfield
-    from plenodecode.raymodel import GeometricCalibration
-    from plenodecode.synthetic.checkerboard import as_board, board_lightfield, default_intrinsics, sample_poses
+    from plenodecode.raymodel import Board, GeometricCalibration
+    from plenodecode.synthetic.checkerboard import board_lightfield, default_intrinsics, sample_poses
 
     folder = tmp_path_factory.mktemp("geometry_cli")
     truth = GeometricCalibration(intrinsics=default_intrinsics(LF_SHAPE), lf_shape=LF_SHAPE)
-    poses = sample_poses(truth, as_board(BOARD), 8, np.random.default_rng(4))
+    poses = sample_poses(truth, Board.of(BOARD), 8, np.random.default_rng(4))
     for n, pose in enumerate(poses):
         save_lightfield(board_lightfield(truth, BOARD, pose, supersample=3), folder / f"board_{n:02d}.npy")
     # a capture that shows no board: reported and skipped

@@ -11,7 +11,8 @@ from plenodecode.errors import CalibrationError, GeometryMismatchError
 from plenodecode.raymodel import GeometricCalibration, intrinsics_from_entries
 from plenodecode.depth.metric import disparity_to_depth
 from plenodecode.raymodel import pose_transform
-from plenodecode.synthetic.checkerboard import Board, board_corners, board_lightfield
+from plenodecode.raymodel import Board
+from plenodecode.synthetic.checkerboard import board_corners, board_lightfield
 from plenodecode.types import LightField
 from tests.conftest import shared_path
 from tests.geometry_scenes import corner_disparities, detect_corners, line_residual_rms, skewed_calibration

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from plenodecode.raymodel import GeometricCalibration, pose_transform, rotation_matrix, sample_rays
-from plenodecode.synthetic.checkerboard import (BOARD_LEVELS, Board, as_board, board_corners, board_lightfield,
+from plenodecode.synthetic.checkerboard import (BOARD_LEVELS, Board, board_corners, board_lightfield,
                                                 board_values, default_intrinsics, footprint_offsets)
 
 SHAPE = (3, 3, 72, 88)
@@ -116,9 +116,9 @@ def test_footprint_and_board_validation():
     assert np.abs(off[:, 2:]).max() == pytest.approx(0.5 - 0.5 / 9)
     with pytest.raises(ValueError, match="supersample"):
         footprint_offsets(0)
-    assert as_board((6, 8, 0.0036)) == Board(6, 8, 0.0036)
+    assert Board.of((6, 8, 0.0036)) == Board(6, 8, 0.0036)
     with pytest.raises(ValueError, match="board"):
-        as_board((6, 8))
+        Board.of((6, 8))
     with pytest.raises(ValueError, match="square"):
         Board(6, 8, -1.0)
     with pytest.raises(ValueError, match="margin"):

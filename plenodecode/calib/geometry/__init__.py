@@ -15,7 +15,7 @@ from ...registry import lazy_exports
 _LAZY = {
     "calibrate_geometry": "plenodecode.calib.geometry.captures",
     "GeometryRun": "plenodecode.calib.geometry.captures",
-    "Board": "plenodecode.calib.geometry.corners",
+    "Board": "plenodecode.raymodel",
     "detect_corners": "plenodecode.calib.geometry.corners",
     "to_solver_gauge": "plenodecode.calib.geometry.gauge",
 }

@@ -15,9 +15,9 @@ from typing import Any, Callable, Iterable, Sequence
 import numpy as np
 
 from ...errors import CalibrationError
-from ...raymodel import GeometricCalibration
+from ...raymodel import Board, GeometricCalibration
 from ...types import LightField, RawCapture, LensletGrid
-from .corners import MIN_VIEW_WEIGHT, Board, ViewCorners, detect_corners
+from .corners import MIN_VIEW_WEIGHT, ViewCorners, detect_corners
 from .initial import initial_estimate
 from .solve import Observations, Reprojection, reprojection, solve
 

@@ -13,13 +13,13 @@ board frame is the same in all views of a capture and right-handed like the came
 from __future__ import annotations
 
 import logging
-import re
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
 from ...imaging import luma
+from ...raymodel import Board
 from ...types import LightField
 
 log = logging.getLogger(__name__)
@@ -32,59 +32,6 @@ MAX_VIEW_MISFIT_PX = 1.0
 #: Views smaller than this (px, shorter side) are enlarged before detection: the sector detector
 #: needs several pixels per square.
 MIN_DETECTION_SIZE = 240
-
-
-@dataclass(frozen=True)
-class Board:
-    """A checkerboard target: ``rows x cols`` inner corners ``square_m`` (m) apart."""
-
-    rows: int
-    cols: int
-    square_m: float
-
-    def __post_init__(self) -> None:
-        if int(self.rows) != self.rows or int(self.cols) != self.cols or self.rows < 2 or self.cols < 2:
-            raise ValueError(f"board must have at least 2 x 2 inner corners, got {self.rows} x {self.cols}")
-        if not (np.isfinite(self.square_m) and self.square_m > 0):
-            raise ValueError(f"board square size must be a positive length in metres, got {self.square_m!r}")
-        object.__setattr__(self, "rows", int(self.rows))
-        object.__setattr__(self, "cols", int(self.cols))
-        object.__setattr__(self, "square_m", float(self.square_m))
-
-    @classmethod
-    def parse(cls, text: str) -> "Board":
-        """``'8x6x0.0036'`` (rows x cols x square in metres) -> Board; ValueError otherwise."""
-        match = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*[xX]\s*([0-9.eE+-]+)\s*", str(text))
-        if match is None:
-            raise ValueError(f"expected ROWSxCOLSxSQUARE_M (e.g. 8x6x0.0036), got {text!r}")
-        try:
-            square = float(match.group(3))
-        except ValueError:
-            raise ValueError(f"expected ROWSxCOLSxSQUARE_M (e.g. 8x6x0.0036), got {text!r}") from None
-        return cls(int(match.group(1)), int(match.group(2)), square)
-
-    @classmethod
-    def of(cls, board: "Board | tuple[int, int, float] | str") -> "Board":
-        """A Board from a Board, anything with ``rows``, ``cols`` and ``square_m`` (the generator's
-        :class:`plenodecode.synthetic.checkerboard.Board`), a ``(rows, cols, square_m)`` tuple or a
-        ``'8x6x0.0036'`` string."""
-        if isinstance(board, Board):
-            return board
-        if isinstance(board, str):
-            return cls.parse(board)
-        if all(hasattr(board, name) for name in ("rows", "cols", "square_m")):
-            return cls(board.rows, board.cols, board.square_m)
-        rows, cols, square = board
-        return cls(rows, cols, square)
-
-    def points(self) -> np.ndarray:
-        """Corners in the board frame, (rows * cols, 3) float64 (:func:`plenodecode.raymodel.board_points`)."""
-        from ...raymodel import board_points
-
-        return board_points(self.rows, self.cols, self.square_m)
-
-    def describe(self) -> str:
-        return f"{self.rows} x {self.cols} corners, {self.square_m * 1e3:g} mm squares"
 
 
 @dataclass(frozen=True)

@@ -36,8 +36,8 @@ from typing import Sequence
 import numpy as np
 
 from ...errors import CalibrationError
-from ...raymodel import pose_transform
-from .corners import Board, ViewCorners
+from ...raymodel import Board, pose_transform
+from .corners import ViewCorners
 from .gauge import lf_centre, recentred_intrinsics
 
 
@@ -77,7 +77,7 @@ def initial_poses(captures: Sequence[ViewCorners], board: Board) -> tuple[np.nda
     V, U, Y, X = captures[0].lf_shape
     centre = lf_centre(captures[0].lf_shape)[:2]
     object_points, image_points = [], []
-    board_points = board.points().astype(np.float32)
+    board_points = board.corners().astype(np.float32)
     for found in captures:
         nearest = int(np.argmin(np.sum((found.views - centre) ** 2, axis=1)))
         object_points.append(board_points)
@@ -107,7 +107,7 @@ def initial_estimate(captures: Sequence[ViewCorners], board: Board) -> tuple[np.
     """``(H (5, 5), poses (N, 6))`` from the corners of N captures (steps 1 and 2 above)."""
     poses, _ = initial_poses(captures, board)
     samples, point, capture = stacked_observations(captures, board.rows * board.cols)
-    board_points = board.points()
+    board_points = board.corners()
     world = np.empty((len(samples), 3))
     for c, pose in enumerate(poses):
         rows = capture == c

@@ -26,8 +26,8 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.sparse import csr_matrix
 
-from ...raymodel import point_ray_distance, point_ray_offset, project_points, rotation_matrix, sample_rays
-from .corners import Board, ViewCorners
+from ...raymodel import Board, point_ray_distance, point_ray_offset, project_points, rotation_matrix, sample_rays
+from .corners import ViewCorners
 from .gauge import SOLVED_ENTRIES, recentred_intrinsics, solved_values
 from .initial import stacked_observations
 
@@ -63,7 +63,7 @@ class Observations:
     @classmethod
     def of(cls, captures: Sequence[ViewCorners], board: Board) -> "Observations":
         samples, point, capture = stacked_observations(captures, board.rows * board.cols)
-        return cls(samples, board.points()[point], capture, len(captures), tuple(captures[0].lf_shape))
+        return cls(samples, board.corners()[point], capture, len(captures), tuple(captures[0].lf_shape))
 
 
 def camera_points(poses: np.ndarray, obs: Observations) -> np.ndarray:

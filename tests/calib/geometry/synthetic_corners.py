@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from plenodecode.calib.geometry.corners import Board, ViewCorners
+from plenodecode.calib.geometry.corners import ViewCorners
+from plenodecode.raymodel import Board
 from plenodecode.calib.geometry.gauge import lf_centre
 from plenodecode.raymodel import pose_transform, project_points, rotation_matrix
 
@@ -47,7 +48,7 @@ def observe(h, distortion, poses, *, noise_px: float = 0.0, seed: int = 2, lf_sh
     views = np.array([(i, j) for j in range(V) for i in range(U)])
     found = []
     for pose in poses:
-        points = pose_transform(pose, board.points())
+        points = pose_transform(pose, board.corners())
         corners = np.array([project_points(h, distortion, points, (i, j)) for i, j in views])
         corners = corners + rng.normal(0.0, noise_px, corners.shape)
         found.append(ViewCorners(views=views, corners=corners, searched=len(views), lf_shape=lf_shape))

@@ -7,7 +7,7 @@ import pytest
 
 from plenodecode.calib.geometry.captures import run_geometric_calibration
 from plenodecode.errors import CalibrationError
-from plenodecode.raymodel import GeometricCalibration
+from plenodecode.raymodel import Board, GeometricCalibration
 
 LF_SHAPE = (5, 5, 112, 128)
 BOARD = (7, 5, 0.004)
@@ -21,10 +21,10 @@ def _camera():
 
 @pytest.fixture(scope="module")
 def generated():
-    from plenodecode.synthetic.checkerboard import as_board, board_lightfield, sample_poses
+    from plenodecode.synthetic.checkerboard import board_lightfield, sample_poses
 
     camera = _camera()
-    poses = sample_poses(camera, as_board(BOARD), 8, np.random.default_rng(4))
+    poses = sample_poses(camera, Board.of(BOARD), 8, np.random.default_rng(4))
     return camera, poses, [board_lightfield(camera, BOARD, pose, supersample=3) for pose in poses]
 
 

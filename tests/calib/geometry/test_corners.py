@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from plenodecode.calib.geometry.corners import Board, canonical_order, consistent_views
+from plenodecode.calib.geometry.corners import canonical_order, consistent_views
+from plenodecode.raymodel import Board
 
 
 def _grid(rows, cols):
@@ -32,7 +33,7 @@ def test_inconsistent_view_is_dropped():
 
 def test_board_parse():
     assert Board.parse("8x6x0.0036") == Board(8, 6, 0.0036)
-    assert Board.of((8, 6, 0.01)).points().shape == (48, 3)
+    assert Board.of((8, 6, 0.01)).corners().shape == (48, 3)
     for bad in ("8x6", "8x6x0", "1x6x0.01", "8x6x-1", "8x6xnan"):
         with pytest.raises(ValueError):
             Board.parse(bad)
