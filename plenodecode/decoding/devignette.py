@@ -124,6 +124,12 @@ def _hot(x, threshold, relative, flags):  # pragma: no cover - numba
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _repair(x, flags, out):  # pragma: no cover - numba
+    """Copy ``x`` to ``out``, hot pixels replaced by the median of their lit same-colour neighbours.
+
+    The median of the (at most 8) neighbours is taken by an insertion sort of a local buffer: the same value
+    as ``np.median`` (mean of the two middle values for an even count), without compiling numba's general
+    selection algorithm (about 2 CPU s of the first decode).
+    """
     h, w = x.shape
     vals = np.empty(8, np.float32)
     for y in range(h):
@@ -144,13 +150,23 @@ def _repair(x, flags, out):  # pragma: no cover - numba
                 if vals[k] > top:
                     top = vals[k]
                 k += 1
-            # median of the lit neighbours (at least half the brightest)
+            # the lit neighbours (at least half the brightest), kept in ascending order
             m = 0
             for i in range(k):
-                if vals[i] >= 0.5 * top:
-                    vals[m] = vals[i]
+                v = vals[i]
+                if v >= 0.5 * top:
+                    p = m
+                    while p > 0 and vals[p - 1] > v:
+                        vals[p] = vals[p - 1]
+                        p -= 1
+                    vals[p] = v
                     m += 1
-            out[y, xx] = np.median(vals[:m]) if m > 0 else 0.0
+            if m == 0:
+                out[y, xx] = 0.0
+            elif m & 1:
+                out[y, xx] = vals[m >> 1]
+            else:
+                out[y, xx] = np.float32(0.5) * (vals[(m >> 1) - 1] + vals[m >> 1])
 
 
 def find_hot_pixels(mosaic: np.ndarray, *, threshold: float = 0.1, relative: float = 0.5) -> np.ndarray:
