@@ -150,23 +150,30 @@ def _repair(x, flags, out):  # pragma: no cover - numba
                 if vals[k] > top:
                     top = vals[k]
                 k += 1
-            # the lit neighbours (at least half the brightest), kept in ascending order
-            m = 0
-            for i in range(k):
-                v = vals[i]
-                if v >= 0.5 * top:
-                    p = m
-                    while p > 0 and vals[p - 1] > v:
-                        vals[p] = vals[p - 1]
-                        p -= 1
-                    vals[p] = v
-                    m += 1
-            if m == 0:
-                out[y, xx] = 0.0
-            elif m & 1:
-                out[y, xx] = vals[m >> 1]
-            else:
-                out[y, xx] = np.float32(0.5) * (vals[(m >> 1) - 1] + vals[m >> 1])
+            out[y, xx] = _lit_median(vals, k, top)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _lit_median(vals, k, top):  # pragma: no cover - numba
+    """Median of the values of ``vals[:k]`` at least half ``top``, 0 if none; sorts them into ``vals``.
+
+    Kept out of :func:`_repair`'s loop so that its copy of the clean pixels stays a tight loop.
+    """
+    m = 0
+    for i in range(k):
+        v = vals[i]
+        if v >= 0.5 * top:
+            p = m
+            while p > 0 and vals[p - 1] > v:
+                vals[p] = vals[p - 1]
+                p -= 1
+            vals[p] = v
+            m += 1
+    if m == 0:
+        return np.float32(0.0)
+    if m & 1:
+        return vals[m >> 1]
+    return np.float32(0.5) * (vals[(m >> 1) - 1] + vals[m >> 1])
 
 
 def find_hot_pixels(mosaic: np.ndarray, *, threshold: float = 0.1, relative: float = 0.5) -> np.ndarray:
