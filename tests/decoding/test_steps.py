@@ -203,6 +203,25 @@ def test_demosaic_missing_pixels_and_monochrome():
         demosaic(m, "RGGB", method="menon")
 
 
+def test_demosaic_wide_search_for_a_channel_missing_in_the_3x3_window():
+    # RGGB: (6, 7) is a G site; its B neighbours (5, 7), (7, 7) are missing, so B comes from the B sites of
+    # the 5x5 window, weighted by inverse squared distance (all at 1/5 here), within the pixel's label only
+    rng = np.random.default_rng(5)
+    m = rng.uniform(0.2, 1.0, (14, 14)).astype(np.float32)
+    m[5, 7] = m[7, 7] = np.nan
+    labels = np.zeros(m.shape, np.int32)
+    labels[7, 9] = 1                                                   # another micro-image: left out
+    out = demosaic(m, "RGGB", method="bilinear", labels=labels)
+    expected_b = np.mean([m[5, 5], m[5, 9], m[7, 5]], dtype=np.float32)
+    np.testing.assert_allclose(out[6, 7], [0.5 * (m[6, 6] + m[6, 8]), m[6, 7], expected_b], rtol=1e-6)
+    # R unknown in the whole 5x5 window: the pixel ends all-NaN although its own G is known
+    m2 = m.copy()
+    m2[4:9:2, 6:9:2] = np.nan
+    out2 = demosaic(m2, "RGGB", method="bilinear", labels=labels)
+    assert np.isnan(out2[6, 7]).all()
+    assert np.isfinite(out2[6, 11]).all()
+
+
 # -- geometry: labels, slicing, hex -> rect ------------------------------------------------------
 def test_labels_are_the_voronoi_cells():
     g = hex_grid()
