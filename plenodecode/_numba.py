@@ -42,7 +42,7 @@ COMPILE_SECONDS: dict[str, float] = {
     "synthetic": 6.0,
     "calibration": 3.0,
     "total-focus": 4.0,
-    "decode": 10.0,
+    "decode": 5.0,
     "refocus": 9.0,
     "depth": 4.0,
 }

@@ -19,7 +19,7 @@ WINDOW_INVERSE_SQUARED = np.array([[1.0 / (dy * dy + dx * dx) if (dy or dx) else
                   for dy in range(-2, 3)], np.float32)
 
 
-@njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy")
 def _search(x, labels, cmap, lab, y, xx, h, w, k, winv):  # pragma: no cover - numba
     """Channel ``k`` at (y, xx) from its same-label sites in the 5x5 window (inverse squared distance)."""
     acc = np.float32(0.0)
@@ -205,14 +205,24 @@ def _general(x, labels, interior, cmap, nch, malvar, mdy, mdx, winv, out, y, xx,
     # channels still unknown: wider search, unless nothing at all is known in the 3x3
     # window (a pixel of the dark gap between lenses stays unknown, which saves the search
     # where it cannot help); a pixel ends all-known or all-NaN
-    if v0 != v0 and n0 == 0 and n1 == 0 and n2 == 0:
+    # (one call site of the search, in a loop over the channels, and the search not inlined: it is the rare
+    # path, and every inlined call site cost numba ~0.3 CPU s of compiling)
+    if not (v0 != v0 and n0 == 0 and n1 == 0 and n2 == 0):
+        for k in range(3):
+            known = r if k == 0 else (g if k == 1 else b)
+            if known == known:
+                continue
+            found = _search(x, labels, cmap, lab, y, xx, h, w, k, winv)
+            if k == 0:
+                r = found
+            elif k == 1:
+                g = found
+            else:
+                b = found
+            if found != found:      # the channels after it stay unknown: the pixel ends all-NaN
+                break
+    else:
         r = nan
-    elif r != r:
-        r = _search(x, labels, cmap, lab, y, xx, h, w, 0, winv)
-    if r == r and g != g:
-        g = _search(x, labels, cmap, lab, y, xx, h, w, 1, winv)
-    if r == r and g == g and b != b:
-        b = _search(x, labels, cmap, lab, y, xx, h, w, 2, winv)
     if r != r or g != g or b != b:
         r = nan
         g = nan

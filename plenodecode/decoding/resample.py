@@ -81,7 +81,6 @@ def _resample_rows(samples, sweight, parity, idx, wts, contig, lidx, lwts, out, 
     nv, nu, nr, nc, nch = samples.shape
     nx, nt = idx.shape[1], idx.shape[2]
     zero = np.float32(0.0)
-    acc = np.zeros(nch, np.float32)
     for v in range(nv):
         for u in range(nu):
             for i in range(nr):
@@ -144,8 +143,10 @@ def _resample_rows(samples, sweight, parity, idx, wts, contig, lidx, lwts, out, 
                         owrow[x] = min(np.float32(1.0), max(zero, aw))
                         continue
                     # general path: skip lenses without a sample and renormalise
-                    for c in range(nch):
-                        acc[c] = 0.0
+                    # channel sums in scalars (nch is 1 or 3): no work array to allocate, nor to compile
+                    a0 = zero
+                    a1 = zero
+                    a2 = zero
                     norm = zero
                     aw = zero
                     for t in range(nt):
@@ -155,14 +156,18 @@ def _resample_rows(samples, sweight, parity, idx, wts, contig, lidx, lwts, out, 
                         aw += wt * sw
                         if sw > 0.0:
                             norm += wt
-                            for c in range(nch):
-                                acc[c] += wt * srow[j, c]
+                            a0 += wt * srow[j, 0]
+                            if nch == 3:
+                                a1 += wt * srow[j, 1]
+                                a2 += wt * srow[j, 2]
                     ja = lidx[p, x, 0]
                     jb = lidx[p, x, 1]
                     if norm > 0.5 and wrow[ja] > 0.0 and wrow[jb] > 0.0:
                         inv = np.float32(1.0) / norm
-                        for c in range(nch):
-                            orow[x, c] = acc[c] * inv
+                        orow[x, 0] = a0 * inv
+                        if nch == 3:
+                            orow[x, 1] = a1 * inv
+                            orow[x, 2] = a2 * inv
                     else:
                         # linear fallback among the two nearest lenses that have a sample
                         fa = lwts[p, x, 0] if wrow[ja] > 0.0 else zero

@@ -76,6 +76,35 @@ def test_hot_pixels_found_and_repaired_without_touching_structure():
     assert dv.repair_hot_pixels(img)[1] == 0                           # clean data: nothing changed
 
 
+def _repair_reference(x, flags):
+    """The repair rule written out with np.median, pixel by pixel (the kernel's specification)."""
+    out = x.copy()
+    counts = set()
+    h, w = x.shape
+    for y, xx in zip(*np.nonzero(flags)):
+        vals = [x[y + dy, xx + dx] for dy in (-2, 0, 2) for dx in (-2, 0, 2)
+                if (dy or dx) and 0 <= y + dy < h and 0 <= xx + dx < w and not flags[y + dy, xx + dx]]
+        lit = [v for v in vals if v >= 0.5 * max(vals)] if vals else []
+        out[y, xx] = np.float32(np.median(np.array(lit, np.float32))) if lit else 0.0
+        counts.add(len(lit))
+    return out, counts
+
+
+def test_hot_pixel_repair_is_the_median_of_the_lit_neighbours():
+    # dense hot pixels and dark patches: every count of lit neighbours (0..8, even and odd), image borders
+    rng = np.random.default_rng(3)
+    x = rng.random((48, 56)).astype(np.float32)
+    x[rng.random(x.shape) < 0.15] *= np.float32(0.1)            # dark neighbours, left out by the half rule
+    x[rng.random(x.shape) < 0.02] = 0.37                        # ties
+    flags = rng.random(x.shape) < 0.2
+    flags[20:25, 30:35] = True                                  # (22, 32): no neighbour left
+    out = np.empty_like(x)
+    dv._repair(x, flags, out)
+    expected, counts = _repair_reference(x, flags)
+    np.testing.assert_array_equal(out, expected)
+    assert {0, 1, 2, 3, 4, 5, 6} <= counts
+
+
 def test_relative_white_and_devignette_exact():
     yy, xx = np.mgrid[0:60, 0:60]
     disk = np.clip(5.0 - np.hypot((yy % 12) - 5.5, (xx % 12) - 5.5), 0, 1)
@@ -172,6 +201,25 @@ def test_demosaic_missing_pixels_and_monochrome():
     assert np.isnan(mono[labels < 0]).all() and np.isfinite(mono[labels >= 0]).all()
     with pytest.raises(ValueError, match="malvar"):
         demosaic(m, "RGGB", method="menon")
+
+
+def test_demosaic_wide_search_for_a_channel_missing_in_the_3x3_window():
+    # RGGB: (6, 7) is a G site; its B neighbours (5, 7), (7, 7) are missing, so B comes from the B sites of
+    # the 5x5 window, weighted by inverse squared distance (all at 1/5 here), within the pixel's label only
+    rng = np.random.default_rng(5)
+    m = rng.uniform(0.2, 1.0, (14, 14)).astype(np.float32)
+    m[5, 7] = m[7, 7] = np.nan
+    labels = np.zeros(m.shape, np.int32)
+    labels[7, 9] = 1                                                   # another micro-image: left out
+    out = demosaic(m, "RGGB", method="bilinear", labels=labels)
+    expected_b = np.mean([m[5, 5], m[5, 9], m[7, 5]], dtype=np.float32)
+    np.testing.assert_allclose(out[6, 7], [0.5 * (m[6, 6] + m[6, 8]), m[6, 7], expected_b], rtol=1e-6)
+    # R unknown in the whole 5x5 window: the pixel ends all-NaN although its own G is known
+    m2 = m.copy()
+    m2[4:9:2, 6:9:2] = np.nan
+    out2 = demosaic(m2, "RGGB", method="bilinear", labels=labels)
+    assert np.isnan(out2[6, 7]).all()
+    assert np.isfinite(out2[6, 11]).all()
 
 
 # -- geometry: labels, slicing, hex -> rect ------------------------------------------------------
