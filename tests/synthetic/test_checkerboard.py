@@ -229,6 +229,7 @@ def test_pipeline_decoded_set_shows_the_board_at_the_truth(board_set):
 def test_calibration_searches_only_views_that_sample_where_their_index_says(board_set):
     """The views calibrate_geometry searches by default (corners.MIN_VIEW_WEIGHT) show the board where the
     truth puts it; the outer ring it skips is pulled towards the centre view (edge of the micro-images)."""
+    from plenodecode.calib.geometry.captures import CAPTURE_DEMOSAIC
     from plenodecode.calib.geometry.corners import MIN_VIEW_WEIGHT, detect_corners as find_in_views, view_weights
     from plenodecode.io.calinfo import load_geometric_calibration
     from plenodecode.pipeline import choose_calibration, decode_raw, open_raw
@@ -237,7 +238,7 @@ def test_calibration_searches_only_views_that_sample_where_their_index_says(boar
     truth = load_geometric_calibration(paths["truth"])
     white = open_raw(paths["white"])
     raw = open_raw(paths["raw_00"])       # the board's corners move +0.375 px in k per step in i
-    lf = decode_raw(raw, choose_calibration(raw, white=white))
+    lf = decode_raw(raw, choose_calibration(raw, white=white), demosaic=CAPTURE_DEMOSAIC)
     weights = view_weights(lf) / view_weights(lf)[4, 4]
     corners = board_corners(truth, SET_BOARD, truth.poses[0])
     found = find_in_views(lf, SET_BOARD, min_weight=0.3)
