@@ -61,14 +61,15 @@ def run() -> list[Figure]:
 
 def _checkerboard() -> list[Figure]:
     """The board radiance kernel against its numpy model on the rays of one F01 calibration raw, and a set of 12."""
-    from plenodecode.raymodel import GeometricCalibration
+    from plenodecode.decoding.rectify import decoded_shape
+    from plenodecode.raymodel import Board, GeometricCalibration
     from plenodecode.synthetic import checkerboard as cb
     from plenodecode.synthetic import make_grid
 
     grid = cb.pipeline_grid(make_grid("f01", shape=cb.set_sensor_shape("f01")))
-    lf_shape = cb.decoded_shape(grid)
+    lf_shape = decoded_shape(grid)
     camera = GeometricCalibration(cb.default_intrinsics(lf_shape), [0.1, -0.2, 0.0, 0.003, -0.001], lf_shape=lf_shape)
-    board, pose = cb.Board(6, 8, 0.0036), (-0.012, -0.009, 0.45, 0.35, -0.45, 0.08)
+    board, pose = Board(6, 8, 0.0036), (-0.012, -0.009, 0.45, 0.35, -0.45, 0.08)
     h, w = grid.sensor_shape
     rows, cols = np.meshgrid(np.arange(h, dtype=np.float64), np.arange(w, dtype=np.float64), indexing="ij")
     samples = cb.pixel_samples(grid, rows, cols, lf_shape[0]).reshape(-1, 4)
