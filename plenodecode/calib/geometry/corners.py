@@ -35,6 +35,8 @@ MIN_VIEW_WEIGHT = 0.85
 #: A view whose corners, mapped onto the capture's median corners by the best affine map, miss them by more
 #: than this (px) is dropped as a misdetection (the views of a plane differ by a near-affine parallax).
 MAX_VIEW_MISFIT_PX = 1.0
+#: Seed of OpenCV's per-thread RNG before each detection (:func:`detect_view`).
+DETECTOR_SEED = 0
 #: Views smaller than this (px, shorter side) are enlarged before detection: the sector detector
 #: needs several pixels per square.
 MIN_DETECTION_SIZE = 240
@@ -88,7 +90,8 @@ def detect_view(image: np.ndarray, board: Board) -> np.ndarray | None:
 
     The image is stretched to 8 bits between its 1st and 99th percentiles and, when its shorter side is
     below :data:`MIN_DETECTION_SIZE`, enlarged by ``f`` (bicubic); corners map back by
-    ``x = (x' + 0.5) / f - 0.5``.
+    ``x = (x' + 0.5) / f - 0.5``.  OpenCV's RNG of the calling thread is seeded with :data:`DETECTOR_SEED`
+    first, so the detection is reproducible.
     """
     import cv2
 
@@ -101,6 +104,9 @@ def detect_view(image: np.ndarray, board: Board) -> np.ndarray | None:
     if factor > 1:
         img8 = cv2.resize(img8, None, fx=factor, fy=factor, interpolation=cv2.INTER_CUBIC)
     flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
+    # the sector detector draws from OpenCV's RNG of the calling thread: seeded for each view, the same image
+    # always gives the same corners (unseeded, a calibration depended on what ran before it)
+    cv2.setRNGSeed(DETECTOR_SEED)
     found, corners = cv2.findChessboardCornersSB(img8, (board.cols, board.rows), flags=flags)
     if not found or corners is None or len(corners) != board.rows * board.cols:
         return None
