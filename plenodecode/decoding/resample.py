@@ -110,11 +110,12 @@ def _resample_rows(samples, sweight, parity, idx, wts, contig, lidx, lwts, out, 
                             if not wrow[j0 + t] > 0.0:
                                 full = False
                                 break
+                    # channel sums in scalars (nch is 1 or 3): no work array to allocate, nor to compile
+                    a0 = zero
+                    a1 = zero
+                    a2 = zero
+                    aw = zero
                     if full:
-                        a0 = zero
-                        a1 = zero
-                        a2 = zero
-                        aw = zero
                         for t in range(nt):
                             wt = wts[p, x, t]
                             a0 += wt * srow[j0 + t, 0]
@@ -126,12 +127,7 @@ def _resample_rows(samples, sweight, parity, idx, wts, contig, lidx, lwts, out, 
                         orow[x, 2] = a2
                     else:
                         # general path: skip lenses without a sample and renormalise
-                        # channel sums in scalars (nch is 1 or 3): no work array to allocate, nor to compile
-                        a0 = zero
-                        a1 = zero
-                        a2 = zero
                         norm = zero
-                        aw = zero
                         for t in range(nt):
                             j = idx[p, x, t]
                             wt = wts[p, x, t]
