@@ -2,6 +2,11 @@
 
 The maths (normalised convolution within each micro-image; Malvar, He & Cutler, ICASSP 2004) is
 described in :mod:`plenodecode.decoding.demosaic`; :func:`bilinear_kernel` runs it for every pixel.
+
+It is one function with no compiled helpers: the general path and its wide search are written out in the
+pixel loop, once each.  A helper compiled on its own, or inlined by numba's IR inlining, cost more compiling
+(the general path as an ``inline='always'`` helper and the search as a called one: 2.2 CPU s on a cold decode;
+written out: 1.4 CPU s) and the per-pixel calls cost run time (a full Illum demosaic: 1.2 -> 0.75 CPU s).
 """
 
 from __future__ import annotations
@@ -17,31 +22,6 @@ FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
 #: inverse squared distance of every tap of the 5x5 window (centre unused)
 WINDOW_INVERSE_SQUARED = np.array([[1.0 / (dy * dy + dx * dx) if (dy or dx) else 0.0 for dx in range(-2, 3)]
                   for dy in range(-2, 3)], np.float32)
-
-
-@njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy")
-def _search(x, labels, cmap, lab, y, xx, h, w, k, winv):  # pragma: no cover - numba
-    """Channel ``k`` at (y, xx) from its same-label sites in the 5x5 window (inverse squared distance)."""
-    acc = np.float32(0.0)
-    wacc = np.float32(0.0)
-    for dy in range(-2, 3):
-        yy = y + dy
-        if yy < 0 or yy >= h:
-            continue
-        ry = yy & 1
-        for dx in range(-2, 3):
-            xq = xx + dx
-            if cmap[ry, xq & 1] != k or xq < 0 or xq >= w or (dy == 0 and dx == 0):
-                continue
-            if labels[yy, xq] != lab:
-                continue
-            val = x[yy, xq]
-            if val != val:
-                continue
-            wgt = winv[dy + 2, dx + 2]
-            acc += wgt * val
-            wacc += wgt
-    return acc / wacc if wacc > 0.0 else np.float32(np.nan)
 
 
 #: the 8 taps of Malvar's 5x5 stencils around a pixel: 4 diagonals, 2 along the row, 2 along the column
@@ -151,127 +131,138 @@ def bilinear_kernel(x, labels, interior, cmap, nch, malvar, mdy, mdx, winv, out)
                         out[y, xx, 1] = g
                         out[y, xx, 2] = b
                         continue
-            _general(x, labels, interior, cmap, nch, malvar, mdy, mdx, winv, out, y, xx, lab)
-
-
-@njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy", inline="always")
-def _general(x, labels, interior, cmap, nch, malvar, mdy, mdx, winv, out, y, xx, lab):  # pragma: no cover - numba
-    """One pixel by the general path: every tap checked for its label and its value."""
-    h, w = x.shape
-    nan = np.float32(np.nan)
-    zero = np.float32(0.0)
-    s0 = zero
-    s1 = zero
-    s2 = zero
-    n0 = zero
-    n1 = zero
-    n2 = zero
-    chk = not interior[y, xx]       # interior pixels: whole 5x5 window in this micro-image
-    for t in range(9):
-        if t == 4:
-            continue
-        yy = y + t // 3 - 1
-        xq = xx + t % 3 - 1
-        if chk and (yy < 0 or yy >= h or xq < 0 or xq >= w or labels[yy, xq] != lab):
-            continue
-        v = x[yy, xq]
-        if v != v:
-            continue
-        k = cmap[yy & 1, xq & 1]
-        if k == 0:
-            s0 += v
-            n0 += 1.0
-        elif k == 1:
-            s1 += v
-            n1 += 1.0
-        else:
-            s2 += v
-            n2 += 1.0
-    v0 = x[y, xx]
-    own = cmap[y & 1, xx & 1]
-    if nch == 1:
-        out[y, xx, 0] = v0 if v0 == v0 else (s0 / n0 if n0 > 0 else nan)
-        return
-    r = s0 / n0 if n0 > 0 else nan
-    g = s1 / n1 if n1 > 0 else nan
-    b = s2 / n2 if n2 > 0 else nan
-    if v0 == v0:
-        if own == 0:
-            r = v0
-        elif own == 1:
-            g = v0
-        else:
-            b = v0
-    # channels still unknown: wider search, unless nothing at all is known in the 3x3
-    # window (a pixel of the dark gap between lenses stays unknown, which saves the search
-    # where it cannot help); a pixel ends all-known or all-NaN
-    # (one call site of the search, in a loop over the channels, and the search not inlined: it is the rare
-    # path, and every inlined call site cost numba ~0.3 CPU s of compiling)
-    if not (v0 != v0 and n0 == 0 and n1 == 0 and n2 == 0):
-        for k in range(3):
-            known = r if k == 0 else (g if k == 1 else b)
-            if known == known:
-                continue
-            found = _search(x, labels, cmap, lab, y, xx, h, w, k, winv)
-            if k == 0:
-                r = found
-            elif k == 1:
-                g = found
-            else:
-                b = found
-            if found != found:      # the channels after it stay unknown: the pixel ends all-NaN
-                break
-    else:
-        r = nan
-    if r != r or g != g or b != b:
-        r = nan
-        g = nan
-        b = nan
-    elif malvar and v0 == v0:
-        # Malvar-He-Cutler gradient correction, only with the whole stencil in this micro-image
-        diag = zero
-        row2 = zero
-        col2 = zero
-        ok = True
-        for t in range(8):
-            if own != 1 and t < 4:
-                continue
-            yy = y + mdy[t]
-            xq = xx + mdx[t]
-            if chk and (yy < 0 or yy >= h or xq < 0 or xq >= w or labels[yy, xq] != lab):
-                ok = False
-                break
-            v = x[yy, xq]
-            if v != v:
-                ok = False
-                break
-            if t < 4:
-                diag += v
-            elif t < 6:
-                row2 += v
-            else:
-                col2 += v
-        if ok:
-            if own == 1:
-                # G site: beta * (G - (diag + along2 - across2 / 2) / 5), eq. (2)
-                dh = np.float32(0.625) * (v0 - (diag + row2 - np.float32(0.5) * col2) * np.float32(0.2))
-                dv = np.float32(0.625) * (v0 - (diag + col2 - np.float32(0.5) * row2) * np.float32(0.2))
-                if cmap[y & 1, (xx + 1) & 1] == 0:
-                    r += dh
-                    b += dv
+            # general path: every tap checked for its label and its value
+            zero = np.float32(0.0)
+            s0 = zero
+            s1 = zero
+            s2 = zero
+            n0 = zero
+            n1 = zero
+            n2 = zero
+            chk = not interior[y, xx]       # interior pixels: whole 5x5 window in this micro-image
+            for t in range(9):
+                if t == 4:
+                    continue
+                yy = y + t // 3 - 1
+                xq = xx + t % 3 - 1
+                if chk and (yy < 0 or yy >= h or xq < 0 or xq >= w or labels[yy, xq] != lab):
+                    continue
+                v = x[yy, xq]
+                if v != v:
+                    continue
+                k = cmap[yy & 1, xq & 1]
+                if k == 0:
+                    s0 += v
+                    n0 += 1.0
+                elif k == 1:
+                    s1 += v
+                    n1 += 1.0
                 else:
-                    b += dh
-                    r += dv
-            else:
-                d = v0 - np.float32(0.25) * (row2 + col2)
-                g += np.float32(0.5) * d           # alpha, eq. (1)
+                    s2 += v
+                    n2 += 1.0
+            v0 = x[y, xx]
+            own = cmap[y & 1, xx & 1]
+            if nch == 1:
+                out[y, xx, 0] = v0 if v0 == v0 else (s0 / n0 if n0 > 0 else nan)
+                continue
+            r = s0 / n0 if n0 > 0 else nan
+            g = s1 / n1 if n1 > 0 else nan
+            b = s2 / n2 if n2 > 0 else nan
+            if v0 == v0:
                 if own == 0:
-                    b += np.float32(0.75) * d      # gamma, eq. (3)
+                    r = v0
+                elif own == 1:
+                    g = v0
                 else:
-                    r += np.float32(0.75) * d
-    out[y, xx, 0] = r
-    out[y, xx, 1] = g
-    out[y, xx, 2] = b
+                    b = v0
+            # channels still unknown: wider search, unless nothing at all is known in the 3x3
+            # window (a pixel of the dark gap between lenses stays unknown, which saves the search
+            # where it cannot help); a pixel ends all-known or all-NaN
+            # (the search written once, in a loop over the channels: each copy of it cost numba ~0.2 CPU s of compiling)
+            if not (v0 != v0 and n0 == 0 and n1 == 0 and n2 == 0):
+                for k in range(3):
+                    known = r if k == 0 else (g if k == 1 else b)
+                    if known == known:
+                        continue
+                    # channel k from its same-label sites in the 5x5 window, weighted by inverse squared distance
+                    acc = zero
+                    wacc = zero
+                    for dy in range(-2, 3):
+                        yy = y + dy
+                        if yy < 0 or yy >= h:
+                            continue
+                        for dx in range(-2, 3):
+                            xq = xx + dx
+                            if cmap[yy & 1, xq & 1] != k or xq < 0 or xq >= w or (dy == 0 and dx == 0):
+                                continue
+                            if labels[yy, xq] != lab:
+                                continue
+                            val = x[yy, xq]
+                            if val != val:
+                                continue
+                            wgt = winv[dy + 2, dx + 2]
+                            acc += wgt * val
+                            wacc += wgt
+                    found = acc / wacc if wacc > zero else nan
+                    if k == 0:
+                        r = found
+                    elif k == 1:
+                        g = found
+                    else:
+                        b = found
+                    if found != found:      # the channels after it stay unknown: the pixel ends all-NaN
+                        break
+            else:
+                r = nan
+            if r != r or g != g or b != b:
+                r = nan
+                g = nan
+                b = nan
+            elif malvar and v0 == v0:
+                # Malvar-He-Cutler gradient correction, only with the whole stencil in this micro-image
+                diag = zero
+                row2 = zero
+                col2 = zero
+                ok = True
+                for t in range(8):
+                    if own != 1 and t < 4:
+                        continue
+                    yy = y + mdy[t]
+                    xq = xx + mdx[t]
+                    if chk and (yy < 0 or yy >= h or xq < 0 or xq >= w or labels[yy, xq] != lab):
+                        ok = False
+                        break
+                    v = x[yy, xq]
+                    if v != v:
+                        ok = False
+                        break
+                    if t < 4:
+                        diag += v
+                    elif t < 6:
+                        row2 += v
+                    else:
+                        col2 += v
+                if ok:
+                    if own == 1:
+                        # G site: beta * (G - (diag + along2 - across2 / 2) / 5), eq. (2)
+                        dh = np.float32(0.625) * (v0 - (diag + row2 - np.float32(0.5) * col2) * np.float32(0.2))
+                        dv = np.float32(0.625) * (v0 - (diag + col2 - np.float32(0.5) * row2) * np.float32(0.2))
+                        if cmap[y & 1, (xx + 1) & 1] == 0:
+                            r += dh
+                            b += dv
+                        else:
+                            b += dh
+                            r += dv
+                    else:
+                        d = v0 - np.float32(0.25) * (row2 + col2)
+                        g += np.float32(0.5) * d           # alpha, eq. (1)
+                        if own == 0:
+                            b += np.float32(0.75) * d      # gamma, eq. (3)
+                        else:
+                            r += np.float32(0.75) * d
+            out[y, xx, 0] = r
+            out[y, xx, 1] = g
+            out[y, xx, 2] = b
 
 
 __all__ = ["FAST", "WINDOW_INVERSE_SQUARED", "MALVAR_DY", "MALVAR_DX", "bilinear_kernel"]

@@ -21,7 +21,6 @@ import logging
 import cv2
 import numpy as np
 
-from .._numba import njit
 from ..types import cfa_channel_map
 
 log = logging.getLogger(__name__)
@@ -35,20 +34,9 @@ def _tile(values: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return np.tile(np.asarray(values, np.float32), ((h + 1) // 2, (w + 1) // 2))[:h, :w]
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _normalise(mosaic, black, scale, out):  # pragma: no cover - numba
-    h, w = mosaic.shape
-    for y in range(h):
-        for x in range(w):
-            out[y, x] = (np.float32(mosaic[y, x]) - black[y & 1, x & 1]) * scale[y & 1, x & 1]
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _normalise_dark(mosaic, dark, scale, out):  # pragma: no cover - numba
-    h, w = mosaic.shape
-    for y in range(h):
-        for x in range(w):
-            out[y, x] = (np.float32(mosaic[y, x]) - np.float32(dark[y, x])) * scale[y & 1, x & 1]
+def _per_row_parity(values: np.ndarray, width: int) -> list[np.ndarray]:
+    """The (2, 2) CFA-tile ``values`` as two rows of ``width`` (even and odd sensor rows), float32."""
+    return [_tile(values[r], (1, width))[0] for r in range(2)]
 
 
 def normalise(mosaic: np.ndarray, black: np.ndarray, white: np.ndarray, *, dark: np.ndarray | None = None,
@@ -80,46 +68,42 @@ def normalise(mosaic: np.ndarray, black: np.ndarray, white: np.ndarray, *, dark:
     g = 1.0 if gains is None else np.broadcast_to(np.asarray(gains, np.float64), (2, 2))
     scale = (g / (np.broadcast_to(np.asarray(white, np.float64), (2, 2)) - black)).astype(np.float32)
     out = np.empty(mosaic.shape, np.float32) if out is None else out
-    if dark is not None:
-        if dark.shape != mosaic.shape:
-            raise ValueError(f"dark must have the mosaic's shape {mosaic.shape}, got {dark.shape}")
-        _normalise_dark(mosaic, dark, scale, out)
-    else:
-        _normalise(mosaic, black, scale, out)
+    if dark is not None and dark.shape != mosaic.shape:
+        raise ValueError(f"dark must have the mosaic's shape {mosaic.shape}, got {dark.shape}")
+    # two numpy passes per row parity, each value rounded to float32 first: the same float32 operations, in the
+    # same order, as an elementwise loop (and nothing to compile)
+    w = mosaic.shape[1]
+    offsets = _per_row_parity(black, w)
+    scales = _per_row_parity(scale, w)
+    for r in range(2):
+        sub = out[r::2]
+        level = offsets[r] if dark is None else dark[r::2].astype(np.float32, copy=False)
+        np.subtract(mosaic[r::2], level, out=sub, dtype=np.float32, casting="unsafe")
+        np.multiply(sub, scales[r], out=sub)
     return out
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _hot(x, threshold, relative, flags):  # pragma: no cover - numba
-    h, w = x.shape
-    n = 0
-    for y in range(h):
-        inner_row = y >= 2 and y < h - 2
-        for xx in range(w):
-            if inner_row and xx >= 2 and xx < w - 2:      # all 8 neighbours exist
-                m = max(max(max(x[y - 2, xx - 2], x[y - 2, xx]), max(x[y - 2, xx + 2], x[y, xx - 2])),
-                        max(max(x[y, xx + 2], x[y + 2, xx - 2]), max(x[y + 2, xx], x[y + 2, xx + 2])))
-                hot = x[y, xx] > m + max(threshold, relative * m)
-                flags[y, xx] = hot
-                if hot:
-                    n += 1
-                continue
-            m = -np.inf
-            for t in range(9):
-                if t == 4:
-                    continue
-                yy = y + 2 * (t // 3 - 1)
-                xq = xx + 2 * (t % 3 - 1)
-                if yy < 0 or yy >= h or xq < 0 or xq >= w:
-                    continue
-                v = x[yy, xq]
-                if v > m:
-                    m = v
-            hot = m > -np.inf and x[y, xx] > m + max(threshold, relative * m)
-            flags[y, xx] = hot
-            if hot:
-                n += 1
-    return n
+#: the 8 same-colour neighbours of the centre of a 5 x 5 window (2 px away along rows, columns and diagonals)
+_SAME_COLOUR_RING = np.zeros((5, 5), np.uint8)
+_SAME_COLOUR_RING[::2, ::2] = 1
+_SAME_COLOUR_RING[2, 2] = 0
+
+
+def _flag_hot(x: np.ndarray, threshold: np.float32, relative: np.float32, flags: np.ndarray) -> int:
+    """Write the hot-pixel mask of ``x`` into ``flags``; return how many are hot (see :func:`find_hot_pixels`).
+
+    ``m`` (the maximum of the same-colour ring) is an OpenCV dilation by :data:`_SAME_COLOUR_RING`; its constant
+    border stands for "no pixel" (-inf), so pixels near the edge use their neighbours inside the image, as the
+    rule says (in an image of at most 3 x 3 a pixel can have none: it is not hot).  Then ``flags = x > m + max(threshold, relative * m)`` in float32.
+    """
+    m = cv2.dilate(x, _SAME_COLOUR_RING, borderType=cv2.BORDER_CONSTANT, borderValue=-np.inf)
+    margin = np.multiply(m, relative)
+    np.maximum(margin, threshold, out=margin)
+    margin += m
+    np.greater(x, margin, out=flags)
+    if max(x.shape) <= 3:                # pixels without any same-colour neighbour in the image are not hot
+        flags &= m > -np.inf
+    return int(np.count_nonzero(flags))
 
 
 #: row and column steps to the 8 same-colour neighbours (2 px away along rows, columns and diagonals)
@@ -192,7 +176,7 @@ def find_hot_pixels(mosaic: np.ndarray, *, threshold: float = 0.1, relative: flo
     ndarray, shape (H, W), bool
     """
     flags = np.empty(mosaic.shape, np.bool_)
-    _hot(np.ascontiguousarray(mosaic, np.float32), np.float32(threshold), np.float32(relative), flags)
+    _flag_hot(np.ascontiguousarray(mosaic, np.float32), np.float32(threshold), np.float32(relative), flags)
     return flags
 
 
@@ -224,7 +208,7 @@ def repair_hot_pixels(mosaic: np.ndarray, *, threshold: float = 0.1, relative: f
     """
     x = np.ascontiguousarray(mosaic, np.float32)
     flags = np.empty(x.shape, np.bool_) if flags is None else flags
-    n = int(_hot(x, np.float32(threshold), np.float32(relative), flags))
+    n = _flag_hot(x, np.float32(threshold), np.float32(relative), flags)
     if n == 0:
         return mosaic, 0
     out = np.empty_like(x) if out is None else out
@@ -293,18 +277,6 @@ def relative_white(white: np.ndarray, cfa: str | None, *, window: int, out: np.n
     return rel
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _devignette(x, white, rel, floor, out):  # pragma: no cover - numba
-    h, w = x.shape
-    nan = np.float32(np.nan)
-    for y in range(h):
-        for xx in range(w):
-            if rel[y, xx] < floor:
-                out[y, xx] = nan
-            else:
-                out[y, xx] = x[y, xx] / max(white[y, xx], np.float32(1e-6))
-
-
 def devignette(mosaic: np.ndarray, white: np.ndarray, rel: np.ndarray, *, floor: float = DEFAULT_FLOOR,
                out: np.ndarray | None = None) -> np.ndarray:
     """Divide a normalised mosaic by the normalised white, NaN where the white is too dark.
@@ -328,8 +300,12 @@ def devignette(mosaic: np.ndarray, white: np.ndarray, rel: np.ndarray, *, floor:
     if not 0.0 < floor < 1.0:
         raise ValueError(f"floor must be in (0, 1), got {floor}")
     out = np.empty(mosaic.shape, np.float32) if out is None else out
-    _devignette(np.ascontiguousarray(mosaic, np.float32), np.ascontiguousarray(white, np.float32),
-                np.ascontiguousarray(rel, np.float32), np.float32(floor), out)
+    x = np.asarray(mosaic, np.float32)
+    # the divisor goes into ``out`` first unless ``out`` is the mosaic itself
+    divisor = np.empty_like(out) if np.shares_memory(out, x) else out
+    np.maximum(white, np.float32(1e-6), out=divisor)
+    np.divide(x, divisor, out=out)
+    out[np.less(rel, np.float32(floor))] = np.nan
     return out
 
 

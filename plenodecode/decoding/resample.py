@@ -81,6 +81,7 @@ def _resample_rows(samples, sweight, parity, idx, wts, contig, lidx, lwts, out, 
     nv, nu, nr, nc, nch = samples.shape
     nx, nt = idx.shape[1], idx.shape[2]
     zero = np.float32(0.0)
+    one = np.float32(1.0)
     for v in range(nv):
         for u in range(nu):
             for i in range(nr):
@@ -99,38 +100,22 @@ def _resample_rows(samples, sweight, parity, idx, wts, contig, lidx, lwts, out, 
                         for c in range(nch):
                             orow[x, c] = zero
                     continue
-                if n_pos == nc and nch == 3:   # every lens has a sample: the plain kernel everywhere
-                    for x in range(nx):
-                        a0 = zero
-                        a1 = zero
-                        a2 = zero
-                        aw = zero
-                        for t in range(nt):
-                            j = idx[p, x, t]
-                            wt = wts[p, x, t]
-                            a0 += wt * srow[j, 0]
-                            a1 += wt * srow[j, 1]
-                            a2 += wt * srow[j, 2]
-                            aw += wt * wrow[j]
-                        orow[x, 0] = a0
-                        orow[x, 1] = a1
-                        orow[x, 2] = a2
-                        owrow[x] = min(np.float32(1.0), max(zero, aw))
-                    continue
+                row_full = n_pos == nc         # every lens of the row has a sample
                 for x in range(nx):
+                    # fast path: consecutive taps that all have a sample (the kernel sums to 1): the plain sum
                     j0 = idx[p, x, 0]
-                    # fast path: consecutive taps that all have a sample (the kernel sums to 1)
-                    full = contig[p, x]
-                    if full:
+                    full = nch == 3 and contig[p, x]
+                    if full and not row_full:
                         for t in range(nt):
                             if not wrow[j0 + t] > 0.0:
                                 full = False
                                 break
-                    if full and nch == 3:
-                        a0 = zero
-                        a1 = zero
-                        a2 = zero
-                        aw = zero
+                    # channel sums in scalars (nch is 1 or 3): no work array to allocate, nor to compile
+                    a0 = zero
+                    a1 = zero
+                    a2 = zero
+                    aw = zero
+                    if full:
                         for t in range(nt):
                             wt = wts[p, x, t]
                             a0 += wt * srow[j0 + t, 0]
@@ -140,46 +125,41 @@ def _resample_rows(samples, sweight, parity, idx, wts, contig, lidx, lwts, out, 
                         orow[x, 0] = a0
                         orow[x, 1] = a1
                         orow[x, 2] = a2
-                        owrow[x] = min(np.float32(1.0), max(zero, aw))
-                        continue
-                    # general path: skip lenses without a sample and renormalise
-                    # channel sums in scalars (nch is 1 or 3): no work array to allocate, nor to compile
-                    a0 = zero
-                    a1 = zero
-                    a2 = zero
-                    norm = zero
-                    aw = zero
-                    for t in range(nt):
-                        j = idx[p, x, t]
-                        wt = wts[p, x, t]
-                        sw = wrow[j]
-                        aw += wt * sw
-                        if sw > 0.0:
-                            norm += wt
-                            a0 += wt * srow[j, 0]
-                            if nch == 3:
-                                a1 += wt * srow[j, 1]
-                                a2 += wt * srow[j, 2]
-                    ja = lidx[p, x, 0]
-                    jb = lidx[p, x, 1]
-                    if norm > 0.5 and wrow[ja] > 0.0 and wrow[jb] > 0.0:
-                        inv = np.float32(1.0) / norm
-                        orow[x, 0] = a0 * inv
-                        if nch == 3:
-                            orow[x, 1] = a1 * inv
-                            orow[x, 2] = a2 * inv
                     else:
-                        # linear fallback among the two nearest lenses that have a sample
-                        fa = lwts[p, x, 0] if wrow[ja] > 0.0 else zero
-                        fb = lwts[p, x, 1] if wrow[jb] > 0.0 else zero
-                        s = fa + fb
-                        if s > 1e-6:
-                            for c in range(nch):
-                                orow[x, c] = (fa * srow[ja, c] + fb * srow[jb, c]) / s
+                        # general path: skip lenses without a sample and renormalise
+                        norm = zero
+                        for t in range(nt):
+                            j = idx[p, x, t]
+                            wt = wts[p, x, t]
+                            sw = wrow[j]
+                            aw += wt * sw
+                            if sw > 0.0:
+                                norm += wt
+                                a0 += wt * srow[j, 0]
+                                if nch == 3:
+                                    a1 += wt * srow[j, 1]
+                                    a2 += wt * srow[j, 2]
+                        ja = lidx[p, x, 0]
+                        jb = lidx[p, x, 1]
+                        if norm > 0.5 and wrow[ja] > 0.0 and wrow[jb] > 0.0:
+                            inv = np.float32(1.0) / norm
+                            orow[x, 0] = a0 * inv
+                            if nch == 3:
+                                orow[x, 1] = a1 * inv
+                                orow[x, 2] = a2 * inv
                         else:
-                            for c in range(nch):
-                                orow[x, c] = zero
-                    owrow[x] = min(np.float32(1.0), max(zero, aw))
+                            # linear fallback among the two nearest lenses that have a sample
+                            fa = lwts[p, x, 0] if wrow[ja] > 0.0 else zero
+                            fb = lwts[p, x, 1] if wrow[jb] > 0.0 else zero
+                            s = fa + fb
+                            if s > 1e-6:
+                                for c in range(nch):
+                                    orow[x, c] = (fa * srow[ja, c] + fb * srow[jb, c]) / s
+                            else:
+                                for c in range(nch):
+                                    orow[x, c] = zero
+                    aw = aw if aw > zero else zero
+                    owrow[x] = aw if aw < one else one
 
 
 def hex_to_rect(samples: np.ndarray, weight: np.ndarray, grid: LensletGrid, *, first_row: int = 0,

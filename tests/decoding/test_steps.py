@@ -105,6 +105,33 @@ def test_hot_pixel_repair_is_the_median_of_the_lit_neighbours():
     assert {0, 1, 2, 3, 4, 5, 6} <= counts
 
 
+def _hot_reference(x, threshold=0.1, relative=0.5):
+    """find_hot_pixels' rule pixel by pixel: x > m + max(threshold, relative m), m = max of the same-colour ring."""
+    h, w = x.shape
+    flags = np.zeros(x.shape, bool)
+    for y in range(h):
+        for xx in range(w):
+            ring = [x[y + dy, xx + dx] for dy in (-2, 0, 2) for dx in (-2, 0, 2)
+                    if (dy or dx) and 0 <= y + dy < h and 0 <= xx + dx < w]
+            if ring:
+                m = np.float32(max(ring))
+                flags[y, xx] = x[y, xx] > m + max(np.float32(threshold), np.float32(relative) * m)
+    return flags
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (2, 3), (3, 3), (1, 9), (4, 4), (23, 31)])
+def test_hot_pixel_rule_at_borders_and_in_tiny_images(shape):
+    # the ring maximum is taken over the neighbours inside the image; a pixel without any is never hot
+    rng = np.random.default_rng(5)
+    x = (rng.random(shape) * 0.5).astype(np.float32)
+    x[rng.random(shape) < 0.3] += np.float32(0.9)               # hot candidates, many on the border
+    expected = _hot_reference(x)
+    np.testing.assert_array_equal(dv.find_hot_pixels(x), expected)
+    assert dv.repair_hot_pixels(x)[1] == expected.sum()
+    if shape == (23, 31):
+        assert expected[[0, -1]].any() and expected[:, [0, -1]].any() and expected.sum() > 10
+
+
 def test_relative_white_and_devignette_exact():
     yy, xx = np.mgrid[0:60, 0:60]
     disk = np.clip(5.0 - np.hypot((yy % 12) - 5.5, (xx % 12) - 5.5), 0, 1)
