@@ -5,7 +5,8 @@ fresh process into an empty output folder, so worker start-up and imports are co
 would see them.  An untimed one-raw run first fills numba's on-disk cache, so no configuration pays
 JIT compilation.  The two-worker ``LocalCluster`` (one thread per worker, on loopback) is started
 before the clock starts, as a lab's cluster would already be running; its workers are fresh, so
-their imports are counted.  Peak memory per worker is the largest ``ru_maxrss`` a worker reported
+their imports are counted.  Each line also gives the CPU seconds of the command's whole process tree
+(sampled; the LocalCluster's workers are not in that tree) and when the first task started.  Peak memory per worker is the largest ``ru_maxrss`` a worker reported
 (``TaskResult.worker_peak_mb`` in ``summary.json``).
 
 Inputs are generated once into ``bench/_cache/batch_illum_mini/`` (20 scene raws as Illum .lfr,
@@ -56,18 +57,47 @@ def _inputs() -> tuple[Path, Path]:
     return raws, db
 
 
+def _tree_cpu_seconds(proc: subprocess.Popen, interval: float = 0.05) -> float:
+    """CPU seconds (user + system) of ``proc`` and every process under it (workers, a fork server), sampled
+    every ``interval`` s until ``proc`` exits: a figure the other load of a shared machine barely changes."""
+    import psutil
+
+    seen: dict[int, float] = {}
+    root = psutil.Process(proc.pid)
+    while proc.poll() is None:
+        try:
+            family = [root, *root.children(recursive=True)]
+        except psutil.Error:
+            family = []
+        for p in family:
+            try:
+                t = p.cpu_times()
+            except psutil.Error:
+                continue
+            seen[p.pid] = t.user + t.system
+        time.sleep(interval)
+    return sum(seen.values())
+
+
 def _run_cli(raws: Path, db: Path, out: Path, extra: list[str], expect: str = "done",
              n: int = N_RAWS) -> tuple[float, dict]:
+    """Wall seconds of the command and its summary.json, with ``cpu_s`` (:func:`_tree_cpu_seconds`) and
+    ``first_start_s`` (seconds from the command's start to its first task's start) added."""
     cmd = [sys.executable, "-m", "plenodecode.cli.main", "-q", "batch", str(raws), "-o", str(out),
            "--database", str(db), "--outputs", OUTPUTS, *extra]
+    started = time.time()
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    cpu = _tree_cpu_seconds(proc)
+    _, stderr = proc.communicate()
     seconds = time.perf_counter() - t0
     if proc.returncode != 0:
-        raise RuntimeError(f"batch failed ({proc.returncode}): {proc.stderr.strip()[-500:]}")
+        raise RuntimeError(f"batch failed ({proc.returncode}): {stderr.strip()[-500:]}")
     summary = json.loads((out / "summary.json").read_text())
     if summary[expect] != n:
         raise RuntimeError(f"expected {n} raws {expect}, got {summary[expect]}")
+    summary["cpu_s"] = cpu
+    summary["first_start_s"] = min(r["started"] for r in summary["results"]) - started
     return seconds, summary
 
 
@@ -85,7 +115,8 @@ def _figure(name: str, seconds: float, summary: dict, base: float | None, extra_
     steady = summary["steady_task_s"]          # BatchSummary.latency: a worker's first task pays imports and kernels
     note = (f"{per_min:.1f} raws/min; {len(peaks)} worker(s), peak RSS per worker "
             f"{'/'.join(f'{p:.0f}' for p in sorted(peaks.values()))} MB; task median "
-            f"{float('nan') if steady is None else steady:.2f} s, first task {summary['first_task_s']:.1f} s"
+            f"{float('nan') if steady is None else steady:.2f} s, first task {summary['first_task_s']:.1f} s, "
+            f"started {summary['first_start_s']:.1f} s in; {summary['cpu_s']:.1f} CPU s in all processes"
             f"{extra_note}")
     return Figure(name, seconds, max(peaks.values()) if peaks else None,
                   ratio=None if base is None else base / seconds,
