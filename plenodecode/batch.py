@@ -42,7 +42,7 @@ import os
 import socket
 import time
 import traceback
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
@@ -634,6 +634,8 @@ def run_batch(inputs: Sequence[str | os.PathLike], out_dir: str | os.PathLike, o
     if max_in_flight is not None and max_in_flight < 1:
         raise ValueError(f"max_in_flight must be >= 1, got {max_in_flight}")
     options = options or BatchOptions()
+    # an absolute database path: forked workers keep the working directory of their fork server's start
+    options = replace(options, db_dir=str(Path(options.db_dir).resolve()))
     out = Path(out_dir).resolve()
     files = [f.resolve() for f in find_raws(inputs, exclude=[out])]
     if scheduler is None:

@@ -141,3 +141,18 @@ def test_cli_jobs_2_writes_the_bytes_of_one_process(data, tmp_path):  # noqa: F8
         outs[jobs] = (_files(out), {r["worker"] for r in summary["results"]})
     assert len(outs["1"][1]) == 1 and len(outs["2"][1]) == 2
     assert outs["2"][0] == outs["1"][0] and sum(k.endswith(".png") for k in outs["1"][0]) >= 3 * 2
+
+
+def test_pool_workers_find_a_relative_database_after_a_chdir(data, tmp_path, monkeypatch):  # noqa: F811
+    """Forked workers keep the working folder their fork server started in: the database path is resolved
+    before it travels."""
+    from plenodecode.batch import BatchOptions, run_batch
+    from plenodecode.threads import worker_pool
+
+    monkeypatch.chdir(tmp_path)
+    worker_pool(2, max(1, (os.cpu_count() or 1) // 2)).shutdown()   # the server runs, started here if not before
+    monkeypatch.chdir(data["db"].parent)
+    summary = run_batch([data["shoot"] / "take1", data["shoot"] / "take2"], tmp_path / "out",
+                        BatchOptions(outputs=("centre",), db_dir="db"), jobs=2)
+    assert [r.status for r in summary.results] == ["done", "done"], [r.error for r in summary.results]
+    assert len({r.worker for r in summary.results}) == 2
