@@ -194,13 +194,17 @@ def run_dask(tasks: list[tuple[Path, str]], out: Path, options: BatchOptions, sc
     """
     from distributed import Client, as_completed
 
-    from .batch import process_raw
+    from .batch import _one_line, process_raw
 
     own = not isinstance(scheduler, Client)
     client = Client(scheduler, set_as_default=False) if own else scheduler
     try:
-        setup = client.run(prepare_dask_worker, preload_modules(options.outputs))
-        log.info("dask workers set up: %s", setup)
+        try:
+            setup = client.run(prepare_dask_worker, preload_modules(options.outputs))
+        except Exception as exc:  # e.g. workers with another plenodecode: their tasks say so one by one
+            log.warning("dask workers not set up (%s); running the tasks without", _one_line(exc))
+        else:
+            log.info("dask workers set up: %s", setup)
         n_workers = max(1, len(client.scheduler_info().get("workers", {})))
         limit = max_in_flight or 2 * n_workers
         results: list[TaskResult | None] = [None] * len(tasks)
