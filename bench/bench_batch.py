@@ -11,8 +11,8 @@ critical path, the command and its fork server (before and after the tasks) plus
 the single process's critical path over it in brackets.  On a machine shared with other work the wall
 times swing with the load while these CPU figures barely move; on idle cores the critical path is about
 the wall time (an upper bound for the single process, whose decoding uses both cores in stretches, so the
-bracketed ratio runs a little above the wall ratio).  Peak memory per worker is the largest ``ru_maxrss`` a worker reported
-(``TaskResult.worker_peak_mb`` in ``summary.json``).
+bracketed ratio runs a little above the wall ratio).  Peak memory per worker is the largest ``ru_maxrss``
+a worker reported (``TaskResult.worker_peak_mb`` in ``summary.json``).
 
 Inputs are generated once into ``bench/_cache/batch_illum_mini/`` (20 scene raws as Illum .lfr,
 one white image and its calibration database).

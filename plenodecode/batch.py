@@ -28,8 +28,8 @@ and replaces its folder.  A folder ``out_dir/<name>`` without a marker was not w
 and is replaced only with ``overwrite=True``.
 
 Where the tasks run (forked local workers, a Dask cluster) and how those are kept busy:
-:mod:`plenodecode.batch_workers`.  On a Dask cluster (``scheduler=``) the workers must see the inputs, the calibration database and
-``out_dir`` under the same paths as the client (a shared file system).
+:mod:`plenodecode.batch_workers`.  On a Dask cluster (``scheduler=``) the workers must see the inputs,
+the calibration database and ``out_dir`` under the same paths as the client (a shared file system).
 """
 
 from __future__ import annotations
