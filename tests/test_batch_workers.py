@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import importlib
 import json
-import multiprocessing
 import os
 import platform
 import subprocess
@@ -57,37 +56,6 @@ def test_preloaded_modules_exist_and_follow_the_outputs():
     assert len(mods) == len(set(mods)) and mods[:len(PRELOAD_MODULES)] == PRELOAD_MODULES
     assert "plenodecode.depth.methods" in mods and "plenodecode.io.lightfield" in mods
     assert preload_modules(("centre",)) == PRELOAD_MODULES
-
-
-@pytest.mark.skipif("forkserver" not in multiprocessing.get_all_start_methods(), reason="no fork server here")
-def test_pool_workers_are_forked_with_the_modules_loaded(tmp_path):
-    """Workers come from the fork server (not this process, not spawned) and find the preloaded modules
-    imported before their first task; their numba cap holds and this process imported none of it."""
-    (tmp_path / "forked_probe.py").write_text(textwrap.dedent("""
-        import os, sys, time
-
-        def probe(_):
-            from plenodecode.threads import thread_counts
-
-            loaded = "plenodecode.decoding.decoder" in sys.modules and "cv2" in sys.modules
-            time.sleep(0.3)                       # long enough that both workers take a probe
-            return os.getpid(), os.getppid(), loaded, thread_counts()["numba"]
-    """))
-    got = _run_script("""
-        import json, os, sys
-        from forked_probe import probe
-        from plenodecode.threads import worker_pool
-
-        if __name__ == "__main__":
-            with worker_pool(2, 1, preload=["cv2", "plenodecode.decoding.decoder"]) as pool:
-                rows = list(pool.map(probe, range(4)))
-            print(json.dumps({"me": os.getpid(), "rows": rows, "here": "plenodecode.decoding.decoder" in sys.modules}))
-    """, path=tmp_path)
-    rows = got["rows"]
-    assert len({r[0] for r in rows}) == 2
-    assert all(r[1] != got["me"] for r in rows)              # children of the fork server
-    assert all(r[2] for r in rows) and all(r[3] == 1 for r in rows)
-    assert not got["here"]
 
 
 @pytest.mark.skipif(platform.libc_ver()[0] != "glibc", reason="glibc's mallopt")
