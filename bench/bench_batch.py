@@ -5,8 +5,14 @@ fresh process into an empty output folder, so worker start-up and imports are co
 would see them.  An untimed one-raw run first fills numba's on-disk cache, so no configuration pays
 JIT compilation.  The two-worker ``LocalCluster`` (one thread per worker, on loopback) is started
 before the clock starts, as a lab's cluster would already be running; its workers are fresh, so
-their imports are counted.  Peak memory per worker is the largest ``ru_maxrss`` a worker reported
-(``TaskResult.worker_peak_mb`` in ``summary.json``).
+their imports are counted.  Each line also gives when the first task started and CPU seconds (sampled):
+of every process that worked for the command (its tree, and the LocalCluster's workers), and of its
+critical path, the command and its fork server (before and after the tasks) plus the busiest worker, with
+the single process's critical path over it in brackets.  On a machine shared with other work the wall
+times swing with the load while these CPU figures barely move; on idle cores the critical path is about
+the wall time (an upper bound for the single process, whose decoding uses both cores in stretches, so the
+bracketed ratio runs a little above the wall ratio).  Peak memory per worker is the largest ``ru_maxrss``
+a worker reported (``TaskResult.worker_peak_mb`` in ``summary.json``).
 
 Inputs are generated once into ``bench/_cache/batch_illum_mini/`` (20 scene raws as Illum .lfr,
 one white image and its calibration database).
@@ -56,18 +62,78 @@ def _inputs() -> tuple[Path, Path]:
     return raws, db
 
 
+def _cpu_seconds(procs: list) -> dict[int, float]:
+    """pid -> CPU seconds (user + system) of each live process of ``procs`` (psutil processes)."""
+    import psutil
+
+    seen = {}
+    for p in procs:
+        try:
+            t = p.cpu_times()
+        except psutil.Error:
+            continue
+        seen[p.pid] = t.user + t.system
+    return seen
+
+
+def _watch_cpu(proc: subprocess.Popen, outside: list, interval: float = 0.05) -> dict[str, float]:
+    """CPU seconds of the command ``proc`` and its process tree, sampled every ``interval`` s until it exits, and of
+    the processes ``outside`` it that run its tasks (a LocalCluster's workers) over the same time.
+
+    Returns
+    -------
+    dict
+        ``total``: every process; ``critical``: the part no second core can overlap, the command itself plus a
+        fork server (they run before and after the tasks) plus the busiest worker.  On idle cores the wall
+        time is about ``critical``; on a loaded machine the two CPU figures barely change while wall times do.
+    """
+    import psutil
+
+    root = psutil.Process(proc.pid)
+    before = _cpu_seconds(outside)
+    seen: dict[int, float] = {}
+    role: dict[int, str] = {}
+    while proc.poll() is None:
+        try:
+            family = [root, *root.children(recursive=True)]
+        except psutil.Error:
+            family = []
+        for p in family:
+            if p.pid not in role:
+                try:
+                    server = p.ppid() == proc.pid and "forkserver" in " ".join(p.cmdline())
+                except psutil.Error:
+                    continue
+                role[p.pid] = "command" if p.pid == proc.pid else ("command" if server else "worker")
+        seen.update(_cpu_seconds(family))
+        time.sleep(interval)
+    after = _cpu_seconds(outside)
+    workers = [c for pid, c in seen.items() if role.get(pid) == "worker"]
+    workers += [after[pid] - before[pid] for pid in after if pid in before]
+    serial = sum(c for pid, c in seen.items() if role.get(pid) == "command")
+    return {"total": serial + sum(workers), "critical": serial + max(workers, default=0.0)}
+
+
 def _run_cli(raws: Path, db: Path, out: Path, extra: list[str], expect: str = "done",
-             n: int = N_RAWS) -> tuple[float, dict]:
+             n: int = N_RAWS, outside: list = ()) -> tuple[float, dict]:
+    """Wall seconds of the command and its summary.json, with ``cpu_s`` and ``critical_cpu_s``
+    (:func:`_watch_cpu`; ``outside``: processes running its tasks outside its tree) and ``first_start_s``
+    (seconds from the command's start to its first task's start) added."""
     cmd = [sys.executable, "-m", "plenodecode.cli.main", "-q", "batch", str(raws), "-o", str(out),
            "--database", str(db), "--outputs", OUTPUTS, *extra]
+    started = time.time()
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    cpu = _watch_cpu(proc, list(outside))
+    _, stderr = proc.communicate()
     seconds = time.perf_counter() - t0
     if proc.returncode != 0:
-        raise RuntimeError(f"batch failed ({proc.returncode}): {proc.stderr.strip()[-500:]}")
+        raise RuntimeError(f"batch failed ({proc.returncode}): {stderr.strip()[-500:]}")
     summary = json.loads((out / "summary.json").read_text())
     if summary[expect] != n:
         raise RuntimeError(f"expected {n} raws {expect}, got {summary[expect]}")
+    summary["cpu_s"], summary["critical_cpu_s"] = cpu["total"], cpu["critical"]
+    summary["first_start_s"] = min(r["started"] for r in summary["results"]) - started
     return seconds, summary
 
 
@@ -79,13 +145,18 @@ def _peaks(summary: dict) -> dict[str, float]:
     return peaks
 
 
-def _figure(name: str, seconds: float, summary: dict, base: float | None, extra_note: str = "") -> Figure:
+def _figure(name: str, seconds: float, summary: dict, base: float | None, extra_note: str = "",
+            base_critical: float | None = None) -> Figure:
     peaks = _peaks(summary)
     per_min = N_RAWS / seconds * 60.0
     steady = summary["steady_task_s"]          # BatchSummary.latency: a worker's first task pays imports and kernels
+    critical_ratio = "" if base_critical is None else f" ({base_critical / summary['critical_cpu_s']:.2f}x)"
     note = (f"{per_min:.1f} raws/min; {len(peaks)} worker(s), peak RSS per worker "
             f"{'/'.join(f'{p:.0f}' for p in sorted(peaks.values()))} MB; task median "
-            f"{float('nan') if steady is None else steady:.2f} s, first task {summary['first_task_s']:.1f} s"
+            f"{float('nan') if steady is None else steady:.2f} s, first task {summary['first_task_s']:.1f} s, "
+            f"started {summary['first_start_s']:.1f} s in; CPU s: {summary['cpu_s']:.1f} in all processes, "
+            f"{summary['critical_cpu_s']:.1f} on the critical path"
+            f"{critical_ratio}"
             f"{extra_note}")
     return Figure(name, seconds, max(peaks.values()) if peaks else None,
                   ratio=None if base is None else base / seconds,
@@ -109,11 +180,15 @@ def run() -> list[Figure]:
         figures.append(_figure(f"{label}, single process", t1, s1, None,
                                f"; 1-min load {load:.1f} on {os.cpu_count()} cores"))
         t2, s2 = _run_cli(raws, db, Path(tmp) / "jobs2", ["--jobs", "2"])
-        figures.append(_figure(f"{label}, --jobs 2", t2, s2, t1))
+        figures.append(_figure(f"{label}, --jobs 2", t2, s2, t1, base_critical=s1["critical_cpu_s"]))
         with LocalCluster(n_workers=2, processes=True, threads_per_worker=1, host="127.0.0.1",
                           dashboard_address=None) as cluster:
-            t3, s3 = _run_cli(raws, db, Path(tmp) / "dask", ["--scheduler", cluster.scheduler_address])
-        figures.append(_figure(f"{label}, LocalCluster 2 workers", t3, s3, t1))
+            import psutil
+
+            workers = psutil.Process().children(recursive=True)       # the cluster's worker processes
+            t3, s3 = _run_cli(raws, db, Path(tmp) / "dask", ["--scheduler", cluster.scheduler_address],
+                              outside=workers)
+        figures.append(_figure(f"{label}, LocalCluster 2 workers", t3, s3, t1, base_critical=s1["critical_cpu_s"]))
         # resuming: a second run over finished outputs only hashes the inputs
         t4, s4 = _run_cli(raws, db, Path(tmp) / "single", ["--jobs", "1"], expect="skipped")
         figures.append(Figure(f"{label}, re-run (all skipped)", t4, None, note=f"{s4['skipped']} skipped"))

@@ -27,8 +27,9 @@ Resuming: ``.done.json`` holds the task key, the SHA-256 of the input's bytes an
 and replaces its folder.  A folder ``out_dir/<name>`` without a marker was not written by a batch
 and is replaced only with ``overwrite=True``.
 
-On a Dask cluster (``scheduler=``) the workers must see the inputs, the calibration database and
-``out_dir`` under the same paths as the client (a shared file system).
+Where the tasks run (forked local workers, a Dask cluster) and how those are kept busy:
+:mod:`plenodecode.batch_workers`.  On a Dask cluster (``scheduler=``) the workers must see the inputs,
+the calibration database and ``out_dir`` under the same paths as the client (a shared file system).
 """
 
 from __future__ import annotations
@@ -41,9 +42,7 @@ import os
 import socket
 import time
 import traceback
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
@@ -51,7 +50,7 @@ from .errors import PlenodecodeError
 from .io.atomic import (OLD_MARK, TEMP_MARK, atomic_output, discard, is_temporary, remove_stale_temporaries,
                         write_text_atomic)
 from .registry import lookup
-from .threads import limit_threads, worker_pool
+from .threads import limit_threads
 
 log = logging.getLogger(__name__)
 
@@ -635,125 +634,47 @@ def run_batch(inputs: Sequence[str | os.PathLike], out_dir: str | os.PathLike, o
     if max_in_flight is not None and max_in_flight < 1:
         raise ValueError(f"max_in_flight must be >= 1, got {max_in_flight}")
     options = options or BatchOptions()
+    # an absolute database path: forked workers keep the working directory of their fork server's start
+    options = replace(options, db_dir=str(Path(options.db_dir).resolve()))
     out = Path(out_dir).resolve()
     files = [f.resolve() for f in find_raws(inputs, exclude=[out])]
-    names = output_names(files)
-    out.mkdir(parents=True, exist_ok=True)
-    _clean_stale(out)
+    if scheduler is None:
+        jobs = min(jobs or os.cpu_count() or 1, max(1, len(files)))
+    pool = None
+    if scheduler is None and jobs > 1:     # the workers' modules load while this process prepares the batch
+        from .batch_workers import start_pool
+
+        pool, threads = start_pool(jobs, options.outputs)
+    try:
+        names = output_names(files)
+        out.mkdir(parents=True, exist_ok=True)
+        _clean_stale(out)
+    except BaseException:
+        if pool is not None:
+            pool.shutdown(wait=False, cancel_futures=True)
+        raise
     t0 = time.perf_counter()
     if progress is not None:
         progress(0, len(files))
     tasks = [(f, n) for f, n in zip(files, names)]
     if scheduler is not None:
-        results = _run_dask(tasks, out, options, scheduler, max_in_flight, overwrite, progress)
+        from .batch_workers import run_dask
+
+        results = run_dask(tasks, out, options, scheduler, max_in_flight, overwrite, progress)
+    elif pool is not None:
+        from .batch_workers import run_pool
+
+        results = run_pool(pool, tasks, out, options, jobs, max_in_flight or 2 * jobs, overwrite, threads, progress)
     else:
-        jobs = min(jobs or os.cpu_count() or 1, max(1, len(files)))
-        if jobs == 1:
-            results = []
-            for i, (f, n) in enumerate(tasks):
-                results.append(process_raw(f, out, options, name=n, overwrite=overwrite))
-                if progress is not None:
-                    progress(i + 1, len(files))
-        else:
-            threads = max(1, (os.cpu_count() or 1) // jobs)
-            results = _run_pool(tasks, out, options, jobs, max_in_flight or 2 * jobs, overwrite, threads, progress)
+        results = []
+        for i, (f, n) in enumerate(tasks):
+            results.append(process_raw(f, out, options, name=n, overwrite=overwrite))
+            if progress is not None:
+                progress(i + 1, len(files))
     summary = BatchSummary(tuple(results), time.perf_counter() - t0)
     log.info("batch: %d done, %d skipped, %d failed in %.1f s", summary.count("done"), summary.count("skipped"),
              summary.count("failed"), summary.seconds)
     return summary
-
-
-def _lost(path: Path, exc: BaseException) -> TaskResult:
-    return TaskResult(str(path), "failed", error=f"worker failed: {_one_line(exc)}")
-
-
-def _run_pool(tasks: list[tuple[Path, str]], out: Path, options: BatchOptions, jobs: int, limit: int,
-              overwrite: bool, threads: int, progress: Progress) -> list[TaskResult]:
-    """Local worker processes (spawned, so no state is inherited), at most ``limit`` tasks submitted; each
-    worker's thread pools are capped at ``threads`` (:func:`plenodecode.threads.worker_pool`).
-
-    A worker that dies (e.g. killed for memory) fails the tasks in flight and the pool is restarted
-    for the rest.
-    """
-    def new_pool() -> ProcessPoolExecutor:
-        return worker_pool(jobs, threads)
-
-    results: list[TaskResult | None] = [None] * len(tasks)
-    pending: dict[Future, int] = {}
-    nxt = finished = 0
-    pool = new_pool()
-    try:
-        while nxt < len(tasks) or pending:
-            while nxt < len(tasks) and len(pending) < limit:
-                f, n = tasks[nxt]
-                try:
-                    fut = pool.submit(process_raw, f, out, options, name=n, overwrite=overwrite, threads=threads)
-                except BrokenProcessPool:
-                    pool.shutdown(wait=False, cancel_futures=True)
-                    pool = new_pool()
-                    continue
-                pending[fut] = nxt
-                nxt += 1
-            done, _ = wait(list(pending), return_when=FIRST_COMPLETED)
-            for fut in done:
-                idx = pending.pop(fut)
-                try:
-                    results[idx] = fut.result()
-                except Exception as exc:  # the worker process died: report it, keep going
-                    results[idx] = _lost(tasks[idx][0], exc)
-                finished += 1
-                if progress is not None:
-                    progress(finished, len(tasks))
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
-    return results  # type: ignore[return-value]
-
-
-def _run_dask(tasks: list[tuple[Path, str]], out: Path, options: BatchOptions, scheduler: Any,
-              max_in_flight: int | None, overwrite: bool, progress: Progress) -> list[TaskResult]:
-    """The same tasks on a Dask distributed cluster, results streamed back as they finish."""
-    from distributed import Client, as_completed
-
-    own = not isinstance(scheduler, Client)
-    client = Client(scheduler, set_as_default=False) if own else scheduler
-    try:
-        n_workers = max(1, len(client.scheduler_info().get("workers", {})))
-        limit = max_in_flight or 2 * n_workers
-        results: list[TaskResult | None] = [None] * len(tasks)
-        index: dict[str, int] = {}
-        queue = iter(enumerate(tasks))
-        tag = os.urandom(4).hex()
-
-        def submit_next() -> Any:
-            try:
-                i, (f, n) = next(queue)
-            except StopIteration:
-                return None
-            fut = client.submit(process_raw, str(f), str(out), options, name=n, overwrite=overwrite, threads=1,
-                                key=f"plenodecode-batch-{tag}-{i}", pure=False)
-            index[fut.key] = i
-            return fut
-
-        first = [fut for fut in (submit_next() for _ in range(limit)) if fut is not None]
-        finished = 0
-        ac = as_completed(first, loop=client.loop)
-        for fut in ac:
-            i = index.pop(fut.key)
-            try:
-                results[i] = fut.result()
-            except Exception as exc:   # worker lost (KilledWorker) or unpicklable result
-                results[i] = _lost(tasks[i][0], exc)
-            fut.release()
-            finished += 1
-            if progress is not None:
-                progress(finished, len(tasks))
-            nxt = submit_next()
-            if nxt is not None:
-                ac.add(nxt)
-        return results  # type: ignore[return-value]
-    finally:
-        if own:
-            client.close()
 
 
 # ------------------------------------------------------------------------------ summary

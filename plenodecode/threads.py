@@ -3,15 +3,19 @@
 Decoding and rendering run in threads (the decoder's bands, numba's parallel kernels, OpenCV's own
 pool, BLAS).  One process may use every core; ``jobs`` worker processes must each use
 ``cores // jobs`` threads, or together they ask for ``jobs`` times the cores and lose time to
-switching and cache thrashing.  :func:`worker_pool` starts such workers (``plenodecode batch --jobs``);
+switching and cache thrashing.  :func:`worker_pool` starts such workers (``plenodecode batch --jobs``),
+forked from a fork server that imported the heavy modules once where the platform has one;
 :func:`limit_threads` caps the pools of the process it runs in (a batch task on a Dask worker).
 """
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
+import multiprocessing.context
 import os
 from concurrent.futures import ProcessPoolExecutor
+from typing import Iterable, Iterator
 
 #: Environment variables that size the BLAS / OpenMP thread pools when those libraries load.
 THREAD_ENV_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
@@ -82,35 +86,87 @@ def limit_threads(threads: int) -> dict[str, int | None]:
     return thread_counts()
 
 
+#: Thread cap of the fork server this process started (:func:`worker_pool`); empty before.  multiprocessing keeps
+#: one fork server per process, started once with the environment of that moment, so this records the state of
+#: that process-wide server, whose BLAS pools were sized by it (it is not a cache: nothing is looked up here).
+_FORK_SERVER_THREADS: list[int] = []
+
+
+def _capped_environment(threads: int) -> dict[str, str]:
+    return {var: str(threads) for var in (*THREAD_ENV_VARS, "NUMBA_NUM_THREADS")}
+
+
+@contextlib.contextmanager
+def _environment(values: dict[str, str]) -> Iterator[None]:
+    """``os.environ`` updated with ``values`` inside the block, restored after it."""
+    saved = {var: os.environ.get(var) for var in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for var, value in saved.items():
+            if value is None:
+                os.environ.pop(var, None)
+            else:
+                os.environ[var] = value
+
+
+def _fork_server_context(threads: int, preload: tuple[str, ...]) -> multiprocessing.context.BaseContext | None:
+    """The 'forkserver' context with the server started now (it imports ``preload`` in the background) with
+    :data:`THREAD_ENV_VARS` = ``threads``; None where the platform has no fork server, or where this process's
+    server was started with another thread cap (its BLAS pools could not be resized)."""
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return None
+    if _FORK_SERVER_THREADS and _FORK_SERVER_THREADS[0] != threads:
+        return None
+    from multiprocessing import forkserver
+
+    context = multiprocessing.get_context("forkserver")
+    if not _FORK_SERVER_THREADS:
+        context.set_forkserver_preload(list(preload))
+        with _environment(_capped_environment(threads)):
+            forkserver.ensure_running()             # returns at once; the server imports ``preload`` meanwhile
+        _FORK_SERVER_THREADS.append(threads)
+    return context
+
+
 class _CappedPool(ProcessPoolExecutor):
-    """A spawn-context process pool whose workers start with :data:`THREAD_ENV_VARS` = ``threads``.
+    """A process pool whose workers start with :data:`THREAD_ENV_VARS` = ``threads`` (see :func:`worker_pool`).
 
     The workers import numpy (and so BLAS) before any initializer runs, so the sizes must be in the
-    environment they are started with: the variables are set in this process only while a worker is
-    being started (workers start on demand, from :meth:`submit`), then restored.
+    environment they are started with: the variables are set in this process only while a worker (or
+    the fork server) is being started (workers start on demand, from :meth:`submit`), then restored.
     """
 
-    def __init__(self, jobs: int, threads: int) -> None:
-        super().__init__(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
-                         initializer=limit_threads, initargs=(threads,))
-        self._thread_env = {var: str(threads) for var in (*THREAD_ENV_VARS, "NUMBA_NUM_THREADS")}
+    def __init__(self, jobs: int, threads: int, context: multiprocessing.context.BaseContext) -> None:
+        super().__init__(max_workers=jobs, mp_context=context, initializer=limit_threads, initargs=(threads,))
+        self._thread_env = _capped_environment(threads)
 
     def submit(self, fn, /, *args, **kwargs):  # type: ignore[override]
-        saved = {var: os.environ.get(var) for var in self._thread_env}
-        os.environ.update(self._thread_env)
-        try:
+        with _environment(self._thread_env):
             return super().submit(fn, *args, **kwargs)
-        finally:
-            for var, value in saved.items():
-                if value is None:
-                    os.environ.pop(var, None)
-                else:
-                    os.environ[var] = value
 
 
-def worker_pool(jobs: int, threads: int) -> ProcessPoolExecutor:
-    """``jobs`` spawned worker processes, each with its numba, OpenCV and BLAS pools capped at ``threads``."""
-    return _CappedPool(jobs, threads)
+def worker_pool(jobs: int, threads: int, *, preload: Iterable[str] = ()) -> ProcessPoolExecutor:
+    """``jobs`` worker processes, each with its numba, OpenCV and BLAS pools capped at ``threads``.
+
+    Where the platform has a fork server (Linux, macOS), the workers are forked from it: the server is
+    started by the first call, in the background, with the capped environment, and imports the modules
+    ``preload`` once; each worker then starts in milliseconds with them loaded, and leaves without tearing
+    an interpreter down.  Elsewhere, or when this process's server was started with another thread cap,
+    the workers are spawned and import what they use themselves.
+
+    Parameters
+    ----------
+    jobs : int
+        Worker processes (started on demand, at most ``jobs``).
+    threads : int
+        Threads per pool in each worker.
+    preload : iterable of str
+        Modules the fork server imports (names; a module that fails to import is skipped by multiprocessing).
+    """
+    context = _fork_server_context(threads, tuple(preload)) or multiprocessing.get_context("spawn")
+    return _CappedPool(jobs, threads, context)
 
 
 __all__ = ["THREAD_ENV_VARS", "thread_counts", "limit_threads", "worker_pool"]
