@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from .._numba import njit
@@ -167,7 +168,97 @@ FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 
 @njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy")
-def _sample(image, rel, labels, centres, first_label, nc_label, offsets, inner, reach, matrix, out, out_w):  # pragma: no cover
+def _known(image, labels, usable, lab, y, x):  # pragma: no cover - numba
+    """Is pixel ``(y, x)`` (inside the image) one of lens ``lab``'s, usable and with a value?"""
+    p0 = image[y, x, 0]
+    return labels[y, x] == lab and usable[y, x] and p0 == p0
+
+
+@njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy")
+def _nearest_known_cell(image, labels, usable, lab, y0, x0, fy, fx):  # pragma: no cover - numba
+    """The 2 x 2 cell of known pixels of lens ``lab`` nearest to the point ``(y0 + fy, x0 + fx)``.
+
+    Candidates are the bilinear cell ``[y0, y0 + 1] x [x0, x0 + 1]`` moved by ``(sy, sx)`` in
+    ``{-1, 0, 1}^2``; the point lies ``fy`` (``sy = -1``), 0 or ``1 - fy`` (``sy = +1``) rows outside
+    the moved cell, likewise for columns, and the cell with the smallest squared distance wins.
+    Returns ``3 * (sy + 1) + (sx + 1)``, or 9 when no candidate has four known pixels.
+    """
+    h, w = labels.shape
+    best = 9
+    best_d = np.float32(3.0)
+    for cell in range(9):
+        sy = cell // 3 - 1
+        sx = cell % 3 - 1
+        ey = fy if sy < 0 else (np.float32(1.0) - fy if sy > 0 else np.float32(0.0))
+        ex = fx if sx < 0 else (np.float32(1.0) - fx if sx > 0 else np.float32(0.0))
+        d = ey * ey + ex * ex
+        ya = y0 + sy
+        xa = x0 + sx
+        if d >= best_d or ya < 0 or ya + 1 >= h or xa < 0 or xa + 1 >= w:
+            continue
+        if (_known(image, labels, usable, lab, ya, xa) and _known(image, labels, usable, lab, ya, xa + 1)
+                and _known(image, labels, usable, lab, ya + 1, xa)
+                and _known(image, labels, usable, lab, ya + 1, xa + 1)):
+            best = cell
+            best_d = d
+    return best
+
+
+@njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy")
+def _plane_at(image, labels, usable, lab, y0, x0, fy, fx):  # pragma: no cover - numba
+    """Weighted least-squares plane through the known pixels of lens ``lab`` around ``(y0 + fy, x0 + fx)``,
+    evaluated there (for a point with no full cell of known pixels nearby, :func:`_nearest_known_cell`).
+
+    Window ``[y0 - 2, y0 + 3] x [x0 - 2, x0 + 3]`` (6 x 6: it reaches the known pixels of a point up to
+    two pixels outside them), weights ``(3.5 - |dy|) (3.5 - |dx|)`` with ``(dy, dx)``
+    the pixel's offset from the point; minimises ``sum w (f - c0 - c1 dy - c2 dx)^2`` and returns ``c0``:
+    the equivalent stencil has unit sum and its centroid at the point, so a linear radiance is exact.
+    Returns ``(ok, c0 of channels 0, 1, 2)``; ok is False with fewer than three non-collinear known pixels.
+    """
+    h, w = labels.shape
+    nch = image.shape[2]
+    s00 = s01 = s02 = s11 = s12 = s22 = 0.0
+    r0 = r1 = r2 = g0 = g1 = g2 = b0 = b1 = b2 = 0.0
+    for yy in range(max(0, y0 - 2), min(h, y0 + 4)):
+        dy = yy - y0 - float(fy)
+        for xx in range(max(0, x0 - 2), min(w, x0 + 4)):
+            if not _known(image, labels, usable, lab, yy, xx):
+                continue
+            dx = xx - x0 - float(fx)
+            wgt = (3.5 - abs(dy)) * (3.5 - abs(dx))
+            s00 += wgt
+            s01 += wgt * dy
+            s02 += wgt * dx
+            s11 += wgt * dy * dy
+            s12 += wgt * dy * dx
+            s22 += wgt * dx * dx
+            f = wgt * image[yy, xx, 0]
+            r0 += f
+            r1 += f * dy
+            r2 += f * dx
+            if nch == 3:
+                f = wgt * image[yy, xx, 1]
+                g0 += f
+                g1 += f * dy
+                g2 += f * dx
+                f = wgt * image[yy, xx, 2]
+                b0 += f
+                b1 += f * dy
+                b2 += f * dx
+    # c0 = first row of the inverse of the (symmetric) normal matrix times the right-hand side, by cofactors
+    c00 = s11 * s22 - s12 * s12
+    c01 = s02 * s12 - s01 * s22
+    c02 = s01 * s12 - s02 * s11
+    det = s00 * c00 + s01 * c01 + s02 * c02
+    if not (s00 > 0.0 and det > 1e-3 * s00 * s00 * s00):
+        return False, 0.0, 0.0, 0.0
+    return (True, (c00 * r0 + c01 * r1 + c02 * r2) / det, (c00 * g0 + c01 * g1 + c02 * g2) / det,
+            (c00 * b0 + c01 * b1 + c02 * b2) / det)
+
+
+@njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy")
+def _sample(image, rel, labels, usable, centres, first_label, nc_label, offsets, inner, reach, matrix, out,
+            out_w):  # pragma: no cover
     h, w, nch = image.shape
     nr, nc = centres.shape[0], centres.shape[1]
     nv, nu = offsets.shape[0], offsets.shape[1]
@@ -175,6 +266,7 @@ def _sample(image, rel, labels, centres, first_label, nc_label, offsets, inner, 
     m10, m11, m12 = matrix[1, 0], matrix[1, 1], matrix[1, 2]
     m20, m21, m22 = matrix[2, 0], matrix[2, 1], matrix[2, 2]
     zero = np.float32(0.0)
+    one = np.float32(1.0)
     for i in range(nr):
         for j in range(nc):
             cy = centres[i, j, 0]
@@ -206,8 +298,8 @@ def _sample(image, rel, labels, centres, first_label, nc_label, offsets, inner, 
                     # near the lens centre and away from the image border every tap is this lens's own
                     fast = interior and inner[v, u]
                     if fast and nch == 3:
-                        gx = np.float32(1.0) - fx
-                        gy = np.float32(1.0) - fy
+                        gx = one - fx
+                        gy = one - fy
                         w00 = gy * gx
                         w01 = gy * fx
                         w10 = fy * gx
@@ -216,7 +308,8 @@ def _sample(image, rel, labels, centres, first_label, nc_label, offsets, inner, 
                         q01 = image[y0, x0 + 1, 0]
                         q10 = image[y0 + 1, x0, 0]
                         q11 = image[y0 + 1, x0 + 1, 0]
-                        if q00 == q00 and q01 == q01 and q10 == q10 and q11 == q11:
+                        if (q00 == q00 and q01 == q01 and q10 == q10 and q11 == q11 and usable[y0, x0]
+                                and usable[y0, x0 + 1] and usable[y0 + 1, x0] and usable[y0 + 1, x0 + 1]):
                             r = w00 * q00 + w01 * q01 + w10 * q10 + w11 * q11
                             g = (w00 * image[y0, x0, 1] + w01 * image[y0, x0 + 1, 1]
                                  + w10 * image[y0 + 1, x0, 1] + w11 * image[y0 + 1, x0 + 1, 1])
@@ -227,19 +320,18 @@ def _sample(image, rel, labels, centres, first_label, nc_label, offsets, inner, 
                             out[v, u, i, j, 0] = m00 * r + m01 * g + m02 * b
                             out[v, u, i, j, 1] = m10 * r + m11 * g + m12 * b
                             out[v, u, i, j, 2] = m20 * r + m21 * g + m22 * b
-                            out_w[v, u, i, j] = min(np.float32(1.0), max(zero, wrel))
+                            out_w[v, u, i, j] = min(one, max(zero, wrel))
                             continue
+                    # the bilinear footprint: the weight is the white's share of it inside this lens
+                    n_known = 0
                     for t in range(4):
                         dy = t >> 1
                         dx = t & 1
                         yy = y0 + dy
                         xx = x0 + dx
-                        if not fast:
-                            if yy < 0 or yy >= h or xx < 0 or xx >= w:
-                                continue
-                            if labels[yy, xx] != lab:
-                                continue
-                        wgt = (fy if dy == 1 else np.float32(1.0) - fy) * (fx if dx == 1 else np.float32(1.0) - fx)
+                        if not fast and (yy < 0 or yy >= h or xx < 0 or xx >= w or labels[yy, xx] != lab):
+                            continue
+                        wgt = (fy if dy == 1 else one - fy) * (fx if dx == 1 else one - fx)
                         wrel += wgt * rel[yy, xx]
                         p0 = image[yy, xx, 0]
                         if p0 != p0:
@@ -249,8 +341,40 @@ def _sample(image, rel, labels, centres, first_label, nc_label, offsets, inner, 
                         if nch == 3:
                             a1 += wgt * image[yy, xx, 1]
                             a2 += wgt * image[yy, xx, 2]
+                        if usable[yy, xx]:
+                            n_known += 1
+                    if wsum > 1e-4 and n_known < 4:
+                        # the footprint is cut by the micro-image's edge: rather than renormalising what
+                        # is left (which moves the sample inwards), extrapolate linearly from known pixels
+                        cell = _nearest_known_cell(image, labels, usable, lab, y0, x0, fy, fx)
+                        if cell < 9:
+                            sy = cell // 3 - 1
+                            sx = cell % 3 - 1
+                            ty = fy - np.float32(sy)
+                            tx = fx - np.float32(sx)
+                            a0 = zero
+                            a1 = zero
+                            a2 = zero
+                            for t in range(4):
+                                dy = t >> 1
+                                dx = t & 1
+                                wgt = (ty if dy == 1 else one - ty) * (tx if dx == 1 else one - tx)
+                                yy = y0 + sy + dy
+                                xx = x0 + sx + dx
+                                a0 += wgt * image[yy, xx, 0]
+                                if nch == 3:
+                                    a1 += wgt * image[yy, xx, 1]
+                                    a2 += wgt * image[yy, xx, 2]
+                            wsum = one
+                        else:
+                            ok, pr, pg, pb = _plane_at(image, labels, usable, lab, y0, x0, fy, fx)
+                            if ok:
+                                a0 = np.float32(pr)
+                                a1 = np.float32(pg)
+                                a2 = np.float32(pb)
+                                wsum = one
                     if wsum > 1e-4:
-                        inv = np.float32(1.0) / wsum
+                        inv = one / wsum
                         if nch == 3:
                             r = a0 * inv
                             g = a1 * inv
@@ -260,7 +384,7 @@ def _sample(image, rel, labels, centres, first_label, nc_label, offsets, inner, 
                             out[v, u, i, j, 2] = m20 * r + m21 * g + m22 * b
                         else:
                             out[v, u, i, j, 0] = a0 * inv
-                        out_w[v, u, i, j] = min(np.float32(1.0), max(zero, wrel))
+                        out_w[v, u, i, j] = min(one, max(zero, wrel))
                     else:
                         for c in range(nch):
                             out[v, u, i, j, c] = zero
@@ -281,9 +405,48 @@ def safe_radius(grid: LensletGrid) -> float:
     return max(0.0, 0.5 * nn - 2.0 * dev)
 
 
+def usable_pixels(labels: np.ndarray, measured: np.ndarray, *, demosaiced: bool,
+                  out: np.ndarray | None = None) -> np.ndarray:
+    """Pixels whose decoded value is centred on the pixel: the ones :func:`sample_lenses` interpolates from.
+
+    A pixel the sensor did not measure (NaN in the mosaic: below the white's floor, or off a lens) is
+    filled by the demosaic from one side, and so is a channel of a pixel whose 3 x 3 neighbourhood
+    (the bilinear demosaic's stencil; Malvar's 5 x 5 falls back to it) is cut by the edge of its
+    micro-image: normalised convolution over what is left moves the estimate inwards (up to a pixel).
+    Such values are left out and the slice extrapolates from the pixels inside instead.
+
+    Parameters
+    ----------
+    labels : ndarray, shape (H, W), int32
+        Lens label of every pixel (:func:`lens_labels`), below 2**24.
+    measured : ndarray, shape (H, W), bool
+        The mosaic has a value there (``~isnan`` of the normalised, devignetted mosaic).
+    demosaiced : bool
+        A colour mosaic (the 3 x 3 neighbourhood must be the pixel's own and measured); False for a
+        monochrome sensor (only the pixel itself must be measured).
+    out : ndarray, shape (H, W), bool, optional
+        Destination.
+
+    Returns
+    -------
+    ndarray, shape (H, W), bool
+    """
+    out = np.empty(labels.shape, np.bool_) if out is None else out
+    if not demosaiced:
+        np.copyto(out, measured)
+        return out
+    box = np.ones((3, 3), np.uint8)
+    lab = labels.astype(np.float32)
+    # one label over the 3 x 3 box: its minimum equals its maximum; measured over the whole box
+    same = cv2.erode(lab, box) == cv2.dilate(lab, box)
+    full = cv2.erode(measured.view(np.uint8), box, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    np.logical_and(same, full.view(np.bool_), out=out)
+    return out
+
+
 def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centres: np.ndarray,
                   offsets: np.ndarray, *, first_label: int = 0, label_cols: int | None = None,
-                  matrix: np.ndarray | None = None, safe_radius: float = 0.0,
+                  matrix: np.ndarray | None = None, safe_radius: float = 0.0, usable: np.ndarray | None = None,
                   out: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Sample every view offset under every lens, from that lens's own pixels only.
 
@@ -305,13 +468,22 @@ def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centre
     safe_radius : float
         Pixels closer than this to a lens centre are known to carry its label (a speed-up;
         :func:`safe_radius`); 0 checks every label.
+    usable : ndarray, shape (H, W), bool, optional
+        Pixels to interpolate from (:func:`usable_pixels`); default every pixel with a value.
     out : (ndarray, ndarray), optional
         Destinations of the samples and weights.
 
     Returns
     -------
     samples : ndarray, shape (V, U, R, K, C), float32
-        Bilinear value at ``centre + offset`` (0 where the lens has no pixel with a value there).
+        Value at ``p = centre + offset``: bilinear from the 2 x 2 pixels around ``p``; where some of
+        them are not this lens's usable pixels, bilinear *extrapolation* from the nearest 2 x 2 cell of
+        usable ones (the cell moved by up to one pixel per axis), else the weighted least-squares plane
+        through the usable pixels of the 6 x 6 window around ``p`` evaluated at ``p``.  Either stencil
+        sums to one and has its centroid at ``p`` (``sum w_q = 1``, ``sum w_q q = p``), so the sample
+        sits where the view says, up to the micro-image's edge; only without three usable pixels
+        around ``p`` the bilinear weights are renormalised over the lens's pixels with a value.
+        0 where the lens has no pixel with a value there.
     weight : ndarray, shape (V, U, R, K), float32
         Bilinear interpolation of ``rel`` over the lens's own pixels, clipped to [0, 1].
     """
@@ -326,9 +498,14 @@ def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centre
     offsets = np.ascontiguousarray(offsets, np.float64)
     inner = np.hypot(offsets[..., 0], offsets[..., 1]) + 1.5 < safe_radius
     reach = float(np.abs(offsets).max()) + 2.0
-    _sample(image, np.ascontiguousarray(rel, np.float32), labels, np.ascontiguousarray(centres, np.float64),
+    if usable is None:
+        usable = ~np.isnan(image[..., 0])
+    elif usable.shape != (h, w) or usable.dtype != np.bool_:
+        raise ValueError(f"usable must be a bool array of shape {(h, w)}, got {usable.dtype} {usable.shape}")
+    _sample(image, np.ascontiguousarray(rel, np.float32), labels, np.ascontiguousarray(usable),
+            np.ascontiguousarray(centres, np.float64),
             int(first_label), int(nc if label_cols is None else label_cols), offsets, inner, reach, m, out, out_w)
     return out, out_w
 
 
-__all__ = ["view_offsets", "plan_bands", "Band", "lens_labels", "sample_lenses", "safe_radius", "CELL_REACH"]
+__all__ = ["view_offsets", "plan_bands", "Band", "lens_labels", "sample_lenses", "safe_radius", "usable_pixels", "CELL_REACH"]
