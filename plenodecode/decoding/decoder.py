@@ -296,7 +296,7 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
                         out=buf("rgb", (*shape, nch), np.float32))
         t = tick("demosaic", t)
         measured = np.isfinite(x, out=buf("measured", shape, np.bool_))
-        usable = usable_pixels(labels, measured, demosaiced=nch == 3, out=buf("usable", shape, np.bool_))
+        usable = usable_pixels(labels, measured, cfa, out=buf("usable", shape, np.uint8))
         own = centres[band.i0:band.i1] - np.array([r0, 0.0])
         nr = band.i1 - band.i0
         samples, sw = sample_lenses(img, rel, labels, own, offsets, first_label=(band.i0 - band.e0) * cols,

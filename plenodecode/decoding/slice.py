@@ -5,11 +5,16 @@ A sub-aperture view ``(v, u)`` takes, from every lens ``k``, the value of the mi
 ``e_col`` the lattice axes, so the view offset is expressed in the lattice frame, one view step =
 one sensor pixel; see the decoded sampling contract in :mod:`plenodecode.types`).
 
-The value is interpolated bilinearly from the pixels of the *same* micro-image only: every pixel
-carries the label of the lens whose Voronoi cell contains it (:func:`lens_labels`) and
-pixels of other lenses, or pixels without a value (NaN), are left out and the remaining bilinear
-weights renormalised (normalised convolution, Knutsson & Westin, CVPR 1993).  So light never
-mixes across lenslet borders.
+The value is interpolated from the pixels of the *same* micro-image only: every pixel carries the
+label of the lens whose Voronoi cell contains it (:func:`lens_labels`), so light never mixes across
+lenslet borders.  Inside the micro-image it is bilinear.  Where the bilinear footprint is cut by the
+micro-image's edge (pixels of another lens, unmeasured pixels, or demosaiced channels whose stencil
+was cut, :func:`usable_pixels`), it is *extrapolated*: the weighted least-squares plane through the
+usable pixels around the sample, whose stencil has its centroid at the sample.  Renormalising the
+bilinear weights over the pixels left (normalised convolution, Knutsson & Westin, CVPR 1993; what
+this module did before) moves the centroid inwards: it pulled the outer views of an F01 decode
+0.2-0.35 view steps towards the centre, which biased a geometric calibration's view terms.  The
+weight of a sample stays the white's share of its bilinear footprint inside the lens.
 
 The sensor is processed in bands of lens rows (:func:`plan_bands`) to bound memory.
 """
@@ -19,11 +24,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from .._numba import njit
-from ..types import LensletGrid
+from ..types import LensletGrid, cfa_channel_map
 
 #: Half-size (in units of the lens pitch) of the box searched around each lens when labelling
 #: pixels: covers the Voronoi cell of a hex (0.577 pitch) and a square (0.707 pitch) lattice.
@@ -168,92 +172,82 @@ FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 
 @njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy")
-def _known(image, labels, usable, lab, y, x):  # pragma: no cover - numba
-    """Is pixel ``(y, x)`` (inside the image) one of lens ``lab``'s, usable and with a value?"""
-    p0 = image[y, x, 0]
-    return labels[y, x] == lab and usable[y, x] and p0 == p0
+def _add_moments(moments, k, wgt, dy, dx):  # pragma: no cover - numba
+    """Add a pixel's terms ``w (1, dy, dx, dy^2, dy dx, dx^2)`` to the normal equations ``moments[k, :6]``."""
+    moments[k, 0] += wgt
+    moments[k, 1] += wgt * dy
+    moments[k, 2] += wgt * dx
+    moments[k, 3] += wgt * dy * dy
+    moments[k, 4] += wgt * dy * dx
+    moments[k, 5] += wgt * dx * dx
 
 
 @njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy")
-def _nearest_known_cell(image, labels, usable, lab, y0, x0, fy, fx):  # pragma: no cover - numba
-    """The 2 x 2 cell of known pixels of lens ``lab`` nearest to the point ``(y0 + fy, x0 + fx)``.
+def _extrapolate(image, labels, usable, lab, need, y0, x0, fy, fx, moments, values):  # pragma: no cover - numba
+    """Channels ``need`` (bit ``c`` = channel ``c``) at ``p = (y0 + fy, x0 + fx)`` from the weighted
+    least-squares plane through the usable values of lens ``lab`` around ``p``: a linear extrapolation.
 
-    Candidates are the bilinear cell ``[y0, y0 + 1] x [x0, x0 + 1]`` moved by ``(sy, sx)`` in
-    ``{-1, 0, 1}^2``; the point lies ``fy`` (``sy = -1``), 0 or ``1 - fy`` (``sy = +1``) rows outside
-    the moved cell, likewise for columns, and the cell with the smallest squared distance wins.
-    Returns ``3 * (sy + 1) + (sx + 1)``, or 9 when no candidate has four known pixels.
-    """
-    h, w = labels.shape
-    best = 9
-    best_d = np.float32(3.0)
-    for cell in range(9):
-        sy = cell // 3 - 1
-        sx = cell % 3 - 1
-        ey = fy if sy < 0 else (np.float32(1.0) - fy if sy > 0 else np.float32(0.0))
-        ex = fx if sx < 0 else (np.float32(1.0) - fx if sx > 0 else np.float32(0.0))
-        d = ey * ey + ex * ex
-        ya = y0 + sy
-        xa = x0 + sx
-        if d >= best_d or ya < 0 or ya + 1 >= h or xa < 0 or xa + 1 >= w:
-            continue
-        if (_known(image, labels, usable, lab, ya, xa) and _known(image, labels, usable, lab, ya, xa + 1)
-                and _known(image, labels, usable, lab, ya + 1, xa)
-                and _known(image, labels, usable, lab, ya + 1, xa + 1)):
-            best = cell
-            best_d = d
-    return best
+    Window ``[y0 - 2, y0 + 3] x [x0 - 2, x0 + 3]``, weights ``w_q = (3 - |dy|)+ (3 - |dx|)+`` with ``(dy, dx)``
+    the pixel's offset from ``p``; for each channel, over the pixels where it is usable
+    (:func:`usable_pixels`), minimises ``sum w_q (f_q - c0 - c1 dy - c2 dx)^2`` and returns ``c0``.
+    The equivalent stencil ``c0 = sum a_q f_q`` has ``sum a_q = 1`` and ``sum a_q (dy, dx) = 0``: its
+    centroid is ``p``, so a linear radiance is exact and the sample is not pulled towards the pixels it
+    has.  The tent is wider than the bilinear footprint (a point up to two pixels outside the usable
+    pixels still has some) and averages more pixels than a 2 x 2 extrapolation would, which keeps the
+    noise of an extrapolated sample near that of an interpolated one.
 
-
-@njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy")
-def _plane_at(image, labels, usable, lab, y0, x0, fy, fx):  # pragma: no cover - numba
-    """Weighted least-squares plane through the known pixels of lens ``lab`` around ``(y0 + fy, x0 + fx)``,
-    evaluated there (for a point with no full cell of known pixels nearby, :func:`_nearest_known_cell`).
-
-    Window ``[y0 - 2, y0 + 3] x [x0 - 2, x0 + 3]`` (6 x 6: it reaches the known pixels of a point up to
-    two pixels outside them), weights ``(3.5 - |dy|) (3.5 - |dx|)`` with ``(dy, dx)``
-    the pixel's offset from the point; minimises ``sum w (f - c0 - c1 dy - c2 dx)^2`` and returns ``c0``:
-    the equivalent stencil has unit sum and its centroid at the point, so a linear radiance is exact.
-    Returns ``(ok, c0 of channels 0, 1, 2)``; ok is False with fewer than three non-collinear known pixels.
+    One pass over the window: the normal equations of pixels usable in every channel are summed once
+    (``moments[3]``), those usable in channel ``c`` only in ``moments[c]``.  Writes ``values[c]`` and
+    returns the bits of the channels solved (a channel with fewer than three non-collinear usable
+    pixels is not).
     """
     h, w = labels.shape
     nch = image.shape[2]
-    s00 = s01 = s02 = s11 = s12 = s22 = 0.0
-    r0 = r1 = r2 = g0 = g1 = g2 = b0 = b1 = b2 = 0.0
+    moments[:, :] = 0.0
     for yy in range(max(0, y0 - 2), min(h, y0 + 4)):
         dy = yy - y0 - float(fy)
+        wy = 3.0 - abs(dy)
+        if wy <= 0.0:
+            continue
         for xx in range(max(0, x0 - 2), min(w, x0 + 4)):
-            if not _known(image, labels, usable, lab, yy, xx):
+            bits = usable[yy, xx] & need
+            if bits == 0 or labels[yy, xx] != lab or image[yy, xx, 0] != image[yy, xx, 0]:
                 continue
             dx = xx - x0 - float(fx)
-            wgt = (3.5 - abs(dy)) * (3.5 - abs(dx))
-            s00 += wgt
-            s01 += wgt * dy
-            s02 += wgt * dx
-            s11 += wgt * dy * dy
-            s12 += wgt * dy * dx
-            s22 += wgt * dx * dx
-            f = wgt * image[yy, xx, 0]
-            r0 += f
-            r1 += f * dy
-            r2 += f * dx
-            if nch == 3:
-                f = wgt * image[yy, xx, 1]
-                g0 += f
-                g1 += f * dy
-                g2 += f * dx
-                f = wgt * image[yy, xx, 2]
-                b0 += f
-                b1 += f * dy
-                b2 += f * dx
-    # c0 = first row of the inverse of the (symmetric) normal matrix times the right-hand side, by cofactors
-    c00 = s11 * s22 - s12 * s12
-    c01 = s02 * s12 - s01 * s22
-    c02 = s01 * s12 - s02 * s11
-    det = s00 * c00 + s01 * c01 + s02 * c02
-    if not (s00 > 0.0 and det > 1e-3 * s00 * s00 * s00):
-        return False, 0.0, 0.0, 0.0
-    return (True, (c00 * r0 + c01 * r1 + c02 * r2) / det, (c00 * g0 + c01 * g1 + c02 * g2) / det,
-            (c00 * b0 + c01 * b1 + c02 * b2) / det)
+            wgt = wy * (3.0 - abs(dx))
+            if wgt <= 0.0:
+                continue
+            shared = bits == need
+            for c in range(nch):
+                if bits & (1 << c) == 0:
+                    continue
+                f = wgt * image[yy, xx, c]
+                moments[c, 6] += f
+                moments[c, 7] += f * dy
+                moments[c, 8] += f * dx
+                if not shared:
+                    _add_moments(moments, c, wgt, dy, dx)
+            if shared:
+                _add_moments(moments, 3, wgt, dy, dx)
+    solved = 0
+    for c in range(nch):
+        if need & (1 << c) == 0:
+            continue
+        s00 = moments[3, 0] + moments[c, 0]
+        s01 = moments[3, 1] + moments[c, 1]
+        s02 = moments[3, 2] + moments[c, 2]
+        s11 = moments[3, 3] + moments[c, 3]
+        s12 = moments[3, 4] + moments[c, 4]
+        s22 = moments[3, 5] + moments[c, 5]
+        # c0 = first row of the inverse of the (symmetric) normal matrix times the right-hand side, by cofactors
+        c00 = s11 * s22 - s12 * s12
+        c01 = s02 * s12 - s01 * s22
+        c02 = s01 * s12 - s02 * s11
+        det = s00 * c00 + s01 * c01 + s02 * c02
+        if s00 > 0.0 and det > 1e-3 * s00 * s00 * s00:
+            values[c] = (c00 * moments[c, 6] + c01 * moments[c, 7] + c02 * moments[c, 8]) / det
+            solved |= 1 << c
+    return solved
 
 
 @njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy")
@@ -267,6 +261,10 @@ def _sample(image, rel, labels, usable, centres, first_label, nc_label, offsets,
     m20, m21, m22 = matrix[2, 0], matrix[2, 1], matrix[2, 2]
     zero = np.float32(0.0)
     one = np.float32(1.0)
+    every = (1 << nch) - 1
+    acc = np.empty(3, np.float32)
+    moments = np.empty((4, 9))
+    values = np.empty(3)
     for i in range(nr):
         for j in range(nc):
             cy = centres[i, j, 0]
@@ -290,105 +288,74 @@ def _sample(image, rel, labels, usable, centres, first_label, nc_label, offsets,
                     x0 = int(fx0)
                     fy = np.float32(py - fy0)
                     fx = np.float32(px - fx0)
-                    a0 = zero
-                    a1 = zero
-                    a2 = zero
                     wsum = zero
                     wrel = zero
                     # near the lens centre and away from the image border every tap is this lens's own
                     fast = interior and inner[v, u]
-                    if fast and nch == 3:
+                    if (fast and nch == 3 and usable[y0, x0] == every and usable[y0, x0 + 1] == every
+                            and usable[y0 + 1, x0] == every and usable[y0 + 1, x0 + 1] == every):
                         gx = one - fx
                         gy = one - fy
                         w00 = gy * gx
                         w01 = gy * fx
                         w10 = fy * gx
                         w11 = fy * fx
-                        q00 = image[y0, x0, 0]
-                        q01 = image[y0, x0 + 1, 0]
-                        q10 = image[y0 + 1, x0, 0]
-                        q11 = image[y0 + 1, x0 + 1, 0]
-                        if (q00 == q00 and q01 == q01 and q10 == q10 and q11 == q11 and usable[y0, x0]
-                                and usable[y0, x0 + 1] and usable[y0 + 1, x0] and usable[y0 + 1, x0 + 1]):
-                            r = w00 * q00 + w01 * q01 + w10 * q10 + w11 * q11
-                            g = (w00 * image[y0, x0, 1] + w01 * image[y0, x0 + 1, 1]
-                                 + w10 * image[y0 + 1, x0, 1] + w11 * image[y0 + 1, x0 + 1, 1])
-                            b = (w00 * image[y0, x0, 2] + w01 * image[y0, x0 + 1, 2]
-                                 + w10 * image[y0 + 1, x0, 2] + w11 * image[y0 + 1, x0 + 1, 2])
-                            wrel = (w00 * rel[y0, x0] + w01 * rel[y0, x0 + 1]
-                                    + w10 * rel[y0 + 1, x0] + w11 * rel[y0 + 1, x0 + 1])
-                            out[v, u, i, j, 0] = m00 * r + m01 * g + m02 * b
-                            out[v, u, i, j, 1] = m10 * r + m11 * g + m12 * b
-                            out[v, u, i, j, 2] = m20 * r + m21 * g + m22 * b
-                            out_w[v, u, i, j] = min(one, max(zero, wrel))
-                            continue
+                        r = (w00 * image[y0, x0, 0] + w01 * image[y0, x0 + 1, 0]
+                             + w10 * image[y0 + 1, x0, 0] + w11 * image[y0 + 1, x0 + 1, 0])
+                        g = (w00 * image[y0, x0, 1] + w01 * image[y0, x0 + 1, 1]
+                             + w10 * image[y0 + 1, x0, 1] + w11 * image[y0 + 1, x0 + 1, 1])
+                        b = (w00 * image[y0, x0, 2] + w01 * image[y0, x0 + 1, 2]
+                             + w10 * image[y0 + 1, x0, 2] + w11 * image[y0 + 1, x0 + 1, 2])
+                        wrel = (w00 * rel[y0, x0] + w01 * rel[y0, x0 + 1]
+                                + w10 * rel[y0 + 1, x0] + w11 * rel[y0 + 1, x0 + 1])
+                        out[v, u, i, j, 0] = m00 * r + m01 * g + m02 * b
+                        out[v, u, i, j, 1] = m10 * r + m11 * g + m12 * b
+                        out[v, u, i, j, 2] = m20 * r + m21 * g + m22 * b
+                        out_w[v, u, i, j] = min(one, max(zero, wrel))
+                        continue
                     # the bilinear footprint: the weight is the white's share of it inside this lens
-                    n_known = 0
+                    for c in range(nch):
+                        acc[c] = zero
+                    cut = 0                       # channels with a footprint pixel not usable
                     for t in range(4):
                         dy = t >> 1
                         dx = t & 1
                         yy = y0 + dy
                         xx = x0 + dx
                         if not fast and (yy < 0 or yy >= h or xx < 0 or xx >= w or labels[yy, xx] != lab):
+                            cut = every
                             continue
                         wgt = (fy if dy == 1 else one - fy) * (fx if dx == 1 else one - fx)
                         wrel += wgt * rel[yy, xx]
-                        p0 = image[yy, xx, 0]
-                        if p0 != p0:
+                        if image[yy, xx, 0] != image[yy, xx, 0]:
+                            cut = every
                             continue
                         wsum += wgt
-                        a0 += wgt * p0
-                        if nch == 3:
-                            a1 += wgt * image[yy, xx, 1]
-                            a2 += wgt * image[yy, xx, 2]
-                        if usable[yy, xx]:
-                            n_known += 1
-                    if wsum > 1e-4 and n_known < 4:
-                        # the footprint is cut by the micro-image's edge: rather than renormalising what
-                        # is left (which moves the sample inwards), extrapolate linearly from known pixels
-                        cell = _nearest_known_cell(image, labels, usable, lab, y0, x0, fy, fx)
-                        if cell < 9:
-                            sy = cell // 3 - 1
-                            sx = cell % 3 - 1
-                            ty = fy - np.float32(sy)
-                            tx = fx - np.float32(sx)
-                            a0 = zero
-                            a1 = zero
-                            a2 = zero
-                            for t in range(4):
-                                dy = t >> 1
-                                dx = t & 1
-                                wgt = (ty if dy == 1 else one - ty) * (tx if dx == 1 else one - tx)
-                                yy = y0 + sy + dy
-                                xx = x0 + sx + dx
-                                a0 += wgt * image[yy, xx, 0]
-                                if nch == 3:
-                                    a1 += wgt * image[yy, xx, 1]
-                                    a2 += wgt * image[yy, xx, 2]
-                            wsum = one
-                        else:
-                            ok, pr, pg, pb = _plane_at(image, labels, usable, lab, y0, x0, fy, fx)
-                            if ok:
-                                a0 = np.float32(pr)
-                                a1 = np.float32(pg)
-                                a2 = np.float32(pb)
-                                wsum = one
-                    if wsum > 1e-4:
-                        inv = one / wsum
-                        if nch == 3:
-                            r = a0 * inv
-                            g = a1 * inv
-                            b = a2 * inv
-                            out[v, u, i, j, 0] = m00 * r + m01 * g + m02 * b
-                            out[v, u, i, j, 1] = m10 * r + m11 * g + m12 * b
-                            out[v, u, i, j, 2] = m20 * r + m21 * g + m22 * b
-                        else:
-                            out[v, u, i, j, 0] = a0 * inv
-                        out_w[v, u, i, j] = min(one, max(zero, wrel))
-                    else:
+                        for c in range(nch):
+                            acc[c] += wgt * image[yy, xx, c]
+                        cut |= every & ~usable[yy, xx]
+                    if wsum <= 1e-4:
                         for c in range(nch):
                             out[v, u, i, j, c] = zero
                         out_w[v, u, i, j] = zero
+                        continue
+                    inv = one / wsum
+                    for c in range(nch):
+                        acc[c] *= inv
+                    if cut != 0:
+                        # the footprint is cut by the micro-image's edge: rather than renormalising what
+                        # is left (which moves the sample inwards), extrapolate from the usable values
+                        solved = _extrapolate(image, labels, usable, lab, cut, y0, x0, fy, fx, moments, values)
+                        for c in range(nch):
+                            if solved & (1 << c):
+                                acc[c] = np.float32(values[c])
+                    if nch == 3:
+                        out[v, u, i, j, 0] = m00 * acc[0] + m01 * acc[1] + m02 * acc[2]
+                        out[v, u, i, j, 1] = m10 * acc[0] + m11 * acc[1] + m12 * acc[2]
+                        out[v, u, i, j, 2] = m20 * acc[0] + m21 * acc[1] + m22 * acc[2]
+                    else:
+                        out[v, u, i, j, 0] = acc[0]
+                    out_w[v, u, i, j] = min(one, max(zero, wrel))
 
 
 def safe_radius(grid: LensletGrid) -> float:
@@ -405,42 +372,60 @@ def safe_radius(grid: LensletGrid) -> float:
     return max(0.0, 0.5 * nn - 2.0 * dev)
 
 
-def usable_pixels(labels: np.ndarray, measured: np.ndarray, *, demosaiced: bool,
-                  out: np.ndarray | None = None) -> np.ndarray:
-    """Pixels whose decoded value is centred on the pixel: the ones :func:`sample_lenses` interpolates from.
+@njit(cache=True, nogil=True)
+def _usable_kernel(labels, measured, cmap, out):  # pragma: no cover - numba
+    h, w = labels.shape
+    for y in range(h):
+        for x in range(w):
+            lab = labels[y, x]
+            if lab < 0 or not measured[y, x]:
+                out[y, x] = 0
+                continue
+            bad = 0
+            for dy in range(-1, 2):
+                yy = y + dy
+                for dx in range(-1, 2):
+                    xx = x + dx
+                    if yy < 0 or yy >= h or xx < 0 or xx >= w or labels[yy, xx] != lab or not measured[yy, xx]:
+                        bad |= 1 << cmap[yy & 1, xx & 1]
+            native = 1 << cmap[y & 1, x & 1]
+            out[y, x] = (7 & ~bad) | native
 
-    A pixel the sensor did not measure (NaN in the mosaic: below the white's floor, or off a lens) is
-    filled by the demosaic from one side, and so is a channel of a pixel whose 3 x 3 neighbourhood
-    (the bilinear demosaic's stencil; Malvar's 5 x 5 falls back to it) is cut by the edge of its
-    micro-image: normalised convolution over what is left moves the estimate inwards (up to a pixel).
-    Such values are left out and the slice extrapolates from the pixels inside instead.
+
+def usable_pixels(labels: np.ndarray, measured: np.ndarray, cfa: str | None, *,
+                  out: np.ndarray | None = None) -> np.ndarray:
+    """Which channels of each demosaiced pixel are centred on it: the values :func:`sample_lenses` uses.
+
+    A pixel's own CFA channel is measured.  Another channel ``c`` is interpolated from the ``c`` sites of
+    its 3 x 3 neighbourhood (the bilinear demosaic; Malvar's correction needs the whole 5 x 5 and falls
+    back to it elsewhere); where one of those sites is another lens's or not measured, normalised
+    convolution over the rest moves the estimate towards the lens centre, up to a pixel, so channel
+    ``c`` is not usable there.  A pixel the sensor did not measure (NaN in the mosaic) has no usable
+    channel.  The slice extrapolates from usable values instead.
 
     Parameters
     ----------
     labels : ndarray, shape (H, W), int32
-        Lens label of every pixel (:func:`lens_labels`), below 2**24.
+        Lens label of every pixel (:func:`lens_labels`).
     measured : ndarray, shape (H, W), bool
         The mosaic has a value there (``~isnan`` of the normalised, devignetted mosaic).
-    demosaiced : bool
-        A colour mosaic (the 3 x 3 neighbourhood must be the pixel's own and measured); False for a
-        monochrome sensor (only the pixel itself must be measured).
-    out : ndarray, shape (H, W), bool, optional
+    cfa : str or None
+        The mosaic's CFA (phase of its first row and column); None: monochrome (a measured pixel is usable).
+    out : ndarray, shape (H, W), uint8, optional
         Destination.
 
     Returns
     -------
-    ndarray, shape (H, W), bool
+    ndarray, shape (H, W), uint8
+        Bit ``c`` set where channel ``c`` is usable (1 for a measured monochrome pixel; 7 for a pixel
+        whose 3 x 3 neighbourhood is all its lens's and measured).
     """
-    out = np.empty(labels.shape, np.bool_) if out is None else out
-    if not demosaiced:
-        np.copyto(out, measured)
+    out = np.empty(labels.shape, np.uint8) if out is None else out
+    if cfa is None:
+        np.copyto(out, measured.view(np.uint8))
         return out
-    box = np.ones((3, 3), np.uint8)
-    lab = labels.astype(np.float32)
-    # one label over the 3 x 3 box: its minimum equals its maximum; measured over the whole box
-    same = cv2.erode(lab, box) == cv2.dilate(lab, box)
-    full = cv2.erode(measured.view(np.uint8), box, borderType=cv2.BORDER_CONSTANT, borderValue=0)
-    np.logical_and(same, full.view(np.bool_), out=out)
+    _usable_kernel(np.ascontiguousarray(labels, np.int32), np.ascontiguousarray(measured, np.bool_),
+                   cfa_channel_map(cfa).astype(np.int64), out)
     return out
 
 
@@ -468,21 +453,21 @@ def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centre
     safe_radius : float
         Pixels closer than this to a lens centre are known to carry its label (a speed-up;
         :func:`safe_radius`); 0 checks every label.
-    usable : ndarray, shape (H, W), bool, optional
-        Pixels to interpolate from (:func:`usable_pixels`); default every pixel with a value.
+    usable : ndarray, shape (H, W), uint8, optional
+        Channels (bit ``c``) of each pixel to interpolate from (:func:`usable_pixels`); default every
+        channel of every pixel with a value.
     out : (ndarray, ndarray), optional
         Destinations of the samples and weights.
 
     Returns
     -------
     samples : ndarray, shape (V, U, R, K, C), float32
-        Value at ``p = centre + offset``: bilinear from the 2 x 2 pixels around ``p``; where some of
-        them are not this lens's usable pixels, bilinear *extrapolation* from the nearest 2 x 2 cell of
-        usable ones (the cell moved by up to one pixel per axis), else the weighted least-squares plane
-        through the usable pixels of the 6 x 6 window around ``p`` evaluated at ``p``.  Either stencil
-        sums to one and has its centroid at ``p`` (``sum w_q = 1``, ``sum w_q q = p``), so the sample
-        sits where the view says, up to the micro-image's edge; only without three usable pixels
-        around ``p`` the bilinear weights are renormalised over the lens's pixels with a value.
+        Value at ``p = centre + offset``: bilinear from the 2 x 2 pixels around ``p`` when all of them
+        are this lens's and usable; otherwise (``p`` near the micro-image's edge), per channel, the
+        weighted least-squares plane through the lens's usable values around ``p``, evaluated at ``p``
+        (:func:`_plane_at`).  Both stencils sum to one and have their centroid at ``p``, so the sample
+        sits where the view says up to the edge; only with fewer than three usable values around ``p``
+        the bilinear weights are renormalised over the lens's pixels with a value.
         0 where the lens has no pixel with a value there.
     weight : ndarray, shape (V, U, R, K), float32
         Bilinear interpolation of ``rel`` over the lens's own pixels, clipped to [0, 1].
@@ -499,9 +484,9 @@ def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centre
     inner = np.hypot(offsets[..., 0], offsets[..., 1]) + 1.5 < safe_radius
     reach = float(np.abs(offsets).max()) + 2.0
     if usable is None:
-        usable = ~np.isnan(image[..., 0])
-    elif usable.shape != (h, w) or usable.dtype != np.bool_:
-        raise ValueError(f"usable must be a bool array of shape {(h, w)}, got {usable.dtype} {usable.shape}")
+        usable = np.where(np.isnan(image[..., 0]), 0, (1 << nch) - 1).astype(np.uint8)
+    elif usable.shape != (h, w) or usable.dtype != np.uint8:
+        raise ValueError(f"usable must be a uint8 array of shape {(h, w)}, got {usable.dtype} {usable.shape}")
     _sample(image, np.ascontiguousarray(rel, np.float32), labels, np.ascontiguousarray(usable),
             np.ascontiguousarray(centres, np.float64),
             int(first_label), int(nc if label_cols is None else label_cols), offsets, inner, reach, m, out, out_w)
