@@ -26,7 +26,7 @@ from .demosaic import demosaic as _demosaic
 from .devignette import DEFAULT_FLOOR, normalise, relative_white, repair_hot_pixels
 from .rectify import rectify
 from .resample import RESAMPLE_METHODS, hex_to_rect, output_shape
-from .slice import lens_labels, plan_bands, safe_radius, sample_lenses, view_offsets
+from .slice import lens_labels, plan_bands, safe_radius, sample_lenses, usable_pixels, view_offsets
 
 log = logging.getLogger(__name__)
 
@@ -295,10 +295,12 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
         img = _demosaic(x, cfa, method=demosaic, labels=labels, interior=interior,
                         out=buf("rgb", (*shape, nch), np.float32))
         t = tick("demosaic", t)
+        measured = np.isfinite(x, out=buf("measured", shape, np.bool_))
+        usable = usable_pixels(labels, measured, cfa, out=buf("usable", shape, np.uint8))
         own = centres[band.i0:band.i1] - np.array([r0, 0.0])
         nr = band.i1 - band.i0
         samples, sw = sample_lenses(img, rel, labels, own, offsets, first_label=(band.i0 - band.e0) * cols,
-                                    label_cols=cols, matrix=matrix, safe_radius=inner_r,
+                                    label_cols=cols, matrix=matrix, safe_radius=inner_r, usable=usable,
                                     out=(buf("samples", (nv, nv, nr, cols, nch), np.float32),
                                          buf("sample_w", (nv, nv, nr, cols), np.float32)))
         t = tick("slice", t)

@@ -5,11 +5,16 @@ A sub-aperture view ``(v, u)`` takes, from every lens ``k``, the value of the mi
 ``e_col`` the lattice axes, so the view offset is expressed in the lattice frame, one view step =
 one sensor pixel; see the decoded sampling contract in :mod:`plenodecode.types`).
 
-The value is interpolated bilinearly from the pixels of the *same* micro-image only: every pixel
-carries the label of the lens whose Voronoi cell contains it (:func:`lens_labels`) and
-pixels of other lenses, or pixels without a value (NaN), are left out and the remaining bilinear
-weights renormalised (normalised convolution, Knutsson & Westin, CVPR 1993).  So light never
-mixes across lenslet borders.
+The value is interpolated from the pixels of the *same* micro-image only: every pixel carries the
+label of the lens whose Voronoi cell contains it (:func:`lens_labels`), so light never mixes across
+lenslet borders.  Inside the micro-image it is bilinear.  Where the bilinear footprint is cut by the
+micro-image's edge (pixels of another lens, unmeasured pixels, or demosaiced channels whose stencil
+was cut, :func:`usable_pixels`), it is *extrapolated*: the weighted least-squares plane through the
+usable pixels around the sample, whose stencil has its centroid at the sample.  Renormalising the
+bilinear weights over the pixels left (normalised convolution, Knutsson & Westin, CVPR 1993; what
+this module did before) moves the centroid inwards: it pulled the outer views of an F01 decode
+0.2-0.35 view steps towards the centre, which biased a geometric calibration's view terms.  The
+weight of a sample stays the white's share of its bilinear footprint inside the lens.
 
 The sensor is processed in bands of lens rows (:func:`plan_bands`) to bound memory.
 """
@@ -22,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._numba import njit
-from ..types import LensletGrid
+from ..types import LensletGrid, cfa_channel_map
 
 #: Half-size (in units of the lens pitch) of the box searched around each lens when labelling
 #: pixels: covers the Voronoi cell of a hex (0.577 pitch) and a square (0.707 pitch) lattice.
@@ -167,7 +172,87 @@ FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 
 @njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy")
-def _sample(image, rel, labels, centres, first_label, nc_label, offsets, inner, reach, matrix, out, out_w):  # pragma: no cover
+def _add_moments(moments, k, wgt, dy, dx):  # pragma: no cover - numba
+    """Add a pixel's terms ``w (1, dy, dx, dy^2, dy dx, dx^2)`` to the normal equations ``moments[k, :6]``."""
+    moments[k, 0] += wgt
+    moments[k, 1] += wgt * dy
+    moments[k, 2] += wgt * dx
+    moments[k, 3] += wgt * dy * dy
+    moments[k, 4] += wgt * dy * dx
+    moments[k, 5] += wgt * dx * dx
+
+
+@njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy")
+def _extrapolate(image, labels, usable, lab, need, y0, x0, fy, fx, moments, values):  # pragma: no cover - numba
+    """Channels ``need`` (bit ``c`` = channel ``c``) at ``p = (y0 + fy, x0 + fx)`` from the weighted
+    least-squares plane through the usable values of lens ``lab`` around ``p``: a linear extrapolation.
+
+    Window ``[y0 - 2, y0 + 3] x [x0 - 2, x0 + 3]``, weights ``w_q = (3 - |dy|)+ (3 - |dx|)+`` with ``(dy, dx)``
+    the pixel's offset from ``p``; for each channel, over the pixels where it is usable
+    (:func:`usable_pixels`), minimises ``sum w_q (f_q - c0 - c1 dy - c2 dx)^2`` and returns ``c0``.
+    The equivalent stencil ``c0 = sum a_q f_q`` has ``sum a_q = 1`` and ``sum a_q (dy, dx) = 0``: its
+    centroid is ``p``, so a linear radiance is exact and the sample is not pulled towards the pixels it
+    has.  The tent is wider than the bilinear footprint (a point up to two pixels outside the usable
+    pixels still has some) and averages more pixels than a 2 x 2 extrapolation would, which keeps the
+    noise of an extrapolated sample near that of an interpolated one.
+
+    One pass over the window: the normal equations of pixels usable in every channel are summed once
+    (``moments[3]``), those usable in channel ``c`` only in ``moments[c]``.  Writes ``values[c]`` and
+    returns the bits of the channels solved (a channel with fewer than three non-collinear usable
+    pixels is not).
+    """
+    h, w = labels.shape
+    nch = image.shape[2]
+    moments[:, :] = 0.0
+    for yy in range(max(0, y0 - 2), min(h, y0 + 4)):
+        dy = yy - y0 - float(fy)
+        wy = 3.0 - abs(dy)
+        if wy <= 0.0:
+            continue
+        for xx in range(max(0, x0 - 2), min(w, x0 + 4)):
+            bits = usable[yy, xx] & need
+            if bits == 0 or labels[yy, xx] != lab or image[yy, xx, 0] != image[yy, xx, 0]:
+                continue
+            dx = xx - x0 - float(fx)
+            wgt = wy * (3.0 - abs(dx))
+            if wgt <= 0.0:
+                continue
+            shared = bits == need
+            for c in range(nch):
+                if bits & (1 << c) == 0:
+                    continue
+                f = wgt * image[yy, xx, c]
+                moments[c, 6] += f
+                moments[c, 7] += f * dy
+                moments[c, 8] += f * dx
+                if not shared:
+                    _add_moments(moments, c, wgt, dy, dx)
+            if shared:
+                _add_moments(moments, 3, wgt, dy, dx)
+    solved = 0
+    for c in range(nch):
+        if need & (1 << c) == 0:
+            continue
+        s00 = moments[3, 0] + moments[c, 0]
+        s01 = moments[3, 1] + moments[c, 1]
+        s02 = moments[3, 2] + moments[c, 2]
+        s11 = moments[3, 3] + moments[c, 3]
+        s12 = moments[3, 4] + moments[c, 4]
+        s22 = moments[3, 5] + moments[c, 5]
+        # c0 = first row of the inverse of the (symmetric) normal matrix times the right-hand side, by cofactors
+        c00 = s11 * s22 - s12 * s12
+        c01 = s02 * s12 - s01 * s22
+        c02 = s01 * s12 - s02 * s11
+        det = s00 * c00 + s01 * c01 + s02 * c02
+        if s00 > 0.0 and det > 1e-3 * s00 * s00 * s00:
+            values[c] = (c00 * moments[c, 6] + c01 * moments[c, 7] + c02 * moments[c, 8]) / det
+            solved |= 1 << c
+    return solved
+
+
+@njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy")
+def _sample(image, rel, labels, usable, centres, first_label, nc_label, offsets, inner, reach, matrix, out,
+            out_w):  # pragma: no cover
     h, w, nch = image.shape
     nr, nc = centres.shape[0], centres.shape[1]
     nv, nu = offsets.shape[0], offsets.shape[1]
@@ -175,6 +260,11 @@ def _sample(image, rel, labels, centres, first_label, nc_label, offsets, inner, 
     m10, m11, m12 = matrix[1, 0], matrix[1, 1], matrix[1, 2]
     m20, m21, m22 = matrix[2, 0], matrix[2, 1], matrix[2, 2]
     zero = np.float32(0.0)
+    one = np.float32(1.0)
+    every = (1 << nch) - 1
+    acc = np.empty(3, np.float32)
+    moments = np.empty((4, 9))
+    values = np.empty(3)
     for i in range(nr):
         for j in range(nc):
             cy = centres[i, j, 0]
@@ -198,73 +288,74 @@ def _sample(image, rel, labels, centres, first_label, nc_label, offsets, inner, 
                     x0 = int(fx0)
                     fy = np.float32(py - fy0)
                     fx = np.float32(px - fx0)
-                    a0 = zero
-                    a1 = zero
-                    a2 = zero
                     wsum = zero
                     wrel = zero
                     # near the lens centre and away from the image border every tap is this lens's own
                     fast = interior and inner[v, u]
-                    if fast and nch == 3:
-                        gx = np.float32(1.0) - fx
-                        gy = np.float32(1.0) - fy
+                    if (fast and nch == 3 and usable[y0, x0] == every and usable[y0, x0 + 1] == every
+                            and usable[y0 + 1, x0] == every and usable[y0 + 1, x0 + 1] == every):
+                        gx = one - fx
+                        gy = one - fy
                         w00 = gy * gx
                         w01 = gy * fx
                         w10 = fy * gx
                         w11 = fy * fx
-                        q00 = image[y0, x0, 0]
-                        q01 = image[y0, x0 + 1, 0]
-                        q10 = image[y0 + 1, x0, 0]
-                        q11 = image[y0 + 1, x0 + 1, 0]
-                        if q00 == q00 and q01 == q01 and q10 == q10 and q11 == q11:
-                            r = w00 * q00 + w01 * q01 + w10 * q10 + w11 * q11
-                            g = (w00 * image[y0, x0, 1] + w01 * image[y0, x0 + 1, 1]
-                                 + w10 * image[y0 + 1, x0, 1] + w11 * image[y0 + 1, x0 + 1, 1])
-                            b = (w00 * image[y0, x0, 2] + w01 * image[y0, x0 + 1, 2]
-                                 + w10 * image[y0 + 1, x0, 2] + w11 * image[y0 + 1, x0 + 1, 2])
-                            wrel = (w00 * rel[y0, x0] + w01 * rel[y0, x0 + 1]
-                                    + w10 * rel[y0 + 1, x0] + w11 * rel[y0 + 1, x0 + 1])
-                            out[v, u, i, j, 0] = m00 * r + m01 * g + m02 * b
-                            out[v, u, i, j, 1] = m10 * r + m11 * g + m12 * b
-                            out[v, u, i, j, 2] = m20 * r + m21 * g + m22 * b
-                            out_w[v, u, i, j] = min(np.float32(1.0), max(zero, wrel))
-                            continue
+                        r = (w00 * image[y0, x0, 0] + w01 * image[y0, x0 + 1, 0]
+                             + w10 * image[y0 + 1, x0, 0] + w11 * image[y0 + 1, x0 + 1, 0])
+                        g = (w00 * image[y0, x0, 1] + w01 * image[y0, x0 + 1, 1]
+                             + w10 * image[y0 + 1, x0, 1] + w11 * image[y0 + 1, x0 + 1, 1])
+                        b = (w00 * image[y0, x0, 2] + w01 * image[y0, x0 + 1, 2]
+                             + w10 * image[y0 + 1, x0, 2] + w11 * image[y0 + 1, x0 + 1, 2])
+                        wrel = (w00 * rel[y0, x0] + w01 * rel[y0, x0 + 1]
+                                + w10 * rel[y0 + 1, x0] + w11 * rel[y0 + 1, x0 + 1])
+                        out[v, u, i, j, 0] = m00 * r + m01 * g + m02 * b
+                        out[v, u, i, j, 1] = m10 * r + m11 * g + m12 * b
+                        out[v, u, i, j, 2] = m20 * r + m21 * g + m22 * b
+                        out_w[v, u, i, j] = min(one, max(zero, wrel))
+                        continue
+                    # the bilinear footprint: the weight is the white's share of it inside this lens
+                    for c in range(nch):
+                        acc[c] = zero
+                    cut = 0                       # channels with a footprint pixel not usable
                     for t in range(4):
                         dy = t >> 1
                         dx = t & 1
                         yy = y0 + dy
                         xx = x0 + dx
-                        if not fast:
-                            if yy < 0 or yy >= h or xx < 0 or xx >= w:
-                                continue
-                            if labels[yy, xx] != lab:
-                                continue
-                        wgt = (fy if dy == 1 else np.float32(1.0) - fy) * (fx if dx == 1 else np.float32(1.0) - fx)
+                        if not fast and (yy < 0 or yy >= h or xx < 0 or xx >= w or labels[yy, xx] != lab):
+                            cut = every
+                            continue
+                        wgt = (fy if dy == 1 else one - fy) * (fx if dx == 1 else one - fx)
                         wrel += wgt * rel[yy, xx]
-                        p0 = image[yy, xx, 0]
-                        if p0 != p0:
+                        if image[yy, xx, 0] != image[yy, xx, 0]:
+                            cut = every
                             continue
                         wsum += wgt
-                        a0 += wgt * p0
-                        if nch == 3:
-                            a1 += wgt * image[yy, xx, 1]
-                            a2 += wgt * image[yy, xx, 2]
-                    if wsum > 1e-4:
-                        inv = np.float32(1.0) / wsum
-                        if nch == 3:
-                            r = a0 * inv
-                            g = a1 * inv
-                            b = a2 * inv
-                            out[v, u, i, j, 0] = m00 * r + m01 * g + m02 * b
-                            out[v, u, i, j, 1] = m10 * r + m11 * g + m12 * b
-                            out[v, u, i, j, 2] = m20 * r + m21 * g + m22 * b
-                        else:
-                            out[v, u, i, j, 0] = a0 * inv
-                        out_w[v, u, i, j] = min(np.float32(1.0), max(zero, wrel))
-                    else:
+                        for c in range(nch):
+                            acc[c] += wgt * image[yy, xx, c]
+                        cut |= every & ~usable[yy, xx]
+                    if wsum <= 1e-4:
                         for c in range(nch):
                             out[v, u, i, j, c] = zero
                         out_w[v, u, i, j] = zero
+                        continue
+                    inv = one / wsum
+                    for c in range(nch):
+                        acc[c] *= inv
+                    if cut != 0:
+                        # the footprint is cut by the micro-image's edge: rather than renormalising what
+                        # is left (which moves the sample inwards), extrapolate from the usable values
+                        solved = _extrapolate(image, labels, usable, lab, cut, y0, x0, fy, fx, moments, values)
+                        for c in range(nch):
+                            if solved & (1 << c):
+                                acc[c] = np.float32(values[c])
+                    if nch == 3:
+                        out[v, u, i, j, 0] = m00 * acc[0] + m01 * acc[1] + m02 * acc[2]
+                        out[v, u, i, j, 1] = m10 * acc[0] + m11 * acc[1] + m12 * acc[2]
+                        out[v, u, i, j, 2] = m20 * acc[0] + m21 * acc[1] + m22 * acc[2]
+                    else:
+                        out[v, u, i, j, 0] = acc[0]
+                    out_w[v, u, i, j] = min(one, max(zero, wrel))
 
 
 def safe_radius(grid: LensletGrid) -> float:
@@ -281,9 +372,66 @@ def safe_radius(grid: LensletGrid) -> float:
     return max(0.0, 0.5 * nn - 2.0 * dev)
 
 
+@njit(cache=True, nogil=True)
+def _usable_kernel(labels, measured, cmap, out):  # pragma: no cover - numba
+    h, w = labels.shape
+    for y in range(h):
+        for x in range(w):
+            lab = labels[y, x]
+            if lab < 0 or not measured[y, x]:
+                out[y, x] = 0
+                continue
+            bad = 0
+            for dy in range(-1, 2):
+                yy = y + dy
+                for dx in range(-1, 2):
+                    xx = x + dx
+                    if yy < 0 or yy >= h or xx < 0 or xx >= w or labels[yy, xx] != lab or not measured[yy, xx]:
+                        bad |= 1 << cmap[yy & 1, xx & 1]
+            native = 1 << cmap[y & 1, x & 1]
+            out[y, x] = (7 & ~bad) | native
+
+
+def usable_pixels(labels: np.ndarray, measured: np.ndarray, cfa: str | None, *,
+                  out: np.ndarray | None = None) -> np.ndarray:
+    """Which channels of each demosaiced pixel are centred on it: the values :func:`sample_lenses` uses.
+
+    A pixel's own CFA channel is measured.  Another channel ``c`` is interpolated from the ``c`` sites of
+    its 3 x 3 neighbourhood (the bilinear demosaic; Malvar's correction needs the whole 5 x 5 and falls
+    back to it elsewhere); where one of those sites is another lens's or not measured, normalised
+    convolution over the rest moves the estimate towards the lens centre, up to a pixel, so channel
+    ``c`` is not usable there.  A pixel the sensor did not measure (NaN in the mosaic) has no usable
+    channel.  The slice extrapolates from usable values instead.
+
+    Parameters
+    ----------
+    labels : ndarray, shape (H, W), int32
+        Lens label of every pixel (:func:`lens_labels`).
+    measured : ndarray, shape (H, W), bool
+        The mosaic has a value there (``~isnan`` of the normalised, devignetted mosaic).
+    cfa : str or None
+        The mosaic's CFA (phase of its first row and column); None: monochrome (a measured pixel is usable).
+    out : ndarray, shape (H, W), uint8, optional
+        Destination.
+
+    Returns
+    -------
+    ndarray, shape (H, W), uint8
+        Bit ``c`` set where channel ``c`` is usable (1 for a measured monochrome pixel; 7 for a pixel
+        whose 3 x 3 neighbourhood is all its lens's and measured).
+    """
+    out = np.empty(labels.shape, np.uint8) if out is None else out
+    if cfa is None:
+        np.copyto(out, measured.view(np.uint8))
+        return out
+    _usable_kernel(np.ascontiguousarray(labels, np.int32), np.ascontiguousarray(measured, np.bool_),
+                   cfa_channel_map(cfa).astype(np.int64), out)
+    return out
+
+
 def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centres: np.ndarray,
                   offsets: np.ndarray, *, first_label: int = 0, label_cols: int | None = None,
-                  matrix: np.ndarray | None = None, safe_radius: float = 0.0,
+                  matrix: np.ndarray | None = None, safe_radius: float = 0.0, usable: np.ndarray | None = None,
                   out: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Sample every view offset under every lens, from that lens's own pixels only.
 
@@ -305,13 +453,22 @@ def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centre
     safe_radius : float
         Pixels closer than this to a lens centre are known to carry its label (a speed-up;
         :func:`safe_radius`); 0 checks every label.
+    usable : ndarray, shape (H, W), uint8, optional
+        Channels (bit ``c``) of each pixel to interpolate from (:func:`usable_pixels`); default every
+        channel of every pixel with a value.
     out : (ndarray, ndarray), optional
         Destinations of the samples and weights.
 
     Returns
     -------
     samples : ndarray, shape (V, U, R, K, C), float32
-        Bilinear value at ``centre + offset`` (0 where the lens has no pixel with a value there).
+        Value at ``p = centre + offset``: bilinear from the 2 x 2 pixels around ``p`` when all of them
+        are this lens's and usable; otherwise (``p`` near the micro-image's edge), per channel, the
+        weighted least-squares plane through the lens's usable values around ``p``, evaluated at ``p``
+        (:func:`_plane_at`).  Both stencils sum to one and have their centroid at ``p``, so the sample
+        sits where the view says up to the edge; only with fewer than three usable values around ``p``
+        the bilinear weights are renormalised over the lens's pixels with a value.
+        0 where the lens has no pixel with a value there.
     weight : ndarray, shape (V, U, R, K), float32
         Bilinear interpolation of ``rel`` over the lens's own pixels, clipped to [0, 1].
     """
@@ -326,9 +483,14 @@ def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centre
     offsets = np.ascontiguousarray(offsets, np.float64)
     inner = np.hypot(offsets[..., 0], offsets[..., 1]) + 1.5 < safe_radius
     reach = float(np.abs(offsets).max()) + 2.0
-    _sample(image, np.ascontiguousarray(rel, np.float32), labels, np.ascontiguousarray(centres, np.float64),
+    if usable is None:
+        usable = np.where(np.isnan(image[..., 0]), 0, (1 << nch) - 1).astype(np.uint8)
+    elif usable.shape != (h, w) or usable.dtype != np.uint8:
+        raise ValueError(f"usable must be a uint8 array of shape {(h, w)}, got {usable.dtype} {usable.shape}")
+    _sample(image, np.ascontiguousarray(rel, np.float32), labels, np.ascontiguousarray(usable),
+            np.ascontiguousarray(centres, np.float64),
             int(first_label), int(nc if label_cols is None else label_cols), offsets, inner, reach, m, out, out_w)
     return out, out_w
 
 
-__all__ = ["view_offsets", "plan_bands", "Band", "lens_labels", "sample_lenses", "safe_radius", "CELL_REACH"]
+__all__ = ["view_offsets", "plan_bands", "Band", "lens_labels", "sample_lenses", "safe_radius", "usable_pixels", "CELL_REACH"]

@@ -24,13 +24,13 @@ from ...types import LightField
 
 log = logging.getLogger(__name__)
 
-#: Views whose mean weight is below this fraction of the central view's are not searched.  The outer
-#: views of a decoded lenslet image (F01: the ring at 4 view steps, weight 0.48-0.76) sample the edge of the
-#: micro-images, where the slicer's and the demosaic's interpolation lose the taps beyond the disk and
-#: renormalise over the inner ones: their samples come from ~0.2-0.3 view steps nearer the centre than
-#: their index says, so a board with a disparity of 0.75 px per step shows its corners 0.2 px off.  Used in
-#: a calibration they pull ``H00``, ``H20``, ``H11``, ``H31`` 4-5 % low (issue 22; views at >= 0.85 are
-#: within 0.04 px of the truth).
+#: Views whose mean weight is below this fraction of the central view's are not searched.  The outer views
+#: of a decoded lenslet image (F01: the ring at 4 view steps, weight 0.48-0.76) sample the edge of the
+#: micro-images.  The slicer used to renormalise there and moved them ~0.2-0.3 view steps inwards (H00, H20,
+#: H11, H31 4-5 % low); it now extrapolates and a ramp shows them in place (tests/decoding/test_slice.py),
+#: but their corners stay 1.5-2x noisier and a one-sided stencil still moves a sharp edge a little: on
+#: 8 / 16 generated F01 captures (bilinear demosaic), views >= 0.5 give max |H error| 1.50 / 1.12 %, >= 0.85 1.06 / 0.30 %
+#: (bench/bench_geometry.py), so the outer ring stays out.
 MIN_VIEW_WEIGHT = 0.85
 #: A view whose corners, mapped onto the capture's median corners by the best affine map, miss them by more
 #: than this (px) is dropped as a misdetection (the views of a plane differ by a near-affine parallax).
