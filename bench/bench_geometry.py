@@ -7,7 +7,11 @@ distortion: the truth has none) three ways, then a set of 8 the default way:
 
 * ``malvar, views >= 0.5``: the decoder's default demosaic (malvar) and every view of weight >= 0.5 of the centre's;
 * ``malvar, views >= 0.85``: the outer ring of views left out (:data:`~plenodecode.calib.geometry.corners.MIN_VIEW_WEIGHT`);
-* ``bilinear, views >= 0.85``: what ``calibrate_geometry`` does (:data:`~plenodecode.calib.geometry.captures.CAPTURE_DEMOSAIC`).
+* ``bilinear, views >= 0.85``: what ``calibrate_geometry`` does (:data:`~plenodecode.calib.geometry.captures.CAPTURE_DEMOSAIC`);
+* the same with the decoder's default slicing at the micro-image edges ('renormalise', not
+  :data:`~plenodecode.calib.geometry.captures.CAPTURE_VIEW_EDGES`).
+
+Every other run slices with ``view_edges='extrapolate'``.
 
 Measured (2 shared cores under load, Nov 2026), max |relative error| of H00 H20 H22 H11 H31 H33, with the slicer
 that renormalised cut footprints -> with the one that extrapolates them (:mod:`plenodecode.decoding.slice`,
@@ -33,22 +37,25 @@ ENTRIES = ((0, 0), (2, 0), (2, 2), (1, 1), (3, 1), (3, 3))
 
 def run() -> list[Figure]:
     from plenodecode.calib import calibrate
-    from plenodecode.calib.geometry.captures import CAPTURE_DEMOSAIC, run_geometric_calibration
+    from plenodecode.calib.geometry.captures import CAPTURE_DEMOSAIC, CAPTURE_VIEW_EDGES, run_geometric_calibration
     from plenodecode.calib.geometry.corners import MIN_VIEW_WEIGHT
     from plenodecode.calib.geometry.gauge import to_solver_gauge
     from plenodecode.decoding import decode
     from plenodecode.synthetic.checkerboard import simulate_checkerboard_set
 
     figures = []
-    for n_captures, runs in ((16, (("malvar, views >= 0.5", "malvar", 0.5), ("malvar, views >= 0.85", "malvar", 0.85),
-                                   (f"{CAPTURE_DEMOSAIC}, views >= {MIN_VIEW_WEIGHT}", CAPTURE_DEMOSAIC, MIN_VIEW_WEIGHT))),
-                             (8, ((f"{CAPTURE_DEMOSAIC}, views >= {MIN_VIEW_WEIGHT}", CAPTURE_DEMOSAIC, MIN_VIEW_WEIGHT),))):
+    default = (f"{CAPTURE_DEMOSAIC}, views >= {MIN_VIEW_WEIGHT}", CAPTURE_DEMOSAIC, MIN_VIEW_WEIGHT, CAPTURE_VIEW_EDGES)
+    for n_captures, runs in ((16, (("malvar, views >= 0.5", "malvar", 0.5, CAPTURE_VIEW_EDGES),
+                                   ("malvar, views >= 0.85", "malvar", 0.85, CAPTURE_VIEW_EDGES),
+                                   (default[0] + ", renormalised edges", *default[1:3], "renormalise"),
+                                   default)),
+                             (8, (default,))):
         cset = simulate_checkerboard_set("f01", BOARD, n_captures, seed=0)
         truth, _ = to_solver_gauge(cset.truth.intrinsics, cset.truth.poses, cset.truth.lf_shape)
         grid = calibrate(cset.white)
-        for label, demosaic, min_weight in runs:
+        for label, demosaic, min_weight, view_edges in runs:
             t0 = time.perf_counter()
-            lfs = (decode(raw, grid, white=cset.white, demosaic=demosaic) for raw in cset.raws)
+            lfs = (decode(raw, grid, white=cset.white, demosaic=demosaic, view_edges=view_edges) for raw in cset.raws)
             cal = run_geometric_calibration(lfs, BOARD, distortion=False, min_weight=min_weight).calibration
             errors = [100.0 * (cal.intrinsics[r, c] / truth[r, c] - 1.0) for r, c in ENTRIES]
             note = " ".join(f"H{r}{c} {e:+.2f}%" for (r, c), e in zip(ENTRIES, errors))

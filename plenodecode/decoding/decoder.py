@@ -26,7 +26,7 @@ from .demosaic import demosaic as _demosaic
 from .devignette import DEFAULT_FLOOR, normalise, relative_white, repair_hot_pixels
 from .rectify import rectify
 from .resample import RESAMPLE_METHODS, hex_to_rect, output_shape
-from .slice import lens_labels, plan_bands, safe_radius, sample_lenses, usable_pixels, view_offsets
+from .slice import VIEW_EDGES, lens_labels, plan_bands, safe_radius, sample_lenses, usable_pixels, view_offsets
 
 log = logging.getLogger(__name__)
 
@@ -120,8 +120,8 @@ def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray
            dark: RawCapture | np.ndarray | None = None, demosaic: str = DEFAULT_DEMOSAIC,
            colour: str = "linear-srgb", n_views: int | None = None, hot_pixels: bool = True,
            resample: str = "cubic", floor: float = DEFAULT_FLOOR, workers: int | None = None,
-           progress: Callable[[int, int], None] | None = None, geometry: GeometricCalibration | None = None
-           ) -> LightField:
+           progress: Callable[[int, int], None] | None = None, geometry: GeometricCalibration | None = None,
+           view_edges: str = "renormalise") -> LightField:
     """Decode a raw lenslet image into a 4D light field.
 
     Parameters
@@ -158,6 +158,11 @@ def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray
         Rectify the decoded light field with this geometric calibration
         (:func:`plenodecode.decoding.rectify.rectify`: undistorted pinhole views, ``geometry.ray_model``
         set); its ``lf_shape`` must be the decoded ``(V, U, Y, X)``.
+    view_edges : {'renormalise', 'extrapolate'}
+        How a view's sample near the micro-image's edge is made (:data:`plenodecode.decoding.slice.VIEW_EDGES`):
+        'renormalise' (default, the fast one) moves the outer views up to a third of a view step inwards;
+        'extrapolate' keeps every view at its nominal offset (geometric calibration uses it), at 2-3x
+        the CPU of the slicing step.
 
     Returns
     -------
@@ -174,7 +179,8 @@ def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray
     """
     return decode_timed(raw, grid, white=white, dark=dark, demosaic=demosaic, colour=colour, n_views=n_views,
                         hot_pixels=hot_pixels, resample=resample, floor=floor, workers=workers,
-                        progress=progress, timings=None, geometry=geometry)
+                        progress=progress, timings=None, geometry=geometry,
+                        view_edges=view_edges)
 
 
 def decode_timed(raw: RawCapture, grid: LensletGrid, *, timings: dict[str, float] | None, **kw) -> LightField:
@@ -188,7 +194,8 @@ def decode_timed(raw: RawCapture, grid: LensletGrid, *, timings: dict[str, float
 
 def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosaic: str = DEFAULT_DEMOSAIC,
             colour: str = "linear-srgb", n_views=None, hot_pixels: bool = True, resample: str = "cubic",
-            floor: float = DEFAULT_FLOOR, workers=None, progress=None, timings=None, geometry=None) -> LightField:
+            floor: float = DEFAULT_FLOOR, workers=None, progress=None, timings=None, geometry=None,
+            view_edges: str = "renormalise") -> LightField:
     t_wall, t_cpu = time.perf_counter(), time.process_time()
     if not isinstance(raw, RawCapture):
         raise ValueError(f"raw must be a RawCapture, got {type(raw).__name__}")
@@ -199,6 +206,7 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
             f"the lenslet grid was fitted on a {grid.sensor_shape[0]}x{grid.sensor_shape[1]} sensor but the raw is "
             f"{raw.shape[0]}x{raw.shape[1]}; pass the grid calibrated from this camera's white images")
     lookup(DEMOSAIC_METHODS, demosaic, param="demosaic")
+    extrapolate = lookup(VIEW_EDGES, view_edges, param="view_edges")
     if colour not in _colour.DECODE_COLOURS:
         raise ValueError(f"colour must be one of {_colour.DECODE_COLOURS}, got {colour!r}")
     lookup(RESAMPLE_METHODS, resample, param="resample")
@@ -295,12 +303,15 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
         img = _demosaic(x, cfa, method=demosaic, labels=labels, interior=interior,
                         out=buf("rgb", (*shape, nch), np.float32))
         t = tick("demosaic", t)
-        measured = np.isfinite(x, out=buf("measured", shape, np.bool_))
-        usable = usable_pixels(labels, measured, cfa, out=buf("usable", shape, np.uint8))
+        usable = None                   # sample_lenses: every channel of a pixel with a value
+        if extrapolate:
+            measured = np.isfinite(x, out=buf("measured", shape, np.bool_))
+            usable = usable_pixels(labels, measured, cfa, out=buf("usable", shape, np.uint8))
         own = centres[band.i0:band.i1] - np.array([r0, 0.0])
         nr = band.i1 - band.i0
         samples, sw = sample_lenses(img, rel, labels, own, offsets, first_label=(band.i0 - band.e0) * cols,
                                     label_cols=cols, matrix=matrix, safe_radius=inner_r, usable=usable,
+                                    view_edges=view_edges,
                                     out=(buf("samples", (nv, nv, nr, cols, nch), np.float32),
                                          buf("sample_w", (nv, nv, nr, cols), np.float32)))
         t = tick("slice", t)
@@ -341,6 +352,7 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
         "colour_matrix": None if matrix is None else np.asarray(matrix).tolist(),
         "demosaic": demosaic if nch == 3 else None,
         "resample": resample,
+        "view_edges": view_edges,
         "devignetted": white_p is not None,
         "dark_subtracted": dark_p is not None,
         "hot_pixels_repaired": int(n_hot),

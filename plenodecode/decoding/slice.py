@@ -9,11 +9,13 @@ The value is interpolated from the pixels of the *same* micro-image only: every 
 label of the lens whose Voronoi cell contains it (:func:`lens_labels`), so light never mixes across
 lenslet borders.  Inside the micro-image it is bilinear.  Where the bilinear footprint is cut by the
 micro-image's edge (pixels of another lens, unmeasured pixels, or demosaiced channels whose stencil
-was cut, :func:`usable_pixels`), it is *extrapolated*: the weighted least-squares plane through the
+was cut, :func:`usable_pixels`), it is, with ``view_edges='extrapolate'`` (:data:`VIEW_EDGES`), *extrapolated*: the weighted least-squares plane through the
 usable pixels around the sample, whose stencil has its centroid at the sample.  Renormalising the
 bilinear weights over the pixels left (normalised convolution, Knutsson & Westin, CVPR 1993; what
 this module did before) moves the centroid inwards: it pulled the outer views of an F01 decode
-0.2-0.35 view steps towards the centre, which biased a geometric calibration's view terms.  The
+0.2-0.35 view steps towards the centre, which biased a geometric calibration's view terms.  It stays the
+default ('renormalise'): extrapolation costs 2-3x the CPU of this step on a full Illum decode, and a
+picture does not need the outer views within a tenth of a step; geometric calibration extrapolates.  The
 weight of a sample stays the white's share of its bilinear footprint inside the lens.
 
 The sensor is processed in bands of lens rows (:func:`plan_bands`) to bound memory.
@@ -27,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._numba import njit
+from ..registry import lookup
 from ..types import LensletGrid, cfa_channel_map
 
 #: Half-size (in units of the lens pitch) of the box searched around each lens when labelling
@@ -251,8 +254,8 @@ def _extrapolate(image, labels, usable, lab, need, y0, x0, fy, fx, moments, valu
 
 
 @njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy")
-def _sample(image, rel, labels, usable, centres, first_label, nc_label, offsets, inner, reach, matrix, out,
-            out_w):  # pragma: no cover
+def _sample(image, rel, labels, usable, centres, first_label, nc_label, offsets, inner, reach, matrix, extrapolate,
+            out, out_w):  # pragma: no cover
     h, w, nch = image.shape
     nr, nc = centres.shape[0], centres.shape[1]
     nv, nu = offsets.shape[0], offsets.shape[1]
@@ -342,7 +345,7 @@ def _sample(image, rel, labels, usable, centres, first_label, nc_label, offsets,
                     inv = one / wsum
                     for c in range(nch):
                         acc[c] *= inv
-                    if cut != 0:
+                    if cut != 0 and extrapolate:
                         # the footprint is cut by the micro-image's edge: rather than renormalising what
                         # is left (which moves the sample inwards), extrapolate from the usable values
                         solved = _extrapolate(image, labels, usable, lab, cut, y0, x0, fy, fx, moments, values)
@@ -429,10 +432,15 @@ def usable_pixels(labels: np.ndarray, measured: np.ndarray, cfa: str | None, *,
     return out
 
 
+#: ``view_edges`` of :func:`sample_lenses` and :func:`plenodecode.decoding.decode`: name -> whether a bilinear
+#: footprint cut by the micro-image's edge is extrapolated (True) or its weights renormalised (False)
+VIEW_EDGES: dict[str, bool] = {"renormalise": False, "extrapolate": True}
+
+
 def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centres: np.ndarray,
                   offsets: np.ndarray, *, first_label: int = 0, label_cols: int | None = None,
                   matrix: np.ndarray | None = None, safe_radius: float = 0.0, usable: np.ndarray | None = None,
-                  out: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  view_edges: str = "renormalise", out: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Sample every view offset under every lens, from that lens's own pixels only.
 
     Parameters
@@ -456,6 +464,11 @@ def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centre
     usable : ndarray, shape (H, W), uint8, optional
         Channels (bit ``c``) of each pixel to interpolate from (:func:`usable_pixels`); default every
         channel of every pixel with a value.
+    view_edges : {'renormalise', 'extrapolate'}
+        Where the bilinear footprint is cut (:data:`VIEW_EDGES`): 'renormalise' its weights over the
+        lens's pixels with a value (the default: 2-3x cheaper on a full decode, but a sample near the
+        micro-image's edge moves inwards, up to 0.35 view steps in an F01's outer ring), or
+        'extrapolate' from the usable values (what follows), for views at their nominal offsets.
     out : (ndarray, ndarray), optional
         Destinations of the samples and weights.
 
@@ -463,7 +476,7 @@ def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centre
     -------
     samples : ndarray, shape (V, U, R, K, C), float32
         Value at ``p = centre + offset``: bilinear from the 2 x 2 pixels around ``p`` when all of them
-        are this lens's and usable; otherwise (``p`` near the micro-image's edge), per channel, the
+        are this lens's and usable; otherwise, with ``view_edges='extrapolate'`` (``p`` near the micro-image's edge), per channel, the
         weighted least-squares plane through the lens's usable values around ``p``, evaluated at ``p``
         (:func:`_plane_at`).  Both stencils sum to one and have their centroid at ``p``, so the sample
         sits where the view says up to the edge; only with fewer than three usable values around ``p``
@@ -479,6 +492,7 @@ def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centre
         out, out_w = np.empty((nv, nu, nr, nc, nch), np.float32), np.empty((nv, nu, nr, nc), np.float32)
     else:
         out, out_w = out
+    extrapolate = lookup(VIEW_EDGES, view_edges, param="view_edges")
     m = np.eye(3, dtype=np.float32) if matrix is None else np.asarray(matrix, np.float32)
     offsets = np.ascontiguousarray(offsets, np.float64)
     inner = np.hypot(offsets[..., 0], offsets[..., 1]) + 1.5 < safe_radius
@@ -489,8 +503,8 @@ def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centre
         raise ValueError(f"usable must be a uint8 array of shape {(h, w)}, got {usable.dtype} {usable.shape}")
     _sample(image, np.ascontiguousarray(rel, np.float32), labels, np.ascontiguousarray(usable),
             np.ascontiguousarray(centres, np.float64),
-            int(first_label), int(nc if label_cols is None else label_cols), offsets, inner, reach, m, out, out_w)
+            int(first_label), int(nc if label_cols is None else label_cols), offsets, inner, reach, m, extrapolate, out, out_w)
     return out, out_w
 
 
-__all__ = ["view_offsets", "plan_bands", "Band", "lens_labels", "sample_lenses", "safe_radius", "usable_pixels", "CELL_REACH"]
+__all__ = ["VIEW_EDGES", "view_offsets", "plan_bands", "Band", "lens_labels", "sample_lenses", "safe_radius", "usable_pixels", "CELL_REACH"]

@@ -56,7 +56,7 @@ def test_samples_at_the_micro_image_edge_are_extrapolated_not_pulled_inwards():
     rel = np.clip(5.2 - dist, 0.0, 1.0).astype(np.float32)
     offs = view_offsets(g, 11)
     s, wt = sample_lenses(np.ascontiguousarray(img[..., None]), rel, labels, centres, offs,
-                          safe_radius=safe_radius(g))
+                          safe_radius=safe_radius(g), view_edges="extrapolate")
     lens_base = 0.2 + 0.01 * np.arange(centres.shape[0] * centres.shape[1]).reshape(centres.shape[:2])
     expect = lens_base[None, None] + 0.03 * offs[..., 0, None, None] - 0.02 * offs[..., 1, None, None]
     inside = np.all((centres > 1) & (centres < np.array([h, w]) - 2), axis=-1)[None, None]
@@ -99,12 +99,14 @@ def ramp_raw(white: RawCapture, grid: LensletGrid, axis: int) -> RawCapture:
     return dataclasses.replace(white, mosaic=mosaic)
 
 
-def view_shifts(white, grid: LensletGrid, demosaic: str) -> tuple[np.ndarray, np.ndarray]:
+def view_shifts(white, grid: LensletGrid, demosaic: str,
+                view_edges: str = "extrapolate") -> tuple[np.ndarray, np.ndarray]:
     """Shift (V, U, 2) in view steps ``(along v, along u)`` of every decoded view, and its weight (V, U)
     relative to the centre view's."""
     shifts = []
     for axis in (0, 1):
-        lf = decode(ramp_raw(white, grid, axis), grid, white=white, demosaic=demosaic, colour="camera")
+        lf = decode(ramp_raw(white, grid, axis), grid, white=white, demosaic=demosaic, colour="camera",
+                    view_edges=view_edges)
         value = np.median(lf.data[:, :, 2:-2, 2:-2].mean(axis=-1), axis=(2, 3))
         k = np.arange(lf.shape[0]) - lf.shape[0] // 2
         nominal = k[:, None] if axis == 0 else k[None, :]
@@ -157,3 +159,12 @@ def test_usable_pixels_mark_channels_whose_demosaic_stencil_is_whole():
             assert got[y, x] == expect, (y, x)
     assert (got == 7).mean() > 0.3 and ((got > 0) & (got < 7)).any()
     np.testing.assert_array_equal(usable_pixels(labels, measured, None), measured.astype(np.uint8))  # monochrome
+
+
+def test_default_slicing_renormalises_and_pulls_the_outer_views_inwards(f01_white):
+    """``view_edges='renormalise'`` (the decoder's cheaper default) keeps the old bias: the outer views sit
+    measurably inwards (a guard that the option switches the extrapolation, measured 0.2-0.35 steps)."""
+    white, grid = f01_white
+    shift, weight = view_shifts(white, grid, "bilinear", view_edges="renormalise")
+    judged = weight >= MIN_RELATIVE_WEIGHT
+    assert np.abs(shift[judged]).max() > 3 * MAX_SHIFT
