@@ -254,8 +254,11 @@ def _extrapolate(image, labels, usable, lab, need, y0, x0, fy, fx, moments, valu
 
 
 @njit(cache=True, nogil=True, fastmath=FAST, error_model="numpy")
-def _sample(image, rel, labels, usable, centres, first_label, nc_label, offsets, inner, reach, matrix, extrapolate,
+def _sample(image, rel, labels, usable, centres, first_label, nc_label, offsets, inner, reach, matrix, moments,
             out, out_w):  # pragma: no cover
+    # ``moments``: None renormalises cut footprints; a (4, 9) float64 work array extrapolates them.  With None
+    # numba prunes the ``moments is not None`` branch before typing it, so a decode that does not extrapolate
+    # never compiles :func:`_extrapolate` (about 1.5 CPU s on a cold start).
     h, w, nch = image.shape
     nr, nc = centres.shape[0], centres.shape[1]
     nv, nu = offsets.shape[0], offsets.shape[1]
@@ -266,7 +269,6 @@ def _sample(image, rel, labels, usable, centres, first_label, nc_label, offsets,
     one = np.float32(1.0)
     every = (1 << nch) - 1
     acc = np.empty(3, np.float32)
-    moments = np.empty((4, 9))
     values = np.empty(3)
     for i in range(nr):
         for j in range(nc):
@@ -345,13 +347,14 @@ def _sample(image, rel, labels, usable, centres, first_label, nc_label, offsets,
                     inv = one / wsum
                     for c in range(nch):
                         acc[c] *= inv
-                    if cut != 0 and extrapolate:
-                        # the footprint is cut by the micro-image's edge: rather than renormalising what
-                        # is left (which moves the sample inwards), extrapolate from the usable values
-                        solved = _extrapolate(image, labels, usable, lab, cut, y0, x0, fy, fx, moments, values)
-                        for c in range(nch):
-                            if solved & (1 << c):
-                                acc[c] = np.float32(values[c])
+                    if moments is not None:
+                        if cut != 0:
+                            # the footprint is cut by the micro-image's edge: rather than renormalising what
+                            # is left (which moves the sample inwards), extrapolate from the usable values
+                            solved = _extrapolate(image, labels, usable, lab, cut, y0, x0, fy, fx, moments, values)
+                            for c in range(nch):
+                                if solved & (1 << c):
+                                    acc[c] = np.float32(values[c])
                     if nch == 3:
                         out[v, u, i, j, 0] = m00 * acc[0] + m01 * acc[1] + m02 * acc[2]
                         out[v, u, i, j, 1] = m10 * acc[0] + m11 * acc[1] + m12 * acc[2]
@@ -503,7 +506,8 @@ def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centre
         raise ValueError(f"usable must be a uint8 array of shape {(h, w)}, got {usable.dtype} {usable.shape}")
     _sample(image, np.ascontiguousarray(rel, np.float32), labels, np.ascontiguousarray(usable),
             np.ascontiguousarray(centres, np.float64),
-            int(first_label), int(nc if label_cols is None else label_cols), offsets, inner, reach, m, extrapolate, out, out_w)
+            int(first_label), int(nc if label_cols is None else label_cols), offsets, inner, reach, m,
+            np.empty((4, 9)) if extrapolate else None, out, out_w)
     return out, out_w
 
 
