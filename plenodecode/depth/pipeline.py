@@ -20,7 +20,10 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    and a square box around a thin slat is mostly background: with ``strips`` the minimum also runs over
    oriented strips of views (those within ``strip_width`` of a line through the centre view), each
    aggregated along a 1-px line of its orientation and weighted by ``strip_penalty``
-   (:func:`~plenodecode.depth.cost.strip_groups`).
+   (:func:`~plenodecode.depth.cost.strip_groups`).  The strips match the intensity channels only (the
+   contrast channel mixes a thin structure with its surround) and scale the half-planes' cost by how much they
+   beat them there (``strip_channels`` of :func:`~plenodecode.depth.cost.half_plane_cost_volume`); the
+   refinement's strips, as long as its box, have their own ``refine_strip_penalty``.
 2. **Edge-aware regularisation** (:mod:`~plenodecode.depth.aggregation`): semi-global aggregation along
    ``paths`` directions (Hirschmueller, TPAMI 2008) whose large-jump penalty P2 falls at the centre view's
    intensity edges, so depth edges follow image edges.
