@@ -45,9 +45,10 @@ COSTVOLUME: dict[str, Any] = {
     "pattern": None,          # all views
     "contrast_weight": 0.07,  # normalised views stacked beside the intensities with this weight (None: replace)
     "strips": 12,             # oriented strips of views for thin structures: orientations 15 deg apart (0 = off)
-    "strip_width": 0.5,       # half-width of a strip, view steps
+    "strip_width": 0.35,      # half-width of a strip, view steps (0.35: oblique strips keep the views nearest the line)
     "strip_radius": 2,        # radius of the 1-px line aggregation along a strip's orientation
-    "strip_penalty": 4.0,     # factor on a strip's cost (a strip wins only where it is this much better)
+    "strip_penalty": 8.0,     # factor on a strip's cost (a strip wins only where it is this much better)
+    "refine_strip_penalty": 12.0,  # the same in the refinement, whose long strips (refine_radius) fit faint texture
     "gate_ratio": 2.0,        # clean-ups may not raise a pixel's matching cost above this x its own (0 = off)
     "gate_floor": 0.05,       # ... plus this (cost units: the median per-pixel cost span)
 }
@@ -71,6 +72,7 @@ FAST: dict[str, Any] = {
     "strip_width": 0.5,
     "strip_radius": 2,
     "strip_penalty": 1.0,
+    "refine_strip_penalty": 1.0,
     "gate_ratio": 0.0,
     "gate_floor": 0.05,
 }

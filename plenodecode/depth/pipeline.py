@@ -20,14 +20,18 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    and a square box around a thin slat is mostly background: with ``strips`` the minimum also runs over
    oriented strips of views (those within ``strip_width`` of a line through the centre view), each
    aggregated along a 1-px line of its orientation and weighted by ``strip_penalty``
-   (:func:`~plenodecode.depth.cost.strip_groups`).
+   (:func:`~plenodecode.depth.cost.strip_groups`).  The strips match the intensity channels only (the
+   contrast channel mixes a thin structure with its surround) and scale the half-planes' cost by how much they
+   beat them there (``strip_channels`` of :func:`~plenodecode.depth.cost.half_plane_cost_volume`); the
+   refinement's strips, as long as its box, have their own ``refine_strip_penalty``.
 2. **Edge-aware regularisation** (:mod:`~plenodecode.depth.aggregation`): semi-global aggregation along
    ``paths`` directions (Hirschmueller, TPAMI 2008) whose large-jump penalty P2 falls at the centre view's
    intensity edges, so depth edges follow image edges.
 3. **Winner-take-all**: best label with a parabola through its neighbours' aggregated cost; confidence
    (:mod:`~plenodecode.depth.confidence`) is the product of the centre view's texture along the baselines
    against its noise, the peak ratio of the aggregated cost and the agreement of all views with the best
-   half-plane at the estimate (low on featureless areas, ambiguous cost curves and occlusions).
+   half-plane at the estimate (low on featureless areas, ambiguous cost curves and occlusions); the view
+   agreement is measured at the *final* disparity, after steps 4-6 (the peak ratio is the winner's).
 4. **Clean-up** (:mod:`~plenodecode.depth.refinement`): an edge-aware weighted median guided by the centre
    view (Ma et al., ICCV 2013), gated by the matching cost (:func:`~plenodecode.depth.refinement.cost_gate`,
    ``gate_ratio``, ``gate_floor``): a pixel keeps its value where the median's is clearly worse for the
@@ -62,7 +66,7 @@ import numpy as np
 
 from ..types import LightField
 from .aggregation import sgm, winner
-from .confidence import confident_winner
+from .confidence import estimate_confidence
 from .cost import N_SECTORS, Progress, half_plane_cost_volume, make_labels
 from .occlusion import EDGE_DEFAULTS, fix_occlusion_edges
 from .refinement import cost_gate, refine_disparity, refine_radius_for, weighted_median
@@ -173,7 +177,7 @@ def disparity_range(lf: LightField, views: Callable[[], Views], requested: Any =
 PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "median_radius", "refine_radius",
                  "refine_range", "refine_samples", "grey", "pattern", "contrast_sigma", "contrast_eps",
                  "contrast_noise", "contrast_weight", "min_view_weight", "disparity_range", "strips", "strip_width",
-                 "strip_radius", "strip_penalty", "gate_ratio", "gate_floor", *EDGE_DEFAULTS)
+                 "strip_radius", "strip_penalty", "refine_strip_penalty", "gate_ratio", "gate_floor", *EDGE_DEFAULTS)
 
 
 def merge_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]) -> dict[str, Any]:
@@ -215,7 +219,7 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
     for name in ("edge_visibility", "edge_coverage"):
         if not isinstance(p[name], (bool, np.bool_)):
             raise ValueError(f"{name} must be True or False, got {p[name]!r}")
-    for name in ("strip_width", "strip_penalty"):
+    for name in ("strip_width", "strip_penalty", "refine_strip_penalty"):
         if not float(p[name]) > 0:
             raise ValueError(f"{name} must be positive, got {p[name]!r}")
     for name in ("strips", "strip_radius", "gate_ratio", "gate_floor"):
@@ -286,7 +290,9 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     log.info("cost volume: %d labels in [%.2f, %.2f] (%s), %d views", n_labels, labels[0], labels[-1], source,
              len(views.used()) + 1)
     strips = {"strips": int(p["strips"]), "strip_width": float(p["strip_width"]),
-              "strip_radius": int(p["strip_radius"]), "strip_penalty": float(p["strip_penalty"])}
+              "strip_radius": int(p["strip_radius"]), "strip_penalty": float(p["strip_penalty"]),
+              # strips match the intensities only, not the contrast channels stacked beside them (cost.py)
+              "strip_channels": views.data.shape[-1] // 2 if sigma > 0 and weight is not None else None}
     cost = half_plane_cost_volume(views, labels, radius=int(p["radius"]), progress=stage(0), **strips)
     sub = cost[::4, ::4]
     span = float(np.median(sub.max(axis=-1) - sub.min(axis=-1)))
@@ -294,7 +300,7 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     guide = views.guide()
     agg = sgm(cost, guide, p1=float(p["p1"]), p2=float(p["p2"]), sigma=float(p["edge_sigma"]), paths=n_paths,
               progress=stage(n_labels))
-    disparity, confidence = confident_winner(agg, labels, views, radius=int(p["radius"]), weight=lf.weight)
+    disparity, peak_ratio = winner(agg, labels)
     del agg
     def gated(before: np.ndarray, after: np.ndarray) -> np.ndarray:
         # a clean-up's result, except where the matching cost clearly prefers the value before it
@@ -306,7 +312,8 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     if n_refine:
         disparity = refine_disparity(views, disparity, half_range=float(p["refine_range"]) * step,
                                      samples=n_refine, radius=refine_radius, progress=stage(n_labels + n_paths),
-                                     **{**strips, "strip_radius": max(strips["strip_radius"], refine_radius)})
+                                     **{**strips, "strip_radius": max(strips["strip_radius"], refine_radius),
+                                        "strip_penalty": float(p["refine_strip_penalty"])})
     if int(p["edge_radius"]) > 0:
         disparity = fix_occlusion_edges(views, disparity, colour_guide(lf), radius=int(p["edge_radius"]),
                                         jump=float(p["edge_jump"]), ratio=float(p["edge_ratio"]),
@@ -314,6 +321,10 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
                                         intensities=intensities, visibility=bool(p["edge_visibility"]),
                                         coverage=bool(p["edge_coverage"]), gate=gated)
     del cost
+    # confidence at the final disparity: the view agreement of the map after the occlusion step, so a pixel the
+    # edge pass moved to the far side is judged by the views that see it there
+    valid = None if lf.weight is None else np.asarray(lf.weight[views.centre]) > 0
+    confidence = estimate_confidence(views, peak_ratio, disparity, radius=int(p["radius"]), valid=valid)
     params = {**p, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
               "noise_sigma": noise, "contrast_eps_used": eps,
               "disparity_range_source": source, "n_labels": n_labels, "views_used": len(views.used()) + 1}

@@ -223,11 +223,14 @@ def test_thin_structure_scenes_do_not_regress(name, bp_max, band_max):
         assert badpix_in_band(dm, gt, 0.07, border=4) <= band_max, method
 
 
-@pytest.mark.parametrize("name, bp_max, band_max", [("slits-h-j0.5-tex", 20.0, 24.0), ("slits-v-j1-tex", 32.0, 37.0)])
+@pytest.mark.parametrize("name, bp_max, band_max", [("slits-h-j0.5-tex", 14.0, 18.0), ("slits-v-j1-tex", 19.0, 23.0),
+                                                  ("slats-v-j1-weak", 22.0, 25.0)])
 def test_costvolume_keeps_thin_gaps(name, bp_max, band_max):
     """The accurate method on the small thin-structure scenes of the test above, with its own, tighter bounds:
-    measured BadPix0.07 13.5 % and 23.6 % (in the 2 px band 16.3 % and 27.9 %), against 28.9 % and 42.2 %
-    (37.7 % and 46.4 %) without the strips of views and the cost gate; the bounds sit between."""
+    measured BadPix0.07 9.8 %, 13.6 % and 14.3 % (in the 2 px band 13.3 %, 16.5 % and 16.1 %); before the strips
+    matched the intensities alone (their contrast channel mixes a thin structure with its surround) 13.5 % and
+    23.6 % (16.3 % and 27.9 %), and without the strips and the cost gate 28.9 % and 42.2 % (37.7 % and 46.4 %).
+    The weakly textured far plane behind 1-5 px slats was wrong at ~60 % of the pixels of the full-size scene."""
     from plenodecode.depth.scores import badpix_in_band
     from plenodecode.synthetic import THIN_SCENES, simulate_ideal
 
