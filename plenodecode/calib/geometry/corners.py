@@ -32,8 +32,8 @@ log = logging.getLogger(__name__)
 #: a calibration they pull ``H00``, ``H20``, ``H11``, ``H31`` 4-5 % low (issue 22; views at >= 0.85 are
 #: within 0.04 px of the truth).
 MIN_VIEW_WEIGHT = 0.85
-#: A view whose corners, mapped onto the capture's median corners by the best affine map, miss them by more
-#: than this (px) is dropped as a misdetection (the views of a plane differ by a near-affine parallax).
+#: A view whose corners miss the positions the other views' parallax predicts by more than this (px) is
+#: dropped as a misdetection (:func:`consistent_views`).
 MAX_VIEW_MISFIT_PX = 1.0
 #: Seed of OpenCV's per-thread RNG before each detection (:func:`detect_view`).
 DETECTOR_SEED = 0
@@ -114,24 +114,68 @@ def detect_view(image: np.ndarray, board: Board) -> np.ndarray | None:
     return canonical_order(xy, board.rows, board.cols)
 
 
-def consistent_views(views: np.ndarray, corners: np.ndarray, *,
-                     max_misfit_px: float = MAX_VIEW_MISFIT_PX) -> np.ndarray:
-    """Mask (n,) of the views whose detection agrees with the others.
+def parallax_misfit(views: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How far (px) each view's corners are from where the other views put them.
 
-    The views of a flat board differ by a homography close to an affine map (small baseline); each
-    view's corners (n, P, 2) are fitted to the per-corner median over views by least squares
-    ``median ~ [x, y, 1] A`` and a view is kept when no corner misses by more than ``max_misfit_px``.
-    A single view is kept.
+    A flat board's corner ``p`` moves with the view ``(i, j)`` by a parallax proportional to the view's
+    offset: ``x_p(i, j) = a_p + B_p (i - i_0, j - j_0)`` (``a_p`` 2-vector, ``B_p`` 2 x 2: its disparity
+    per view step along each axis; exact for the ray model without distortion).  For each view ``v`` this
+    linear model is fitted by least squares to the **other** views (design ``[1, i, j]``, all corners at
+    once).  A detection that slid by a whole square, or misplaced one corner, misses its prediction by
+    about that much, where an affine fit to the other views would absorb the translation.
+
+    Parameters
+    ----------
+    views : (n, 2) int
+        ``(i, j)`` of each view.
+    corners : (n, P, 2) float
+        Its corners, in the same order in every view.
+
+    Returns
+    -------
+    own : (n,) float64
+        Largest distance of view ``v``'s corners from the fit to the others (0 when the others do not
+        span its offset, e.g. the only view of its row).
+    rest : (n,) float64
+        Largest corner residual of the other views in that fit: small when ``v`` is the only misfit.
     """
     corners = np.asarray(corners, dtype=np.float64)
-    if len(corners) < 3:
-        return np.ones(len(corners), bool)
-    median = np.median(corners, axis=0)
-    keep = np.empty(len(corners), bool)
-    for n, xy in enumerate(corners):
-        design = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)
-        affine = np.linalg.lstsq(design, median, rcond=None)[0]
-        keep[n] = np.abs(design @ affine - median).max() <= max_misfit_px
+    n = len(corners)
+    design = np.concatenate([np.ones((n, 1)), np.asarray(views, dtype=np.float64).reshape(n, 2)], axis=1)
+    design[:, 1:] -= design[:, 1:].mean(axis=0)
+    values = corners.reshape(n, -1)
+    own, rest = np.zeros(n), np.zeros(n)
+    full_rank = np.linalg.matrix_rank(design)
+    for v in range(n):
+        others = np.arange(n) != v
+        if np.linalg.matrix_rank(design[others]) < full_rank:
+            continue
+        coefficients = np.linalg.lstsq(design[others], values[others], rcond=None)[0]
+        error = (design @ coefficients - values).reshape(n, -1, 2)
+        distance = np.linalg.norm(error, axis=-1).max(axis=1)
+        own[v], rest[v] = distance[v], distance[others].max()
+    return own, rest
+
+
+def consistent_views(views: np.ndarray, corners: np.ndarray, *,
+                     max_misfit_px: float = MAX_VIEW_MISFIT_PX) -> np.ndarray:
+    """Mask (n,) of the views whose detection agrees with the parallax of the others.
+
+    One view at a time is dropped: of the views whose removal leaves the others most consistent
+    (smallest ``rest`` of :func:`parallax_misfit`, ties within 1e-6 px broken by the largest ``own``),
+    the first, when its own misfit exceeds ``max_misfit_px``.  (The view with the largest own misfit is
+    not always the culprit: with few views a misdetection bends the fit its neighbours are predicted
+    from.)  Fewer than 4 views are all kept (3 parameters per coordinate leave nothing to check).
+    """
+    views = np.asarray(views).reshape(-1, 2)
+    keep = np.ones(len(views), bool)
+    while keep.sum() >= 4:
+        kept = np.flatnonzero(keep)
+        own, rest = parallax_misfit(views[kept], np.asarray(corners)[kept])
+        culprit = int(np.lexsort((-own, np.round(rest, 6)))[0])
+        if own[culprit] <= max_misfit_px:
+            break
+        keep[kept[culprit]] = False
     return keep
 
 
