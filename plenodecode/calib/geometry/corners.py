@@ -114,15 +114,17 @@ def detect_view(image: np.ndarray, board: Board) -> np.ndarray | None:
     return canonical_order(xy, board.rows, board.cols)
 
 
-def parallax_misfit(views: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """How far (px) each view's corners are from where the other views put them.
+def parallax_misfit(views: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """How far (px) each view's corners are from the parallax the other views show, (n,) float64.
 
     A flat board's corner ``p`` moves with the view ``(i, j)`` by a parallax proportional to the view's
-    offset: ``x_p(i, j) = a_p + B_p (i - i_0, j - j_0)`` (``a_p`` 2-vector, ``B_p`` 2 x 2: its disparity
-    per view step along each axis; exact for the ray model without distortion).  For each view ``v`` this
-    linear model is fitted by least squares to the **other** views (design ``[1, i, j]``, all corners at
-    once).  A detection that slid by a whole square, or misplaced one corner, misses its prediction by
-    about that much, where an affine fit to the other views would absorb the translation.
+    offset: ``x_p(i, j) = a_p + B_p (i, j)`` (``a_p`` 2-vector, ``B_p`` 2 x 2: its disparity per view step
+    along each axis; exact for the ray model without distortion).  The model is estimated robustly, so
+    that several misdetected views do not bend it: each column of ``B_p`` is the median, over the pairs
+    of views one step apart along that axis, of the corner's displacement between them; ``a_p`` is the
+    median over views of ``x_p - B_p (i, j)``.  A view's misfit is its largest corner distance from
+    the model: a detection that slid by a whole square (which an affine fit to the other views would
+    absorb), or put its corner list in another order, misses by about a square.
 
     Parameters
     ----------
@@ -130,53 +132,31 @@ def parallax_misfit(views: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray,
         ``(i, j)`` of each view.
     corners : (n, P, 2) float
         Its corners, in the same order in every view.
-
-    Returns
-    -------
-    own : (n,) float64
-        Largest distance of view ``v``'s corners from the fit to the others (0 when the others do not
-        span its offset, e.g. the only view of its row).
-    rest : (n,) float64
-        Largest corner residual of the other views in that fit: small when ``v`` is the only misfit.
     """
+    views = np.asarray(views, dtype=np.int64).reshape(-1, 2)
     corners = np.asarray(corners, dtype=np.float64)
-    n = len(corners)
-    design = np.concatenate([np.ones((n, 1)), np.asarray(views, dtype=np.float64).reshape(n, 2)], axis=1)
-    design[:, 1:] -= design[:, 1:].mean(axis=0)
-    values = corners.reshape(n, -1)
-    own, rest = np.zeros(n), np.zeros(n)
-    full_rank = np.linalg.matrix_rank(design)
-    for v in range(n):
-        others = np.arange(n) != v
-        if np.linalg.matrix_rank(design[others]) < full_rank:
-            continue
-        coefficients = np.linalg.lstsq(design[others], values[others], rcond=None)[0]
-        error = (design @ coefficients - values).reshape(n, -1, 2)
-        distance = np.linalg.norm(error, axis=-1).max(axis=1)
-        own[v], rest[v] = distance[v], distance[others].max()
-    return own, rest
+    index = {tuple(v): n for n, v in enumerate(views.tolist())}
+    disparity = np.zeros((2,) + corners.shape[1:])          # (axis, P, 2): displacement per view step
+    for axis, step in enumerate(((1, 0), (0, 1))):
+        pairs = [(index[(i + step[0], j + step[1])], n) for n, (i, j) in enumerate(views.tolist())
+                 if (i + step[0], j + step[1]) in index]
+        if pairs:
+            after, before = np.array(pairs).T
+            disparity[axis] = np.median(corners[after] - corners[before], axis=0)
+    moved = np.einsum("na,apc->npc", views.astype(np.float64), disparity)
+    origin = np.median(corners - moved, axis=0)
+    return np.linalg.norm(corners - moved - origin, axis=-1).max(axis=1)
 
 
 def consistent_views(views: np.ndarray, corners: np.ndarray, *,
                      max_misfit_px: float = MAX_VIEW_MISFIT_PX) -> np.ndarray:
-    """Mask (n,) of the views whose detection agrees with the parallax of the others.
+    """Mask (n,) of the views whose :func:`parallax_misfit` is at most ``max_misfit_px``.
 
-    One view at a time is dropped: of the views whose removal leaves the others most consistent
-    (smallest ``rest`` of :func:`parallax_misfit`, ties within 1e-6 px broken by the largest ``own``),
-    the first, when its own misfit exceeds ``max_misfit_px``.  (The view with the largest own misfit is
-    not always the culprit: with few views a misdetection bends the fit its neighbours are predicted
-    from.)  Fewer than 4 views are all kept (3 parameters per coordinate leave nothing to check).
+    Fewer than 3 views are all kept (no majority to check them against).
     """
-    views = np.asarray(views).reshape(-1, 2)
-    keep = np.ones(len(views), bool)
-    while keep.sum() >= 4:
-        kept = np.flatnonzero(keep)
-        own, rest = parallax_misfit(views[kept], np.asarray(corners)[kept])
-        culprit = int(np.lexsort((-own, np.round(rest, 6)))[0])
-        if own[culprit] <= max_misfit_px:
-            break
-        keep[kept[culprit]] = False
-    return keep
+    if len(views) < 3:
+        return np.ones(len(views), bool)
+    return parallax_misfit(views, corners) <= max_misfit_px
 
 
 def view_weights(lf: LightField) -> np.ndarray:
