@@ -209,13 +209,11 @@ def levenberg_marquardt(problem: _Problem, *, max_iterations: int = 100, ftol: f
     residual = problem.residuals(y)
     cost = 0.5 * float(residual @ residual)
     step = 1e-6 * max(np.sqrt(2 * cost), 1e-12)        # whitened units are residual units
-    mu, nu, evaluations, message = None, 2.0, 1, "maximum number of iterations reached"
+    mu, nu, evaluations, message = 1e-3, 2.0, 1, "maximum number of iterations reached"
     iteration = 0
     for iteration in range(1, max_iterations + 1):
         gram, gradient = problem.normal_equations(*problem.jacobian_blocks(y, step), residual)
         diagonal = np.maximum(np.diag(gram), 1e-12 * max(np.diag(gram).max(), 1e-300))
-        if mu is None:
-            mu = 1e-3
         while True:
             delta = -cho_solve(cho_factor(gram + mu * np.diag(diagonal)), gradient)
             trial = problem.residuals(y + delta)
