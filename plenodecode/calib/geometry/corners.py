@@ -103,16 +103,13 @@ def detect_view(image: np.ndarray, board: Board) -> np.ndarray | None:
     factor = max(1, int(np.ceil(MIN_DETECTION_SIZE / min(img8.shape))))
     if factor > 1:
         img8 = cv2.resize(img8, None, fx=factor, fy=factor, interpolation=cv2.INTER_CUBIC)
-    flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_ACCURACY
-    # the quick search first, the exhaustive one (20 % more CPU, same corners when both find the board) only
-    # when it fails; the sector detector draws from OpenCV's RNG of the calling thread: seeded for each
-    # search, the same image always gives the same corners (unseeded, a calibration depended on what ran
-    # before it)
-    for extra in (0, cv2.CALIB_CB_EXHAUSTIVE):
-        cv2.setRNGSeed(DETECTOR_SEED)
-        found, corners = cv2.findChessboardCornersSB(img8, (board.cols, board.rows), flags=flags | extra)
-        if found:
-            break
+    flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
+    # the sector detector draws from OpenCV's RNG of the calling thread: seeded for each view, the same image
+    # always gives the same corners (unseeded, a calibration depended on what ran before it).  Exhaustive:
+    # without it the search is ~20 % cheaper but slid a small board (3 x 4 corners) by a square in whole
+    # captures' views, which the parallax check then dropped (issue 22)
+    cv2.setRNGSeed(DETECTOR_SEED)
+    found, corners = cv2.findChessboardCornersSB(img8, (board.cols, board.rows), flags=flags)
     if not found or corners is None or len(corners) != board.rows * board.cols:
         return None
     xy = (corners.reshape(-1, 2).astype(np.float64) + 0.5) / factor - 0.5
