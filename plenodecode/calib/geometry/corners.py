@@ -32,8 +32,8 @@ log = logging.getLogger(__name__)
 #: 8 / 16 generated F01 captures (bilinear demosaic), views >= 0.5 give max |H error| 1.50 / 1.12 %, >= 0.85 1.06 / 0.30 %
 #: (bench/bench_geometry.py), so the outer ring stays out.
 MIN_VIEW_WEIGHT = 0.85
-#: A view whose corners, mapped onto the capture's median corners by the best affine map, miss them by more
-#: than this (px) is dropped as a misdetection (the views of a plane differ by a near-affine parallax).
+#: A view whose corners miss the positions the other views' parallax predicts by more than this (px) is
+#: dropped as a misdetection (:func:`consistent_views`).
 MAX_VIEW_MISFIT_PX = 1.0
 #: Seed of OpenCV's per-thread RNG before each detection (:func:`detect_view`).
 DETECTOR_SEED = 0
@@ -105,7 +105,9 @@ def detect_view(image: np.ndarray, board: Board) -> np.ndarray | None:
         img8 = cv2.resize(img8, None, fx=factor, fy=factor, interpolation=cv2.INTER_CUBIC)
     flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
     # the sector detector draws from OpenCV's RNG of the calling thread: seeded for each view, the same image
-    # always gives the same corners (unseeded, a calibration depended on what ran before it)
+    # always gives the same corners (unseeded, a calibration depended on what ran before it).  Exhaustive:
+    # without it the search is ~20 % cheaper but slid a small board (3 x 4 corners) by a square in whole
+    # captures' views, which the parallax check then dropped (issue 22)
     cv2.setRNGSeed(DETECTOR_SEED)
     found, corners = cv2.findChessboardCornersSB(img8, (board.cols, board.rows), flags=flags)
     if not found or corners is None or len(corners) != board.rows * board.cols:
@@ -114,25 +116,49 @@ def detect_view(image: np.ndarray, board: Board) -> np.ndarray | None:
     return canonical_order(xy, board.rows, board.cols)
 
 
+def parallax_misfit(views: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """How far (px) each view's corners are from the parallax the other views show, (n,) float64.
+
+    A flat board's corner ``p`` moves with the view ``(i, j)`` by a parallax proportional to the view's
+    offset: ``x_p(i, j) = a_p + B_p (i, j)`` (``a_p`` 2-vector, ``B_p`` 2 x 2: its disparity per view step
+    along each axis; exact for the ray model without distortion).  The model is estimated robustly, so
+    that several misdetected views do not bend it: each column of ``B_p`` is the median, over the pairs
+    of views one step apart along that axis, of the corner's displacement between them; ``a_p`` is the
+    median over views of ``x_p - B_p (i, j)``.  A view's misfit is its largest corner distance from
+    the model: a detection that slid by a whole square (which an affine fit to the other views would
+    absorb), or put its corner list in another order, misses by about a square.
+
+    Parameters
+    ----------
+    views : (n, 2) int
+        ``(i, j)`` of each view.
+    corners : (n, P, 2) float
+        Its corners, in the same order in every view.
+    """
+    views = np.asarray(views, dtype=np.int64).reshape(-1, 2)
+    corners = np.asarray(corners, dtype=np.float64)
+    index = {tuple(v): n for n, v in enumerate(views.tolist())}
+    disparity = np.zeros((2,) + corners.shape[1:])          # (axis, P, 2): displacement per view step
+    for axis, step in enumerate(((1, 0), (0, 1))):
+        pairs = [(index[(i + step[0], j + step[1])], n) for n, (i, j) in enumerate(views.tolist())
+                 if (i + step[0], j + step[1]) in index]
+        if pairs:
+            after, before = np.array(pairs).T
+            disparity[axis] = np.median(corners[after] - corners[before], axis=0)
+    moved = np.einsum("na,apc->npc", views.astype(np.float64), disparity)
+    origin = np.median(corners - moved, axis=0)
+    return np.linalg.norm(corners - moved - origin, axis=-1).max(axis=1)
+
+
 def consistent_views(views: np.ndarray, corners: np.ndarray, *,
                      max_misfit_px: float = MAX_VIEW_MISFIT_PX) -> np.ndarray:
-    """Mask (n,) of the views whose detection agrees with the others.
+    """Mask (n,) of the views whose :func:`parallax_misfit` is at most ``max_misfit_px``.
 
-    The views of a flat board differ by a homography close to an affine map (small baseline); each
-    view's corners (n, P, 2) are fitted to the per-corner median over views by least squares
-    ``median ~ [x, y, 1] A`` and a view is kept when no corner misses by more than ``max_misfit_px``.
-    A single view is kept.
+    Fewer than 3 views are all kept (no majority to check them against).
     """
-    corners = np.asarray(corners, dtype=np.float64)
-    if len(corners) < 3:
-        return np.ones(len(corners), bool)
-    median = np.median(corners, axis=0)
-    keep = np.empty(len(corners), bool)
-    for n, xy in enumerate(corners):
-        design = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)
-        affine = np.linalg.lstsq(design, median, rcond=None)[0]
-        keep[n] = np.abs(design @ affine - median).max() <= max_misfit_px
-    return keep
+    if len(views) < 3:
+        return np.ones(len(views), bool)
+    return parallax_misfit(views, corners) <= max_misfit_px
 
 
 def view_weights(lf: LightField) -> np.ndarray:

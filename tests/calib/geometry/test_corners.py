@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from plenodecode.calib.geometry.corners import canonical_order, consistent_views
+from plenodecode.calib.geometry.corners import canonical_order, consistent_views, parallax_misfit
 from plenodecode.raymodel import Board
 
 
@@ -29,6 +29,47 @@ def test_inconsistent_view_is_dropped():
     corners = np.array([grid + [0.7 * n, 0.0] for n in range(4)])   # parallax: a shift per view
     corners[2, 5] += [3.0, 0.0]                                       # one misplaced corner
     np.testing.assert_array_equal(consistent_views(views, corners), [True, True, False, True])
+
+
+def _tilted_board_views(square=6.0, noise=0.03, seed=0):
+    """5 x 5 views of a 4 x 5-corner board of ``square`` px whose disparity grows across it (a tilted plane):
+    corner p of view (i, j) at ``grid_p + d_p (i - 2, j - 2)``, ``d_p`` from 0.3 to 0.7 px per step."""
+    r, c = np.mgrid[0:4, 0:5]
+    grid = np.stack([30.0 + square * c.ravel(), 40.0 + square * r.ravel()], axis=-1)
+    disparity = 0.3 + 0.1 * c.ravel() + 0.02 * r.ravel()
+    views = np.array([(i, j) for j in range(5) for i in range(5)])
+    corners = np.array([grid + disparity[:, None] * [i - 2, j - 2] for i, j in views])
+    return views, corners + np.random.default_rng(seed).normal(0.0, noise, corners.shape)
+
+
+@pytest.mark.parametrize("shift", [(6.0, 0.0), (0.0, -6.0), (6.0, 6.0)])
+def test_view_shifted_by_a_whole_square_is_dropped(shift):
+    """A detection that slid by one row or column of the board: every corner moved by one square, which an
+    affine fit to the other views absorbs exactly; the other views' parallax predicts it 6 px off."""
+    views, corners = _tilted_board_views()
+    bad = [3, 1]
+    n = int(np.flatnonzero((views == bad).all(axis=1))[0])
+    corners[n] += shift
+    misfit = parallax_misfit(views, corners)
+    assert misfit[n] == pytest.approx(np.hypot(*shift), rel=0.1)
+    assert np.delete(misfit, n).max() < 0.2                 # noise 0.03 px per coordinate
+    keep = consistent_views(views, corners)
+    np.testing.assert_array_equal(np.flatnonzero(~keep), [n])
+
+
+def test_consistent_views_keeps_every_good_view():
+    views, corners = _tilted_board_views()
+    assert consistent_views(views, corners).all()
+    assert consistent_views(views[:2], corners[:2] + [[[9.0, 0.0]], [[0.0, 0.0]]]).all()     # too few
+
+
+def test_several_misdetections_do_not_hide_each_other():
+    """A quarter of the views wrong (slid boards, a reversed corner list): each is found, the others kept."""
+    views, corners = _tilted_board_views()
+    bad = [0, 6, 12, 13, 19, 24]
+    corners[bad[:5]] += np.array([[6.0, 0.0], [0.0, 6.0], [-6.0, 0.0], [6.0, 6.0], [0.0, -12.0]])[:, None]
+    corners[bad[5]] = corners[bad[5], ::-1]
+    np.testing.assert_array_equal(np.flatnonzero(~consistent_views(views, corners)), bad)
 
 
 def test_board_parse():

@@ -92,3 +92,22 @@ def test_gauge_moves_keep_every_ray():
     back_h, back_poses = to_solver_gauge(moved_h, moved_poses, LF_SHAPE)
     np.testing.assert_allclose(back_h, h, atol=1e-15)
     np.testing.assert_allclose(back_poses, poses, atol=1e-12)
+
+
+def test_levenberg_marquardt_reaches_the_least_squares_minimum():
+    """On noisy observations it stops converged, at the cost scipy's dense trust-region solver reaches."""
+    from scipy.optimize import least_squares
+
+    from plenodecode.calib.geometry.solve import _Problem, levenberg_marquardt
+
+    h, poses = true_intrinsics(), true_poses(4, seed=3)
+    found = observe(h, np.zeros(5), poses, noise_px=NOISE_PX, seed=4)
+    obs = Observations.of(found, BOARD)
+    h0, p0 = initial_estimate(found, BOARD)
+    problem = _Problem.at(obs, h0, np.zeros(5), p0, with_distortion=False)
+    y, info = levenberg_marquardt(problem)
+    assert info["message"] == "cost change below ftol" and info["iterations"] <= 30
+    reference = least_squares(problem.residuals, np.zeros_like(problem.x0), method="trf", tr_solver="exact",
+                              xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    assert info["cost"] == pytest.approx(reference.cost, rel=1e-7)
+    assert info["cost"] == pytest.approx(0.5 * np.sum(problem.residuals(y) ** 2), rel=1e-12)
