@@ -253,7 +253,7 @@ def test_calibration_searches_only_views_that_sample_where_their_index_says(boar
     searched = [v for v in inward if weights[v[1], v[0]] >= MIN_VIEW_WEIGHT]
     skipped = [v for v in inward if weights[v[1], v[0]] < MIN_VIEW_WEIGHT]
     # measured: searched views |mean error| <= 0.03 px (38 views) and one misdetection 2.9 px off, view
-    # (6, 7) (a whole-board shift that consistent_views' affine check absorbs); the skipped ring (weights
+    # (6, 7) (a whole-board shift; consistent_views' parallax check drops it); the skipped ring (weights
     # 0.48-0.76) 0.04-0.17 px towards the centre view (as if seen from ~0.2 view steps nearer to it)
     good = [v for v in searched if abs(inward[v]) < 1.0]
     assert len(good) >= 35 and len(searched) - len(good) <= 1 and len(skipped) >= 12
