@@ -288,7 +288,8 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     confidence : ndarray (Y, X) float32 in [0, 1]
     params : dict
         The parameters used, with the disparity range and its source, the views' noise and the contrast
-        ``eps`` used, the number of labels and of views.
+        ``eps`` used, the strip penalties used (``strip_penalty_used``, ``refine_strip_penalty_used``:
+        :func:`strip_penalty_for`), the number of labels and of views.
     """
     plain = prepare_views(lf, min_view_weight=float(p["min_view_weight"]), grey=bool(p["grey"]),
                           pattern=p["pattern"])
@@ -327,7 +328,8 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     log.info("cost volume: %d labels in [%.2f, %.2f] (%s), %d views", n_labels, labels[0], labels[-1], source,
              len(views.used()) + 1)
     strips = {"strips": int(p["strips"]), "strip_width": float(p["strip_width"]),
-              "strip_radius": int(p["strip_radius"]), "strip_penalty": strip_penalty_for(float(p["strip_penalty"]), float(p["strip_penalty_noise"]), noise),
+              "strip_radius": int(p["strip_radius"]),
+              "strip_penalty": strip_penalty_for(float(p["strip_penalty"]), float(p["strip_penalty_noise"]), noise),
               # strips match the intensities only, not the contrast channels stacked beside them (cost.py)
               "strip_channels": views.data.shape[-1] // 2 if sigma > 0 and weight is not None else None}
     cost = half_plane_cost_volume(views, labels, radius=int(p["radius"]), progress=stage(0), **strips)
@@ -346,9 +348,8 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
         return cost_gate(cost, labels, before, after, ratio=float(p["gate_ratio"]), floor=float(p["gate_floor"]))
 
     disparity = gated(disparity, weighted_median(guide, disparity, int(p["median_radius"])))
+    refine_penalty = strip_penalty_for(float(p["refine_strip_penalty"]), float(p["refine_penalty_noise"]), noise)
     if n_refine:
-        refine_penalty = strip_penalty_for(float(p["refine_strip_penalty"]), float(p["refine_penalty_noise"]),
-                                                  noise)
         log.info("refinement strip penalty %.2f (view noise sigma %.4f)", refine_penalty, noise)
         disparity = refine_disparity(views, disparity, half_range=float(p["refine_range"]) * step,
                                      samples=n_refine, radius=refine_radius, progress=stage(n_labels + n_paths),
@@ -366,7 +367,8 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     valid = None if lf.weight is None else np.asarray(lf.weight[views.centre]) > 0
     confidence = estimate_confidence(views, peak_ratio, disparity, radius=int(p["radius"]), valid=valid)
     params = {**p, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
-              "noise_sigma": noise, "contrast_eps_used": eps,
+              "noise_sigma": noise, "contrast_eps_used": eps, "strip_penalty_used": strips["strip_penalty"],
+              "refine_strip_penalty_used": refine_penalty,
               "disparity_range_source": source, "n_labels": n_labels, "views_used": len(views.used()) + 1}
     return disparity.astype(np.float32), confidence, params
 
