@@ -48,7 +48,9 @@ COSTVOLUME: dict[str, Any] = {
     "strip_width": 0.35,      # half-width of a strip, view steps (0.35: oblique strips keep the views nearest the line)
     "strip_radius": 2,        # radius of the 1-px line aggregation along a strip's orientation
     "strip_penalty": 8.0,     # factor on a strip's cost (a strip wins only where it is this much better)
-    "refine_strip_penalty": 12.0,  # the same in the refinement, whose long strips (refine_radius) fit faint texture
+    "refine_strip_penalty": 16.0,  # the same in the refinement, whose long strips (refine_radius) fit faint texture
+    "strip_penalty_noise": 0.002,   # strip_penalty holds for views of noise sigma up to this, x (this / sigma)
+    "refine_penalty_noise": 0.002,  # above, at least a quarter (0: fixed); the same for refine_strip_penalty
     "gate_ratio": 2.0,        # clean-ups may not raise a pixel's matching cost above this x its own (0 = off)
     "gate_floor": 0.05,       # ... plus this (cost units: the median per-pixel cost span)
 }
@@ -73,6 +75,8 @@ FAST: dict[str, Any] = {
     "strip_radius": 2,
     "strip_penalty": 1.0,
     "refine_strip_penalty": 1.0,
+    "strip_penalty_noise": 0.0,
+    "refine_penalty_noise": 0.0,
     "gate_ratio": 0.0,
     "gate_floor": 0.05,
 }

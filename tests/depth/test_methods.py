@@ -238,3 +238,20 @@ def test_costvolume_keeps_thin_gaps(name, bp_max, band_max):
     dm = estimate_depth(lf, method="costvolume")
     assert badpix(dm, gt, 0.07, border=4) <= bp_max
     assert badpix_in_band(dm, gt, 0.07, border=4) <= band_max
+
+
+def test_strip_penalties_fall_on_noisy_views():
+    """The strips' penalties fall with the views' measured noise, to a quarter on strongly noisy views (the
+    noise floor under every group's error), as the accurate method's parameters record."""
+    from plenodecode.depth.methods import COSTVOLUME
+
+    clean, _ = planes_lightfield(seed=0)
+    noisy, _ = planes_lightfield(noise=0.03, seed=0)
+    c = estimate_depth(clean, method="costvolume").params
+    n = estimate_depth(noisy, method="costvolume").params
+    # measured sigma 0.0049 (fine texture a bilinear shift misses counts as noise) and 0.024
+    assert c["noise_sigma"] < 0.01 < n["noise_sigma"]
+    assert c["strip_penalty_used"] == pytest.approx(COSTVOLUME["strip_penalty"] * 0.002 / c["noise_sigma"])
+    assert n["strip_penalty_used"] == pytest.approx(COSTVOLUME["strip_penalty"] / 4)
+    assert n["refine_strip_penalty_used"] == pytest.approx(COSTVOLUME["refine_strip_penalty"] / 4)
+    assert c["refine_strip_penalty_used"] > 1.5 * n["refine_strip_penalty_used"]

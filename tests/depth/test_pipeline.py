@@ -27,3 +27,27 @@ def test_strip_and_gate_parameters_are_checked(name, value):
     assert check_params("costvolume", preset_defaults(COSTVOLUME), {})["strips"] == 12
     with pytest.raises(ValueError, match=name):
         check_params("costvolume", preset_defaults(COSTVOLUME), {name: value})
+
+
+def test_refine_strip_penalty_falls_with_the_noise():
+    from plenodecode.depth.pipeline import strip_penalty_for
+
+    # full penalty on clean views, 1 / sigma above the reference: a noise floor 2 sigma^2 under the costs
+    assert strip_penalty_for(16.0, 0.002, 0.0) == 16.0
+    assert strip_penalty_for(16.0, 0.002, 0.0017) == 16.0
+    assert strip_penalty_for(16.0, 0.002, 0.008) == pytest.approx(4.0)
+    assert strip_penalty_for(16.0, 0.0, 0.008) == 16.0
+
+
+def test_refine_penalty_noise_is_checked():
+    from plenodecode.depth.methods import COSTVOLUME
+    from plenodecode.depth.pipeline import check_params, preset_defaults
+
+    with pytest.raises(ValueError, match="refine_penalty_noise"):
+        check_params("costvolume", preset_defaults(COSTVOLUME), {"refine_penalty_noise": -0.001})
+
+
+def test_refine_strip_penalty_keeps_a_quarter_on_strong_noise():
+    from plenodecode.depth.pipeline import strip_penalty_for
+
+    assert strip_penalty_for(16.0, 0.002, 0.03) == pytest.approx(4.0)
