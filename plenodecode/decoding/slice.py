@@ -268,7 +268,6 @@ def _sample(image, rel, labels, usable, centres, first_label, nc_label, offsets,
     zero = np.float32(0.0)
     one = np.float32(1.0)
     every = (1 << nch) - 1
-    acc = np.empty(3, np.float32)
     values = np.empty(3)
     for i in range(nr):
         for j in range(nc):
@@ -296,9 +295,16 @@ def _sample(image, rel, labels, usable, centres, first_label, nc_label, offsets,
                     wsum = zero
                     wrel = zero
                     # near the lens centre and away from the image border every tap is this lens's own
-                    fast = interior and inner[v, u]
-                    if (fast and nch == 3 and usable[y0, x0] == every and usable[y0, x0 + 1] == every
-                            and usable[y0 + 1, x0] == every and usable[y0 + 1, x0 + 1] == every):
+                    fast = interior and inner[v, u] and nch == 3
+                    if fast:
+                        if moments is None:      # renormalising: the four taps have a value
+                            fast = (image[y0, x0, 0] == image[y0, x0, 0] and image[y0, x0 + 1, 0] == image[y0, x0 + 1, 0]
+                                    and image[y0 + 1, x0, 0] == image[y0 + 1, x0, 0]
+                                    and image[y0 + 1, x0 + 1, 0] == image[y0 + 1, x0 + 1, 0])
+                        else:                    # extrapolating: every channel of the four taps is usable
+                            fast = (usable[y0, x0] == every and usable[y0, x0 + 1] == every
+                                    and usable[y0 + 1, x0] == every and usable[y0 + 1, x0 + 1] == every)
+                    if fast:
                         gx = one - fx
                         gy = one - fy
                         w00 = gy * gx
@@ -319,48 +325,58 @@ def _sample(image, rel, labels, usable, centres, first_label, nc_label, offsets,
                         out_w[v, u, i, j] = min(one, max(zero, wrel))
                         continue
                     # the bilinear footprint: the weight is the white's share of it inside this lens
-                    for c in range(nch):
-                        acc[c] = zero
+                    inner_taps = interior and inner[v, u]
+                    a0 = zero
+                    a1 = zero
+                    a2 = zero
                     cut = 0                       # channels with a footprint pixel not usable
                     for t in range(4):
                         dy = t >> 1
                         dx = t & 1
                         yy = y0 + dy
                         xx = x0 + dx
-                        if not fast and (yy < 0 or yy >= h or xx < 0 or xx >= w or labels[yy, xx] != lab):
+                        if not inner_taps and (yy < 0 or yy >= h or xx < 0 or xx >= w or labels[yy, xx] != lab):
                             cut = every
                             continue
                         wgt = (fy if dy == 1 else one - fy) * (fx if dx == 1 else one - fx)
                         wrel += wgt * rel[yy, xx]
-                        if image[yy, xx, 0] != image[yy, xx, 0]:
+                        p0 = image[yy, xx, 0]
+                        if p0 != p0:
                             cut = every
                             continue
                         wsum += wgt
-                        for c in range(nch):
-                            acc[c] += wgt * image[yy, xx, c]
-                        cut |= every & ~usable[yy, xx]
+                        a0 += wgt * p0
+                        if nch == 3:
+                            a1 += wgt * image[yy, xx, 1]
+                            a2 += wgt * image[yy, xx, 2]
+                        if moments is not None:
+                            cut |= every & ~usable[yy, xx]
                     if wsum <= 1e-4:
                         for c in range(nch):
                             out[v, u, i, j, c] = zero
                         out_w[v, u, i, j] = zero
                         continue
                     inv = one / wsum
-                    for c in range(nch):
-                        acc[c] *= inv
+                    a0 *= inv
+                    a1 *= inv
+                    a2 *= inv
                     if moments is not None:
                         if cut != 0:
                             # the footprint is cut by the micro-image's edge: rather than renormalising what
                             # is left (which moves the sample inwards), extrapolate from the usable values
                             solved = _extrapolate(image, labels, usable, lab, cut, y0, x0, fy, fx, moments, values)
-                            for c in range(nch):
-                                if solved & (1 << c):
-                                    acc[c] = np.float32(values[c])
+                            if solved & 1:
+                                a0 = np.float32(values[0])
+                            if solved & 2:
+                                a1 = np.float32(values[1])
+                            if solved & 4:
+                                a2 = np.float32(values[2])
                     if nch == 3:
-                        out[v, u, i, j, 0] = m00 * acc[0] + m01 * acc[1] + m02 * acc[2]
-                        out[v, u, i, j, 1] = m10 * acc[0] + m11 * acc[1] + m12 * acc[2]
-                        out[v, u, i, j, 2] = m20 * acc[0] + m21 * acc[1] + m22 * acc[2]
+                        out[v, u, i, j, 0] = m00 * a0 + m01 * a1 + m02 * a2
+                        out[v, u, i, j, 1] = m10 * a0 + m11 * a1 + m12 * a2
+                        out[v, u, i, j, 2] = m20 * a0 + m21 * a1 + m22 * a2
                     else:
-                        out[v, u, i, j, 0] = acc[0]
+                        out[v, u, i, j, 0] = a0
                     out_w[v, u, i, j] = min(one, max(zero, wrel))
 
 
@@ -479,11 +495,12 @@ def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centre
     -------
     samples : ndarray, shape (V, U, R, K, C), float32
         Value at ``p = centre + offset``: bilinear from the 2 x 2 pixels around ``p`` when all of them
-        are this lens's and usable; otherwise, with ``view_edges='extrapolate'`` (``p`` near the micro-image's edge), per channel, the
-        weighted least-squares plane through the lens's usable values around ``p``, evaluated at ``p``
-        (:func:`_plane_at`).  Both stencils sum to one and have their centroid at ``p``, so the sample
-        sits where the view says up to the edge; only with fewer than three usable values around ``p``
-        the bilinear weights are renormalised over the lens's pixels with a value.
+        are this lens's and usable.  Otherwise (``p`` near the micro-image's edge): 'renormalise', the
+        bilinear weights renormalised over the lens's pixels with a value; 'extrapolate', per channel,
+        the weighted least-squares plane through the lens's usable values around ``p``, evaluated at
+        ``p`` (:func:`_extrapolate`), whose stencil sums to one and has its centroid at ``p``, so the
+        sample sits where the view says up to the edge (renormalised only with fewer than three usable
+        values around ``p``).
         0 where the lens has no pixel with a value there.
     weight : ndarray, shape (V, U, R, K), float32
         Bilinear interpolation of ``rel`` over the lens's own pixels, clipped to [0, 1].
@@ -501,7 +518,8 @@ def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centre
     inner = np.hypot(offsets[..., 0], offsets[..., 1]) + 1.5 < safe_radius
     reach = float(np.abs(offsets).max()) + 2.0
     if usable is None:
-        usable = np.where(np.isnan(image[..., 0]), 0, (1 << nch) - 1).astype(np.uint8)
+        usable = np.isfinite(image[..., 0]).view(np.uint8)     # 0 / 1, then every channel's bit where 1
+        usable *= np.uint8((1 << nch) - 1)
     elif usable.shape != (h, w) or usable.dtype != np.uint8:
         raise ValueError(f"usable must be a uint8 array of shape {(h, w)}, got {usable.dtype} {usable.shape}")
     _sample(image, np.ascontiguousarray(rel, np.float32), labels, np.ascontiguousarray(usable),
