@@ -26,8 +26,8 @@ disagree (occlusions); high on well-matched texture.
   estimate there is often the occluder's, edge fattening); the second where even the best half-plane does
   not match (a wrong disparity, a specular or moving surface).
 
-The product ``c = c_tex * c_peak * c_occ`` is the confidence (:func:`confident_winner` is the winner-take-all
-step of the depth pipeline with it).
+The product ``c = c_tex * c_peak * c_occ`` is the confidence (:func:`estimate_confidence`); the depth pipeline
+computes it at its final disparity, with the peak ratio of its winner-take-all step.
 """
 
 from __future__ import annotations
@@ -37,7 +37,6 @@ import math
 import cv2
 import numpy as np
 
-from .aggregation import winner
 from .cost import N_SECTORS, half_plane_cost_volume
 from .views import Views
 
@@ -177,31 +176,5 @@ def estimate_confidence(views: Views, peak_ratio: np.ndarray, disparity: np.ndar
     return conf
 
 
-def confident_winner(cost: np.ndarray, labels: np.ndarray, views: Views, *, radius: int = 1,
-                     weight: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Winner-take-all disparity of an aggregated cost volume (:func:`~plenodecode.depth.aggregation.winner`)
-    and its confidence (:func:`estimate_confidence`).
-
-    Parameters
-    ----------
-    cost : ndarray (Y, X, L) float32
-        Aggregated cost, labels last.
-    labels : ndarray (L,)
-    views : Views
-        The matching views of the cost volume.
-    radius : int
-        Box radius of the matching cost.
-    weight : ndarray (V, U, Y, X), optional
-        The light field's sample weights (``lf.weight``): the centre view's zeros mark pixels without data.
-
-    Returns
-    -------
-    disparity, confidence : ndarray (Y, X) float32
-    """
-    disparity, peak = winner(cost, labels)
-    valid = None if weight is None else np.asarray(weight[views.centre]) > 0
-    return disparity, estimate_confidence(views, peak, disparity, radius=radius, valid=valid)
-
-
 __all__ = ["CONFIDENCE_DEFAULTS", "NOISE_TEXTURE", "image_noise", "epipolar_texture", "view_agreement",
-           "estimate_confidence", "confident_winner"]
+           "estimate_confidence"]

@@ -179,8 +179,8 @@ def disparity_range(lf: LightField, views: Callable[[], Views], requested: Any =
 PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "median_radius", "refine_radius",
                  "refine_range", "refine_samples", "grey", "pattern", "contrast_sigma", "contrast_eps",
                  "contrast_noise", "contrast_weight", "min_view_weight", "disparity_range", "strips", "strip_width",
-                 "strip_radius", "strip_penalty", "refine_strip_penalty", "strip_penalty_noise", "refine_penalty_noise", "gate_ratio", "gate_floor",
-                 *EDGE_DEFAULTS)
+                 "strip_radius", "strip_penalty", "refine_strip_penalty", "strip_penalty_noise", "refine_penalty_noise",
+                 "gate_ratio", "gate_floor", *EDGE_DEFAULTS)
 
 
 def merge_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]) -> dict[str, Any]:
@@ -225,7 +225,8 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
     for name in ("strip_width", "strip_penalty", "refine_strip_penalty"):
         if not float(p[name]) > 0:
             raise ValueError(f"{name} must be positive, got {p[name]!r}")
-    for name in ("strips", "strip_radius", "strip_penalty_noise", "refine_penalty_noise", "gate_ratio", "gate_floor"):
+    for name in ("strips", "strip_radius", "strip_penalty_noise", "refine_penalty_noise", "gate_ratio",
+                 "gate_floor"):
         if not float(p[name]) >= 0:
             raise ValueError(f"{name} must be >= 0, got {p[name]!r}")
     if int(p["refine_samples"]) < 3:
