@@ -20,6 +20,12 @@ bilinear >= 0.85: 0.64 -> 0.30 % (H00 -0.29 H20 +0.03 H22 +0.30 H11 -0.28 H31 +0
 8 captures, bilinear >= 0.85: 1.35 -> 1.06 %: the set's size matters too.  With the outer ring (bilinear >= 0.5)
 the new slicer gives 1.12 % (16) and 1.50 % (8): unbiased on a ramp, the outer views' corners are still worse.  Malvar stays ~1 % off where bilinear
 is 0.3 % even on the inner views: its edge handling (5 x 5 stencil, bilinear where cut) is the next suspect.
+Other sets, measured once on main (bilinear, views >= 0.85, view_edges='extrapolate'; Nov 2026): 16 captures
+seeds 1 / 2: 0.26 / 0.28 %; 20 captures seed 1: 0.36 %; 12 captures seed 0: 0.45 %; 10 captures seed 0: 2.36 %,
+and 1.46 % from the ideal light fields of the same poses, so not the decoder: leaving out its first capture
+(32 degrees of tilt at 0.44 m) gives 0.86 %.  ``cv2.cornerSubPix`` after the sector detector brought that ideal
+set to 0.24 % but doubled the corner RMS on noisy decoded views (0.064 -> 0.12 px) and made 16 captures worse
+(0.29 -> 0.82 %).
 A figure's ``seconds`` is its decode + calibration wall time, its note the errors.
 """
 
