@@ -94,7 +94,8 @@ def _flag_hot(x: np.ndarray, threshold: np.float32, relative: np.float32, flags:
 
     ``m`` (the maximum of the same-colour ring) is an OpenCV dilation by :data:`_SAME_COLOUR_RING`; its constant
     border stands for "no pixel" (-inf), so pixels near the edge use their neighbours inside the image, as the
-    rule says (in an image of at most 3 x 3 a pixel can have none: it is not hot).  Then ``flags = x > m + max(threshold, relative * m)`` in float32.
+    rule says (in an image of at most 3 x 3 a pixel can have none: it is not hot).  Then
+    ``flags = x > m + max(threshold, relative * m)`` in float32.
     """
     m = cv2.dilate(x, _SAME_COLOUR_RING, borderType=cv2.BORDER_CONSTANT, borderValue=-np.inf)
     margin = np.multiply(m, relative)
@@ -106,9 +107,8 @@ def _flag_hot(x: np.ndarray, threshold: np.float32, relative: np.float32, flags:
     return int(np.count_nonzero(flags))
 
 
-#: row and column steps to the 8 same-colour neighbours (2 px away along rows, columns and diagonals)
-_NEIGHBOUR_DY = np.array([-2, -2, -2, 0, 0, 2, 2, 2])
-_NEIGHBOUR_DX = np.array([-2, 0, 2, -2, 2, -2, 0, 2])
+#: row and column steps to the 8 same-colour neighbours: the taps of :data:`_SAME_COLOUR_RING` from its centre
+_NEIGHBOUR_DY, _NEIGHBOUR_DX = np.argwhere(_SAME_COLOUR_RING).T - 2
 
 
 def _repair(x: np.ndarray, flags: np.ndarray, out: np.ndarray) -> None:
