@@ -80,8 +80,9 @@ class _Problem:
     The optimiser sees ``y`` with ``x = x0 + T y``, ``T`` block-diagonal (one block for the intrinsics,
     one 6 x 6 block per capture's pose) and chosen so that each block of the Jacobian at ``x0`` has
     orthonormal columns (``T_b = L_b^-T`` with ``J_b^T J_b = L_b L_b^T``): the units and the correlations
-    within a block (focal length against distance, say) no longer slow the sparse (LSMR) trust-region
-    steps, and the sparsity pattern is unchanged.
+    within a block (focal length against distance, say) no longer make the normal equations of
+    :func:`levenberg_marquardt` ill-conditioned or its damping ``mu diag(J^T J)`` uneven, and the block
+    sparsity is unchanged.
     """
 
     def __init__(self, obs: Observations, with_distortion: bool, start: np.ndarray) -> None:
@@ -173,13 +174,13 @@ class _Problem:
         # unit steps in every parameter's own scale: columns scaled back below
         self.transform = [np.diag(np.r_[steps / 1e-7])] + self.transform[1:]
         intrinsic, pose = self.jacobian_blocks(np.zeros_like(self.x0), 1e-7)
-        capture = np.repeat(self.obs.capture, 3)
-        grams = [intrinsic.T @ intrinsic] + [pose[capture == c].T @ pose[capture == c]
-                                             for c in range(self.obs.n_captures)]
+        # J_b^T J_b: the diagonal blocks of the normal matrix
+        normal, _ = self.normal_equations(intrinsic, pose, np.zeros(len(intrinsic)))
         out = []
-        for n, gram in enumerate(grams):
+        for block, t in zip(self.blocks, self.transform):
+            gram = normal[np.ix_(block, block)]
             gram = gram + np.eye(len(gram)) * 1e-12 * max(np.trace(gram), 1e-300)
-            out.append(self.transform[n] @ np.linalg.inv(np.linalg.cholesky(gram)).T)
+            out.append(t @ np.linalg.inv(np.linalg.cholesky(gram)).T)
         return out
 
 
