@@ -1,8 +1,8 @@
 """CPU time of the stages of :func:`plenodecode.calibrate_geometry` on generated F01 raws (issue 22 item 1).
 
 ``python -m bench gcal``: 8 captures of a 7 x 5 board of 4 mm squares (``simulate_checkerboard_set``, seed 0,
-9 x 9 views of 113 x 128 samples, 45 views per capture searched) decoded with the grid fitted to the set's
-white image, then the stages timed one by one in process CPU seconds (the machine is shared: wall time
+9 x 9 views of 113 x 128 samples, 45 views per capture searched) decoded as calibration decodes them
+(``CAPTURE_DECODE``) with the grid fitted to the set's white image, then the stages timed one by one in process CPU seconds (the machine is shared: wall time
 says little): decode, corner detection, the consistency check, the solve without and with distortion.
 
 Measured (2 shared cores, load ~12, Nov 2026), CPU s, before -> after the changes of branch wt-gcal:
@@ -29,7 +29,7 @@ def _cpu(fn):
 
 def run() -> list[Figure]:
     from plenodecode.calib import calibrate
-    from plenodecode.calib.geometry.captures import CAPTURE_DEMOSAIC
+    from plenodecode.calib.geometry.captures import CAPTURE_DECODE
     from plenodecode.calib.geometry.corners import consistent_views, detect_corners
     from plenodecode.calib.geometry.initial import initial_estimate
     from plenodecode.calib.geometry.solve import Observations, solve
@@ -40,8 +40,8 @@ def run() -> list[Figure]:
     board = Board.of(BOARD)
     cset = simulate_checkerboard_set("f01", board, CAPTURES, seed=0)
     grid = calibrate(cset.white)
-    decode(cset.raws[0], grid, white=cset.white, demosaic=CAPTURE_DEMOSAIC)       # compile the kernels
-    lfs, t_decode = _cpu(lambda: [decode(raw, grid, white=cset.white, demosaic=CAPTURE_DEMOSAIC)
+    decode(cset.raws[0], grid, white=cset.white, **CAPTURE_DECODE)       # compile the kernels
+    lfs, t_decode = _cpu(lambda: [decode(raw, grid, white=cset.white, **CAPTURE_DECODE)
                                   for raw in cset.raws])
     found, t_detect = _cpu(lambda: [detect_corners(lf, board) for lf in lfs])
     _, t_check = _cpu(lambda: [consistent_views(f.views, f.corners) for f in found])

@@ -49,7 +49,7 @@ def _lightfields(paths: Sequence[Path], calibration_options: dict[str, Any], mos
                  progress: Progress) -> Iterator[LightField]:
     """Each capture as a light field, decoded on demand (one in memory at a time); the raws share the
     calibration chosen for the first."""
-    from ..calib.geometry.captures import CAPTURE_DEMOSAIC, CAPTURE_VIEW_EDGES
+    from ..calib.geometry.captures import CAPTURE_DECODE
 
     chosen: Calibration | None = None
     for n, path in enumerate(paths):
@@ -59,7 +59,7 @@ def _lightfields(paths: Sequence[Path], calibration_options: dict[str, Any], mos
         else:
             if chosen is None:
                 chosen = choose_calibration(item, mosaic=mosaic, **calibration_options)   # logs its choice
-            yield decode_raw(item, chosen, demosaic=CAPTURE_DEMOSAIC, view_edges=CAPTURE_VIEW_EDGES)
+            yield decode_raw(item, chosen, **CAPTURE_DECODE)
         if progress is not None:
             progress(n + 1, len(paths))
 

@@ -35,6 +35,9 @@ CAPTURE_DEMOSAIC = "bilinear"
 #: views at their nominal offsets; the default 'renormalise' pulls them up to 0.35 view steps inwards, and H
 #: from 16 generated F01 captures came out 0.64 % off instead of 0.30 % (bench/bench_geometry.py).
 CAPTURE_VIEW_EDGES = "extrapolate"
+#: The keywords of :func:`plenodecode.decoding.decode` a capture is decoded with, wherever it is decoded
+#: (here from a RawCapture, in :mod:`plenodecode.pipeline.geometry` from files).
+CAPTURE_DECODE = {"demosaic": CAPTURE_DEMOSAIC, "view_edges": CAPTURE_VIEW_EDGES}
 
 
 @dataclass(frozen=True)
@@ -71,7 +74,7 @@ def _as_lightfield(item: LightField | RawCapture, grid: LensletGrid | None, whit
             raise ValueError("raws need grid= (the lenslet grid of the white image the captures are decoded with)")
         from ...decoding import decode
 
-        return decode(item, grid, white=white, demosaic=CAPTURE_DEMOSAIC, view_edges=CAPTURE_VIEW_EDGES)
+        return decode(item, grid, white=white, **CAPTURE_DECODE)
     raise TypeError(f"expected LightField or RawCapture, got {type(item).__name__}")
 
 
@@ -152,7 +155,7 @@ def calibrate_geometry(raws_or_lightfields: Iterable[LightField | RawCapture],
     """Calibrate a plenoptic camera's ray geometry from checkerboard captures (Dansereau et al., CVPR 2013).
 
     Each capture is decoded without rectification (raws: with ``grid`` and ``white``, the same for all,
-    and the bilinear demosaic, :data:`CAPTURE_DEMOSAIC`),
+    with :data:`CAPTURE_DECODE`: the bilinear demosaic, and views extrapolated at the micro-images' edge),
     the board's inner corners are found in its sub-aperture views (:func:`.corners.detect_corners`),
     ``H`` and the poses are initialised in closed form (:mod:`.initial`), then ``H``, the distortion
     ``[k1, k2, k3, b1, b2]`` and the poses are refined jointly by minimising the 3-D distance between each
