@@ -9,14 +9,15 @@ The value is interpolated from the pixels of the *same* micro-image only: every 
 label of the lens whose Voronoi cell contains it (:func:`lens_labels`), so light never mixes across
 lenslet borders.  Inside the micro-image it is bilinear.  Where the bilinear footprint is cut by the
 micro-image's edge (pixels of another lens, unmeasured pixels, or demosaiced channels whose stencil
-was cut, :func:`usable_pixels`), it is, with ``view_edges='extrapolate'`` (:data:`VIEW_EDGES`), *extrapolated*: the weighted least-squares plane through the
-usable pixels around the sample, whose stencil has its centroid at the sample.  Renormalising the
-bilinear weights over the pixels left (normalised convolution, Knutsson & Westin, CVPR 1993; what
-this module did before) moves the centroid inwards: it pulled the outer views of an F01 decode
-0.2-0.35 view steps towards the centre, which biased a geometric calibration's view terms.  It stays the
-default ('renormalise'): extrapolation costs 2-3x the CPU of this step on a full Illum decode, and a
-picture does not need the outer views within a tenth of a step; geometric calibration extrapolates.  The
-weight of a sample stays the white's share of its bilinear footprint inside the lens.
+was cut, :func:`usable_pixels`), it is, with ``view_edges='extrapolate'`` (:data:`VIEW_EDGES`),
+*extrapolated*: the weighted least-squares plane through the usable pixels around the sample, whose
+stencil has its centroid at the sample.  Renormalising the bilinear weights over the pixels left
+(normalised convolution, Knutsson & Westin, CVPR 1993) moves the centroid inwards: it pulls the outer
+views of an F01 decode 0.2-0.35 view steps towards the centre, which biased a geometric calibration's view
+terms.  It stays the default ('renormalise'): on a full Illum decode extrapolation costs about 6x the CPU of
+this step (1.1 -> 6.7 s; 2.4x the whole decode's), and a picture does not need the outer views within a
+tenth of a step; geometric calibration extrapolates.  The weight of a sample stays the white's share of its
+bilinear footprint inside the lens.
 
 The sensor is processed in bands of lens rows (:func:`plan_bands`) to bound memory.
 """
@@ -298,7 +299,8 @@ def _sample(image, rel, labels, usable, centres, first_label, nc_label, offsets,
                     fast = interior and inner[v, u] and nch == 3
                     if fast:
                         if moments is None:      # renormalising: the four taps have a value
-                            fast = (image[y0, x0, 0] == image[y0, x0, 0] and image[y0, x0 + 1, 0] == image[y0, x0 + 1, 0]
+                            fast = (image[y0, x0, 0] == image[y0, x0, 0]
+                                    and image[y0, x0 + 1, 0] == image[y0, x0 + 1, 0]
                                     and image[y0 + 1, x0, 0] == image[y0 + 1, x0, 0]
                                     and image[y0 + 1, x0 + 1, 0] == image[y0 + 1, x0 + 1, 0])
                         else:                    # extrapolating: every channel of the four taps is usable
@@ -459,7 +461,8 @@ VIEW_EDGES: dict[str, bool] = {"renormalise": False, "extrapolate": True}
 def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centres: np.ndarray,
                   offsets: np.ndarray, *, first_label: int = 0, label_cols: int | None = None,
                   matrix: np.ndarray | None = None, safe_radius: float = 0.0, usable: np.ndarray | None = None,
-                  view_edges: str = "renormalise", out: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  view_edges: str = "renormalise", out: tuple[np.ndarray, np.ndarray] | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """Sample every view offset under every lens, from that lens's own pixels only.
 
     Parameters
@@ -485,7 +488,7 @@ def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centre
         channel of every pixel with a value.
     view_edges : {'renormalise', 'extrapolate'}
         Where the bilinear footprint is cut (:data:`VIEW_EDGES`): 'renormalise' its weights over the
-        lens's pixels with a value (the default: 2-3x cheaper on a full decode, but a sample near the
+        lens's pixels with a value (the default: about 6x cheaper, but a sample near the
         micro-image's edge moves inwards, up to 0.35 view steps in an F01's outer ring), or
         'extrapolate' from the usable values (what follows), for views at their nominal offsets.
     out : (ndarray, ndarray), optional
@@ -529,4 +532,5 @@ def sample_lenses(image: np.ndarray, rel: np.ndarray, labels: np.ndarray, centre
     return out, out_w
 
 
-__all__ = ["VIEW_EDGES", "view_offsets", "plan_bands", "Band", "lens_labels", "sample_lenses", "safe_radius", "usable_pixels", "CELL_REACH"]
+__all__ = ["VIEW_EDGES", "view_offsets", "plan_bands", "Band", "lens_labels", "sample_lenses", "safe_radius",
+           "usable_pixels", "CELL_REACH"]

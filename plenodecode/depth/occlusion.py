@@ -128,7 +128,8 @@ def visibility_relabel(intensities: Views, disparity: np.ndarray, *, radius: int
     current map (:func:`nearest_surface`) has a surface nearer by more than ``jump / 2`` at its image: the
     occlusion reasoning of Kang, Szeliski & Chai (CVPR 2001) with the occluders taken from the map itself
     rather than from a fixed split of the views.  Fewer than ``min_visible`` of the view weight: no far
-    hypothesis, and no move either way (a thin gap is seen by only the strip of views along it).  A pixel moves to the other side when that side's cost is ``ratio`` times lower and it
+    hypothesis, and no move either way (a thin gap is seen by only the strip of views along it).  A pixel
+    moves to the other side when that side's cost is ``ratio`` times lower and it
     touches that side, one pixel layer per round, up to ``radius`` rounds; a 3 x 3 median over the band
     then removes isolated decisions.
 
