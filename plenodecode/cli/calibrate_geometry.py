@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from .common import (BOARD, calibration_kwargs, check_output, database_option, mosaic_options, overwrite_option,
-                     progress_bar, quiet, usage_errors)
+                     progress_bar, quiet, refuse_database_with_grid, usage_errors)
 
 
 @click.command("calibrate-geometry")
@@ -45,8 +45,7 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], board, output: Path, r
     """
     from ..pipeline.geometry import calibrate_geometry_files, write_geometry_outputs
 
-    if database is not None and (calibration is not None or white is not None):
-        raise click.UsageError("--database cannot be combined with --calibration or --white")
+    refuse_database_with_grid(calibration, white, database)
     check_output(output, overwrite)
     if report is not None:
         check_output(report, overwrite)

@@ -249,6 +249,14 @@ def input_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     return fn
 
 
+def refuse_database_with_grid(calibration: Path | None, white: Path | None, database: Path | None) -> None:
+    """Usage error when ``--database`` is given with ``--calibration`` or ``--white`` (``decode``,
+    ``calibrate-geometry``): :func:`~plenodecode.pipeline.choose_calibration` would take the grid and white
+    and leave the database unread without a word."""
+    if database is not None and (calibration is not None or white is not None):
+        raise click.UsageError("--database cannot be combined with --calibration or --white")
+
+
 def calibration_kwargs(calibration: Path | None, white: Path | None, database: Path | None,
                        self_calibrate: bool) -> dict[str, Any]:
     """The command's input options as keywords of :func:`plenodecode.pipeline.open_source`: the calibration

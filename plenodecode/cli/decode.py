@@ -8,7 +8,8 @@ from pathlib import Path
 import click
 
 from .common import (RegistryChoice, bit_depth_option, calibration_kwargs, input_options, lightfield_output_format,
-                     output_option, overwrite_option, progress_bar, quiet, usage_errors)
+                     output_option, overwrite_option, progress_bar, quiet, refuse_database_with_grid,
+                     usage_errors)
 
 log = logging.getLogger(__name__)
 
@@ -56,8 +57,7 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
     """
     from ..pipeline import check_geometry, choose_calibration, decode_raw, open_raw, read_dark_frame, write_lightfield
 
-    if database is not None and (calibration is not None or white is not None):
-        raise click.UsageError("--database cannot be combined with --calibration or --white")
+    refuse_database_with_grid(calibration, white, database)
     if n_views is not None and (n_views < 1 or n_views % 2 == 0):
         raise click.BadParameter("must be a positive odd number", param_hint="--views")
     name = lightfield_output_format(output, fmt, overwrite)
