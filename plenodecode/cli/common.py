@@ -364,6 +364,10 @@ class FiniteFloat(click.FloatRange):
             self.fail(f"{value!r} is not a finite number.", param, ctx)
         return super().convert(number, param, ctx)
 
+    def _describe_range(self) -> str:
+        # click's help shows "[x<=None]" for a range without bounds: an unbounded one says nothing
+        return "" if self.min is None and self.max is None else super()._describe_range()
+
 
 #: Any finite number (slopes, rotations, offsets).
 FINITE = FiniteFloat()

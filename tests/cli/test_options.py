@@ -70,3 +70,14 @@ def test_bad_numeric_value_is_a_one_line_usage_error(tmp_path, monkeypatch, befo
     assert len(errors) == 1 and option in errors[0], res.output
     assert "Traceback" not in res.output
     assert not list(tmp_path.iterdir()), "something was written"
+
+
+@pytest.mark.parametrize("command", ["refocus", "render", "views", "parallax", "depth", "synth"])
+def test_help_describes_only_real_bounds(command):
+    """An unbounded finite option (--slope) shows no range in the help; a bounded one (--aperture) shows its
+    bounds (click printed '[x<=None]' for the first)."""
+    r = CliRunner().invoke(cli, [command, "--help"])
+    assert r.exit_code == 0, r.output
+    assert "None]" not in r.output and "x<=None" not in r.output
+    if command == "refocus":
+        assert "0<x<=1]" in r.output                    # --aperture
