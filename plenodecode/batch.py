@@ -288,8 +288,10 @@ class BatchSummary:
         -------
         dict
             ``first_task_s``: the longest first task of a worker; ``steady_task_s``: the median of the
-            other tasks; ``worker_peak_mb``: the largest peak resident memory of a worker, MB.  None where
-            there is no such task.
+            other tasks; ``tasks_span_s``: from the start of the first task to the end of the last (the wall
+            time of the batch once a worker was up: start-up and imports before it are not in it);
+            ``worker_peak_mb``: the largest peak resident memory of a worker, MB.  None where there is no
+            such task.
         """
         done = sorted((r for r in self.results if r.status == "done"), key=lambda r: r.started)
         first: dict[str, float] = {}
@@ -305,8 +307,9 @@ class BatchSummary:
             mid = len(rest) // 2
             steady = rest[mid] if len(rest) % 2 else 0.5 * (rest[mid - 1] + rest[mid])
         peaks = [r.worker_peak_mb for r in self.results if r.worker_peak_mb is not None]
+        span = max(r.started + r.seconds for r in done) - done[0].started if done else None
         return {"first_task_s": max(first.values()) if first else None, "steady_task_s": steady,
-                "worker_peak_mb": max(peaks) if peaks else None}
+                "tasks_span_s": span, "worker_peak_mb": max(peaks) if peaks else None}
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-serialisable form (what ``summary.json`` holds)."""
