@@ -28,9 +28,27 @@ class GeometryMismatchError(CalibrationError):
     """A geometric calibration (``--geometry``) made for light fields of another shape."""
 
 
+class RefocusConstantsError(MetadataError):
+    """Ng's alpha was asked of an input whose metadata lacks the camera constants that turn it into a slope.
+
+    Attributes
+    ----------
+    keyword : str
+        The option that asked for alpha: 'alpha' (a refocus) or 'units' (a focal stack in alpha units).
+    missing : tuple of str
+        The constants not found (names of :data:`plenodecode.render.alpha.REFOCUS_CONSTANTS`).
+    source : str
+        The input, as the message names it.
+    """
+
+    def __init__(self, message: str, *, keyword: str, missing: tuple[str, ...], source: str) -> None:
+        super().__init__(message)
+        self.keyword, self.missing, self.source = keyword, tuple(missing), source
+
+
 class DecodeError(PlenodecodeError):
     """A raw cannot be decoded with the given grid or options."""
 
 
 __all__ = ["PlenodecodeError", "FormatError", "MetadataError", "CalibrationError", "GeometryMismatchError",
-           "DecodeError"]
+           "RefocusConstantsError", "DecodeError"]

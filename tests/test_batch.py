@@ -637,3 +637,29 @@ def test_cli_geometry_rectifies_every_raw_and_is_hashed(tmp_path):
     assert res.exit_code == 1
     summary = json.loads((out / "summary.json").read_text())
     assert "11x11x70x69" in json.dumps(summary)
+
+
+def test_cli_alpha_fails_a_raw_without_focal_length_before_decoding_and_goes_on(data, tmp_path, monkeypatch):
+    """--alpha on a raw whose metadata has no focal length: that raw fails at once (its calibration and decoding
+    never start, no folder is written), the batch goes on to the next raw and exits 1 naming the missing constant."""
+    from plenodecode.io import lytro
+    from plenodecode.pipeline import source
+    from plenodecode.synthetic import PRESETS, simulate
+
+    bad = tmp_path / "in" / "nofocal.lfr"
+    bad.parent.mkdir()
+    lytro.write_lfr(bad, simulate(replace(PRESETS["illum-mini"], focal_length_m=None), seed=6, shape=SHAPE).raw)
+    decoded = []
+    real = source.decode_raw
+    monkeypatch.setattr(source, "decode_raw", lambda raw, *a, **kw: decoded.append(raw.path) or real(raw, *a, **kw))
+    out = tmp_path / "out"
+    good = data["shoot"] / "take1" / "scene1.lfr"
+    res = CliRunner().invoke(cli, ["batch", str(bad), str(good), "-o", str(out), "--database", str(data["db"]),
+                                   "--jobs", "1", "--outputs", "refocus", "--alpha", "1.005", "--bit-depth", "8"])
+    assert res.exit_code == 1, res.output
+    lines = res.stdout.splitlines()
+    assert any(line.startswith("nofocal.lfr") and " failed " in line and "focal_length_m" in line
+               and "slope" in line for line in lines), res.stdout
+    assert any(line.startswith("scene1.lfr") and " done " in line for line in lines), res.stdout
+    assert [Path(p).name for p in decoded] == ["scene1.lfr"]
+    assert not (out / "nofocal").exists() and len(list((out / "scene1").glob("refocus_a1.005.png"))) == 1

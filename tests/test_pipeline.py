@@ -164,10 +164,10 @@ def test_failed_parallax_and_focal_stack_leave_no_folder(tmp_path):
     res = CliRunner().invoke(cli, ["parallax", str(src), "-o", str(tmp_path / "w.gif"), "--radius", "5"])
     assert res.exit_code == 2
     assert not (tmp_path / "w_frames").exists() and not (tmp_path / "w.gif").exists()
-    # alpha units need the camera constants, which this light field lacks: a data error after the checks
+    # alpha units need the camera constants, which this light field lacks: a usage error naming --stack-units
     res = CliRunner().invoke(cli, ["refocus", str(src), "--focal-stack", "0.99:1.01:3", "--stack-units", "alpha",
                                    "-o", str(tmp_path / "stack")])
-    assert res.exit_code == 1, res.output
+    assert res.exit_code == 2 and "--stack-units" in res.output, res.output
     assert not (tmp_path / "stack").exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == before
 
@@ -182,3 +182,40 @@ def test_folder_product_into_an_existing_folder_keeps_other_files(tmp_path):
     with pytest.raises(FileExistsError):
         pipeline.write_product(rendered, folder, bit_depth=8)
     assert sorted(p.name for p in folder.iterdir() if p.name.startswith(".")) == []
+
+
+@pytest.mark.parametrize("change, missing", [
+    ({}, ()),
+    ({"focal_length_m": None}, ("focal_length_m",)),
+    ({"focal_length_m": None, "f_number": None}, ("focal_length_m", "f_number")),
+    ({"lens_pitch_m": None}, ()),                                 # the calibrated pitch times the pixel pitch
+    ({"lens_pitch_m": None, "pixel_pitch_m": None}, ("lens_pitch_m",)),
+])
+def test_constants_missing_from_a_raw_are_those_its_light_field_lacks(change, missing):
+    """The check before calibration (:func:`missing_refocus_constants` of the raw's metadata) predicts what the
+    decoded light field lacks, so alpha is refused exactly when the conversion would fail after decoding."""
+    from dataclasses import replace as dc_replace
+
+    from plenodecode.errors import MetadataError, RefocusConstantsError
+    from plenodecode.render import alpha_to_slope
+    from plenodecode.render.alpha import missing_refocus_constants
+    from plenodecode.synthetic import simulate
+
+    sim = simulate("illum-mini", seed=1, shape=(200, 280), noise=False)
+    raw = dc_replace(sim.raw, metadata=dc_replace(sim.raw.metadata, **change))
+    assert missing_refocus_constants(raw.metadata) == missing
+    src = pipeline.Source(raw=raw, calibration=pipeline.Calibration(sim.grid, None, "grid file"))
+    if missing:
+        with pytest.raises(RefocusConstantsError) as info:
+            pipeline.check_product(raw, "refocus", alpha=1.01)
+        assert info.value.missing == missing
+        assert "lightfield" not in src.__dict__                   # refused without decoding
+    else:
+        pipeline.check_product(raw, "refocus", alpha=1.01)
+    lf = src.lightfield
+    assert missing_refocus_constants(lf) == missing
+    if missing:
+        with pytest.raises(MetadataError, match=missing[0]):
+            alpha_to_slope(1.01, lf)
+    else:
+        assert alpha_to_slope(1.01, lf) > 0

@@ -221,3 +221,24 @@ def test_hci_parameters_from_cfg():
     # the HCI scene of a legacy dict: metric depth and the search range read it
     lf = _lf({"hci_parameters": cfg})
     assert lf.geometry.hci == h and lf.geometry.disparity_range is None
+
+
+#: Every public name plenodecode.types had before its metadata types moved to plenodecode.metadata.
+TYPES_NAMES = ("CFA_PATTERNS", "COLOUR_STATES", "GRID_JSON_VERSION", "cfa_channel_map", "CameraMetadata", "RawCapture",
+               "LensletGrid", "LightField", "LightFieldGeometry", "HCIParameters", "LightFieldMetadata",
+               "GEOMETRY_SCHEMA_VERSION", "LINEAR_COLOUR_STATES", "LEGACY_GEOMETRY_KEYS", "MicroscopeOptics")
+
+
+def test_types_hands_on_the_metadata_types():
+    """``from plenodecode.types import X`` keeps working for every public name, and the names moved to
+    plenodecode.metadata are the same objects (isinstance checks agree whichever module a caller imports)."""
+    import plenodecode.metadata as metadata
+    import plenodecode.types as types
+
+    assert set(TYPES_NAMES) <= set(types.__all__)
+    for name in TYPES_NAMES:
+        assert getattr(types, name) is not None, name
+    for name in metadata.__all__:
+        assert getattr(types, name) is getattr(metadata, name), name
+    lf = LightField(np.zeros((3, 3, 2, 2, 1), np.float32), metadata={"spatial_step_px": 2.0})
+    assert isinstance(lf.geometry, metadata.LightFieldGeometry) and lf.geometry.spatial_step_px == 2.0

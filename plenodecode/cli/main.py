@@ -16,7 +16,7 @@ import sys
 import click
 
 from .. import __version__, _numba
-from ..errors import GeometryMismatchError, PlenodecodeError
+from ..errors import GeometryMismatchError, PlenodecodeError, RefocusConstantsError
 
 #: command name -> (module, one-line description shown by --help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -36,6 +36,22 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "batch": ("plenodecode.cli.batch", "Decode and render many raws, locally or on a Dask cluster."),
     "warmup": ("plenodecode.cli.warmup", "Compile every numba kernel now (first run after installing)."),
 }
+
+
+#: A keyword of :class:`~plenodecode.errors.RefocusConstantsError` -> (the click parameter that set it, what to
+#: type instead).
+ALPHA_OPTIONS = {"alpha": ("alpha", "--slope S (px per view step)"),
+                 "units": ("stack_units", "--stack-units slope (START and STOP as slopes)")}
+
+
+def alpha_usage_error(command: click.Command | None, exc: RefocusConstantsError) -> click.BadParameter:
+    """The usage error (exit 2, one line) of alpha asked of an input without the camera constants: it names the
+    command's option (``--refocus`` / ``--alpha``, ``--stack-units``) and what to use instead."""
+    param_name, instead = ALPHA_OPTIONS[exc.keyword]
+    param = next((p for p in getattr(command, "params", ()) if p.name == param_name), None)
+    hint = " / ".join(param.opts) if param is not None else f"--{param_name.replace('_', '-')}"
+    return click.BadParameter(f"{exc.source} has no {', '.join(exc.missing)} in its metadata, which alpha needs "
+                              f"(Ng's film depth -> slope); use {instead} instead", param_hint=hint)
 
 
 class LazyGroup(click.Group):
@@ -65,6 +81,9 @@ class LazyGroup(click.Group):
             return super().invoke(ctx)
         except GeometryMismatchError as exc:      # checked before any decoding: a usage error like a bad file
             raise click.BadParameter(str(exc), param_hint="--geometry") from None
+        except RefocusConstantsError as exc:      # checked once the input is read, before calibration and decoding
+            name = ctx.invoked_subcommand
+            raise alpha_usage_error(self.get_command(ctx, name) if name else None, exc) from None
         except PlenodecodeError as exc:
             if ctx.obj and ctx.obj.get("verbose", 0) > 0:
                 raise

@@ -13,6 +13,7 @@ from typing import Any, Callable, Mapping, Sequence
 from ..registry import lazy, lookup
 from ..types import LensletGrid, LightField, RawCapture
 from .inputs import Progress
+from .needs import check_product
 from .source import Source
 
 log = logging.getLogger(__name__)
@@ -375,5 +376,9 @@ PRODUCTS: dict[str, Callable[..., Rendered]] = {
 
 
 def render_product(src: Source, name: str, **options: Any) -> Rendered:
-    """Render the product ``name`` (a key of :data:`PRODUCTS`) of ``src`` with its ``options``."""
-    return lookup(PRODUCTS, name, param="product")(src, **options)
+    """Render the product ``name`` (a key of :data:`PRODUCTS`) of ``src`` with its ``options``; the options are
+    first checked against the input's metadata (:func:`~plenodecode.pipeline.needs.check_product`), before ``src``
+    is decoded."""
+    render = lookup(PRODUCTS, name, param="product")
+    check_product(src.input, name, **options)
+    return render(src, **options)

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any, Mapping
 from ..types import LightField, RawCapture
 from .inputs import Progress, open_input, read_dark_frame
 from .calibration import Calibration, choose_calibration
+from .needs import check_product
 
 if TYPE_CHECKING:
     from ..io.mosaic_levels import MosaicOptions
@@ -74,6 +75,12 @@ class Source:
             return rectify(self._input, self.geometry, progress=self.progress)
         return decode_raw(self.raw, self.calibration, progress=self.progress, geometry=self.geometry,
                           **self.decode_options)
+
+    @property
+    def input(self) -> LightField | RawCapture:
+        """The input as read (the raw, or the light field before any rectification): what its metadata says
+        without calibrating or decoding (:func:`~plenodecode.pipeline.needs.check_product`)."""
+        return self.raw if self.raw is not None else self._input
 
     @property
     def focused(self) -> bool:
@@ -139,14 +146,22 @@ def open_source(path: str | os.PathLike, *, grid: str | os.PathLike | None = Non
                 raytrix_xml: str | os.PathLike | None = None,
                 dark: str | os.PathLike | RawCapture | None = None, optics: MicroscopeOptics | None = None,
                 decode_options: Mapping[str, Any] | None = None, progress: Progress = None,
-                geometry: GeometricCalibration | None = None) -> Source:
+                geometry: GeometricCalibration | None = None,
+                check: Mapping[str, Mapping[str, Any]] | None = None) -> Source:
     """:func:`open_input`, then for a raw :func:`choose_calibration`; the decoding waits for first use.
+
+    ``check`` (product name -> its options, as :func:`~plenodecode.pipeline.render_product` will take them) is
+    checked against the input's metadata as soon as it is read, before the calibration and any decoding
+    (:func:`~plenodecode.pipeline.needs.check_product`: alpha without the camera constants raises
+    :class:`~plenodecode.errors.RefocusConstantsError`).
 
     The calibration, ``mosaic``, ``raytrix_xml`` and ``dark`` (a dark frame, :func:`read_dark_frame`, handed to
     the decoding) options apply to raws only; ``optics`` to every input (:func:`open_input`); ``geometry`` (a
     geometric calibration: rectify) to raws and light fields, its shape checked here (:func:`check_geometry`).
     """
     item = open_input(path, mosaic=mosaic, raytrix_xml=raytrix_xml, optics=optics)
+    for name, options in (check or {}).items():
+        check_product(item, name, **options)
     if isinstance(item, LightField):
         return Source(lightfield=item, geometry=geometry)
     cal = choose_calibration(item, grid=grid, white=white, database=database, self_calibrate=self_calibrate,

@@ -57,7 +57,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import MetadataError
-from ..types import LightField, LightFieldGeometry
+from ..types import CameraMetadata, LightField, LightFieldGeometry
 
 #: Constants of :func:`slope_per_alpha_unit` (keyword overrides of :func:`alpha_to_slope`).
 REFOCUS_CONSTANTS = ("focal_length_m", "f_number", "lens_pitch_m", "spatial_step_px", "view_step_px")
@@ -110,6 +110,22 @@ def refocus_constants(lf: LightField | LightFieldGeometry | None = None, **overr
             raise ValueError(f"{name} must be a positive number, got {value}")
         out[name] = value
     return out
+
+
+def missing_refocus_constants(lf: LightField | LightFieldGeometry | CameraMetadata) -> tuple[str, ...]:
+    """The names of :data:`REFOCUS_CONSTANTS` that :func:`refocus_constants` would not find (empty: alpha works).
+
+    A :class:`~plenodecode.types.CameraMetadata` (a raw, before calibration and decoding) stands for the light
+    field it decodes to: the decoder always sets ``spatial_step_px`` (the grid's row spacing) and
+    ``view_step_px`` (1), and ``lens_pitch_m`` falls back to the calibrated pitch times ``pixel_pitch_m``
+    (:meth:`~plenodecode.types.LightFieldGeometry.from_camera`), so only the camera's own constants are asked.
+    """
+    if isinstance(lf, CameraMetadata):
+        # placeholders for what every calibration and decode supplies: only whether a value exists is asked here
+        geometry = LightFieldGeometry.from_camera(lf, {"pitch": 1.0}, spatial_step_px=1.0, view_step_px=1.0)
+    else:
+        geometry = _geometry(lf)
+    return tuple(name for name in REFOCUS_CONSTANTS if getattr(geometry, name) is None)
 
 
 def slope_per_alpha_unit(lf: LightField | LightFieldGeometry | None = None, **constants: float) -> float:

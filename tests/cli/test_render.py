@@ -104,11 +104,12 @@ def test_focal_stack_writes_slices_all_in_focus_and_json(tmp_path):
     assert run("refocus", src, "--focal-stack", "-1:1", "-o", tmp_path / "s3").exit_code == 2
 
 
-def test_alpha_without_camera_metadata_exits_1_with_one_line(tmp_path):
+def test_alpha_without_camera_metadata_is_a_usage_error_in_one_line(tmp_path):
     src = save_npy(tmp_path, small_lf(camera=False))
     res = run("refocus", src, "--alpha", 1.01, "-o", tmp_path / "x.png")
-    assert res.exit_code == 1
-    assert "focal_length_m" in res.output and len(res.output.strip().splitlines()) == 1
+    assert res.exit_code == 2
+    assert len(res.output.strip().splitlines()) == 1, res.output
+    assert all(word in res.output for word in ("focal_length_m", "--alpha", "--slope")), res.output
     assert not (tmp_path / "x.png").exists()
 
 
