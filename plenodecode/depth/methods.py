@@ -53,6 +53,8 @@ COSTVOLUME: dict[str, Any] = {
     "refine_penalty_noise": 0.002,  # above, at least a quarter (0: fixed); the same for refine_strip_penalty
     "gate_ratio": 2.0,        # clean-ups may not raise a pixel's matching cost above this x its own (0 = off)
     "gate_floor": 0.05,       # ... plus this (cost units: the median per-pixel cost span)
+    "sgm_gate_ratio": 5.0,    # SGM's winner gives way to the matching cost's own where it costs more than this x
+    "sgm_gate_floor": 0.03,   # ... plus this (0 ratio = off); see the pipeline's step 2
 }
 
 #: The fast method's own parameters: the star views, coarser labels, 4 paths, fewer refinement offsets.
@@ -79,6 +81,8 @@ FAST: dict[str, Any] = {
     "refine_penalty_noise": 0.0,
     "gate_ratio": 0.0,
     "gate_floor": 0.05,
+    "sgm_gate_ratio": 0.0,
+    "sgm_gate_floor": 0.03,
 }
 
 #: Pipeline presets: method name -> its own parameters.

@@ -31,7 +31,12 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    ``refine_penalty_noise``, at least a quarter): noise puts the same floor under every group's error.
 2. **Edge-aware regularisation** (:mod:`~plenodecode.depth.aggregation`): semi-global aggregation along
    ``paths`` directions (Hirschmueller, TPAMI 2008) whose large-jump penalty P2 falls at the centre view's
-   intensity edges, so depth edges follow image edges.
+   intensity edges, so depth edges follow image edges.  Its penalties are in units of the median per-pixel
+   cost span, which can outweigh the small span of a weakly textured surface seen through a slit of a few
+   pixels: the winner of the aggregated cost is gated by the matching cost
+   (:func:`~plenodecode.depth.refinement.cost_gate` with ``sgm_gate_ratio``, ``sgm_gate_floor``), so a pixel
+   keeps the winner of its own cost where SGM's costs it more than that ratio (thin scenes' ground-truth mean
+   BadPix0.07 17.7 -> 12.5 %).
 3. **Winner-take-all**: best label with a parabola through its neighbours' aggregated cost; confidence
    (:mod:`~plenodecode.depth.confidence`) is the product of the centre view's texture along the baselines
    against its noise, the peak ratio of the aggregated cost and the agreement of all views with the best
@@ -186,7 +191,7 @@ PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "med
                  "contrast_noise", "contrast_smooth", "contrast_smooth_noise", "contrast_weight", "min_view_weight",
                  "disparity_range", "strips", "strip_width",
                  "strip_radius", "strip_penalty", "refine_strip_penalty", "strip_penalty_noise", "refine_penalty_noise",
-                 "gate_ratio", "gate_floor", *EDGE_DEFAULTS)
+                 "gate_ratio", "gate_floor", "sgm_gate_ratio", "sgm_gate_floor", *EDGE_DEFAULTS)
 
 
 def merge_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]) -> dict[str, Any]:
@@ -232,7 +237,7 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
         if not float(p[name]) > 0:
             raise ValueError(f"{name} must be positive, got {p[name]!r}")
     for name in ("strips", "strip_radius", "strip_penalty_noise", "refine_penalty_noise", "gate_ratio",
-                 "gate_floor"):
+                 "gate_floor", "sgm_gate_ratio", "sgm_gate_floor"):
         if not float(p[name]) >= 0:
             raise ValueError(f"{name} must be >= 0, got {p[name]!r}")
     if int(p["refine_samples"]) < 3:
@@ -374,6 +379,11 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
             return after
         return cost_gate(cost, labels, before, after, ratio=float(p["gate_ratio"]), floor=float(p["gate_floor"]))
 
+    # SGM's penalties, in units of the median cost span, outweigh the small cost span of a weakly textured far
+    # plane seen through a slit: where the views clearly prefer their own winner, it stays
+    if float(p["sgm_gate_ratio"]) > 0:
+        disparity = cost_gate(cost, labels, winner(cost, labels)[0], disparity, ratio=float(p["sgm_gate_ratio"]),
+                              floor=float(p["sgm_gate_floor"]))
     disparity = gated(disparity, weighted_median(guide, disparity, int(p["median_radius"])))
     refine_penalty = strip_penalty_for(float(p["refine_strip_penalty"]), float(p["refine_penalty_noise"]), noise)
     if n_refine:
