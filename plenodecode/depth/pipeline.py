@@ -191,7 +191,7 @@ PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "med
                  "contrast_noise", "contrast_smooth", "contrast_smooth_noise", "contrast_weight", "min_view_weight",
                  "disparity_range", "strips", "strip_width",
                  "strip_radius", "strip_penalty", "refine_strip_penalty", "strip_penalty_noise", "refine_penalty_noise",
-                 "gate_ratio", "gate_floor", "sgm_gate_ratio", "sgm_gate_floor", *EDGE_DEFAULTS)
+                 "gate_ratio", "gate_floor", "sgm_gate_ratio", "sgm_gate_floor", "confidence_radius", *EDGE_DEFAULTS)
 
 
 def merge_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]) -> dict[str, Any]:
@@ -225,7 +225,7 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
     if not float(p["edge_jump"]) > 0 or not float(p["edge_ratio"]) > 0:
         raise ValueError(f"edge_jump and edge_ratio must be positive, got edge_jump={p['edge_jump']!r}, "
                          f"edge_ratio={p['edge_ratio']!r}")
-    for name in ("radius", "median_radius", "refine_radius", "edge_radius", "edge_median_radius"):
+    for name in ("radius", "median_radius", "refine_radius", "edge_radius", "edge_median_radius", "confidence_radius"):
         if name == "refine_radius" and p[name] == "auto":
             continue
         if int(p[name]) < 0:
@@ -402,7 +402,7 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     # confidence at the final disparity: the view agreement of the map after the occlusion step, so a pixel the
     # edge pass moved to the far side is judged by the views that see it there
     valid = None if lf.weight is None else np.asarray(lf.weight[views.centre]) > 0
-    confidence = estimate_confidence(views, peak_ratio, disparity, radius=int(p["radius"]), valid=valid)
+    confidence = estimate_confidence(views, peak_ratio, disparity, radius=int(p["confidence_radius"]), valid=valid)
     params = {**p, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
               "noise_sigma": noise, "contrast_eps_used": eps, "contrast_smooth_used": smooth,
               "strip_penalty_used": strips["strip_penalty"],
