@@ -460,7 +460,10 @@ def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, 
         Run step 3, step 4.
     gate : callable(before, after) -> map, optional
         Applied to the edge snapping of step 2 (:func:`plenodecode.depth.refinement.cost_gate`): the median
-        may not replace a thin structure that the matching cost supports by the surface around it.
+        may not replace a thin structure that the matching cost supports by the surface around it; and to
+        the moves of step 3 to the near side (the far side of a slit of a few pixels is seen by the strip of
+        views along it only, which the matching cost's strips weigh; without this gate the thin scenes'
+        ground-truth mean BadPix0.07 was 12.5 % instead of 11.4 %).
 
     Returns
     -------
@@ -492,7 +495,12 @@ def fix_occlusion_edges(views: Views, disparity: np.ndarray, guide: np.ndarray, 
         snapped = np.where(band, wm, d).astype(np.float32)
         d = snapped if gate is None else gate(d, snapped)
     if intensities is not None and visibility:
-        d = visibility_relabel(intensities, d, radius=radius, jump=jump, ratio=ratio)
+        relabelled = visibility_relabel(intensities, d, radius=radius, jump=jump, ratio=ratio)
+        if gate is not None:
+            # a move to the near side, gated: a far point seen through a thin gap is judged by the few views
+            # along the gap, which the matching cost's strips weigh and the per-pixel costs do not
+            relabelled = np.where(relabelled > d, gate(d, relabelled), relabelled).astype(np.float32)
+        d = relabelled
     if intensities is not None and coverage:
         d = coverage_relabel(intensities, d, radius=radius, jump=jump)
     return d

@@ -159,9 +159,10 @@ def prepare_views(lf: LightField, *, min_view_weight: float = 0.1, grey: bool = 
     return add_contrast(plain, contrast_sigma, contrast_eps, contrast_weight) if contrast_sigma > 0 else plain
 
 
-def add_contrast(views: Views, sigma: float, eps: float, weight: float | None) -> Views:
-    """The views with their local contrast normalisation (:func:`local_contrast`) stacked beside them
-    (scaled by ``weight``) or, when ``weight`` is None, in their place; see :func:`prepare_views`.
+def add_contrast(views: Views, sigma: float, eps: float, weight: float | None, smooth: float = 0.0) -> Views:
+    """The views with their local contrast normalisation (:func:`local_contrast`, smoothed by ``smooth``)
+    stacked beside them (scaled by ``weight``) or, when ``weight`` is None, in their place; see
+    :func:`prepare_views`.
 
     Returns
     -------
@@ -171,7 +172,7 @@ def add_contrast(views: Views, sigma: float, eps: float, weight: float | None) -
     V, U, Y, X, nc = views.data.shape
     out = np.zeros((V, U, Y, X, nc if weight is None else 2 * nc), np.float32)
     for vu in [views.centre, *views.used()]:
-        lcn = local_contrast(views.data[vu], float(sigma), float(eps))
+        lcn = local_contrast(views.data[vu], float(sigma), float(eps), float(smooth))
         if weight is None:
             out[vu] = lcn
         else:
@@ -216,12 +217,25 @@ def noise_sigma(views: Views, lo: float, hi: float, step: float = 0.1) -> float:
     return math.sqrt(float(np.median(np.median(np.stack(residuals), axis=0))) / (2.0 * nc))
 
 
-def local_contrast(img: np.ndarray, sigma: float, eps: float) -> np.ndarray:
-    """``(I - G*I) / (sqrt(G*(I - G*I)^2) + eps)`` per channel; (Y, X, C) float32 in and out."""
+def local_contrast(img: np.ndarray, sigma: float, eps: float, smooth: float = 0.0) -> np.ndarray:
+    """``S * [(I - G*I) / (sqrt(G*(I - G*I)^2) + eps)]`` per channel; (Y, X, C) float32 in and out.
+
+    ``S`` is a Gaussian of ``smooth`` px (0 = none).  On noisy views the normalisation lifts the noise of
+    flat areas to about ``1 / (1 + eps / sigma_n)`` of the texture's level, and that white noise biases a
+    matching cost that shifts the views by interpolation: a shift by a fraction ``f`` of a pixel averages
+    the noise of neighbours (bilinear: its variance times ``(1 - f)^2 + f^2``, half at ``f = 1/2``), so the
+    cost is lowest where the shifts are fractional.  On the decoded slits-v-j2-weak scene (sigma_n 0.0096)
+    the winner sat 0.09 px per view step below the near surface's disparity of 1.0, 0.02 without the
+    normalisation and 0.01 with ``smooth`` 0.6.  Smoothing correlates the noise of neighbouring pixels, so
+    an interpolation no longer averages it away.
+    """
     low = cv2.GaussianBlur(img, (0, 0), sigma).reshape(img.shape)
     hp = img - low
     sd = np.sqrt(cv2.GaussianBlur(hp * hp, (0, 0), sigma)).reshape(img.shape)
-    return (hp / (sd + np.float32(eps))).astype(np.float32)
+    out = (hp / (sd + np.float32(eps))).astype(np.float32)
+    if smooth > 0:
+        out = cv2.GaussianBlur(out, (0, 0), smooth).reshape(img.shape)
+    return out
 
 
 def _display_encode(img: np.ndarray, scale: float, linear: bool) -> np.ndarray:
