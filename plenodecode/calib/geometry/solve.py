@@ -15,7 +15,8 @@ distortion parameters and the 6 pose parameters of its own capture only, so fini
 them: 15-20 iterations per stage, where scipy's sparse trust-region solver (inexact LSMR steps) ran out
 of its 200 evaluations per stage on 8 generated captures and took ~40x the time (issue 22).
 
-Stages (as the toolbox): without distortion (``[k1 k2 k3 b1 b2] = 0``), then with it.
+Stages (as the toolbox): without distortion (``[k1 k2 k3 b1 b2] = 0``), then with it; then the last stage
+again with each capture's residuals weighted by the inverse of their mean square (:func:`capture_weights`).
 """
 
 from __future__ import annotations
