@@ -3,8 +3,9 @@
 Every view ``lf.data[j, i]`` of a capture is searched for the board's ``rows x cols`` inner corners
 with OpenCV's sector-based detector (``cv2.findChessboardCornersSB``, sub-pixel accurate with
 ``CALIB_CB_ACCURACY``); only complete detections count, and each corner is then fitted to the view itself
-(:func:`refine_corners`, a blurred X-junction in a window that stays inside the corner's squares).  Views darker than ``min_weight`` of the
-central view's weight (the vignetted border of the angular disk) are not searched.
+(:func:`refine_corners`, a blurred X-junction in a window that stays inside the corner's squares).  Views
+darker than ``min_weight`` of the central view's weight (the vignetted border of the angular disk) are not
+searched.
 
 The detector may start its corner list at any corner of the board; :func:`canonical_order` puts the
 list of every view in the same order (rows running to the image's right, columns down), so that the
