@@ -156,10 +156,12 @@ def calibrate_geometry(raws_or_lightfields: Iterable[LightField | RawCapture],
 
     Each capture is decoded without rectification (raws: with ``grid`` and ``white``, the same for all,
     with :data:`CAPTURE_DECODE`: the bilinear demosaic, and views extrapolated at the micro-images' edge),
-    the board's inner corners are found in its sub-aperture views (:func:`.corners.detect_corners`),
+    the board's inner corners are found in its sub-aperture views (:func:`.corners.detect_corners`: the
+    sector detector, then a fit of each corner to the view),
     ``H`` and the poses are initialised in closed form (:mod:`.initial`), then ``H``, the distortion
     ``[k1, k2, k3, b1, b2]`` and the poses are refined jointly by minimising the 3-D distance between each
-    corner and the ray of each sample that sees it (:mod:`.solve`).  A capture without a complete board is
+    corner and the ray of each sample that sees it (:mod:`.solve`; each capture weighted by the inverse of
+    its mean squared distance).  A capture without a complete board is
     skipped (logged, and listed in ``info['skipped']``).
 
     Parameters
