@@ -12,10 +12,11 @@ critical path, the command and its fork server (before and after the tasks) plus
 the single process's critical path over it in brackets.  On a machine shared with other work the wall
 times swing with the load while these CPU figures barely move; on idle cores the critical path is about
 the wall time (an upper bound for the single process, whose decoding uses both cores in stretches, so the
-bracketed ratio runs a little above the wall ratio).  Each line also gives the tasks' span, from the first task's start to the last one's end
-(``tasks_span_s`` of ``summary.json``): the batch's wall time once a worker is up, without the start-up
-(interpreter, imports, fork server) that the line's "started ... s in" shows separately; the span of the single
-process over it is how well the workers share the cores.  Peak memory per worker is the largest ``ru_maxrss``
+bracketed ratio runs a little above the wall ratio).  Each line also gives the throughput after start-up,
+``steady_raws_per_s`` of ``summary.json``: the raws started once every worker had finished its first task, per
+second until the last one ended (the first tasks and everything before them, interpreter, imports, fork server,
+kernel loading, are what "started ... s in" and "first task" show separately); its ratio to the single process's
+is how well the workers share the cores.  Peak memory per worker is the largest ``ru_maxrss``
 a worker reported (``TaskResult.worker_peak_mb`` in ``summary.json``).
 
 Inputs are generated once into ``bench/_cache/batch_illum_mini/`` (20 scene raws as Illum .lfr,
@@ -150,14 +151,14 @@ def _peaks(summary: dict) -> dict[str, float]:
 
 
 def _figure(name: str, seconds: float, summary: dict, base: float | None, extra_note: str = "",
-            base_critical: float | None = None, base_span: float | None = None) -> Figure:
+            base_critical: float | None = None, base_rate: float | None = None) -> Figure:
     peaks = _peaks(summary)
     per_min = N_RAWS / seconds * 60.0
     steady = summary["steady_task_s"]          # BatchSummary.latency: a worker's first task pays imports and kernels
     critical_ratio = "" if base_critical is None else f" ({base_critical / summary['critical_cpu_s']:.2f}x)"
-    span = summary["tasks_span_s"]
-    span_ratio = "" if base_span is None else f" = {base_span / span:.2f}x the single process's"
-    note = (f"tasks from first start to last end {span:.2f} s{span_ratio}; "
+    rate = summary["steady_raws_per_s"]
+    rate_ratio = "" if base_rate is None else f" = {rate / base_rate:.2f}x the single process's"
+    note = (f"after start-up {rate:.2f} raws/s{rate_ratio}; {'' if base is None else f'wall ratio {base / seconds:.2f}x; '}"
             f"{per_min:.1f} raws/min; {len(peaks)} worker(s), peak RSS per worker "
             f"{'/'.join(f'{p:.0f}' for p in sorted(peaks.values()))} MB; task median "
             f"{float('nan') if steady is None else steady:.2f} s, first task {summary['first_task_s']:.1f} s, "
@@ -188,7 +189,7 @@ def run() -> list[Figure]:
                                f"; 1-min load {load:.1f} on {os.cpu_count()} cores"))
         t2, s2 = _run_cli(raws, db, Path(tmp) / "jobs2", ["--jobs", "2"])
         figures.append(_figure(f"{label}, --jobs 2", t2, s2, t1, base_critical=s1["critical_cpu_s"],
-                               base_span=s1["tasks_span_s"]))
+                               base_rate=s1["steady_raws_per_s"]))
         with LocalCluster(n_workers=2, processes=True, threads_per_worker=1, host="127.0.0.1",
                           dashboard_address=None) as cluster:
             import psutil
@@ -201,9 +202,9 @@ def run() -> list[Figure]:
             t5, s5 = _run_cli(raws, db, Path(tmp) / "dask_again", ["--scheduler", cluster.scheduler_address],
                               outside=workers)
         figures.append(_figure(f"{label}, LocalCluster 2 workers", t3, s3, t1, base_critical=s1["critical_cpu_s"],
-                               base_span=s1["tasks_span_s"]))
+                               base_rate=s1["steady_raws_per_s"]))
         figures.append(_figure(f"{label}, LocalCluster 2 workers, its second batch", t5, s5, t1,
-                               base_critical=s1["critical_cpu_s"], base_span=s1["tasks_span_s"]))
+                               base_critical=s1["critical_cpu_s"], base_rate=s1["steady_raws_per_s"]))
         # resuming: a second run over finished outputs only hashes the inputs
         t4, s4 = _run_cli(raws, db, Path(tmp) / "single", ["--jobs", "1"], expect="skipped")
         figures.append(Figure(f"{label}, re-run (all skipped)", t4, None, note=f"{s4['skipped']} skipped"))

@@ -288,10 +288,10 @@ class BatchSummary:
         -------
         dict
             ``first_task_s``: the longest first task of a worker; ``steady_task_s``: the median of the
-            other tasks; ``tasks_span_s``: from the start of the first task to the end of the last (the wall
-            time of the batch once a worker was up: start-up and imports before it are not in it);
-            ``worker_peak_mb``: the largest peak resident memory of a worker, MB.  None where there is no
-            such task.
+            other tasks; ``steady_raws_per_s``: the throughput once every worker has finished its first task,
+            the tasks started from then on over the time from then to the last task's end (None with fewer
+            than two such tasks); ``worker_peak_mb``: the largest peak resident memory of a worker, MB.  None
+            where there is no such task.
         """
         done = sorted((r for r in self.results if r.status == "done"), key=lambda r: r.started)
         first: dict[str, float] = {}
@@ -307,9 +307,22 @@ class BatchSummary:
             mid = len(rest) // 2
             steady = rest[mid] if len(rest) % 2 else 0.5 * (rest[mid - 1] + rest[mid])
         peaks = [r.worker_peak_mb for r in self.results if r.worker_peak_mb is not None]
-        span = max(r.started + r.seconds for r in done) - done[0].started if done else None
         return {"first_task_s": max(first.values()) if first else None, "steady_task_s": steady,
-                "tasks_span_s": span, "worker_peak_mb": max(peaks) if peaks else None}
+                "steady_raws_per_s": self._steady_rate(done), "worker_peak_mb": max(peaks) if peaks else None}
+
+    @staticmethod
+    def _steady_rate(done: list[TaskResult]) -> float | None:
+        """Tasks per second after start-up: ``n / (t_end - t_up)``, ``t_up`` the end of the last worker's first
+        task of ``done`` (sorted by start), ``n`` the tasks started at or after it, ``t_end`` the last end."""
+        first_end: dict[str, float] = {}
+        for r in done:
+            first_end.setdefault(r.worker, r.started + r.seconds)
+        if not first_end:
+            return None
+        up = max(first_end.values())
+        later = [r for r in done if r.started >= up]
+        end = max((r.started + r.seconds for r in later), default=up)
+        return len(later) / (end - up) if len(later) >= 2 and end > up else None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-serialisable form (what ``summary.json`` holds)."""

@@ -469,8 +469,10 @@ def test_latency_separates_each_workers_first_task():
     # input order is not start order: w1's first task is the one that started first
     s = BatchSummary((res("w1", 5.0, 1.0), res("w1", 1.0, 4.0), res("w2", 2.0, 3.0), res("w2", 6.0, 2.0),
                       res("w1", 9.0, 0.5), res("w2", 0.5, 9.0, "skipped")))
-    # the decoded tasks run from 1.0 (w1's first) to 9.5 (w1's last); the skipped one does not count
-    assert s.latency() == {"first_task_s": 4.0, "steady_task_s": 1.0, "tasks_span_s": 8.5, "worker_peak_mb": 109.0}
+    # both workers are up at 5.0 (w1's first task ends then, w2's at 5.0 too); after it start w1's tasks at 5.0
+    # and 9.0 and w2's at 6.0, the last ending at 9.5: 3 tasks in 4.5 s.  The skipped one does not count.
+    assert s.latency() == {"first_task_s": 4.0, "steady_task_s": 1.0, "steady_raws_per_s": 3 / 4.5,
+                           "worker_peak_mb": 109.0}
     assert BatchSummary((res("w1", 1.0, 2.0, "failed"),)).latency()["first_task_s"] is None
     assert s.to_dict()["steady_task_s"] == 1.0
 
