@@ -29,7 +29,12 @@ MIN_CAPTURES = 3
 #: ``H00``, ``H20``, ``H11``, ``H31`` come out ~1 % low on a generated F01 set even from the views of weight
 #: >= 0.85 (bilinear: within 0.30 %, 16 captures; bench/bench_geometry.py).  The slicer no longer moves
 #: views at the micro-image's edge (it leaves out demosaiced channels whose 3 x 3 stencil was cut), so
-#: what remains is in malvar's 5 x 5 correction near the edge, not yet located (issue 22).
+#: what remains is in malvar's 5 x 5 correction near the edge (issue 22): it is applied only where its stencil is
+#: whole, so pixels within about 2 px of the last measured one stay plain bilinear (blurrier).  A view whose
+#: bilinear footprint straddles that boundary gets a kernel with a blurrier outer side: exact for a linear
+#: radiance (its centroid is right) but edges and texture come out inwards, i.e. compressed parallax.  Moving the
+#: boundary inwards moves the compression to the inner views (f01-mini textured plane, 1.5 px per view step:
+#: ring 1 / 3 scale 1.0001 / 0.9883 -> 0.9923 / 0.9967).
 CAPTURE_DEMOSAIC = "bilinear"
 #: How captures are sliced at the micro-image's edge (``decode(view_edges=)``): 'extrapolate' keeps the outer
 #: views at their nominal offsets; the default 'renormalise' pulls them up to 0.35 view steps inwards, and H
