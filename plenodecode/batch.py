@@ -294,32 +294,30 @@ class BatchSummary:
             where there is no such task.
         """
         done = sorted((r for r in self.results if r.status == "done"), key=lambda r: r.started)
-        first: dict[str, float] = {}
+        first: dict[str, TaskResult] = {}           # each worker's first task
         rest: list[float] = []
         for r in done:
             if r.worker in first:
                 rest.append(r.seconds)
             else:
-                first[r.worker] = r.seconds
+                first[r.worker] = r
         rest.sort()
         steady = None
         if rest:
             mid = len(rest) // 2
             steady = rest[mid] if len(rest) % 2 else 0.5 * (rest[mid - 1] + rest[mid])
         peaks = [r.worker_peak_mb for r in self.results if r.worker_peak_mb is not None]
-        return {"first_task_s": max(first.values()) if first else None, "steady_task_s": steady,
-                "steady_raws_per_s": self._steady_rate(done), "worker_peak_mb": max(peaks) if peaks else None}
+        return {"first_task_s": max((r.seconds for r in first.values()), default=None), "steady_task_s": steady,
+                "steady_raws_per_s": self._steady_rate(done, first.values()),
+                "worker_peak_mb": max(peaks) if peaks else None}
 
     @staticmethod
-    def _steady_rate(done: list[TaskResult]) -> float | None:
-        """Tasks per second after start-up: ``n / (t_end - t_up)``, ``t_up`` the end of the last worker's first
-        task of ``done`` (sorted by start), ``n`` the tasks started at or after it, ``t_end`` the last end."""
-        first_end: dict[str, float] = {}
-        for r in done:
-            first_end.setdefault(r.worker, r.started + r.seconds)
-        if not first_end:
+    def _steady_rate(done: list[TaskResult], firsts: Iterable[TaskResult]) -> float | None:
+        """Tasks per second after start-up: ``n / (t_end - t_up)``, ``t_up`` the end of the last of the workers'
+        first tasks ``firsts``, ``n`` the tasks of ``done`` started at or after it, ``t_end`` the last end."""
+        up = max((r.started + r.seconds for r in firsts), default=None)
+        if up is None:
             return None
-        up = max(first_end.values())
         later = [r for r in done if r.started >= up]
         end = max((r.started + r.seconds for r in later), default=up)
         return len(later) / (end - up) if len(later) >= 2 and end > up else None
