@@ -373,17 +373,17 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
               progress=stage(n_labels))
     disparity, peak_ratio = winner(agg, labels)
     del agg
-    def gated(before: np.ndarray, after: np.ndarray) -> np.ndarray:
-        # a clean-up's result, except where the matching cost clearly prefers the value before it
-        if not float(p["gate_ratio"]) > 0:
+    def gated(before: np.ndarray, after: np.ndarray, ratio: float = float(p["gate_ratio"]),
+              floor: float = float(p["gate_floor"])) -> np.ndarray:
+        # a step's result, except where the matching cost clearly prefers the value before it (ratio 0: off)
+        if not ratio > 0:
             return after
-        return cost_gate(cost, labels, before, after, ratio=float(p["gate_ratio"]), floor=float(p["gate_floor"]))
+        return cost_gate(cost, labels, before, after, ratio=ratio, floor=floor)
 
     # SGM's penalties, in units of the median cost span, outweigh the small cost span of a weakly textured far
     # plane seen through a slit: where the views clearly prefer their own winner, it stays
     if float(p["sgm_gate_ratio"]) > 0:
-        disparity = cost_gate(cost, labels, winner(cost, labels)[0], disparity, ratio=float(p["sgm_gate_ratio"]),
-                              floor=float(p["sgm_gate_floor"]))
+        disparity = gated(winner(cost, labels)[0], disparity, float(p["sgm_gate_ratio"]), float(p["sgm_gate_floor"]))
     disparity = gated(disparity, weighted_median(guide, disparity, int(p["median_radius"])))
     refine_penalty = strip_penalty_for(float(p["refine_strip_penalty"]), float(p["refine_penalty_noise"]), noise)
     if n_refine:
