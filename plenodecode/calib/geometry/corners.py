@@ -241,11 +241,7 @@ def _window_radii(grid: np.ndarray) -> np.ndarray:
     out = np.full((rows, cols), np.inf)
 
     def along(axis: int) -> np.ndarray:            # direction of the grid line along ``axis`` at every corner
-        g = np.moveaxis(grid, axis, 0)
-        d = np.empty_like(g)
-        d[1:-1] = g[2:] - g[:-2]
-        d[0], d[-1] = g[1] - g[0], g[-1] - g[-2]
-        d = np.moveaxis(d, 0, axis)
+        d = np.gradient(grid, axis=axis)            # the same differences refine_corners starts its edges from
         return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
     for axis in (0, 1):                             # neighbours along ``axis``, from the grid line across it
