@@ -484,7 +484,8 @@ def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: Ba
 
         raw = open_raw(src, mosaic=options.mosaic_options(), optics=MicroscopeOptics.from_dict(options.optics))
         for product in options.outputs:     # what the metadata cannot serve fails now, before calibrating
-            check_product(raw, product, **_image_product_options(product, options))
+            check_product(raw, product, rectified=options.geometry is not None,
+                          **_image_product_options(product, options))
         # the folder is staged under a temporary name and replaces ``target`` (checked above) only when complete
         with atomic_output(target, overwrite=True, folder=True) as staging:
             products = _write_products(raw, staging, options, threads=threads)

@@ -28,22 +28,27 @@ class GeometryMismatchError(CalibrationError):
     """A geometric calibration (``--geometry``) made for light fields of another shape."""
 
 
-class RefocusConstantsError(MetadataError):
-    """Ng's alpha was asked of an input whose metadata lacks the camera constants that turn it into a slope.
+class MissingConstantsError(MetadataError):
+    """A product asks of an input a camera constant its metadata lacks: alpha (Ng's film depth -> slope), a
+    focus distance in metres, metric depth (:func:`plenodecode.pipeline.needs.check_product`).
 
     Attributes
     ----------
     keyword : str
-        The option that asked for alpha: 'alpha' (a refocus) or 'units' (a focal stack in alpha units).
+        The option that asked: 'alpha' (a refocus), 'units' (a focal stack in alpha units), 'distance_m' (a
+        refocus at a distance), 'metric' or 'points' (metric depth).
     missing : tuple of str
-        The constants not found (names of :data:`plenodecode.render.alpha.REFOCUS_CONSTANTS`).
+        The constants not found (names of :data:`plenodecode.render.alpha.REFOCUS_CONSTANTS`, or
+        'focus_distance_m'); empty when the message names the options that supply them.
     source : str
         The input, as the message names it.
+    need : str
+        What needs the constants, as a phrase ("alpha (Ng's film depth -> slope)", "metric depth", ...).
     """
 
-    def __init__(self, message: str, *, keyword: str, missing: tuple[str, ...], source: str) -> None:
+    def __init__(self, message: str, *, keyword: str, missing: tuple[str, ...], source: str, need: str) -> None:
         super().__init__(message)
-        self.keyword, self.missing, self.source = keyword, tuple(missing), source
+        self.keyword, self.missing, self.source, self.need = keyword, tuple(missing), source, need
 
 
 class DecodeError(PlenodecodeError):
@@ -51,4 +56,4 @@ class DecodeError(PlenodecodeError):
 
 
 __all__ = ["PlenodecodeError", "FormatError", "MetadataError", "CalibrationError", "GeometryMismatchError",
-           "RefocusConstantsError", "DecodeError"]
+           "MissingConstantsError", "DecodeError"]

@@ -665,3 +665,28 @@ def test_cli_alpha_fails_a_raw_without_focal_length_before_decoding_and_goes_on(
     assert any(line.startswith("scene1.lfr") and " done " in line for line in lines), res.stdout
     assert [Path(p).name for p in decoded] == ["scene1.lfr"]
     assert not (out / "nofocal").exists() and len(list((out / "scene1").glob("refocus_a1.005.png"))) == 1
+
+
+def test_cli_focus_distance_fails_raws_without_the_constants_before_decoding(data, tmp_path, monkeypatch):
+    """--focus-distance on raws that cannot turn metres into a slope (one without a focal length, one without the
+    distance it was focused at): each fails at once, naming what it lacks, and none is calibrated or decoded."""
+    from plenodecode.io import lytro
+    from plenodecode.pipeline import source
+    from plenodecode.synthetic import PRESETS, simulate
+
+    bad = tmp_path / "in" / "nofocal.lfr"
+    bad.parent.mkdir()
+    lytro.write_lfr(bad, simulate(replace(PRESETS["illum-mini"], focal_length_m=None), seed=6, shape=SHAPE).raw)
+    decoded = []
+    monkeypatch.setattr(source, "decode_raw", lambda raw, *a, **kw: decoded.append(raw.path))
+    out = tmp_path / "out"
+    good = data["shoot"] / "take1" / "scene1.lfr"
+    res = CliRunner().invoke(cli, ["batch", str(bad), str(good), "-o", str(out), "--database", str(data["db"]),
+                                   "--jobs", "1", "--outputs", "refocus", "--focus-distance", "0.5"])
+    assert res.exit_code == 1, res.output
+    lines = res.stdout.splitlines()
+    assert any(line.startswith("nofocal.lfr") and " failed " in line and "focal_length_m" in line
+               for line in lines), res.stdout
+    assert any(line.startswith("scene1.lfr") and " failed " in line and "focus_distance_m" in line
+               for line in lines), res.stdout
+    assert decoded == [] and not (out / "nofocal").exists() and not (out / "scene1").exists()

@@ -196,7 +196,7 @@ def test_constants_missing_from_a_raw_are_those_its_light_field_lacks(change, mi
     decoded light field lacks, so alpha is refused exactly when the conversion would fail after decoding."""
     from dataclasses import replace as dc_replace
 
-    from plenodecode.errors import MetadataError, RefocusConstantsError
+    from plenodecode.errors import MetadataError, MissingConstantsError
     from plenodecode.render import alpha_to_slope
     from plenodecode.render.alpha import missing_refocus_constants
     from plenodecode.synthetic import simulate
@@ -206,7 +206,7 @@ def test_constants_missing_from_a_raw_are_those_its_light_field_lacks(change, mi
     assert missing_refocus_constants(raw.metadata) == missing
     src = pipeline.Source(raw=raw, calibration=pipeline.Calibration(sim.grid, None, "grid file"))
     if missing:
-        with pytest.raises(RefocusConstantsError) as info:
+        with pytest.raises(MissingConstantsError) as info:
             pipeline.check_product(raw, "refocus", alpha=1.01)
         assert info.value.missing == missing
         assert "lightfield" not in src.__dict__                   # refused without decoding

@@ -87,6 +87,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
         if clash:
             raise click.UsageError(f"{clash[0]} exists; pass --overwrite to replace it")
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
+                      check={"depth": {"metric": metric, "points": ply is not None, "focus_distance": focus_distance}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     rendered = render_product(src, "depth", method=method, disparity_range=rng, metric=metric,
                               points=ply is not None, focus_distance=focus_distance,

@@ -16,7 +16,7 @@ import sys
 import click
 
 from .. import __version__, _numba
-from ..errors import GeometryMismatchError, PlenodecodeError, RefocusConstantsError
+from ..errors import GeometryMismatchError, MissingConstantsError, PlenodecodeError
 
 #: command name -> (module, one-line description shown by --help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -38,20 +38,31 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
-#: A keyword of :class:`~plenodecode.errors.RefocusConstantsError` -> (the click parameter that set it, what to
+_PLAIN_DISPARITY = ("plain disparity (without --metric and --ply), or for a light-field microscope give its optics "
+                    "(--magnification, --na, --medium-index, --lens-pitch-um, --pixel-um, or --optics FILE.json)")
+#: A keyword of :class:`~plenodecode.errors.MissingConstantsError` -> (the click parameter that set it, what to
 #: type instead).
-ALPHA_OPTIONS = {"alpha": ("alpha", "--slope S (px per view step)"),
-                 "units": ("stack_units", "--stack-units slope (START and STOP as slopes)")}
+CONSTANTS_OPTIONS = {"alpha": ("alpha", "--slope S (px per view step)"),
+                     "units": ("stack_units", "--stack-units slope (START and STOP as slopes)"),
+                     "distance_m": ("distance_m", "--slope S (px per view step)"),
+                     "metric": ("metric", _PLAIN_DISPARITY),
+                     "points": ("ply", _PLAIN_DISPARITY)}
 
 
-def alpha_usage_error(command: click.Command | None, exc: RefocusConstantsError) -> click.BadParameter:
-    """The usage error (exit 2, one line) of alpha asked of an input without the camera constants: it names the
-    command's option (``--refocus`` / ``--alpha``, ``--stack-units``) and what to use instead."""
-    param_name, instead = ALPHA_OPTIONS[exc.keyword]
+def constants_usage_error(command: click.Command | None, exc: MissingConstantsError) -> click.BadParameter:
+    """The usage error (exit 2, one line) of a product asked of an input without the camera constants it needs
+    (alpha, a focus distance, metric depth): it names the command's option (``--refocus`` / ``--alpha``,
+    ``--stack-units``, ``--focus-distance``, ``--metric``, ``--ply``), the missing constants and what to type
+    instead (``--focus-distance`` where only the camera's focus distance is missing for metric depth)."""
+    param_name, instead = CONSTANTS_OPTIONS[exc.keyword]
     param = next((p for p in getattr(command, "params", ()) if p.name == param_name), None)
     hint = " / ".join(param.opts) if param is not None else f"--{param_name.replace('_', '-')}"
-    return click.BadParameter(f"{exc.source} has no {', '.join(exc.missing)} in its metadata, which alpha needs "
-                              f"(Ng's film depth -> slope); use {instead} instead", param_hint=hint)
+    if not exc.missing:
+        return click.BadParameter(str(exc), param_hint=hint)
+    if exc.keyword in ("metric", "points") and exc.missing == ("focus_distance_m",):
+        instead = "--focus-distance METRES (the distance in focus)"
+    return click.BadParameter(f"{exc.source} has no {', '.join(exc.missing)} in its metadata, which {exc.need} "
+                              f"needs; use {instead} instead", param_hint=hint)
 
 
 class LazyGroup(click.Group):
@@ -81,9 +92,9 @@ class LazyGroup(click.Group):
             return super().invoke(ctx)
         except GeometryMismatchError as exc:      # checked before any decoding: a usage error like a bad file
             raise click.BadParameter(str(exc), param_hint="--geometry") from None
-        except RefocusConstantsError as exc:      # checked once the input is read, before calibration and decoding
+        except MissingConstantsError as exc:      # checked once the input is read, before calibration and decoding
             name = ctx.invoked_subcommand
-            raise alpha_usage_error(self.get_command(ctx, name) if name else None, exc) from None
+            raise constants_usage_error(self.get_command(ctx, name) if name else None, exc) from None
         except PlenodecodeError as exc:
             if ctx.obj and ctx.obj.get("verbose", 0) > 0:
                 raise

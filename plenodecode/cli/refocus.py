@@ -140,7 +140,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
         names = focal_stack_names(n, ext)
         check_folder_output(output, names, overwrite)
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
-                      check={"refocus": {"alpha": alpha}} if stack is None else {"focal-stack": {"units": stack_units}},
+                      check={"refocus": {"alpha": alpha, "distance_m": distance_m}} if stack is None
+                      else {"focal-stack": {"units": stack_units}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     if stack is None:
         photo = render_product(src, "refocus", slope=slope, alpha=alpha, distance_m=distance_m,

@@ -91,7 +91,7 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
                          focus_at=focus_at, distance_m=distance_m, no_depth=no_depth)
     check_output(output, overwrite)
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
-                      check=None if total_focus else {"refocus": {"alpha": alpha}},
+                      check=None if total_focus else {"refocus": {"alpha": alpha, "distance_m": distance_m}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     if total_focus:
         with usage_errors(param_hint="--patch"):

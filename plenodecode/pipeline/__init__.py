@@ -5,7 +5,8 @@ five steps, each implemented once here::
 
     open_input(path)          raw file (Lytro container, raw + sidecar, Raytrix image + XML, camera raw, mosaic
                               + sidecar) -> RawCapture; saved light field or HCI scene folder -> LightField
-    check_product(item, name) what the products asked of it need from its metadata (alpha: the camera constants),
+    check_product(item, name) what the products asked of it need from its metadata (alpha, a focus distance,
+                              metric depth: the camera constants),
                               refused before the calibration and any decoding (:mod:`.needs`)
     choose_calibration(raw)   explicit grid JSON / white image > the camera's own calibration (Raytrix XML)
                               > the calibration database > self-calibration from the scene (when allowed);
@@ -30,7 +31,7 @@ from __future__ import annotations
 
 from .inputs import (LIGHTFIELD_EXTENSIONS, IMAGE_EXTENSIONS, BIT_DEPTHS, INPUT_READERS, input_kind, is_hci_folder,
                      is_lightfield_path, open_input, open_raw, with_optics, read_dark_frame)
-from .needs import ALPHA_REQUESTS, check_product
+from .needs import REQUESTS, check_product
 from .calibration import Calibration, choose_calibration
 from .source import Source, check_geometry, decode_raw, load_lightfield_input, open_source
 from .products import (MAX_STACK_SLICES, PRODUCTS, STACK_UNITS, Rendered, virtual_depth_stem, render_product,
@@ -40,7 +41,7 @@ from .output import (display_encoding, default_extension, write_image_file, refu
 
 __all__ = [
     "LIGHTFIELD_EXTENSIONS", "IMAGE_EXTENSIONS", "BIT_DEPTHS", "MAX_STACK_SLICES", "INPUT_READERS", "PRODUCTS",
-    "STACK_UNITS", "ALPHA_REQUESTS", "Calibration", "Source", "Rendered", "input_kind", "is_hci_folder", "is_lightfield_path",
+    "STACK_UNITS", "REQUESTS", "Calibration", "Source", "Rendered", "input_kind", "is_hci_folder", "is_lightfield_path",
     "open_input", "check_product", "choose_calibration", "check_geometry", "decode_raw", "open_raw", "open_source", "with_optics",
     "read_dark_frame", "virtual_depth_stem", "load_lightfield_input", "render_product",
     "check_total_focus_patch", "display_encoding", "default_extension", "write_image_file",

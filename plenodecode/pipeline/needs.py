@@ -3,37 +3,59 @@ which may self-calibrate for seconds, and before any decoding).
 
 Part of :mod:`plenodecode.pipeline` (see its docstring for the five steps): :func:`~plenodecode.pipeline.
 open_source` runs :func:`check_product` between step 1 (read) and step 2 (calibrate); :func:`~plenodecode.
-pipeline.render_product` runs it again for a :class:`~plenodecode.pipeline.Source` made by hand.
+pipeline.render_product` runs it again for a :class:`~plenodecode.pipeline.Source` made by hand; a batch runs it
+on every raw before calibrating it.
 
-Today one request needs metadata: Ng's relative film depth alpha, turned into a slope by
-:func:`plenodecode.render.alpha.alpha_to_slope` with the camera constants of
-:data:`~plenodecode.render.alpha.REFOCUS_CONSTANTS`.  It is asked by the 'refocus' product (``alpha=``) and by
-the 'focal-stack' product (``units='alpha'``).
+Three requests need metadata (:data:`REQUESTS`):
+
+* 'alpha': Ng's relative film depth, turned into a slope by :func:`plenodecode.render.alpha.alpha_to_slope`
+  with the camera constants of :data:`~plenodecode.render.alpha.REFOCUS_CONSTANTS` ('refocus' with
+  ``alpha=``, 'focal-stack' with ``units='alpha'``);
+* 'distance': a focus distance in metres, turned into a slope by
+  :func:`~plenodecode.render.alpha.distance_to_slope` ('refocus' with ``distance_m=``): the same constants and
+  the camera's own focus distance; it does not apply to a light-field microscope;
+* 'metric': metric depth (:func:`plenodecode.depth.metric.depth_constants`; 'depth' with ``metric`` or
+  ``points``, ``focus_distance`` standing in for the camera's).
+
+A light field rectified by a geometric calibration takes its metric geometry from the calibration, so
+'distance' and 'metric' are not checked against the camera's metadata then (``rectified=True``).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any, Callable, Mapping
 
-from ..errors import RefocusConstantsError
+from ..errors import MetadataError, MissingConstantsError
 from ..types import LightField, RawCapture
 
 
-def _refocus_alpha(options: Mapping[str, Any]) -> str | None:
-    return "alpha" if options.get("alpha") is not None else None
+def _refocus_request(options: Mapping[str, Any]) -> tuple[str, str] | None:
+    if options.get("alpha") is not None:
+        return "alpha", "alpha"
+    return ("distance_m", "distance") if options.get("distance_m") is not None else None
 
 
-def _stack_alpha(options: Mapping[str, Any]) -> str | None:
-    return "units" if options.get("units") == "alpha" else None
+def _stack_request(options: Mapping[str, Any]) -> tuple[str, str] | None:
+    return ("units", "alpha") if options.get("units") == "alpha" else None
 
 
-#: Product -> ``fn(options) -> the keyword that asks for alpha, or None``: every place where the workflow turns an
-#: alpha into a slope (:func:`~plenodecode.render.refocus_methods.focus_slope` for 'refocus', the 'alpha' entry
-#: of :data:`~plenodecode.pipeline.products.STACK_UNITS` for 'focal-stack').
-ALPHA_REQUESTS: dict[str, Callable[[Mapping[str, Any]], str | None]] = {
-    "refocus": _refocus_alpha,
-    "focal-stack": _stack_alpha,
+def _depth_request(options: Mapping[str, Any]) -> tuple[str, str] | None:
+    for keyword in ("metric", "points"):
+        if options.get(keyword):
+            return keyword, "metric"
+    return None
+
+
+#: Product -> ``fn(options) -> (the keyword that asks, what it asks: 'alpha', 'distance' or 'metric')``, or
+#: None when the options ask nothing of the metadata: every place where the workflow turns an alpha or a
+#: distance into a slope (:func:`~plenodecode.render.refocus_methods.focus_slope`, the 'alpha' entry of
+#: :data:`~plenodecode.pipeline.products.STACK_UNITS`) or a disparity into metres.
+REQUESTS: dict[str, Callable[[Mapping[str, Any]], tuple[str, str] | None]] = {
+    "refocus": _refocus_request,
+    "focal-stack": _stack_request,
+    "depth": _depth_request,
 }
 
 #: What to use instead of alpha, per keyword (library spelling; the CLI names its own options).
@@ -46,37 +68,94 @@ def _name(item: LightField | RawCapture) -> str:
     return Path(path).name if path else ("the raw" if isinstance(item, RawCapture) else "the light field")
 
 
-def check_product(item: LightField | RawCapture, name: str, **options: Any) -> None:
+def _decoded_geometry(item: LightField | RawCapture) -> Any:
+    """Something with the ``.geometry`` the input will have once decoded (:mod:`plenodecode.depth.metric` reads
+    it): a light field's own; for a raw :func:`~plenodecode.render.alpha.decoded_geometry_stand_in`."""
+    if isinstance(item, LightField):
+        return item
+    from ..render.alpha import decoded_geometry_stand_in
+
+    return SimpleNamespace(geometry=decoded_geometry_stand_in(item.metadata))
+
+
+#: What each request needs the constants for, as messages say it.
+NEEDS = {"alpha": "alpha (Ng's film depth -> slope)", "distance": "a focus distance (metres -> slope)",
+         "metric": "metric depth"}
+
+
+def _missing(item: LightField | RawCapture, need: str, options: Mapping[str, Any]) -> tuple[str, tuple[str, ...]] | None:
+    """Why ``item`` cannot serve the request ``need`` of :data:`NEEDS`, and the constants missing (empty when
+    the reason names the options that supply them); None when it can.
+
+    Alpha asks :func:`~plenodecode.render.alpha.missing_refocus_constants`; a distance or metric depth of a
+    camera also asks its focus distance, and anything else is tried on the decoded geometry's stand-in
+    (:func:`~plenodecode.render.alpha.distance_to_slope`, :func:`~plenodecode.depth.metric.depth_constants`).
+    Only a missing constant counts (a MetadataError): bad values are reported where they are used, with the
+    real sampling.
+    """
+    from ..depth.metric import depth_constants, depth_model
+    from ..render.alpha import distance_to_slope, missing_refocus_constants
+
+    stand_in = _decoded_geometry(item)
+    overrides = {} if options.get("focus_distance") is None else {"focus_distance_m": options["focus_distance"]}
+    camera = need == "alpha" or depth_model(stand_in, overrides) == "plenoptic"
+    missing = missing_refocus_constants(stand_in.geometry) if camera else ()
+    if missing:
+        return (f"{NEEDS[need]} needs the camera constant{'s' * (len(missing) > 1)} {', '.join(missing)}, which its "
+                "metadata does not have"), missing
+    if need == "alpha":
+        return None
+    try:
+        if need == "distance":
+            distance_to_slope(1.0, stand_in.geometry)
+        else:
+            depth_constants(stand_in, **overrides)
+    except MetadataError as exc:
+        if camera:
+            return (f"{NEEDS[need]} needs the distance the camera was focused at (focus_distance_m, or "
+                    "infinityLambda and the MLA-sensor gap), which its metadata does not have"), ("focus_distance_m",)
+        return str(exc), ()
+    except ValueError:
+        return None
+    return None
+
+
+def check_product(item: LightField | RawCapture, name: str, *, rectified: bool = False, **options: Any) -> None:
     """Refuse a product request that the input's metadata cannot serve, without calibrating or decoding.
 
     Parameters
     ----------
     item : RawCapture or LightField
         The input as read (a raw's :class:`~plenodecode.types.CameraMetadata` stands for the light field it
-        decodes to: :func:`plenodecode.render.alpha.missing_refocus_constants`).
+        decodes to: :func:`_decoded_geometry`).
     name : str
         A product of :data:`~plenodecode.pipeline.PRODUCTS` (products that ask nothing of the metadata pass).
+    rectified : bool
+        The light field will be rectified by a geometric calibration, which gives the metric geometry (a focus
+        distance and metric depth are then not checked against the camera's metadata).
     **options
         The product's options, as :func:`~plenodecode.pipeline.render_product` takes them.
 
     Raises
     ------
-    RefocusConstantsError
-        Alpha was asked (``alpha=`` of 'refocus', ``units='alpha'`` of 'focal-stack') and the metadata lacks a
-        camera constant of the conversion; ``keyword`` names the option, ``missing`` the constants.
+    MissingConstantsError
+        ``keyword`` names the option that asked (:data:`REQUESTS`), ``missing`` the constants not found (empty
+        when the message names the options that supply them, e.g. a microscope's optics), ``need`` what needs
+        them (:data:`NEEDS`).
     """
-    request = ALPHA_REQUESTS.get(name)
-    keyword = request(options) if request is not None else None
-    if keyword is None:
+    request = REQUESTS.get(name)
+    asked = request(options) if request is not None else None
+    if asked is None:
         return
-    from ..render.alpha import missing_refocus_constants
-
-    missing = missing_refocus_constants(item.metadata if isinstance(item, RawCapture) else item)
-    if missing:
+    keyword, need = asked
+    failure = None if (rectified and need != "alpha") else _missing(item, need, options)
+    if failure is not None:
+        why, missing = failure
         source = _name(item)
-        raise RefocusConstantsError(
-            f"{source}: alpha needs the camera constant{'s' * (len(missing) > 1)} {', '.join(missing)}, which its "
-            f"metadata does not have; {ALPHA_INSTEAD[keyword]}", keyword=keyword, missing=missing, source=source)
+        instead = ALPHA_INSTEAD[keyword] if need == "alpha" else "refocus by slope instead" if need == "distance" \
+            else None
+        raise MissingConstantsError(f"{source}: {why}" + (f"; {instead}" if instead and missing else ""),
+                                    keyword=keyword, missing=missing, source=source, need=NEEDS[need])
 
 
-__all__ = ["ALPHA_REQUESTS", "check_product"]
+__all__ = ["NEEDS", "REQUESTS", "check_product"]

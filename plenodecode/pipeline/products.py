@@ -380,5 +380,5 @@ def render_product(src: Source, name: str, **options: Any) -> Rendered:
     first checked against the input's metadata (:func:`~plenodecode.pipeline.needs.check_product`), before ``src``
     is decoded."""
     render = lookup(PRODUCTS, name, param="product")
-    check_product(src.input, name, **options)
+    check_product(src.input, name, rectified=src.geometry is not None, **options)
     return render(src, **options)

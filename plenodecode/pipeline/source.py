@@ -152,8 +152,8 @@ def open_source(path: str | os.PathLike, *, grid: str | os.PathLike | None = Non
 
     ``check`` (product name -> its options, as :func:`~plenodecode.pipeline.render_product` will take them) is
     checked against the input's metadata as soon as it is read, before the calibration and any decoding
-    (:func:`~plenodecode.pipeline.needs.check_product`: alpha without the camera constants raises
-    :class:`~plenodecode.errors.RefocusConstantsError`).
+    (:func:`~plenodecode.pipeline.needs.check_product`: alpha, a focus distance or metric depth without the
+    camera constants raises :class:`~plenodecode.errors.MissingConstantsError`).
 
     The calibration, ``mosaic``, ``raytrix_xml`` and ``dark`` (a dark frame, :func:`read_dark_frame`, handed to
     the decoding) options apply to raws only; ``optics`` to every input (:func:`open_input`); ``geometry`` (a
@@ -161,7 +161,7 @@ def open_source(path: str | os.PathLike, *, grid: str | os.PathLike | None = Non
     """
     item = open_input(path, mosaic=mosaic, raytrix_xml=raytrix_xml, optics=optics)
     for name, options in (check or {}).items():
-        check_product(item, name, **options)
+        check_product(item, name, rectified=geometry is not None, **options)
     if isinstance(item, LightField):
         return Source(lightfield=item, geometry=geometry)
     cal = choose_calibration(item, grid=grid, white=white, database=database, self_calibrate=self_calibrate,

@@ -112,19 +112,22 @@ def refocus_constants(lf: LightField | LightFieldGeometry | None = None, **overr
     return out
 
 
+def decoded_geometry_stand_in(camera: CameraMetadata) -> LightFieldGeometry:
+    """The geometry of the light field a raw with metadata ``camera`` decodes to, before calibration and
+    decoding, to ask which constants exist (not their values): the decoder always sets ``spatial_step_px``
+    (the grid's row spacing) and ``view_step_px`` (1), and ``lens_pitch_m`` falls back to the calibrated pitch
+    times ``pixel_pitch_m`` (:meth:`~plenodecode.types.LightFieldGeometry.from_camera`); those three are
+    placeholders (1.0) here."""
+    return LightFieldGeometry.from_camera(camera, {"pitch": 1.0}, spatial_step_px=1.0, view_step_px=1.0)
+
+
 def missing_refocus_constants(lf: LightField | LightFieldGeometry | CameraMetadata) -> tuple[str, ...]:
     """The names of :data:`REFOCUS_CONSTANTS` that :func:`refocus_constants` would not find (empty: alpha works).
 
     A :class:`~plenodecode.types.CameraMetadata` (a raw, before calibration and decoding) stands for the light
-    field it decodes to: the decoder always sets ``spatial_step_px`` (the grid's row spacing) and
-    ``view_step_px`` (1), and ``lens_pitch_m`` falls back to the calibrated pitch times ``pixel_pitch_m``
-    (:meth:`~plenodecode.types.LightFieldGeometry.from_camera`), so only the camera's own constants are asked.
+    field it decodes to (:func:`decoded_geometry_stand_in`), so only the camera's own constants are asked.
     """
-    if isinstance(lf, CameraMetadata):
-        # placeholders for what every calibration and decode supplies: only whether a value exists is asked here
-        geometry = LightFieldGeometry.from_camera(lf, {"pitch": 1.0}, spatial_step_px=1.0, view_step_px=1.0)
-    else:
-        geometry = _geometry(lf)
+    geometry = decoded_geometry_stand_in(lf) if isinstance(lf, CameraMetadata) else _geometry(lf)
     return tuple(name for name in REFOCUS_CONSTANTS if getattr(geometry, name) is None)
 
 
@@ -219,6 +222,18 @@ def _with_geometry(lf: LightField | LightFieldGeometry) -> Any:
     return SimpleNamespace(geometry=lf) if isinstance(lf, LightFieldGeometry) else lf
 
 
+def _distance_constants(lf: LightField | LightFieldGeometry, **overrides: float) -> tuple[float, float]:
+    """``(G, Z_f)`` of :func:`plenodecode.depth.metric.depth_constants` for a camera; a light-field microscope
+    has no focus distance (its depth is an axial offset from the native object plane, ``z = -K d``)."""
+    from ..depth.metric import depth_constants
+
+    g, zf, model = depth_constants(_with_geometry(lf), **overrides)
+    if model == "microscope":
+        raise MetadataError("a focus distance does not apply to a light-field microscope (its depth is measured "
+                            "from the native object plane); refocus by slope instead")
+    return g, zf
+
+
 def slope_to_distance(slope: float | np.ndarray, lf: LightField | LightFieldGeometry,
                       **overrides: float) -> float | np.ndarray:
     """Distance (m) of the plane in focus at ``slope``: ``Z = 1 / (1 / Z_f + s / G)``
@@ -227,11 +242,10 @@ def slope_to_distance(slope: float | np.ndarray, lf: LightField | LightFieldGeom
     Raises
     ------
     MetadataError
-        The geometry lacks a constant (the focus distance, most often); the message names it.
+        The geometry lacks a constant (the focus distance, most often; the message names it), or is a
+        light-field microscope's.
     """
-    from ..depth.metric import depth_constants
-
-    g, zf, _ = depth_constants(_with_geometry(lf), **overrides)
+    g, zf = _distance_constants(lf, **overrides)
     inv = 1.0 / zf + np.asarray(slope, np.float64) / g
     with np.errstate(divide="ignore"):
         z = np.where(inv > 0, 1.0 / inv, np.inf)
@@ -247,14 +261,12 @@ def distance_to_slope(distance_m: float, lf: LightField | LightFieldGeometry, **
     ValueError
         ``distance_m`` is not a finite number > 0.
     MetadataError
-        The geometry lacks a constant (the message names it).
+        The geometry lacks a constant (the message names it), or is a light-field microscope's.
     """
-    from ..depth.metric import depth_constants
-
     z = float(distance_m)
     if not (z > 0 and math.isfinite(z)):
         raise ValueError(f"distance_m must be a finite number > 0 (metres), got {distance_m}")
-    g, zf, _ = depth_constants(_with_geometry(lf), **overrides)
+    g, zf = _distance_constants(lf, **overrides)
     return g * (1.0 / z - 1.0 / zf)
 
 

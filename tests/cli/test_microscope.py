@@ -16,7 +16,7 @@ from click.testing import CliRunner
 from tests.conftest import shared_path
 from plenodecode.cli.main import cli
 from plenodecode.errors import MetadataError
-from plenodecode.io.microscope import format_metadata_txt, format_optics_json, parse_optics, read_optics
+from plenodecode.io.microscope import format_metadata_txt, format_optics_json, parse_optics
 from plenodecode.io.pfm import read_pfm
 from plenodecode.synthetic import PRESETS
 
@@ -90,6 +90,8 @@ def test_generated_microscope_metric_depth(square_capture, tmp_path):
 
 
 def test_missing_optics_name_the_cli_options(square_capture, tmp_path):
+    """Metric depth of a microscope raw without (all) its optics: a usage error naming the options, before any
+    work."""
     paths, _, _ = square_capture
     bare = tmp_path / "bare"
     bare.mkdir()
@@ -98,10 +100,10 @@ def test_missing_optics_name_the_cli_options(square_capture, tmp_path):
     base = ["depth", str(bare / paths["raw"].name), "-w", str(bare / paths["white"].name), "--metric",
             "--method", "fast"]
     r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "a.pfm")], obj={})
-    assert r.exit_code == 1 and "--magnification" in r.output and "=..." not in r.output
+    assert r.exit_code == 2 and "--magnification" in r.output and "=..." not in r.output
     r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "b.pfm"), "--magnification", "20", "--na", "0.5"],
                            obj={})
-    assert r.exit_code == 1 and "--medium-index" in r.output and "=..." not in r.output
+    assert r.exit_code == 2 and "--medium-index" in r.output and "=..." not in r.output
     r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "c.pfm"), "--na", "1.4", "--medium-index", "1.33"],
                            obj={})
     assert r.exit_code == 2 and "--na" in r.output
@@ -188,3 +190,27 @@ def test_antleg_parallax_and_metric_depth(antleg, tmp_path):
     lo, hi = np.nanpercentile(z, [2, 98])
     # an ant leg: a few hundred um of relief at most, tens at least
     assert -200.0 < lo < 0.0 < hi < 400.0 and 30.0 < hi - lo < 500.0
+
+
+def test_antleg_refocus_by_slope_and_no_focus_distance(antleg, tmp_path):
+    """A microscope's light field refocuses by slope (its refocusable range has no distance in metres: depth is an
+    axial offset from the native object plane), and --focus-distance is refused before any work, naming the
+    option."""
+    from plenodecode.io.images import read_image
+    from plenodecode.render import refocus_range_units
+
+    _, saved, lf = antleg
+    span = refocus_range_units(lf)
+    assert span.distance_m is None and -3.0 < span.slope[0] < 0.0 < span.slope[1] < 3.0
+    photos = {}
+    for slope in ("-0.5", "0.5"):
+        out = tmp_path / f"photo_{slope}.png"
+        r = CliRunner().invoke(cli, ["refocus", str(saved), "--slope", slope, "-o", str(out)], obj={})
+        assert r.exit_code == 0, r.output
+        photos[slope] = np.asarray(read_image(out), np.float64)
+    ys, xs = _textured_window(lf.centre_view().mean(axis=-1))
+    assert np.abs(photos["-0.5"] - photos["0.5"])[ys, xs].mean() > 1.0      # 8-bit levels: the focus moved
+    r = CliRunner().invoke(cli, ["refocus", str(saved), "--focus-distance", "0.5", "-o", str(tmp_path / "d.png")],
+                           obj={})
+    assert r.exit_code == 2 and "--focus-distance" in r.output and "microscope" in r.output, r.output
+    assert not (tmp_path / "d.png").exists()

@@ -133,4 +133,5 @@ def test_depth_command_reports_missing_geometry(tmp_path):
     src = save_lightfield(lf.replace(metadata={}), tmp_path / "bare.npy", format="npy")
     r = CliRunner().invoke(cli, ["depth", str(src), "-o", str(tmp_path / "d.pfm"), "--metric", "--method", "fast"],
                            obj={})
-    assert r.exit_code == 1 and "metric depth needs" in r.output and "depth (fast)" not in r.output
+    assert r.exit_code == 2 and "which metric depth needs" in r.output and "--metric" in r.output
+    assert "depth (fast)" not in r.output and not (tmp_path / "d.pfm").exists()

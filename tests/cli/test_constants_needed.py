@@ -1,9 +1,10 @@
-"""Alpha asked of a raw whose metadata lacks the camera constants: refused as soon as the raw is read, before the
-calibration (the F01 JPEG self-calibrates for about 7 s) and before any decoding; a usage error (exit 2) naming
-the option typed and what to use instead, and no output written.
+"""Alpha, a focus distance or metric depth asked of a raw whose metadata lacks the camera constants: refused as
+soon as the raw is read, before the calibration (the F01 JPEG self-calibrates for about 7 s) and before any
+decoding; a usage error (exit 2) naming the option typed, the missing constants and what to use instead, and no
+output written.
 
-The raws: a generated Illum-like LFR whose metadata has no focal length (runs everywhere), and the real F01
-JPEG mosaic of ../shared/data (skipped when absent).
+The raws: a generated Illum-like LFR whose metadata has no focal length, one with every constant but the focus
+distance (both run everywhere), and the real F01 JPEG mosaic of ../shared/data (skipped when absent).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from click.testing import CliRunner
 
 from plenodecode import pipeline
 from plenodecode.cli.main import cli
-from plenodecode.errors import RefocusConstantsError
+from plenodecode.errors import MissingConstantsError
 
 from ..conftest import shared_path
 
@@ -28,6 +29,16 @@ def no_focal(tmp_path_factory):
 
     sim = simulate(replace(PRESETS["illum-mini"], focal_length_m=None), seed=1, shape=(200, 280))
     return lytro.write_lfr(tmp_path_factory.mktemp("nofocal") / "nofocal.lfr", sim.raw)
+
+
+@pytest.fixture(scope="module")
+def no_focus(tmp_path_factory):
+    """A generated Illum-like raw (.lfr) with every camera constant but the distance it was focused at."""
+    from plenodecode.io import lytro
+    from plenodecode.synthetic import PRESETS, simulate
+
+    sim = simulate(PRESETS["illum-mini"], seed=1, shape=(200, 280))
+    return lytro.write_lfr(tmp_path_factory.mktemp("nofocus") / "nofocus.lfr", sim.raw)
 
 
 @pytest.fixture
@@ -97,7 +108,7 @@ def test_real_f01_jpeg_refocus_alpha_is_refused_before_self_calibration(no_work,
 
 
 def test_python_workflow_refuses_alpha_before_calibrating(no_focal, no_work):
-    with pytest.raises(RefocusConstantsError, match="focal_length_m") as info:
+    with pytest.raises(MissingConstantsError, match="focal_length_m") as info:
         pipeline.open_source(no_focal, check={"refocus": {"alpha": 1.0}})
     assert info.value.keyword == "alpha" and info.value.missing == ("focal_length_m",)
     assert info.value.source == "nofocal.lfr" and no_work == []
@@ -106,6 +117,43 @@ def test_python_workflow_refuses_alpha_before_calibrating(no_focal, no_work):
     src = pipeline.Source(raw=raw, calibration=pipeline.Calibration(grid=None, white=None, source="test"))
     for name, options in (("refocus", {"alpha": 1.02}), ("focal-stack", {"start": 0.99, "stop": 1.01, "n": 3,
                                                                          "units": "alpha"})):
-        with pytest.raises(RefocusConstantsError, match="focal_length_m"):
+        with pytest.raises(MissingConstantsError, match="focal_length_m"):
             pipeline.render_product(src, name, **options)
     assert no_work == []
+
+
+@pytest.mark.parametrize("args, option", [
+    (["--focus-distance", "0.5", "-o", "photo.png"], "--focus-distance"),
+    (["refocus", "--focus-distance", "0.5", "-o", "photo.png"], "--focus-distance"),
+    (["depth", "--metric", "-o", "depth.pfm"], "--metric"),
+    (["depth", "--ply", "points.ply", "-o", "depth.pfm"], "--ply"),
+], ids=["one-liner", "refocus", "depth-metric", "depth-ply"])
+def test_real_f01_jpeg_distance_and_metric_depth_refused_before_self_calibration(no_work, tmp_path, monkeypatch,
+                                                                                  args, option):
+    """The JPEG mosaic carries no camera constants: a focus distance or metric depth stops in about 0.5 s
+    instead of failing after 15 s of self-calibration and decoding."""
+    jpeg = shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg")
+    out = tmp_path / "out"
+    out.mkdir()
+    monkeypatch.chdir(out)
+    command = args[:1] if args[0] in ("refocus", "depth") else []
+    res = invoke(*command, jpeg, *args[len(command):])
+    instead = "--slope" if option == "--focus-distance" else "without --metric"
+    check_refused(res, option, "focal_length_m, f_number, lens_pitch_m", instead, no_work, out)
+
+
+def test_metric_depth_without_the_focus_distance_asks_for_it(no_focus, no_work, tmp_path):
+    """Every constant but the focus distance: --metric names it and the option that supplies it; given, the
+    command goes on to the calibration (recorded, then stopped)."""
+    res = invoke("depth", no_focus, "--metric", "-o", tmp_path / "depth.pfm")
+    check_refused(res, "--metric", "focus_distance_m", "--focus-distance METRES", no_work, tmp_path)
+    res = invoke("depth", no_focus, "--metric", "--focus-distance", "0.5", "-o", tmp_path / "depth.pfm")
+    assert no_work == ["calibration"], res.output
+
+
+def test_refocus_at_a_distance_needs_the_camera_focus_distance(no_focal, no_focus, no_work, tmp_path):
+    """Metres -> slope needs the camera constants and the distance the camera was focused at."""
+    res = invoke(no_focal, "--focus-distance", "0.5", "-o", tmp_path / "photo.png")
+    check_refused(res, "--focus-distance", "focal_length_m", "--slope", no_work, tmp_path)
+    res = invoke("refocus", no_focus, "--focus-distance", "0.5", "-o", tmp_path / "photo.png")
+    check_refused(res, "--focus-distance", "focus_distance_m", "--slope", no_work, tmp_path)
