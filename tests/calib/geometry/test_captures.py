@@ -131,6 +131,10 @@ def test_coverage_is_reported(generated, caplog):
     cover = run.calibration.info["coverage"]
     assert 0.0 < cover["area"] < 1.0 and 0.0 < cover["radius"] < 1.0
     assert cover["beyond_radius"] > 0.05 and "extrapolated" in caplog.text
+    from plenodecode.report.geometry import geometry_report_html
+
+    html = geometry_report_html(run)
+    assert "field covered by the boards" in html and "the distortion is extrapolated" in html
 
 
 def test_field_placement_reaches_farther_than_centre_placement():
