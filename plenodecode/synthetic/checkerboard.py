@@ -658,5 +658,6 @@ def write_checkerboard_set(cset: CheckerboardSet, out_dir: str | os.PathLike, *,
 __all__ = ["BOARD_LEVELS", "Board", "board_values", "footprint_offsets", "board_radiance",
            "board_radiance_numpy",
            "board_lightfield", "board_corners", "default_intrinsics", "pipeline_grid", "pixel_samples",
-           "render_board_mosaic", "SET_SAMPLES", "PLACEMENTS", "FIELD_TARGETS", "SET_DISTANCES", "SET_MAX_TILT", "SET_BORDER", "SET_TRUTH_NAME",
+           "render_board_mosaic", "SET_SAMPLES", "SET_DISTANCES", "SET_MAX_TILT", "SET_BORDER", "SET_TRUTH_NAME",
+           "PLACEMENTS", "FIELD_TARGETS",
            "CheckerboardSet", "set_sensor_shape", "sample_poses", "simulate_checkerboard_set", "write_checkerboard_set"]
