@@ -75,7 +75,8 @@ k2 and k3, or down-weighting the field's edge in the stage without distortion, l
 stayed 26-50 degrees off.  :func:`~plenodecode.calib.geometry.solve.flip_check` now tries every board's other
 tilt at the solution (0.1-0.3 CPU s): seed 0 1.66 -> 0.58 %, field 26.5 -> 6.6 %, RMS 1.87 -> 0.98x the floor;
 seed 1 1.18 -> 0.30 %, field 8.1 -> 6.1 %.  No board flipped in any other set above (figures unchanged).
-Seed 2's 10 captures with placement='field' (other poses): H 0.09 % (0.89 % with 'centre').
+Without distortion, placement='field' (other poses; H with the flip check): 10 captures seeds 0 / 1 / 2 0.54 /
+0.29 / 0.09 %, 16 seed 1 0.30 % ('centre': 0.28 / 0.47 / 0.89, 0.40 %), fit RMS 0.98-0.99x the floor.
 A figure's ``seconds`` is its decode + calibration wall time, its note the errors.
 """
 
