@@ -63,4 +63,10 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], board, output: Path, r
         info = run.calibration.info
         click.echo(f"{len(run.names)} captures, {sum(c.count for c in run.corners)} views: ray RMS "
                    f"{info['rms_ray_m'] * 1e3:.4f} mm, {info['rms_px']:.3f} px")
+        cover = info.get("coverage")
+        if cover:
+            click.echo(f"boards covered {100 * cover['area']:.0f} % of the field, corners up to "
+                       f"{100 * cover['radius']:.0f} % of its radius"
+                       + (f"; distortion extrapolated over the outer {100 * cover['beyond_radius']:.0f} %"
+                          if info.get("distortion_estimated") and cover["beyond_radius"] > 0 else ""))
         click.echo("wrote " + ", ".join(str(p) for p in written))

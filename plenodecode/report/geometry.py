@@ -39,6 +39,26 @@ def _capture_rows(run: GeometryRun) -> list[tuple]:
     return rows
 
 
+def _coverage_rows(info: dict) -> list[tuple[str, str]]:
+    cover = info.get("coverage")
+    if not cover:
+        return []
+    return [("field covered by the boards", f"{100 * cover['area']:.0f} % of the central view's area; corners up "
+                                            f"to {100 * cover['radius']:.0f} % of the field's radius"),
+            ("distortion extrapolated over", f"{100 * cover['beyond_radius']:.0f} % of the field (beyond the "
+                                             "largest radius a corner reached)")]
+
+
+def _coverage_note(info: dict) -> str:
+    cover = info.get("coverage")
+    if not cover or not info.get("distortion_estimated") or cover["beyond_radius"] <= 0:
+        return ""
+    return H.notes_html([f"The boards' corners reached {100 * cover['radius']:.0f} % of the field's radius: over "
+                         f"the outer {100 * cover['beyond_radius']:.0f} % of the field the distortion is "
+                         "extrapolated from the inner part, not measured (k2 and k3 can trade off there). "
+                         "Add captures with the board in the image's corners to measure it."])
+
+
 def errors_figure(run: GeometryRun):
     """Left: distribution of the point-to-ray distances (mm) per capture; right: pixel error vectors."""
     import matplotlib
@@ -115,6 +135,7 @@ def geometry_report_html(run: GeometryRun) -> str:
         ("RMS ray reprojection error", f"{info['rms_ray_m'] * 1e3:.4f} mm (initial estimate "
                                        f"{info['initial_rms_ray_m'] * 1e3:.4f} mm)"),
         ("RMS corner reprojection error", f"{info['rms_px']:.3f} px"),
+        *_coverage_rows(info),
     ])
     h_rows = [[f"{v:+.6e}" for v in row] for row in cal.intrinsics]
     intrinsics = H.table_html(h_rows, header=["i", "j", "k", "l", "1"])
@@ -133,7 +154,8 @@ def geometry_report_html(run: GeometryRun) -> str:
                   '<p class="muted">theta = (1 + k1 r^2 + k2 r^4 + k3 r^6)(theta_m - b) + b, r = |theta_m - b|, '
                   "on the measured direction theta_m = (u, v) (the toolbox's convention).</p>",
                   H.figure_html(distortion_figure(run), "Direction correction over the central view.")
-                  if np.any(cal.distortion != 0) else H.notes_html(["no distortion: not estimated, or zero"])),
+                  if np.any(cal.distortion != 0) else H.notes_html(["no distortion: not estimated, or zero"]),
+                  _coverage_note(info)),
         H.section("Per capture", H.table_html(_capture_rows(run), header=[
             "capture", "views (used / searched)", "distance tz (m)", "tilt (deg)", "RMS ray (mm)", "RMS (px)"]),
             H.figure_html(errors_figure(run), "Corner reprojection errors per capture.")),

@@ -421,9 +421,43 @@ def _fits(calibration: GeometricCalibration, outline: np.ndarray, border: float)
     return True
 
 
+#: ``placement`` of :func:`sample_poses`.
+PLACEMENTS = ("centre", "field")
+#: Where ``placement='field'`` aims the boards, ``(tx, ty)`` fractions of the half field (x, y): the farther
+#: half of the poses (small boards) at the four corners in turn, the nearer half at the centre and the edges.
+FIELD_TARGETS = {"far": ((-1.0, -1.0), (1.0, 1.0), (1.0, -1.0), (-1.0, 1.0)),
+                 "near": ((0.0, 0.0), (0.0, -1.0), (-1.0, 0.0), (0.0, 1.0), (1.0, 0.0))}
+
+
+def _aimed_pose(calibration: GeometricCalibration, outline: np.ndarray, border: float, rot: Any,
+                board_centre: np.ndarray, centre_ray: np.ndarray, z: float, target: tuple[float, float],
+                size: tuple[float, float], steps: int = 8) -> np.ndarray | None:
+    """The pose (6,) of a board turned by ``rot`` whose centre, at depth ``z``, is moved from the centre ray
+    towards ``target`` (fractions of the half field ``size / 2``, rad) by the largest fraction that still
+    fits every view (bisection); None when it does not fit even on the centre ray."""
+    def pose_at(f: float) -> np.ndarray:
+        centre = np.array([centre_ray[0] + (centre_ray[2] + f * target[0] * size[0] / 2.0) * z,
+                           centre_ray[1] + (centre_ray[3] + f * target[1] * size[1] / 2.0) * z, z])
+        return np.concatenate([centre - rot.apply(board_centre), rot.as_rotvec()])
+
+    def fits(f: float) -> bool:
+        with np.errstate(over="ignore", invalid="ignore"):      # far outside, the distortion polynomial overflows
+            return _fits(calibration, pose_transform(pose_at(f), outline), border)
+
+    if not fits(0.0):
+        return None
+    if fits(1.0):
+        return pose_at(1.0)
+    lo, hi = 0.0, 1.0
+    for _ in range(int(steps)):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if fits(mid) else (lo, mid)
+    return pose_at(lo)
+
+
 def sample_poses(calibration: GeometricCalibration, board: Board, n_poses: int, rng: np.random.Generator, *,
                  distances: tuple[float, float] = SET_DISTANCES, max_tilt: float = SET_MAX_TILT,
-                 border: float = SET_BORDER, attempts: int = 400) -> np.ndarray:
+                 border: float = SET_BORDER, attempts: int = 400, placement: str = "centre") -> np.ndarray:
     """Board poses ``[tx, ty, tz, rx, ry, rz]`` (n_poses, 6) for a calibration set, the whole board (with its
     margin) inside every view.
 
@@ -433,9 +467,20 @@ def sample_poses(calibration: GeometricCalibration, board: Board, n_poses: int, 
     over ``[max_tilt / 3, max_tilt]`` about a random axis in the image plane: ``R = R_tilt R_z``.  A draw
     whose outline leaves a view (:func:`_fits`) is drawn again, then without the sideways shift, then at
     other depths of the range; ValueError when the board fits nowhere.
+
+    ``placement`` (:data:`PLACEMENTS`): 'centre' as above (the boards stay near the middle of the field: the
+    sets of issue 22's measurements reached 68-76 % of its radius); 'field' as a calibration guide asks of a
+    user, to cover the field up to its corners, where the distortion is largest: the pose of depth rank ``r``
+    (0 the nearest) aims at a target of :data:`FIELD_TARGETS` (fractions ``(tx, ty)`` of the half field) -- the
+    farther half, whose boards are small enough to reach them, at the four corners in turn, the nearer half
+    at the centre and the four edges -- and is moved from the centre ray towards it by the largest fraction
+    of the way (bisection, 8 steps) at which it still fits.  The board's outer squares and margin keep its
+    corners about two squares inside the view, so even then they reach ~75 % of the field's radius.
     """
     from scipy.spatial.transform import Rotation
 
+    if placement not in PLACEMENTS:
+        raise ValueError(f"placement must be one of {PLACEMENTS}, got {placement!r}")
     near, far = (float(v) for v in distances)
     if not 0 < near <= far:
         raise ValueError(f"distances must be 0 < near <= far (m), got {distances!r}")
@@ -456,6 +501,16 @@ def sample_poses(calibration: GeometricCalibration, board: Board, n_poses: int, 
             axis_angle = rng.uniform(0.0, 2.0 * math.pi)
             tilt = Rotation.from_rotvec(tilts[q] * np.array([math.cos(axis_angle), math.sin(axis_angle), 0.0]))
             rot = tilt * Rotation.from_rotvec([0.0, 0.0, rng.uniform(-1.0, 1.0) * math.radians(15.0)])
+            if placement == "field":
+                half = n_poses // 2
+                targets = FIELD_TARGETS["far"] if order[q] >= half else FIELD_TARGETS["near"]
+                rank = order[q] - half if order[q] >= half else order[q]
+                pose = _aimed_pose(calibration, outline, border, rot, board_centre, centre_ray, z,
+                                   targets[rank % len(targets)], (width, height))
+                if pose is not None:
+                    poses[q] = pose
+                    break
+                continue
             shift = 0.0 if attempt % 4 == 3 else 0.3       # every 4th try: centred
             centre = np.array([centre_ray[0] + centre_ray[2] * z + shift * rng.uniform(-1, 1) * width * z,
                                centre_ray[1] + centre_ray[3] * z + shift * rng.uniform(-1, 1) * height * z, z])
@@ -476,7 +531,7 @@ def simulate_checkerboard_set(preset: str | Preset, board: Board | Sequence[floa
                               rotation: float | None = None, offset: tuple[float, float] | None = None,
                               n_views: int | None = None, distances: tuple[float, float] = SET_DISTANCES,
                               max_tilt: float = SET_MAX_TILT, noise: bool = True, supersample: int = 4,
-                              progress: Progress = None) -> CheckerboardSet:
+                              placement: str = "centre", progress: Progress = None) -> CheckerboardSet:
     """Simulate a geometric calibration set: ``n_captures`` raws of a checkerboard at varied poses.
 
     Each raw is :func:`render_board_mosaic` of the board at one pose of :func:`sample_poses`, through
@@ -511,6 +566,10 @@ def simulate_checkerboard_set(preset: str | Preset, board: Board | Sequence[floa
         False: noise-free raws and white (values only rounded).
     supersample : int
         Spatial footprint points per axis (:func:`footprint_offsets`).
+    placement : {'centre', 'field'}
+        Where the boards go (:func:`sample_poses`): 'centre' (the default, the sets measured so far) keeps
+        them near the middle; 'field' aims them at the centre, corners and edges of the field in turn, as a
+        calibration guide asks, so that the distortion is measured up to the field's corners.
     progress : callable(done, total), optional
         Called after each raw and after the white image (``total = n_captures + 1``).
 
@@ -540,7 +599,7 @@ def simulate_checkerboard_set(preset: str | Preset, board: Board | Sequence[floa
     camera = GeometricCalibration(intrinsics=h, distortion=check_distortion(distortion), lf_shape=lf_shape)
     streams = np.random.SeedSequence(int(seed)).spawn(1 + int(n_captures))
     poses = sample_poses(camera, board, int(n_captures), np.random.default_rng(streams[0]), distances=distances,
-                         max_tilt=max_tilt)
+                         max_tilt=max_tilt, placement=placement)
     raws = []
     for q, pose in enumerate(poses):
         rng = np.random.default_rng(streams[1 + q]) if noise else None
@@ -554,7 +613,7 @@ def simulate_checkerboard_set(preset: str | Preset, board: Board | Sequence[floa
     if progress is not None:
         progress(len(poses) + 1, len(poses) + 1)
     info = {"generator": "plenodecode.synthetic.checkerboard", "board": board.to_dict(), "preset": p.name,
-            "seed": int(seed), "noise": bool(noise), "sensor_shape": list(grid.sensor_shape)}
+            "seed": int(seed), "noise": bool(noise), "placement": placement, "sensor_shape": list(grid.sensor_shape)}
     truth = GeometricCalibration(intrinsics=h, distortion=camera.distortion, lf_shape=lf_shape, poses=poses, info=info)
     return CheckerboardSet(raws=tuple(raws), white=white, grid=grid, truth=truth, board=board, preset=p)
 
@@ -600,4 +659,5 @@ __all__ = ["BOARD_LEVELS", "Board", "board_values", "footprint_offsets", "board_
            "board_radiance_numpy",
            "board_lightfield", "board_corners", "default_intrinsics", "pipeline_grid", "pixel_samples",
            "render_board_mosaic", "SET_SAMPLES", "SET_DISTANCES", "SET_MAX_TILT", "SET_BORDER", "SET_TRUTH_NAME",
+           "PLACEMENTS", "FIELD_TARGETS",
            "CheckerboardSet", "set_sensor_shape", "sample_poses", "simulate_checkerboard_set", "write_checkerboard_set"]

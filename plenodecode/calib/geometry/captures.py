@@ -43,6 +43,12 @@ CAPTURE_VIEW_EDGES = "extrapolate"
 #: The keywords of :func:`plenodecode.decoding.decode` a capture is decoded with, wherever it is decoded
 #: (here from a RawCapture, in :mod:`plenodecode.pipeline.geometry` from files).
 CAPTURE_DECODE = {"demosaic": CAPTURE_DEMOSAIC, "view_edges": CAPTURE_VIEW_EDGES}
+#: Cells per spatial sample (each axis) of the raster :func:`field_coverage` measures areas on.
+COVERAGE_CELLS_PER_SAMPLE = 1
+#: A calibration whose boards leave more than this fraction of the field beyond their largest radius logs a
+#: warning: the distortion there is extrapolated (issue 22: 16 generated captures that reached 80 % of the
+#: F01 field's radius got its distortion 2.4 % right inside, 9.2 % off in the field's corners).
+MAX_EXTRAPOLATED_FIELD = 0.05
 
 
 @dataclass(frozen=True)
@@ -87,6 +93,59 @@ def _quality(errors: Reprojection, names: Sequence[str], corners: Sequence[ViewC
     per_capture = [{"capture": name, "views": found.count, "rms_ray_m": errors.rms_m(c), "rms_px": errors.rms_px(c)}
                    for c, (name, found) in enumerate(zip(names, corners))]
     return {"rms_ray_m": errors.rms_m(), "rms_px": errors.rms_px(), "per_capture": per_capture}
+
+
+def field_coverage(corners: Sequence[ViewCorners], intrinsics: np.ndarray,
+                   centre: Sequence[float] = (0.0, 0.0)) -> dict[str, float]:
+    """How much of the field of view the boards of a calibration set covered.
+
+    Every corner observation ``n = (i, j, k, l)`` is moved to the central view by its measured direction:
+    ``(u, v) = H n`` (no distortion) and ``(k', l') = A^-1 ((u, v) - H (i_c, j_c, 0, 0, 1))`` with
+    ``A = H[2:4, 2:4]``, so ``(k', l')`` is where the central view sees that direction.  The field is the
+    central view, ``-0.5 <= k' <= X - 0.5``, ``-0.5 <= l' <= Y - 0.5``, rastered at
+    :data:`COVERAGE_CELLS_PER_SAMPLE` cells per sample; the distortion model is radial about ``centre``
+    (``b``, a direction), ``r = |(u, v) - b|``.
+
+    Returns
+    -------
+    dict of float
+        ``area``: fraction of the field inside the convex hull of some capture's corners (the area a
+        board covered); ``radius``: the largest ``r`` of any corner over the largest ``r`` of the field (its
+        corners); ``beyond_radius``: fraction of the field farther from ``centre`` than any corner, where
+        the distortion is extrapolated, not measured.
+    """
+    from scipy.spatial import ConvexHull, QhullError
+
+    h = np.asarray(intrinsics, dtype=np.float64)
+    n_v, n_u, n_y, n_x = corners[0].lf_shape
+    centre_view = np.array([(n_u - 1) / 2.0, (n_v - 1) / 2.0, 0.0, 0.0, 1.0])
+    offset = h[2:4] @ centre_view
+    inverse = np.linalg.inv(h[2:4, 2:4])
+    b = np.asarray(centre, dtype=np.float64)
+    cells = int(COVERAGE_CELLS_PER_SAMPLE)
+    kk, ll = np.meshgrid((np.arange(n_x * cells) + 0.5) / cells - 0.5, (np.arange(n_y * cells) + 0.5) / cells - 0.5)
+    field = np.stack([kk.ravel(), ll.ravel()], axis=-1)                      # cell centres (k', l')
+    field_dirs = field @ h[2:4, 2:4].T + offset
+    field_r = np.linalg.norm(field_dirs - b, axis=-1)
+    outline = np.array([[-0.5, -0.5], [n_x - 0.5, -0.5], [-0.5, n_y - 0.5], [n_x - 0.5, n_y - 0.5]])
+    field_max = np.linalg.norm(outline @ h[2:4, 2:4].T + offset - b, axis=-1).max()
+    covered = np.zeros(len(field), bool)
+    largest = 0.0
+    for found in corners:
+        if found.count == 0:
+            continue
+        views = np.repeat(found.views.astype(np.float64), found.corners.shape[1], axis=0)
+        samples = np.column_stack([views, found.corners.reshape(-1, 2), np.ones(len(views))])
+        dirs = samples @ h[2:4].T
+        largest = max(largest, float(np.linalg.norm(dirs - b, axis=-1).max()))
+        kl = (dirs - offset) @ inverse.T
+        try:
+            hull = ConvexHull(kl)
+        except QhullError:                     # degenerate (collinear corners): no area
+            continue
+        covered |= np.all(field @ hull.equations[:, :2].T + hull.equations[:, 2] <= 1e-9, axis=1)
+    return {"area": float(covered.mean()), "radius": float(largest / field_max),
+            "beyond_radius": float(np.mean(field_r > largest))}
 
 
 def run_geometric_calibration(raws_or_lightfields: Iterable[LightField | RawCapture],
@@ -148,6 +207,12 @@ def run_geometric_calibration(raws_or_lightfields: Iterable[LightField | RawCapt
             "captures": list(used), "skipped": [{"capture": n, "reason": r} for n, r in skipped],
             "initial_rms_ray_m": initial.rms_m(), "distortion_estimated": bool(distortion),
             **_quality(errors, used, corners)}
+    coverage = field_coverage(corners, h, dist[3:])
+    info["coverage"] = coverage
+    if distortion and coverage["beyond_radius"] > MAX_EXTRAPOLATED_FIELD:
+        log.warning("the boards reached %.0f %% of the field's radius: the distortion over the outer %.0f %% of "
+                    "the field is extrapolated, not measured; add captures with the board near the image's corners",
+                    100 * coverage["radius"], 100 * coverage["beyond_radius"])
     cal = GeometricCalibration(intrinsics=h, distortion=dist, lf_shape=shape, poses=poses, info=info)
     return GeometryRun(calibration=cal, board=board, names=used, corners=corners, errors=errors, skipped=skipped)
 
@@ -191,7 +256,10 @@ def calibrate_geometry(raws_or_lightfields: Iterable[LightField | RawCapture],
     GeometricCalibration
         ``intrinsics`` (5, 5) for 0-based samples (re-centred, ``H02 = 0``: :mod:`.gauge`), ``distortion``,
         ``lf_shape``, ``poses`` (N, 6) of the captures used, ``info`` with the board, the captures used and
-        skipped, and the RMS ray (m) and pixel reprojection errors, overall and per capture.
+        skipped, the RMS ray (m) and pixel reprojection errors, overall and per capture, and ``coverage``
+        (:func:`field_coverage`: how much of the field the boards covered; the distortion beyond the largest
+        radius they reached is extrapolated, and a warning is logged when that is over
+        :data:`MAX_EXTRAPOLATED_FIELD` of the field).
     """
     items = list(raws_or_lightfields)
     names = [f"capture {n + 1}" for n in range(len(items))] if names is None else names

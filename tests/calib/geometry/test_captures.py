@@ -82,3 +82,78 @@ def test_distortion_of_rendered_captures():
     assert np.abs(true_field).max() > 0.02 * edges[0]
     found_field = correct_directions(grid, cal.distortion) - grid
     assert np.abs(found_field - true_field).max() < 0.05 * np.abs(true_field).max()
+
+
+# ------------------------------------------------------------------------------ field coverage
+def _central_view_board(k_range, l_range, shape=(9, 9, 113, 128)):
+    """ViewCorners of one capture: a 5 x 5 grid of corners spanning ``k_range`` x ``l_range`` in the central view."""
+    from plenodecode.calib.geometry.corners import ViewCorners
+
+    k, l_ = np.meshgrid(np.linspace(*k_range, 5), np.linspace(*l_range, 5))
+    corners = np.stack([k.ravel(), l_.ravel()], axis=-1)[None]
+    return ViewCorners(views=np.array([[shape[1] // 2, shape[0] // 2]]), corners=corners, searched=1, lf_shape=shape)
+
+
+def test_field_coverage_of_known_boards():
+    from plenodecode.calib.geometry.captures import field_coverage
+    from plenodecode.synthetic.checkerboard import default_intrinsics
+
+    shape = (9, 9, 113, 128)
+    h = default_intrinsics(shape)
+    whole = field_coverage([_central_view_board((-0.5, 127.5), (-0.5, 112.5))], h)
+    assert whole == pytest.approx({"area": 1.0, "radius": 1.0, "beyond_radius": 0.0})
+    # the left half of the view, corner to corner: half the area, the field's full radius
+    left = field_coverage([_central_view_board((-0.5, 63.5), (-0.5, 112.5))], h)
+    assert left["area"] == pytest.approx(0.5, abs=1 / 128) and left["radius"] == pytest.approx(1.0)
+    # the centred half-size rectangle: a quarter of the area, half the radius; beyond it lies all but a disk of
+    # half the field's half-diagonal (H22 = H33: square samples): 1 - pi (X^2 + Y^2) / 16 / (X Y)
+    centre = field_coverage([_central_view_board((31.5, 95.5), (27.75, 84.25))], h)
+    assert centre["area"] == pytest.approx(0.25, abs=0.01)
+    assert centre["radius"] == pytest.approx(0.5, abs=0.005)
+    assert centre["beyond_radius"] == pytest.approx(1 - np.pi * (128 ** 2 + 113 ** 2) / 16 / (128 * 113), abs=0.01)
+    # the union of two captures; a board seen in another view is moved to the central view by its direction
+    both = field_coverage([_central_view_board((-0.5, 63.5), (-0.5, 112.5)),
+                           _central_view_board((63.5, 127.5), (-0.5, 112.5))], h)
+    assert both["area"] == pytest.approx(1.0, abs=1 / 128)
+    from plenodecode.calib.geometry.corners import ViewCorners
+
+    board = _central_view_board((31.5, 95.5), (27.75, 84.25))
+    # the same directions seen from view (i, j) = (6, 2): k moves by -H20 (i - 4) / H22, l by -H31 (j - 4) / H33
+    moved = board.corners + np.array([-h[2, 0] * 2 / h[2, 2], -h[3, 1] * -2 / h[3, 3]])
+    other = ViewCorners(views=np.array([[6, 2]]), corners=moved, searched=1, lf_shape=shape)
+    assert field_coverage([other], h) == pytest.approx(centre)
+
+
+def test_coverage_is_reported(generated, caplog):
+    camera, poses, lfs = generated
+    with caplog.at_level("WARNING", logger="plenodecode.calib.geometry.captures"):
+        run = run_geometric_calibration(lfs[:4], BOARD, distortion=True)
+    cover = run.calibration.info["coverage"]
+    assert 0.0 < cover["area"] < 1.0 and 0.0 < cover["radius"] < 1.0
+    assert cover["beyond_radius"] > 0.05 and "extrapolated" in caplog.text
+    from plenodecode.report.geometry import geometry_report_html
+
+    html = geometry_report_html(run)
+    assert "field covered by the boards" in html and "the distortion is extrapolated" in html
+
+
+def test_field_placement_reaches_farther_than_centre_placement():
+    """'field' aims the boards at the field's corners and edges: together they reach farther out."""
+    from plenodecode.calib.geometry.captures import field_coverage
+    from plenodecode.calib.geometry.corners import ViewCorners
+    from plenodecode.synthetic.checkerboard import board_corners, sample_poses
+
+    camera = _camera()
+    cover = {}
+    for placement in ("centre", "field"):
+        poses = sample_poses(camera, Board.of(BOARD), 9, np.random.default_rng(3), placement=placement)
+        found = []
+        for pose in poses:
+            truth = board_corners(camera, BOARD, pose)
+            found.append(ViewCorners(views=np.array([[2, 2]]), corners=truth[2, 2][None], searched=1,
+                                     lf_shape=LF_SHAPE))
+        cover[placement] = field_coverage(found, camera.intrinsics)
+    assert cover["field"]["radius"] > cover["centre"]["radius"] + 0.05
+    assert cover["field"]["area"] > cover["centre"]["area"] + 0.05
+    with pytest.raises(ValueError, match="placement"):
+        sample_poses(camera, Board.of(BOARD), 2, np.random.default_rng(3), placement="corners")

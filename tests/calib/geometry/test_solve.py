@@ -134,3 +134,47 @@ def test_noisier_captures_are_weighted_down(seed):
         errors.append(max(abs(h1[e] / h[e] - 1) for e in entries))
     assert errors[1] < 0.002
     assert errors[1] < errors[0]
+
+
+def test_flipped_pose_is_the_planar_ambiguity():
+    """The flipped board keeps its centre and, seen from the camera, its outline across the line of sight;
+    its depths about the centre are reversed; flipping twice gives the pose back."""
+    from plenodecode.calib.geometry.solve import flipped_pose
+
+    pose = true_poses(1, seed=5)[0]
+    centre = BOARD.corners().mean(axis=0)
+    flipped = flipped_pose(pose, centre)
+    before, after = pose_transform(pose, BOARD.corners()), pose_transform(flipped, BOARD.corners())
+    middle = pose_transform(pose, centre[None])[0]
+    w = middle / np.linalg.norm(middle)
+    np.testing.assert_allclose(pose_transform(flipped, centre[None])[0], middle, atol=1e-12)
+    np.testing.assert_allclose((after - middle) @ w, -(before - middle) @ w, atol=1e-12)
+    across = np.eye(3) - np.outer(w, w)
+    np.testing.assert_allclose((after - middle) @ across, (before - middle) @ across, atol=1e-12)
+    np.testing.assert_allclose(flipped_pose(flipped, centre), pose, atol=1e-10)
+
+
+def test_a_board_started_at_its_other_tilt_is_flipped_back():
+    """Two of 8 captures started at their flipped poses: the solve tries each board's other tilt at its solution
+    and ends at the truth (H within 0.5 %, every pose within 0.5 degree), which it misses without."""
+    from plenodecode.calib.geometry.solve import flipped_pose
+    from plenodecode.raymodel import rotation_matrix
+
+    h, poses = true_intrinsics(), true_poses(8, seed=3)
+    found = observe(h, np.zeros(5), poses, noise_px=NOISE_PX, seed=6)
+    obs = Observations.of(found, BOARD)
+    h0, p0 = initial_estimate(found, BOARD)
+    centre = BOARD.corners().mean(axis=0)
+    for c in (1, 4):
+        p0[c] = flipped_pose(p0[c], centre)
+    entries = ((0, 0), (2, 0), (2, 2), (1, 1), (3, 1), (3, 3))
+
+    def worst(result):
+        h1, _, p1 = result
+        angles = [np.degrees(np.arccos(np.clip((np.trace(rotation_matrix(a[3:]).T @ rotation_matrix(b[3:])) - 1) / 2,
+                                               -1, 1))) for a, b in zip(p1, poses)]
+        return max(abs(h1[e] / h[e] - 1) for e in entries), max(angles)
+
+    h_error, angle = worst(solve(obs, h0, p0, distortion=False))
+    assert h_error < 0.005 and angle < 0.5
+    assert worst(solve(obs, h0, p0, distortion=False, flips=False))[1] > 5.0
