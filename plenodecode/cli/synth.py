@@ -57,6 +57,10 @@ SCENE_CHOICE = RegistryChoice("plenodecode.synthetic.thin", "THIN_SCENES")
               default=None, help="With --checkerboard: take H and the distortion from this calibration (JSON of "
                                  "'calibrate-geometry' or a toolbox CalInfo.json) [default: a plausible H for the "
                                  "decoded shape, no distortion; --distortion overrides the file's].")
+@click.option("--placement", type=click.Choice(["centre", "field"]), default=None,
+              help="With --checkerboard: where the boards go: 'centre' near the middle of the field, 'field' at its "
+                   "centre, edges and corners in turn, as a calibration guide asks, so that the distortion is "
+                   "measured up to the corners.  [default: centre]")
 @click.option("--views", "n_views", type=click.IntRange(min=1), default=None,
               help="With --checkerboard: views per axis of the decoded light fields the truth is for (odd; decode "
                    "with the same --views) [default: the decoder's].")
@@ -66,7 +70,7 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
             offset: tuple[float, float] | None, shape: tuple[int, int] | None, name: str | None, no_noise: bool,
             scene_name: str | None, lightfield: bool | None, archive: str | None, board: Board | None, captures: int | None,
             distortion: tuple[float, ...] | None, distances: tuple[float, float] | None, geometry_file: Path | None,
-            n_views: int | None, overwrite: bool) -> None:
+            placement: str | None, n_views: int | None, overwrite: bool) -> None:
     """Generate a synthetic plenoptic raw of PRESET with exact ground truth.
 
     Writes the scene raw in the camera's own format (Illum .lfr, F01 .lfp, a 16-bit PNG
@@ -99,12 +103,12 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
             raise click.UsageError("--scene does not apply to --checkerboard sets")
         _checkerboard_set(ctx, preset, out, board=board, captures=12 if captures is None else captures,
                           distortion=distortion, distances=distances, geometry_file=geometry_file, n_views=n_views,
-                          seed=seed, pitch=pitch, rotation=rotation,
+                          placement=placement or "centre", seed=seed, pitch=pitch, rotation=rotation,
                           offset=offset, shape=shape, name=name or "board", noise=not no_noise, archive=archive,
                           lightfield=lightfield, overwrite=overwrite)
         return
     for option, value in (("--captures", captures), ("--distortion", distortion), ("--distances", distances),
-                          ("--geometry", geometry_file), ("--views", n_views)):
+                          ("--geometry", geometry_file), ("--placement", placement), ("--views", n_views)):
         if value is not None:
             raise click.UsageError(f"{option} needs --checkerboard")
     name = name or "scene"
@@ -138,7 +142,7 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
 
 def _checkerboard_set(ctx: click.Context, preset: str, out: Path, *, board: Board, captures: int,
                       distortion: tuple[float, ...] | None, distances: tuple[float, float] | None,
-                      geometry_file: Path | None, n_views: int | None, seed: int,
+                      geometry_file: Path | None, n_views: int | None, placement: str, seed: int,
                       pitch: float | None, rotation: float | None, offset: tuple[float, float] | None,
                       shape: tuple[int, int] | None, name: str, noise: bool, archive: str | None,
                       lightfield: bool | None, overwrite: bool) -> None:
@@ -179,7 +183,7 @@ def _checkerboard_set(ctx: click.Context, preset: str, out: Path, *, board: Boar
     try:
         extra = {} if distances is None else {"distances": distances}
         cset = simulate_checkerboard_set(preset, board, captures, intrinsics=intrinsics, distortion=distortion,
-                                         n_views=n_views, seed=seed, shape=shape,
+                                         n_views=n_views, placement=placement, seed=seed, shape=shape,
                                          pitch=pitch, rotation=rotation, offset=offset, noise=noise, **extra,
                                          progress=progress_bar(f"checkerboard set of {preset}", ctx))
     except ValueError as exc:

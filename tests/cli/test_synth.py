@@ -87,6 +87,35 @@ def test_cli_synth_checkerboard_set(tmp_path):
     assert res.exit_code == 2 and "--overwrite" in res.output
 
 
+def test_cli_synth_checkerboard_field_placement(tmp_path):
+    """``--placement field`` aims the farther boards at the field's corners: their centres, seen in the central
+    view, sit on its diagonals, about half way out (0.45-0.51 of the half field measured; the whole board must
+    stay inside every view), where 'centre' keeps them anywhere near the middle."""
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+    from plenodecode.io.calinfo import load_geometric_calibration
+    from plenodecode.raymodel import pose_transform
+    from plenodecode.synthetic.checkerboard import Board
+
+    board = Board(3, 4, 0.004)
+    middle = np.array([[(board.cols - 1) / 2 * board.square_m, (board.rows - 1) / 2 * board.square_m, 0.0]])
+    args = ["synth", "f01", "-o", str(tmp_path), "--checkerboard", "3x4x0.004", "--captures", "4", "--shape", "420",
+            "500", "--distances", "0.4", "0.5", "--no-noise", "--placement", "field"]
+    res = CliRunner().invoke(cli, args)
+    assert res.exit_code == 0, res.output
+    truth = load_geometric_calibration(tmp_path / "geometry_truth.json")
+    assert truth.info["placement"] == "field"
+    _, _, ny, nx = truth.lf_shape
+    far = truth.poses[np.argsort(truth.poses[:, 2])[2:]]
+    for pose in far:
+        k, l = truth.project(pose_transform(pose, middle), (4, 4))[0]
+        fx, fy = abs(k - (nx - 1) / 2) / (nx / 2), abs(l - (ny - 1) / 2) / (ny / 2)
+        assert fx > 0.35 and fy > 0.35 and abs(fx - fy) < 0.1, (fx, fy)
+    res = CliRunner().invoke(cli, ["synth", "f01", "-o", str(tmp_path / "x"), "--placement", "field"])
+    assert res.exit_code == 2 and "--placement needs --checkerboard" in res.output
+
+
 @pytest.mark.parametrize("extra,message", [
     (["--checkerboard", "8x6"], "--checkerboard"),
     (["--checkerboard", "1x6x0.004"], "--checkerboard"),
