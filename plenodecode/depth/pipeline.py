@@ -29,6 +29,11 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    refinement's strips, as long as its box, have their own ``refine_strip_penalty``.  Both penalties are
    lowered on noisy views (:func:`strip_penalty_for`: ``x min(1, strip_penalty_noise / sigma)``, resp.
    ``refine_penalty_noise``, at least a quarter): noise puts the same floor under every group's error.
+   On noisy views (above ``contrast_smooth_noise``, ramped in up to twice it) every view's error also gets
+   back the noise a fractional shift's interpolation averages away (``noise_var`` = ``shift_noise`` x the
+   noise variance, with the noise's pixel-to-pixel correlation ``shift_noise_rho``; the same in the
+   refinement of step 5): otherwise the cost is lowest at fractional shifts and a weakly textured surface
+   at an integer disparity is pulled off it.
 2. **Edge-aware regularisation** (:mod:`~plenodecode.depth.aggregation`): semi-global aggregation along
    ``paths`` directions (Hirschmueller, TPAMI 2008) whose large-jump penalty P2 falls at the centre view's
    intensity edges, so depth edges follow image edges.  Its penalties are in units of the median per-pixel
@@ -50,7 +55,8 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
 5. **Sub-label refinement without the fronto-parallel bias**: a second, narrow cost volume of offsets
    ``+-refine_range`` labels around the estimate, every view warped per pixel by ``d(y, x) + offset``
    (bicubic), so slanted surfaces match exactly (SGM's label penalties favour fronto-parallel steps); its
-   parabolic minimum is added to the estimate.  Its strips aggregate along lines as long as its box.
+   parabolic minimum is added to the estimate.  Its strips aggregate along lines as long as its box; on
+   noisy views (above ``contrast_smooth_noise``) the box radius is at least ``refine_radius_noisy``.
 6. **Occlusion edges** (:mod:`~plenodecode.depth.occlusion`, parameters ``edge_*``): within ``edge_radius``
    px of a disparity jump, a pixel on the near side whose cost over *all* views (an occluder is seen by
    every view) exceeds ``edge_ratio`` x the far disparity's cost over the best wedge of views moves to the
@@ -191,7 +197,8 @@ PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "med
                  "contrast_noise", "contrast_smooth", "contrast_smooth_noise", "contrast_weight", "min_view_weight",
                  "disparity_range", "strips", "strip_width",
                  "strip_radius", "strip_penalty", "refine_strip_penalty", "strip_penalty_noise", "refine_penalty_noise",
-                 "gate_ratio", "gate_floor", "sgm_gate_ratio", "sgm_gate_floor", "confidence_radius", *EDGE_DEFAULTS)
+                 "gate_ratio", "gate_floor", "sgm_gate_ratio", "sgm_gate_floor", "confidence_radius", "shift_noise",
+                 "shift_noise_rho", "refine_radius_noisy", *EDGE_DEFAULTS)
 
 
 def merge_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]) -> dict[str, Any]:
@@ -225,7 +232,8 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
     if not float(p["edge_jump"]) > 0 or not float(p["edge_ratio"]) > 0:
         raise ValueError(f"edge_jump and edge_ratio must be positive, got edge_jump={p['edge_jump']!r}, "
                          f"edge_ratio={p['edge_ratio']!r}")
-    for name in ("radius", "median_radius", "refine_radius", "edge_radius", "edge_median_radius", "confidence_radius"):
+    for name in ("radius", "median_radius", "refine_radius", "edge_radius", "edge_median_radius", "confidence_radius",
+                 "refine_radius_noisy"):
         if name == "refine_radius" and p[name] == "auto":
             continue
         if int(p[name]) < 0:
@@ -236,10 +244,13 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
     for name in ("strip_width", "strip_penalty", "refine_strip_penalty"):
         if not float(p[name]) > 0:
             raise ValueError(f"{name} must be positive, got {p[name]!r}")
-    for name in ("strips", "strip_radius", "strip_penalty_noise", "refine_penalty_noise", "gate_ratio",
+    for name in ("shift_noise", "strips", "strip_radius", "strip_penalty_noise", "refine_penalty_noise", "gate_ratio",
                  "gate_floor", "sgm_gate_ratio", "sgm_gate_floor"):
         if not float(p[name]) >= 0:
             raise ValueError(f"{name} must be >= 0, got {p[name]!r}")
+    rho = p["shift_noise_rho"]
+    if not (isinstance(rho, (tuple, list)) and len(rho) == 2 and all(0.0 <= float(r) < 1.0 for r in rho)):
+        raise ValueError(f"shift_noise_rho must be a pair (along y, along x) in [0, 1), got {rho!r}")
     if int(p["refine_samples"]) < 3:
         raise ValueError(f"refine_samples must be >= 3, got {p['refine_samples']!r}")
     return p
@@ -293,6 +304,15 @@ def contrast_smooth_for(smooth: float, reference_noise: float, noise: float) -> 
     return float(smooth) * min(1.0, max(0.0, noise / reference_noise - 1.0))
 
 
+def shift_noise_var(factor: float, reference_noise: float, noise: float) -> float:
+    """``factor * noise^2`` above ``reference_noise`` (ramped in up to twice it as :func:`contrast_smooth_for`),
+    0 below; the ``noise_var`` of :func:`~plenodecode.depth.cost.half_plane_cost_volume`."""
+    if not factor > 0 or not noise > 0:
+        return 0.0
+    ramp = 1.0 if not reference_noise > 0 else min(1.0, max(0.0, noise / reference_noise - 1.0))
+    return float(factor) * ramp * noise * noise
+
+
 #: The lowest fraction of a strip penalty that :func:`strip_penalty_for` lowers it to.
 MIN_PENALTY_FRACTION = 0.25
 
@@ -319,7 +339,8 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     params : dict
         The parameters used, with the disparity range and its source, the views' noise and the contrast
         ``eps`` used, the strip penalties used (``strip_penalty_used``, ``refine_strip_penalty_used``:
-        :func:`strip_penalty_for`), the number of labels and of views.
+        :func:`strip_penalty_for`), the cost volumes' ``noise_var`` (``shift_noise_var_used``:
+        :func:`shift_noise_var`), the refinement's box radius, the number of labels and of views.
     """
     plain = prepare_views(lf, min_view_weight=float(p["min_view_weight"]), grey=bool(p["grey"]),
                           pattern=p["pattern"])
@@ -349,6 +370,9 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     labels = make_labels(lo, hi, step, pad=2 * step)
     n_labels, n_paths = len(labels), int(p["paths"])
     refine_radius = refine_radius_for(lf.shape[2:4], p["refine_radius"])
+    if refine_radius > 0 and noise > float(p["contrast_smooth_noise"]) > 0:
+        # noisy views: a longer refinement box averages the noise (never shorter than the size's own)
+        refine_radius = max(refine_radius, int(p["refine_radius_noisy"]))
     n_refine = int(p["refine_samples"]) if refine_radius > 0 else 0
     total = n_labels + n_paths + n_refine
 
@@ -363,7 +387,9 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
               "strip_radius": int(p["strip_radius"]),
               "strip_penalty": strip_penalty_for(float(p["strip_penalty"]), float(p["strip_penalty_noise"]), noise),
               # strips match the intensities only, not the contrast channels stacked beside them (cost.py)
-              "strip_channels": views.data.shape[-1] // 2 if sigma > 0 and weight is not None else None}
+              "strip_channels": views.data.shape[-1] // 2 if sigma > 0 and weight is not None else None,
+              "noise_var": shift_noise_var(float(p["shift_noise"]), float(p["contrast_smooth_noise"]), noise),
+              "noise_rho": (float(p["shift_noise_rho"][0]), float(p["shift_noise_rho"][1]))}
     cost = half_plane_cost_volume(views, labels, radius=int(p["radius"]), progress=stage(0), **strips)
     sub = cost[::4, ::4]
     span = float(np.median(sub.max(axis=-1) - sub.min(axis=-1)))
@@ -405,7 +431,7 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     confidence = estimate_confidence(views, peak_ratio, disparity, radius=int(p["confidence_radius"]), valid=valid)
     params = {**p, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
               "noise_sigma": noise, "contrast_eps_used": eps, "contrast_smooth_used": smooth,
-              "strip_penalty_used": strips["strip_penalty"],
+              "strip_penalty_used": strips["strip_penalty"], "shift_noise_var_used": strips["noise_var"],
               "refine_strip_penalty_used": refine_penalty,
               "disparity_range_source": source, "n_labels": n_labels, "views_used": len(views.used()) + 1}
     return disparity.astype(np.float32), confidence, params
@@ -435,6 +461,6 @@ def run_preset(lf: LightField, method: str, preset: Mapping[str, Any], /, *, pro
 
 
 __all__ = ["VIEW_DEFAULTS", "PIPELINE_KEYS", "metadata_disparity_range", "estimate_disparity_range",
-           "disparity_range", "strip_penalty_for", "contrast_smooth_for", "merge_params", "preset_defaults",
-           "check_params",
+           "disparity_range", "strip_penalty_for", "contrast_smooth_for", "shift_noise_var", "merge_params",
+           "preset_defaults", "check_params",
            "run_pipeline", "run_preset"]
