@@ -52,7 +52,7 @@ COSTVOLUME: dict[str, Any] = {
     "strip_penalty": 8.0,     # factor on a strip's cost (a strip wins only where it is this much better)
     "refine_strip_penalty": 16.0,  # the same in the refinement, whose long strips (refine_radius) fit faint texture
     "strip_penalty_noise": 0.002,   # strip_penalty holds for views of noise sigma up to this, x (this / sigma)
-    "refine_penalty_noise": 0.002,  # above, at least a quarter (0: fixed); the same for refine_strip_penalty
+    "refine_penalty_noise": 0.002,  # above, at least 0.15 of it (0: fixed); the same for refine_strip_penalty
     "gate_ratio": 2.0,        # clean-ups may not raise a pixel's matching cost above this x its own (0 = off)
     "gate_floor": 0.05,       # ... plus this (cost units: the median per-pixel cost span)
     "sgm_gate_ratio": 5.0,    # SGM's winner gives way to the matching cost's own where it costs more than this x

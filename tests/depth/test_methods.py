@@ -280,9 +280,10 @@ def test_sgm_winner_gives_way_to_the_views_behind_slits():
 
 
 def test_strip_penalties_fall_on_noisy_views():
-    """The strips' penalties fall with the views' measured noise, to a quarter on strongly noisy views (the
-    noise floor under every group's error), as the accurate method's parameters record."""
+    """The strips' penalties fall with the views' measured noise, to MIN_PENALTY_FRACTION on strongly noisy
+    views (the noise floor under every group's error), as the accurate method's parameters record."""
     from plenodecode.depth.methods import COSTVOLUME
+    from plenodecode.depth.pipeline import MIN_PENALTY_FRACTION
 
     clean, _ = planes_lightfield(seed=0)
     noisy, _ = planes_lightfield(noise=0.03, seed=0)
@@ -291,6 +292,6 @@ def test_strip_penalties_fall_on_noisy_views():
     # measured sigma 0.0049 (fine texture a bilinear shift misses counts as noise) and 0.024
     assert c["noise_sigma"] < 0.01 < n["noise_sigma"]
     assert c["strip_penalty_used"] == pytest.approx(COSTVOLUME["strip_penalty"] * 0.002 / c["noise_sigma"])
-    assert n["strip_penalty_used"] == pytest.approx(COSTVOLUME["strip_penalty"] / 4)
-    assert n["refine_strip_penalty_used"] == pytest.approx(COSTVOLUME["refine_strip_penalty"] / 4)
+    assert n["strip_penalty_used"] == pytest.approx(COSTVOLUME["strip_penalty"] * MIN_PENALTY_FRACTION)
+    assert n["refine_strip_penalty_used"] == pytest.approx(COSTVOLUME["refine_strip_penalty"] * MIN_PENALTY_FRACTION)
     assert c["refine_strip_penalty_used"] > 1.5 * n["refine_strip_penalty_used"]
