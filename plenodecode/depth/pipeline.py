@@ -19,7 +19,8 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    point occluded in the views on one side of the centre still matches in the other half (Kang, Szeliski &
    Chai, CVPR 2001; Wang, Efros & Ramamoorthi, ICCV 2015, who split the angular patch at the occluder edge).
    Views are weighted by their ``lf.weight`` (Jeon et al., CVPR 2015 also build the volume over all views
-   against the centre view).  A point seen through a gap of a few pixels is hidden from both half-planes,
+   against the centre view).  On clearly noisy views (above twice ``contrast_smooth_noise``) the box radius
+   is at least ``radius_noisy``.  A point seen through a gap of a few pixels is hidden from both half-planes,
    and a square box around a thin slat is mostly background: with ``strips`` the minimum also runs over
    oriented strips of views (those within ``strip_width`` of a line through the centre view), each
    aggregated along a 1-px line of its orientation and weighted by ``strip_penalty``
@@ -198,7 +199,7 @@ PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "med
                  "disparity_range", "strips", "strip_width",
                  "strip_radius", "strip_penalty", "refine_strip_penalty", "strip_penalty_noise", "refine_penalty_noise",
                  "gate_ratio", "gate_floor", "sgm_gate_ratio", "sgm_gate_floor", "confidence_radius", "shift_noise",
-                 "shift_noise_rho", "refine_radius_noisy", *EDGE_DEFAULTS)
+                 "shift_noise_rho", "radius_noisy", "refine_radius_noisy", *EDGE_DEFAULTS)
 
 
 def merge_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]) -> dict[str, Any]:
@@ -233,7 +234,7 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
         raise ValueError(f"edge_jump and edge_ratio must be positive, got edge_jump={p['edge_jump']!r}, "
                          f"edge_ratio={p['edge_ratio']!r}")
     for name in ("radius", "median_radius", "refine_radius", "edge_radius", "edge_median_radius", "confidence_radius",
-                 "refine_radius_noisy"):
+                 "radius_noisy", "refine_radius_noisy"):
         if name == "refine_radius" and p[name] == "auto":
             continue
         if int(p[name]) < 0:
@@ -392,7 +393,12 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
               "strip_channels": views.data.shape[-1] // 2 if sigma > 0 and weight is not None else None,
               "noise_var": shift_noise_var(float(p["shift_noise"]), float(p["contrast_smooth_noise"]), noise),
               "noise_rho": (float(p["shift_noise_rho"][0]), float(p["shift_noise_rho"][1]))}
-    cost = half_plane_cost_volume(views, labels, radius=int(p["radius"]), progress=stage(0), **strips)
+    radius = int(p["radius"])
+    if noise > 2 * float(p["contrast_smooth_noise"]) > 0:
+        # clearly noisy views: a larger box averages the noise (a textured noise-free light field can measure
+        # up to ~0.004: the 45 x 58 px slats-v-j1-weak scene of the tests, 9.6 -> 14.0 % with radius 3)
+        radius = max(radius, int(p["radius_noisy"]))
+    cost = half_plane_cost_volume(views, labels, radius=radius, progress=stage(0), **strips)
     sub = cost[::4, ::4]
     span = float(np.median(sub.max(axis=-1) - sub.min(axis=-1)))
     cost *= np.float32(1.0 / max(span, 1e-12))
@@ -431,7 +437,7 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     # edge pass moved to the far side is judged by the views that see it there
     valid = None if lf.weight is None else np.asarray(lf.weight[views.centre]) > 0
     confidence = estimate_confidence(views, peak_ratio, disparity, radius=int(p["confidence_radius"]), valid=valid)
-    params = {**p, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
+    params = {**p, "radius": radius, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
               "noise_sigma": noise, "contrast_eps_used": eps, "contrast_smooth_used": smooth,
               "strip_penalty_used": strips["strip_penalty"], "shift_noise_var_used": strips["noise_var"],
               "refine_strip_penalty_used": refine_penalty,
