@@ -63,6 +63,7 @@ COSTVOLUME: dict[str, Any] = {
                               # a decoded illum-mini plane's views (the hex resampling interpolates along rows)
     "refine_radius_noisy": 5, # refinement box radius at least this on views noisier than contrast_smooth_noise
                               # (decoded thin means 32.24 -> 31.04 % at shift_noise 0; illum-mini dec 2.42 -> 2.21 %)
+    "contrast_weight_noisy": 0.03,  # contrast_weight on noisy views (ramped in from contrast_smooth_noise to twice it)
     "radius_noisy": 3,        # the cost volume's box radius on views noisier than twice contrast_smooth_noise
                               # (decoded thin means 27.76 -> 26.79 %, illum-mini dec 2.34 -> 2.09 %)
 }
@@ -98,6 +99,7 @@ FAST: dict[str, Any] = {
     "shift_noise_rho": (0.0, 0.0),
     "refine_radius_noisy": 0,
     "radius_noisy": 0,
+    "contrast_weight_noisy": None,
 }
 
 #: Pipeline presets: method name -> its own parameters.

@@ -12,7 +12,8 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    (:func:`~plenodecode.depth.views.noise_sigma`), so that noise in flat areas is not normalised into texture.
    On noisy views the normalised views are also smoothed (``contrast_smooth`` px, :func:`contrast_smooth_for`
    above ``contrast_smooth_noise``): the interpolation of the shifts averages white noise away at fractional
-   shifts and pulls the cost's minimum off the true disparity.
+   shifts and pulls the cost's minimum off the true disparity; with the same ramp their weight goes from
+   ``contrast_weight`` to ``contrast_weight_noisy`` (the normalisation lifts noise towards the level of texture).
 1. **Cost volume** (:mod:`~plenodecode.depth.cost`) over uniformly spaced disparity labels: every used view
    is shifted onto the centre view and its weighted squared colour difference summed per angular sector; the
    cost of a pixel is the minimum over half-planes of views of the box-aggregated mean difference, so a
@@ -199,7 +200,7 @@ PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "med
                  "disparity_range", "strips", "strip_width",
                  "strip_radius", "strip_penalty", "refine_strip_penalty", "strip_penalty_noise", "refine_penalty_noise",
                  "gate_ratio", "gate_floor", "sgm_gate_ratio", "sgm_gate_floor", "confidence_radius", "shift_noise",
-                 "shift_noise_rho", "radius_noisy", "refine_radius_noisy", *EDGE_DEFAULTS)
+                 "shift_noise_rho", "radius_noisy", "refine_radius_noisy", "contrast_weight_noisy", *EDGE_DEFAULTS)
 
 
 def merge_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]) -> dict[str, Any]:
@@ -226,6 +227,8 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
     for name in ("contrast_sigma", "contrast_noise", "contrast_smooth", "contrast_smooth_noise"):
         if not float(p[name]) >= 0:
             raise ValueError(f"{name} must be >= 0, got {p[name]!r}")
+    if p["contrast_weight_noisy"] is not None and not float(p["contrast_weight_noisy"]) > 0:
+        raise ValueError(f"contrast_weight_noisy must be positive or None, got {p['contrast_weight_noisy']!r}")
     if p["contrast_weight"] is not None and not float(p["contrast_weight"]) > 0:
         raise ValueError(f"contrast_weight must be positive or None, got {p['contrast_weight']!r}")
     if not 1 <= int(p["edge_wedge"]) <= N_SECTORS:
@@ -341,20 +344,20 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     confidence : ndarray (Y, X) float32 in [0, 1]
     params : dict
         The parameters used, with the disparity range and its source, the views' noise and the contrast
-        ``eps`` used, the strip penalties used (``strip_penalty_used``, ``refine_strip_penalty_used``:
-        :func:`strip_penalty_for`), the cost volumes' ``noise_var`` (``shift_noise_var_used``:
-        :func:`shift_noise_var`), the refinement's box radius, the number of labels and of views.
+        ``eps`` and weight used (``contrast_weight_used``), the strip penalties used (``strip_penalty_used``,
+        ``refine_strip_penalty_used``: :func:`strip_penalty_for`), the cost volumes' ``noise_var``
+        (``shift_noise_var_used``: :func:`shift_noise_var`), the box radii used, the number of labels and of views.
     """
     plain = prepare_views(lf, min_view_weight=float(p["min_view_weight"]), grey=bool(p["grey"]),
                           pattern=p["pattern"])
     sigma, floor, k = float(p["contrast_sigma"]), float(p["contrast_eps"]), float(p["contrast_noise"])
     weight = None if p["contrast_weight"] is None else float(p["contrast_weight"])
-    built: dict[tuple[float, float], Views] = {}
+    built: dict[tuple[float, float, float | None], Views] = {}
 
-    def matching_views(eps: float, smooth: float = 0.0) -> Views:
-        if (eps, smooth) not in built:
-            built[eps, smooth] = add_contrast(plain, sigma, eps, weight, smooth) if sigma > 0 else plain
-        return built[eps, smooth]
+    def matching_views(eps: float, smooth: float = 0.0, w: float | None = weight) -> Views:
+        if (eps, smooth, w) not in built:
+            built[eps, smooth, w] = add_contrast(plain, sigma, eps, w, smooth) if sigma > 0 else plain
+        return built[eps, smooth, w]
 
     (lo, hi), source = disparity_range(lf, lambda: matching_views(floor), p["disparity_range"])
     noise, eps, smooth = 0.0, floor, 0.0
@@ -364,8 +367,13 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
         noise = noise_sigma(plain, lo, hi)
         eps = max(floor, k * noise) if k > 0 else floor
         smooth = contrast_smooth_for(float(p["contrast_smooth"]), float(p["contrast_smooth_noise"]), noise)
-        log.info("view noise sigma %.4f: contrast eps %.4f, smoothing %.2f px", noise, eps, smooth)
-    views = matching_views(eps, smooth)
+        if weight is not None and p["contrast_weight_noisy"] is not None:
+            # noisy views: less weight on the normalised channel, which lifts noise towards texture
+            ramp = contrast_smooth_for(1.0, float(p["contrast_smooth_noise"]), noise)
+            weight = (1.0 - ramp) * weight + ramp * float(p["contrast_weight_noisy"])
+        log.info("view noise sigma %.4f: contrast eps %.4f, smoothing %.2f px, weight %.3f", noise, eps, smooth,
+                 float("nan") if weight is None else weight)
+    views = matching_views(eps, smooth, weight)
     # the intensity-only views stay alive for the edge pass's relabel only when it runs
     intensities = plain if (p["edge_visibility"] or p["edge_coverage"]) and int(p["edge_radius"]) > 0 else None
     del plain, built
@@ -438,7 +446,8 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     valid = None if lf.weight is None else np.asarray(lf.weight[views.centre]) > 0
     confidence = estimate_confidence(views, peak_ratio, disparity, radius=int(p["confidence_radius"]), valid=valid)
     params = {**p, "radius": radius, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
-              "noise_sigma": noise, "contrast_eps_used": eps, "contrast_smooth_used": smooth,
+              "noise_sigma": noise, "contrast_eps_used": eps, "contrast_weight_used": weight,
+              "contrast_smooth_used": smooth,
               "strip_penalty_used": strips["strip_penalty"], "shift_noise_var_used": strips["noise_var"],
               "refine_strip_penalty_used": refine_penalty,
               "disparity_range_source": source, "n_labels": n_labels, "views_used": len(views.used()) + 1}
