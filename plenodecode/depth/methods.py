@@ -52,11 +52,20 @@ COSTVOLUME: dict[str, Any] = {
     "strip_penalty": 8.0,     # factor on a strip's cost (a strip wins only where it is this much better)
     "refine_strip_penalty": 16.0,  # the same in the refinement, whose long strips (refine_radius) fit faint texture
     "strip_penalty_noise": 0.002,   # strip_penalty holds for views of noise sigma up to this, x (this / sigma)
-    "refine_penalty_noise": 0.002,  # above, at least a quarter (0: fixed); the same for refine_strip_penalty
+    "refine_penalty_noise": 0.002,  # above, at least 0.15 of it (0: fixed); the same for refine_strip_penalty
     "gate_ratio": 2.0,        # clean-ups may not raise a pixel's matching cost above this x its own (0 = off)
     "gate_floor": 0.05,       # ... plus this (cost units: the median per-pixel cost span)
     "sgm_gate_ratio": 5.0,    # SGM's winner gives way to the matching cost's own where it costs more than this x
     "sgm_gate_floor": 0.03,   # ... plus this (0 ratio = off); see the pipeline's step 2
+    "shift_noise": 1.0,       # noise_var of the cost volumes = this x noise sigma^2 above contrast_smooth_noise
+                              # (pipeline step 1; decoded thin means 31.04 -> 28.16 %, 1 vs 0)
+    "shift_noise_rho": (0.0, 0.3),  # correlation of the noise of neighbouring pixels (y, x): 0.0 / 0.28-0.30 on
+                              # a decoded illum-mini plane's views (the hex resampling interpolates along rows)
+    "refine_radius_noisy": 5, # refinement box radius at least this on views noisier than contrast_smooth_noise
+                              # (decoded thin means 32.24 -> 31.04 % at shift_noise 0; illum-mini dec 2.42 -> 2.21 %)
+    "contrast_weight_noisy": 0.03,  # contrast_weight on noisy views (ramped in from contrast_smooth_noise to twice it)
+    "radius_noisy": 3,        # the cost volume's box radius on views noisier than twice contrast_smooth_noise
+                              # (decoded thin means 27.76 -> 26.79 %, illum-mini dec 2.34 -> 2.09 %)
 }
 
 #: The fast method's own parameters: the star views, coarser labels, 4 paths, fewer refinement offsets.
@@ -86,6 +95,11 @@ FAST: dict[str, Any] = {
     "gate_floor": 0.05,
     "sgm_gate_ratio": 0.0,
     "sgm_gate_floor": 0.03,
+    "shift_noise": 0.0,
+    "shift_noise_rho": (0.0, 0.0),
+    "refine_radius_noisy": 0,
+    "radius_noisy": 0,
+    "contrast_weight_noisy": None,
 }
 
 #: Pipeline presets: method name -> its own parameters.

@@ -12,14 +12,16 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    (:func:`~plenodecode.depth.views.noise_sigma`), so that noise in flat areas is not normalised into texture.
    On noisy views the normalised views are also smoothed (``contrast_smooth`` px, :func:`contrast_smooth_for`
    above ``contrast_smooth_noise``): the interpolation of the shifts averages white noise away at fractional
-   shifts and pulls the cost's minimum off the true disparity.
+   shifts and pulls the cost's minimum off the true disparity; with the same ramp their weight goes from
+   ``contrast_weight`` to ``contrast_weight_noisy`` (the normalisation lifts noise towards the level of texture).
 1. **Cost volume** (:mod:`~plenodecode.depth.cost`) over uniformly spaced disparity labels: every used view
    is shifted onto the centre view and its weighted squared colour difference summed per angular sector; the
    cost of a pixel is the minimum over half-planes of views of the box-aggregated mean difference, so a
    point occluded in the views on one side of the centre still matches in the other half (Kang, Szeliski &
    Chai, CVPR 2001; Wang, Efros & Ramamoorthi, ICCV 2015, who split the angular patch at the occluder edge).
    Views are weighted by their ``lf.weight`` (Jeon et al., CVPR 2015 also build the volume over all views
-   against the centre view).  A point seen through a gap of a few pixels is hidden from both half-planes,
+   against the centre view).  On clearly noisy views (above twice ``contrast_smooth_noise``) the box radius
+   is at least ``radius_noisy``.  A point seen through a gap of a few pixels is hidden from both half-planes,
    and a square box around a thin slat is mostly background: with ``strips`` the minimum also runs over
    oriented strips of views (those within ``strip_width`` of a line through the centre view), each
    aggregated along a 1-px line of its orientation and weighted by ``strip_penalty``
@@ -28,7 +30,12 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    beat them there (``strip_channels`` of :func:`~plenodecode.depth.cost.half_plane_cost_volume`); the
    refinement's strips, as long as its box, have their own ``refine_strip_penalty``.  Both penalties are
    lowered on noisy views (:func:`strip_penalty_for`: ``x min(1, strip_penalty_noise / sigma)``, resp.
-   ``refine_penalty_noise``, at least a quarter): noise puts the same floor under every group's error.
+   ``refine_penalty_noise``, at least 0.15 of it): noise puts the same floor under every group's error.
+   On noisy views (above ``contrast_smooth_noise``, ramped in up to twice it) every view's error also gets
+   back the noise a fractional shift's interpolation averages away (``noise_var`` = ``shift_noise`` x the
+   noise variance, with the noise's pixel-to-pixel correlation ``shift_noise_rho``; the same in the
+   refinement of step 5): otherwise the cost is lowest at fractional shifts and a weakly textured surface
+   at an integer disparity is pulled off it.
 2. **Edge-aware regularisation** (:mod:`~plenodecode.depth.aggregation`): semi-global aggregation along
    ``paths`` directions (Hirschmueller, TPAMI 2008) whose large-jump penalty P2 falls at the centre view's
    intensity edges, so depth edges follow image edges.  Its penalties are in units of the median per-pixel
@@ -50,7 +57,8 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
 5. **Sub-label refinement without the fronto-parallel bias**: a second, narrow cost volume of offsets
    ``+-refine_range`` labels around the estimate, every view warped per pixel by ``d(y, x) + offset``
    (bicubic), so slanted surfaces match exactly (SGM's label penalties favour fronto-parallel steps); its
-   parabolic minimum is added to the estimate.  Its strips aggregate along lines as long as its box.
+   parabolic minimum is added to the estimate.  Its strips aggregate along lines as long as its box; on
+   noisy views (above ``contrast_smooth_noise``) the box radius is at least ``refine_radius_noisy``.
 6. **Occlusion edges** (:mod:`~plenodecode.depth.occlusion`, parameters ``edge_*``): within ``edge_radius``
    px of a disparity jump, a pixel on the near side whose cost over *all* views (an occluder is seen by
    every view) exceeds ``edge_ratio`` x the far disparity's cost over the best wedge of views moves to the
@@ -191,7 +199,8 @@ PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "med
                  "contrast_noise", "contrast_smooth", "contrast_smooth_noise", "contrast_weight", "min_view_weight",
                  "disparity_range", "strips", "strip_width",
                  "strip_radius", "strip_penalty", "refine_strip_penalty", "strip_penalty_noise", "refine_penalty_noise",
-                 "gate_ratio", "gate_floor", "sgm_gate_ratio", "sgm_gate_floor", "confidence_radius", *EDGE_DEFAULTS)
+                 "gate_ratio", "gate_floor", "sgm_gate_ratio", "sgm_gate_floor", "confidence_radius", "shift_noise",
+                 "shift_noise_rho", "radius_noisy", "refine_radius_noisy", "contrast_weight_noisy", *EDGE_DEFAULTS)
 
 
 def merge_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]) -> dict[str, Any]:
@@ -218,6 +227,8 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
     for name in ("contrast_sigma", "contrast_noise", "contrast_smooth", "contrast_smooth_noise"):
         if not float(p[name]) >= 0:
             raise ValueError(f"{name} must be >= 0, got {p[name]!r}")
+    if p["contrast_weight_noisy"] is not None and not float(p["contrast_weight_noisy"]) > 0:
+        raise ValueError(f"contrast_weight_noisy must be positive or None, got {p['contrast_weight_noisy']!r}")
     if p["contrast_weight"] is not None and not float(p["contrast_weight"]) > 0:
         raise ValueError(f"contrast_weight must be positive or None, got {p['contrast_weight']!r}")
     if not 1 <= int(p["edge_wedge"]) <= N_SECTORS:
@@ -225,7 +236,8 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
     if not float(p["edge_jump"]) > 0 or not float(p["edge_ratio"]) > 0:
         raise ValueError(f"edge_jump and edge_ratio must be positive, got edge_jump={p['edge_jump']!r}, "
                          f"edge_ratio={p['edge_ratio']!r}")
-    for name in ("radius", "median_radius", "refine_radius", "edge_radius", "edge_median_radius", "confidence_radius"):
+    for name in ("radius", "median_radius", "refine_radius", "edge_radius", "edge_median_radius", "confidence_radius",
+                 "radius_noisy", "refine_radius_noisy"):
         if name == "refine_radius" and p[name] == "auto":
             continue
         if int(p[name]) < 0:
@@ -236,10 +248,13 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
     for name in ("strip_width", "strip_penalty", "refine_strip_penalty"):
         if not float(p[name]) > 0:
             raise ValueError(f"{name} must be positive, got {p[name]!r}")
-    for name in ("strips", "strip_radius", "strip_penalty_noise", "refine_penalty_noise", "gate_ratio",
+    for name in ("shift_noise", "strips", "strip_radius", "strip_penalty_noise", "refine_penalty_noise", "gate_ratio",
                  "gate_floor", "sgm_gate_ratio", "sgm_gate_floor"):
         if not float(p[name]) >= 0:
             raise ValueError(f"{name} must be >= 0, got {p[name]!r}")
+    rho = p["shift_noise_rho"]
+    if not (isinstance(rho, (tuple, list)) and len(rho) == 2 and all(0.0 <= float(r) < 1.0 for r in rho)):
+        raise ValueError(f"shift_noise_rho must be a pair (along y, along x) in [0, 1), got {rho!r}")
     if int(p["refine_samples"]) < 3:
         raise ValueError(f"refine_samples must be >= 3, got {p['refine_samples']!r}")
     return p
@@ -252,10 +267,12 @@ def strip_penalty_for(penalty: float, reference_noise: float, noise: float) -> f
 
     The strips win where ``penalty x`` their mean squared error is below the half-planes'; noise puts a floor
     of ``2 sigma^2`` under both, so the ratio a strip can reach shrinks as the noise grows.  ``penalty`` holds
-    up to ``reference_noise`` (0: always) and falls as ``1 / noise`` above it, to no less than a quarter: a
-    strip averages fewer views than a half-plane and fits strong noise (on a 64 px test scene with noise
-    0.03 BadPix0.07 was 4.3 % at a quarter of 16, 12.8 % at 1.4).  On the decoded thin scenes (sigma
-    0.006-0.015) the cost volume's strips then keep 4-6 points more of BadPix0.07 than with a fixed 8.
+    up to ``reference_noise`` (0: always) and falls as ``1 / noise`` above it, to no less than
+    :data:`MIN_PENALTY_FRACTION` of it: a strip averages fewer views than a half-plane and fits strong noise
+    (on a 64 px test scene with noise 0.03 BadPix0.07 was 4.3 % at a quarter of 16, 12.8 % at 1.4, when the
+    floor was set; today 0.22 % at a quarter, 0.16 % at 0.15).  On the decoded thin scenes (sigma 0.006-0.015)
+    the cost volume's strips then keep 4-6 points more of BadPix0.07 than with a fixed 8, and the floor of 0.15
+    instead of a quarter 0.4 more (means 28.16 -> 27.76 %; their ideal light fields 9.92 -> 9.77 %).
 
     Parameters
     ----------
@@ -293,8 +310,17 @@ def contrast_smooth_for(smooth: float, reference_noise: float, noise: float) -> 
     return float(smooth) * min(1.0, max(0.0, noise / reference_noise - 1.0))
 
 
+def shift_noise_var(factor: float, reference_noise: float, noise: float) -> float:
+    """``factor * noise^2`` above ``reference_noise`` (ramped in up to twice it as :func:`contrast_smooth_for`),
+    0 below; the ``noise_var`` of :func:`~plenodecode.depth.cost.half_plane_cost_volume`."""
+    if not factor > 0 or not noise > 0:
+        return 0.0
+    ramp = 1.0 if not reference_noise > 0 else min(1.0, max(0.0, noise / reference_noise - 1.0))
+    return float(factor) * ramp * noise * noise
+
+
 #: The lowest fraction of a strip penalty that :func:`strip_penalty_for` lowers it to.
-MIN_PENALTY_FRACTION = 0.25
+MIN_PENALTY_FRACTION = 0.15
 
 
 def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = None
@@ -318,19 +344,20 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     confidence : ndarray (Y, X) float32 in [0, 1]
     params : dict
         The parameters used, with the disparity range and its source, the views' noise and the contrast
-        ``eps`` used, the strip penalties used (``strip_penalty_used``, ``refine_strip_penalty_used``:
-        :func:`strip_penalty_for`), the number of labels and of views.
+        ``eps`` and weight used (``contrast_weight_used``), the strip penalties used (``strip_penalty_used``,
+        ``refine_strip_penalty_used``: :func:`strip_penalty_for`), the cost volumes' ``noise_var``
+        (``shift_noise_var_used``: :func:`shift_noise_var`), the box radii used, the number of labels and of views.
     """
     plain = prepare_views(lf, min_view_weight=float(p["min_view_weight"]), grey=bool(p["grey"]),
                           pattern=p["pattern"])
     sigma, floor, k = float(p["contrast_sigma"]), float(p["contrast_eps"]), float(p["contrast_noise"])
     weight = None if p["contrast_weight"] is None else float(p["contrast_weight"])
-    built: dict[tuple[float, float], Views] = {}
+    built: dict[tuple[float, float, float | None], Views] = {}
 
-    def matching_views(eps: float, smooth: float = 0.0) -> Views:
-        if (eps, smooth) not in built:
-            built[eps, smooth] = add_contrast(plain, sigma, eps, weight, smooth) if sigma > 0 else plain
-        return built[eps, smooth]
+    def matching_views(eps: float, smooth: float = 0.0, w: float | None = weight) -> Views:
+        if (eps, smooth, w) not in built:
+            built[eps, smooth, w] = add_contrast(plain, sigma, eps, w, smooth) if sigma > 0 else plain
+        return built[eps, smooth, w]
 
     (lo, hi), source = disparity_range(lf, lambda: matching_views(floor), p["disparity_range"])
     noise, eps, smooth = 0.0, floor, 0.0
@@ -340,8 +367,13 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
         noise = noise_sigma(plain, lo, hi)
         eps = max(floor, k * noise) if k > 0 else floor
         smooth = contrast_smooth_for(float(p["contrast_smooth"]), float(p["contrast_smooth_noise"]), noise)
-        log.info("view noise sigma %.4f: contrast eps %.4f, smoothing %.2f px", noise, eps, smooth)
-    views = matching_views(eps, smooth)
+        if weight is not None and p["contrast_weight_noisy"] is not None:
+            # noisy views: less weight on the normalised channel, which lifts noise towards texture
+            ramp = contrast_smooth_for(1.0, float(p["contrast_smooth_noise"]), noise)
+            weight = (1.0 - ramp) * weight + ramp * float(p["contrast_weight_noisy"])
+        log.info("view noise sigma %.4f: contrast eps %.4f, smoothing %.2f px, weight %.3f", noise, eps, smooth,
+                 float("nan") if weight is None else weight)
+    views = matching_views(eps, smooth, weight)
     # the intensity-only views stay alive for the edge pass's relabel only when it runs
     intensities = plain if (p["edge_visibility"] or p["edge_coverage"]) and int(p["edge_radius"]) > 0 else None
     del plain, built
@@ -349,6 +381,9 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     labels = make_labels(lo, hi, step, pad=2 * step)
     n_labels, n_paths = len(labels), int(p["paths"])
     refine_radius = refine_radius_for(lf.shape[2:4], p["refine_radius"])
+    if refine_radius > 0 and noise > float(p["contrast_smooth_noise"]) > 0:
+        # noisy views: a longer refinement box averages the noise (never shorter than the size's own)
+        refine_radius = max(refine_radius, int(p["refine_radius_noisy"]))
     n_refine = int(p["refine_samples"]) if refine_radius > 0 else 0
     total = n_labels + n_paths + n_refine
 
@@ -363,8 +398,15 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
               "strip_radius": int(p["strip_radius"]),
               "strip_penalty": strip_penalty_for(float(p["strip_penalty"]), float(p["strip_penalty_noise"]), noise),
               # strips match the intensities only, not the contrast channels stacked beside them (cost.py)
-              "strip_channels": views.data.shape[-1] // 2 if sigma > 0 and weight is not None else None}
-    cost = half_plane_cost_volume(views, labels, radius=int(p["radius"]), progress=stage(0), **strips)
+              "strip_channels": views.data.shape[-1] // 2 if sigma > 0 and weight is not None else None,
+              "noise_var": shift_noise_var(float(p["shift_noise"]), float(p["contrast_smooth_noise"]), noise),
+              "noise_rho": (float(p["shift_noise_rho"][0]), float(p["shift_noise_rho"][1]))}
+    radius = int(p["radius"])
+    if noise > 2 * float(p["contrast_smooth_noise"]) > 0:
+        # clearly noisy views: a larger box averages the noise (a textured noise-free light field can measure
+        # up to ~0.004: the 45 x 58 px slats-v-j1-weak scene of the tests, 9.6 -> 14.0 % with radius 3)
+        radius = max(radius, int(p["radius_noisy"]))
+    cost = half_plane_cost_volume(views, labels, radius=radius, progress=stage(0), **strips)
     sub = cost[::4, ::4]
     span = float(np.median(sub.max(axis=-1) - sub.min(axis=-1)))
     cost *= np.float32(1.0 / max(span, 1e-12))
@@ -403,9 +445,10 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     # edge pass moved to the far side is judged by the views that see it there
     valid = None if lf.weight is None else np.asarray(lf.weight[views.centre]) > 0
     confidence = estimate_confidence(views, peak_ratio, disparity, radius=int(p["confidence_radius"]), valid=valid)
-    params = {**p, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
-              "noise_sigma": noise, "contrast_eps_used": eps, "contrast_smooth_used": smooth,
-              "strip_penalty_used": strips["strip_penalty"],
+    params = {**p, "radius": radius, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
+              "noise_sigma": noise, "contrast_eps_used": eps, "contrast_weight_used": weight,
+              "contrast_smooth_used": smooth,
+              "strip_penalty_used": strips["strip_penalty"], "shift_noise_var_used": strips["noise_var"],
               "refine_strip_penalty_used": refine_penalty,
               "disparity_range_source": source, "n_labels": n_labels, "views_used": len(views.used()) + 1}
     return disparity.astype(np.float32), confidence, params
@@ -435,6 +478,6 @@ def run_preset(lf: LightField, method: str, preset: Mapping[str, Any], /, *, pro
 
 
 __all__ = ["VIEW_DEFAULTS", "PIPELINE_KEYS", "metadata_disparity_range", "estimate_disparity_range",
-           "disparity_range", "strip_penalty_for", "contrast_smooth_for", "merge_params", "preset_defaults",
-           "check_params",
+           "disparity_range", "strip_penalty_for", "contrast_smooth_for", "shift_noise_var", "merge_params",
+           "preset_defaults", "check_params",
            "run_pipeline", "run_preset"]

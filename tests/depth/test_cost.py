@@ -1,11 +1,13 @@
 """The matching cost: labels and the occlusion-aware half-plane cost volume."""
 
+import cv2
 import numpy as np
 import pytest
 
 from plenodecode.depth.aggregation import winner
-from plenodecode.depth.cost import N_SECTORS, half_plane_cost_volume, line_kernel, make_labels, strip_groups
-from plenodecode.depth.views import prepare_views
+from plenodecode.depth.cost import (N_SECTORS, half_plane_cost_volume, interpolated_noise_gain, line_kernel,
+                                    make_labels, strip_groups)
+from plenodecode.depth.views import Views, prepare_views
 
 
 def test_make_labels():
@@ -126,3 +128,64 @@ def test_strips_match_the_intensities_beside_a_contrast_channel():
                                              strip_channels=channels), labels)
         found[channels] = np.mean(np.abs(d - gt)[far] < 0.07)
     assert found[1] > 0.6 and found[None] < 0.25, found
+
+
+@pytest.mark.parametrize("interpolation", [cv2.INTER_LINEAR, cv2.INTER_CUBIC])
+@pytest.mark.parametrize("rho", [0.0, 0.3])
+@pytest.mark.parametrize("f", [0.25, 0.5])
+def test_interpolated_noise_gain_is_the_variance_left_after_a_shift(interpolation, rho, f):
+    """A field of noise with correlation ``rho`` between horizontal neighbours, shifted by ``f`` px along x
+    by OpenCV: its variance falls by the predicted factor."""
+    rng = np.random.default_rng(1)
+    w = rng.normal(size=(600, 601)).astype(np.float32)
+    # n = (w_x + a w_{x+1}) / sqrt(1 + a^2): correlation a / (1 + a^2) = rho between horizontal neighbours
+    a = (1 - np.sqrt(1 - 4 * rho * rho)) / (2 * rho) if rho > 0 else 0.0
+    noise = (w[:, :-1] + np.float32(a) * w[:, 1:]) / np.float32(np.sqrt(1 + a * a))
+    m = np.float32([[1, 0, f], [0, 1, 0]])
+    shifted = cv2.warpAffine(noise, m, noise.shape[::-1], flags=interpolation)
+    measured = shifted[5:-5, 5:-5].var() / noise[5:-5, 5:-5].var()
+    assert measured == pytest.approx(interpolated_noise_gain(f, interpolation, rho), abs=0.015)
+    assert interpolated_noise_gain(0.0, interpolation, rho) == pytest.approx(1.0)
+
+
+def _noisy_plane(d: int = -1, n: int = 5, size: int = 64, texture: float = 0.05, noise: float = 0.03) -> Views:
+    """n x n grey views of a weakly textured plane at the integer disparity ``d`` (every view an integer shift
+    of the centre) with white noise of ``noise``."""
+    rng = np.random.default_rng(0)
+    pad = 2 * n
+    tex = cv2.GaussianBlur(rng.normal(size=(size + 2 * pad,) * 2).astype(np.float32), (0, 0), 1.0)
+    tex = tex * np.float32(texture / tex.std()) + np.float32(0.5)
+    c = n // 2
+    data = np.empty((n, n, size, size, 1), np.float32)
+    for v in range(n):
+        for u in range(n):
+            oy, ox = d * (v - c), d * (u - c)
+            data[v, u, ..., 0] = (tex[pad + oy:pad + oy + size, pad + ox:pad + ox + size]
+                                  + rng.normal(0, noise, (size, size)))
+    return Views(data, np.ones((n, n), np.float32), (c, c))
+
+
+def test_noise_var_keeps_a_noisy_weak_plane_on_its_integer_disparity():
+    """Without noise_var the bilinear shifts' averaging of the noise pulls the winner to fractional shifts
+    (measured median -0.889 for a plane at -1, every pixel off by more than 0.07); with the noise variance added
+    back it is unbiased (median -0.999, 18 % off by more than 0.07).  The same holds for the per-pixel bicubic
+    warps of a refinement around a base disparity (median error -0.151 and 94 % off without, 0.0005 and 20 %
+    with)."""
+    views = _noisy_plane()
+    labels = np.linspace(-1.3, -0.7, 13)
+    for noise_var, near, most in ((0.0, None, None), (0.03 ** 2, 0.01, 0.3)):
+        d, _ = winner(half_plane_cost_volume(views, labels, radius=2, noise_var=noise_var), labels)
+        err = d[8:-8, 8:-8] + 1.0
+        if near is None:
+            assert abs(np.median(err)) > 0.08 and np.mean(np.abs(err) > 0.07) > 0.9
+        else:
+            assert abs(np.median(err)) < near and np.mean(np.abs(err) > 0.07) < most
+    base = np.full((64, 64), -1.05, np.float32)
+    deltas = np.linspace(-0.15, 0.15, 7)
+    errors = []
+    for noise_var in (0.0, 0.03 ** 2):
+        cost = half_plane_cost_volume(views, deltas, radius=2, base=base, interpolation=cv2.INTER_CUBIC,
+                                      noise_var=noise_var)
+        errors.append((base + winner(cost, deltas)[0])[8:-8, 8:-8] + 1.0)
+    assert np.median(errors[0]) < -0.1 and np.mean(np.abs(errors[0]) > 0.07) > 0.8
+    assert abs(np.median(errors[1])) < 0.01 and np.mean(np.abs(errors[1]) > 0.07) < 0.3

@@ -47,7 +47,8 @@ def test_refine_penalty_noise_is_checked():
         check_params("costvolume", preset_defaults(COSTVOLUME), {"refine_penalty_noise": -0.001})
 
 
-def test_refine_strip_penalty_keeps_a_quarter_on_strong_noise():
-    from plenodecode.depth.pipeline import strip_penalty_for
+def test_refine_strip_penalty_keeps_a_floor_on_strong_noise():
+    from plenodecode.depth.pipeline import MIN_PENALTY_FRACTION, strip_penalty_for
 
-    assert strip_penalty_for(16.0, 0.002, 0.03) == pytest.approx(4.0)
+    assert strip_penalty_for(16.0, 0.002, 0.03) == pytest.approx(16.0 * MIN_PENALTY_FRACTION)
+    assert strip_penalty_for(16.0, 0.002, 0.01) == pytest.approx(3.2)      # 1 / noise above the reference
