@@ -26,8 +26,23 @@ disagree (occlusions); high on well-matched texture.
   estimate there is often the occluder's, edge fattening); the second where even the best half-plane does
   not match (a wrong disparity, a specular or moving surface).
 
-The product ``c = c_tex * c_peak * c_occ`` is the confidence (:func:`estimate_confidence`); the depth pipeline
-computes it at its final disparity, with the peak ratio of its winner-take-all step.
+* **consistency with the matching cost** (:func:`cost_consistency`, when the cost volume is given): the
+  regularised, cleaned-up estimate ``d`` against the winner ``d_w`` of the per-pixel matching cost (before any
+  aggregation; a left-right style check between two estimates of the same pixel).  Near its minimum the cost is
+  a parabola ``C(d) ~ C_min + kappa (d - d_w)^2 / 2``, and a cost floor ``C_min`` (the residual the views leave
+  at their best match: noise, mixed pixels) makes ``d_w`` uncertain by about ``C_min / kappa`` px^2, so::
+
+      c_cons = exp(-(d - d_w)^2 / (tau^2 + k_floor C_min / kappa)) * P_w^p_raw
+
+  with ``P_w`` the peak ratio of the matching cost (as ``c_peak``, but of the per-pixel cost; power ``p_raw``
+  as it partly repeats ``c_peak``).  It falls where the steps after the matching moved a pixel away from
+  what its own views prefer: the 1-px mixed ring at a thin structure's edges, a slat's surround pulled to the
+  slat, a far plane seen through a gap.  On the thin scenes of issue 20 the mean sparsification area over
+  random fell 0.50 -> 0.29 (ground-truth light fields) and 0.51 -> 0.41 (decoded).
+
+The product ``c = c_tex * c_peak * c_occ * c_cons`` is the confidence (:func:`estimate_confidence`); the depth
+pipeline computes it at its final disparity, with the peak ratio of its winner-take-all step and its matching
+cost volume.
 """
 
 from __future__ import annotations
@@ -37,6 +52,7 @@ import math
 import cv2
 import numpy as np
 
+from .aggregation import winner
 from .cost import N_SECTORS, half_plane_cost_volume
 from .views import Views
 
@@ -48,6 +64,10 @@ CONFIDENCE_DEFAULTS = {
     "k_agreement": 4.0,      # noise variances added to both residuals of the view-agreement ratio
     "k_fit": 100.0,          # residual (noise variances) at which the fit factor is 0.5
     "noise_floor": 1.0 / (255.0 * math.sqrt(12.0)),  # lower bound of the noise sigma: 8-bit quantisation
+    "tau": 0.05,             # px per view step: disagreement with the matching cost's winner at which c_cons
+                             # falls to exp(-1) where the cost's floor C_min is 0
+    "k_floor": 1.0,          # weight of the cost floor's uncertainty C_min / kappa (px^2) in c_cons
+    "p_raw": 0.5,            # power of the matching cost's peak ratio in c_cons
 }
 
 #: ``T`` of white noise of unit variance: the Sobel derivative (kernel / 8) has variance 12 / 64 per axis,
@@ -134,8 +154,44 @@ def view_agreement(views: Views, disparity: np.ndarray, *, radius: int, noise_va
     return np.clip(agree * fit, 0.0, 1.0).astype(np.float32)
 
 
+def cost_consistency(cost: np.ndarray, labels: np.ndarray, disparity: np.ndarray, *, tau: float, k_floor: float,
+                     p_raw: float) -> np.ndarray:
+    """``c_cons`` of the module docstring: agreement of ``disparity`` with the winner of the matching cost.
+
+    Parameters
+    ----------
+    cost : ndarray (Y, X, L) float32
+        Per-pixel matching cost over ``labels`` (any positive scale: only ``C_min / kappa`` and the peak ratio
+        enter).
+    labels : ndarray (L,) uniformly spaced, px per view step
+    disparity : ndarray (Y, X) float32
+        The estimate to check.
+    tau, k_floor, p_raw : float
+        As :data:`CONFIDENCE_DEFAULTS`.
+
+    Returns
+    -------
+    ndarray (Y, X) float32 in [0, 1]
+    """
+    cost = np.ascontiguousarray(cost, np.float32)
+    L = cost.shape[-1]
+    raw, raw_peak = winner(cost, labels)
+    if L >= 3:
+        step = float(labels[-1] - labels[0]) / (L - 1)
+        k = np.clip(np.argmin(cost, axis=-1), 1, L - 2)[..., None]
+        c_lo, c_mid, c_hi = (np.take_along_axis(cost, k + o, -1)[..., 0] for o in (-1, 0, 1))
+        kappa = np.maximum((c_lo - 2 * c_mid + c_hi) / np.float32(step * step), np.float32(1e-6))
+        spread = np.float32(tau * tau) + np.float32(k_floor) * np.maximum(c_mid, 0) / kappa
+    else:
+        spread = np.full(raw.shape, tau * tau, np.float32)
+    delta = np.asarray(disparity, np.float32) - raw
+    c = np.exp(-delta * delta / spread) * np.clip(raw_peak, 0, 1) ** np.float32(p_raw)
+    return np.clip(c, 0.0, 1.0).astype(np.float32)
+
+
 def estimate_confidence(views: Views, peak_ratio: np.ndarray, disparity: np.ndarray, *, radius: int = 1,
-                        valid: np.ndarray | None = None, **params: float) -> np.ndarray:
+                        valid: np.ndarray | None = None, cost: np.ndarray | None = None,
+                        labels: np.ndarray | None = None, **params: float) -> np.ndarray:
     """Confidence of a disparity estimate, the product of texture, distinctiveness and view agreement
     (equations in the module docstring).
 
@@ -152,6 +208,11 @@ def estimate_confidence(views: Views, peak_ratio: np.ndarray, disparity: np.ndar
     valid : ndarray (Y, X) bool, optional
         Pixels of the centre view with data (e.g. ``lf.weight > 0``); the others get confidence 0 and lend
         no texture to their neighbours.
+    cost : ndarray (Y, X, L) float32, optional
+        The per-pixel matching cost over ``labels`` (before aggregation); with it the product includes
+        ``c_cons`` (:func:`cost_consistency`), without it that factor is 1.
+    labels : ndarray (L,), optional
+        Disparities of ``cost``'s last axis; required with ``cost``.
     **params
         Keys of :data:`CONFIDENCE_DEFAULTS`.
 
@@ -170,11 +231,17 @@ def estimate_confidence(views: Views, peak_ratio: np.ndarray, disparity: np.ndar
                     0.0, 1.0)
     c_occ = view_agreement(views, disparity, radius=radius, noise_var=noise_var,
                            k_agreement=float(p["k_agreement"]), k_fit=float(p["k_fit"]))
-    conf = np.clip(c_tex * np.asarray(peak_ratio, np.float32) * c_occ, 0.0, 1.0).astype(np.float32)
+    conf = c_tex * np.asarray(peak_ratio, np.float32) * c_occ
+    if cost is not None:
+        if labels is None:
+            raise ValueError("labels are required with cost")
+        conf = conf * cost_consistency(cost, np.asarray(labels, np.float64), disparity, tau=float(p["tau"]),
+                                       k_floor=float(p["k_floor"]), p_raw=float(p["p_raw"]))
+    conf = np.clip(conf, 0.0, 1.0).astype(np.float32)
     if valid is not None:
         conf[~np.asarray(valid, bool)] = 0.0
     return conf
 
 
 __all__ = ["CONFIDENCE_DEFAULTS", "NOISE_TEXTURE", "image_noise", "epipolar_texture", "view_agreement",
-           "estimate_confidence"]
+           "cost_consistency", "estimate_confidence"]

@@ -109,3 +109,30 @@ def test_estimate_confidence_rejects_unknown_parameters(featureless):
     views = prepare_views(lf)
     with pytest.raises(ValueError, match="k_textur"):
         estimate_confidence(views, dm.confidence, dm.disparity, k_textur=1.0)
+
+
+def test_cost_consistency_against_exact_parabolas():
+    """Cost curves ``a (d - d0)^2 + F`` per pixel: the matching winner is ``d0`` (the parabola fit is exact),
+    ``kappa = 2 a`` and ``C_min = a r^2 + F`` (``r`` the distance of ``d0`` to its nearest label), so
+    ``c_cons = exp(-(d - d0)^2 / (tau^2 + C_min / (2 a))) * P^p_raw``."""
+    from plenodecode.depth.aggregation import winner
+    from plenodecode.depth.confidence import CONFIDENCE_DEFAULTS, cost_consistency
+
+    rng = np.random.default_rng(3)
+    labels = np.linspace(-1.0, 1.0, 41)                            # step 0.05
+    d0 = rng.uniform(-0.5, 0.5, (20, 30)).astype(np.float32)
+    a = 40.0
+    floor = np.where(np.arange(30)[None, :] < 15, 0.0, 1.6).astype(np.float32)   # right half: C_min / kappa ~ 0.02
+    cost = (a * (labels[None, None, :] - d0[..., None]) ** 2 + floor[..., None]).astype(np.float32)
+    tau, kf, pr = (CONFIDENCE_DEFAULTS[k] for k in ("tau", "k_floor", "p_raw"))
+    peak = winner(cost, labels)[1]
+    r = np.abs(labels[np.argmin(cost, axis=-1)] - d0)
+    for offset in (0.0, 0.05, 0.1):
+        got = cost_consistency(cost, labels, d0 + offset, tau=tau, k_floor=kf, p_raw=pr)
+        want = np.exp(-offset ** 2 / (tau ** 2 + kf * (a * r * r + floor) / (2 * a))) * peak ** pr
+        np.testing.assert_allclose(got, want, rtol=2e-3, atol=1e-5)
+    # on the clean left half a 0.1 px disagreement is ruled out, on the floored right half it is tolerated
+    off = cost_consistency(cost, labels, d0 + 0.1, tau=tau, k_floor=kf, p_raw=pr)
+    on = cost_consistency(cost, labels, d0, tau=tau, k_floor=kf, p_raw=pr)
+    assert np.max(off[:, :15] / on[:, :15]) < 0.04
+    assert np.min(off[:, 15:] / on[:, 15:]) > 0.6
