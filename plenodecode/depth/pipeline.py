@@ -50,8 +50,10 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    half-plane at the estimate (low on featureless areas, ambiguous cost curves and occlusions), times the
    final disparity's consistency with the winner of the (unaggregated) matching cost within that winner's
    uncertainty, and the matching cost's peak ratio (low where steps 2-6 moved a pixel off what its own views
-   prefer: mixed pixels at thin structures' edges); the view agreement and the consistency are measured at
-   the *final* disparity, after steps 4-6 (the aggregated peak ratio is the winner's).
+   prefer: mixed pixels at thin structures' edges) and, at the map's depth edges, how clearly the matching
+   cost prefers the pixel's disparity to that of its neighbour across the edge; the view agreement, the
+   consistency and that rivalry are measured at the *final* disparity, after steps 4-6 (the aggregated peak
+   ratio is the winner's).
 4. **Clean-up** (:mod:`~plenodecode.depth.refinement`): an edge-aware weighted median guided by the centre
    view (Ma et al., ICCV 2013), gated by the matching cost (:func:`~plenodecode.depth.refinement.cost_gate`,
    ``gate_ratio``, ``gate_floor``): a pixel keeps its value where the median's is clearly worse for the

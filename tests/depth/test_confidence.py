@@ -136,3 +136,28 @@ def test_cost_consistency_against_exact_parabolas():
     on = cost_consistency(cost, labels, d0, tau=tau, k_floor=kf, p_raw=pr)
     assert np.max(off[:, :15] / on[:, :15]) < 0.04
     assert np.min(off[:, 15:] / on[:, 15:]) > 0.6
+
+
+def test_competitor_ratio_at_a_depth_edge():
+    """Two surfaces, left 0.5 and right -0.5 px; every pixel's cost has minima ``m_own`` at its own disparity
+    and ``m_other`` at the other's.  On the two columns along the edge c_comp = (m_other - m_own) / m_other
+    (with the costs at the exact labels), elsewhere 1."""
+    from plenodecode.depth.confidence import competitor_ratio
+
+    labels = np.linspace(-1.0, 1.0, 21)                            # 0.5 and -0.5 are labels
+    Y, X = 8, 12
+    disp = np.where(np.arange(X)[None, :] < 6, 0.5, -0.5).astype(np.float32) * np.ones((Y, 1), np.float32)
+    own = np.full((Y, X), 0.2, np.float32)
+    other = np.full((Y, X), 1.0, np.float32)
+    other[:, 5] = 0.25                                              # the left edge column: nearly a tie
+    cost = np.full((Y, X, 21), 3.0, np.float32)
+    k_own = np.rint((disp - labels[0]) / 0.1).astype(int)
+    k_other = np.rint((-disp - labels[0]) / 0.1).astype(int)
+    np.put_along_axis(cost, k_own[..., None], own[..., None], -1)
+    np.put_along_axis(cost, k_other[..., None], other[..., None], -1)
+    c = competitor_ratio(cost, labels, disp, jump=0.1)
+    np.testing.assert_allclose(c[:, 5], (0.25 - 0.2) / 0.25, rtol=1e-4)
+    np.testing.assert_allclose(c[:, 6], (1.0 - 0.2) / 1.0, rtol=1e-4)
+    assert np.all(c[:, :5] == 1.0) and np.all(c[:, 7:] == 1.0)
+    # no depth edge above the jump: all 1
+    assert np.all(competitor_ratio(cost, labels, disp, jump=1.5) == 1.0)
