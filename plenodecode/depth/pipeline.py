@@ -47,8 +47,13 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
 3. **Winner-take-all**: best label with a parabola through its neighbours' aggregated cost; confidence
    (:mod:`~plenodecode.depth.confidence`) is the product of the centre view's texture along the baselines
    against its noise, the peak ratio of the aggregated cost and the agreement of all views with the best
-   half-plane at the estimate (low on featureless areas, ambiguous cost curves and occlusions); the view
-   agreement is measured at the *final* disparity, after steps 4-6 (the peak ratio is the winner's).
+   half-plane at the estimate (low on featureless areas, ambiguous cost curves and occlusions), times the
+   final disparity's consistency with the winner of the (unaggregated) matching cost within that winner's
+   uncertainty, and the matching cost's peak ratio (low where steps 2-6 moved a pixel off what its own views
+   prefer: mixed pixels at thin structures' edges) and, at the map's depth edges, how clearly the matching
+   cost prefers the pixel's disparity to that of its neighbour across the edge; the view agreement, the
+   consistency and that rivalry are measured at the *final* disparity, after steps 4-6 (the aggregated peak
+   ratio is the winner's).
 4. **Clean-up** (:mod:`~plenodecode.depth.refinement`): an edge-aware weighted median guided by the centre
    view (Ma et al., ICCV 2013), gated by the matching cost (:func:`~plenodecode.depth.refinement.cost_gate`,
    ``gate_ratio``, ``gate_floor``): a pixel keeps its value where the median's is clearly worse for the
@@ -440,11 +445,13 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
                                         wedge=int(p["edge_wedge"]), median_radius=int(p["edge_median_radius"]),
                                         intensities=intensities, visibility=bool(p["edge_visibility"]),
                                         coverage=bool(p["edge_coverage"]), gate=gated)
-    del cost
     # confidence at the final disparity: the view agreement of the map after the occlusion step, so a pixel the
-    # edge pass moved to the far side is judged by the views that see it there
+    # edge pass moved to the far side is judged by the views that see it there, and its consistency with the
+    # winner of the matching cost (low where the steps after the matching moved it off its own views' choice)
     valid = None if lf.weight is None else np.asarray(lf.weight[views.centre]) > 0
-    confidence = estimate_confidence(views, peak_ratio, disparity, radius=int(p["confidence_radius"]), valid=valid)
+    confidence = estimate_confidence(views, peak_ratio, disparity, radius=int(p["confidence_radius"]), valid=valid,
+                                     cost=cost, labels=labels)
+    del cost
     params = {**p, "radius": radius, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
               "noise_sigma": noise, "contrast_eps_used": eps, "contrast_weight_used": weight,
               "contrast_smooth_used": smooth,

@@ -109,3 +109,55 @@ def test_estimate_confidence_rejects_unknown_parameters(featureless):
     views = prepare_views(lf)
     with pytest.raises(ValueError, match="k_textur"):
         estimate_confidence(views, dm.confidence, dm.disparity, k_textur=1.0)
+
+
+def test_cost_consistency_against_exact_parabolas():
+    """Cost curves ``a (d - d0)^2 + F`` per pixel: the matching winner is ``d0`` (the parabola fit is exact),
+    ``kappa = 2 a`` and ``C_min = a r^2 + F`` (``r`` the distance of ``d0`` to its nearest label), so
+    ``c_cons = exp(-(d - d0)^2 / (tau^2 + C_min / (2 a))) * P^p_raw``."""
+    from plenodecode.depth.aggregation import winner
+    from plenodecode.depth.confidence import CONFIDENCE_DEFAULTS, cost_consistency
+
+    rng = np.random.default_rng(3)
+    labels = np.linspace(-1.0, 1.0, 41)                            # step 0.05
+    d0 = rng.uniform(-0.5, 0.5, (20, 30)).astype(np.float32)
+    a = 40.0
+    floor = np.where(np.arange(30)[None, :] < 15, 0.0, 1.6).astype(np.float32)   # right half: C_min / kappa ~ 0.02
+    cost = (a * (labels[None, None, :] - d0[..., None]) ** 2 + floor[..., None]).astype(np.float32)
+    tau, kf, pr = (CONFIDENCE_DEFAULTS[k] for k in ("tau", "k_floor", "p_raw"))
+    peak = winner(cost, labels)[1]
+    r = np.abs(labels[np.argmin(cost, axis=-1)] - d0)
+    for offset in (0.0, 0.05, 0.1):
+        got = cost_consistency(cost, labels, d0 + offset, tau=tau, k_floor=kf, p_raw=pr)
+        want = np.exp(-offset ** 2 / (tau ** 2 + kf * (a * r * r + floor) / (2 * a))) * peak ** pr
+        np.testing.assert_allclose(got, want, rtol=2e-3, atol=1e-5)
+    # on the clean left half a 0.1 px disagreement is ruled out, on the floored right half it is tolerated
+    off = cost_consistency(cost, labels, d0 + 0.1, tau=tau, k_floor=kf, p_raw=pr)
+    on = cost_consistency(cost, labels, d0, tau=tau, k_floor=kf, p_raw=pr)
+    assert np.max(off[:, :15] / on[:, :15]) < 0.04
+    assert np.min(off[:, 15:] / on[:, 15:]) > 0.6
+
+
+def test_competitor_ratio_at_a_depth_edge():
+    """Two surfaces, left 0.5 and right -0.5 px; every pixel's cost has minima ``m_own`` at its own disparity
+    and ``m_other`` at the other's.  On the two columns along the edge c_comp = (m_other - m_own) / m_other
+    (with the costs at the exact labels), elsewhere 1."""
+    from plenodecode.depth.confidence import competitor_ratio
+
+    labels = np.linspace(-1.0, 1.0, 21)                            # 0.5 and -0.5 are labels
+    Y, X = 8, 12
+    disp = np.where(np.arange(X)[None, :] < 6, 0.5, -0.5).astype(np.float32) * np.ones((Y, 1), np.float32)
+    own = np.full((Y, X), 0.2, np.float32)
+    other = np.full((Y, X), 1.0, np.float32)
+    other[:, 5] = 0.25                                              # the left edge column: nearly a tie
+    cost = np.full((Y, X, 21), 3.0, np.float32)
+    k_own = np.rint((disp - labels[0]) / 0.1).astype(int)
+    k_other = np.rint((-disp - labels[0]) / 0.1).astype(int)
+    np.put_along_axis(cost, k_own[..., None], own[..., None], -1)
+    np.put_along_axis(cost, k_other[..., None], other[..., None], -1)
+    c = competitor_ratio(cost, labels, disp, jump=0.1)
+    np.testing.assert_allclose(c[:, 5], (0.25 - 0.2) / 0.25, rtol=1e-4)
+    np.testing.assert_allclose(c[:, 6], (1.0 - 0.2) / 1.0, rtol=1e-4)
+    assert np.all(c[:, :5] == 1.0) and np.all(c[:, 7:] == 1.0)
+    # no depth edge above the jump: all 1
+    assert np.all(competitor_ratio(cost, labels, disp, jump=1.5) == 1.0)
