@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from plenodecode.depth.occlusion import (coverage_relabel, fix_occlusion_edges, mixing_agrees, nearest_surface,
+from plenodecode.depth.occlusion import (_white_noise_variance, coverage_relabel, fix_occlusion_edges, mixing_agrees, nearest_surface,
                                          two_colour_edge, visibility_relabel)
 from plenodecode.depth.views import colour_guide, prepare_views
 from plenodecode.types import LightField
@@ -273,3 +273,52 @@ def test_methods_put_the_outline_at_the_pixel_centres(method):
     wrong = {v: np.count_nonzero(np.abs(estimate_depth(lf, method=method, edge_coverage=v).disparity - gt) > 0.5)
              for v in (False, True)}
     assert wrong[False] > 40 and wrong[True] < 0.25 * wrong[False], wrong
+
+
+def noisy_step_lightfield(back_amp, n=9, size=40, edge=20.5, d_near=0.0, d_far=-0.5, noise=0.015, seed=0):
+    """A textured surface at ``d_near`` right of x = ``edge`` in front of a background at ``d_far`` whose texture
+    has amplitude ``back_amp``, every view with white noise ``noise`` (a decoded light field's); point-sampled,
+    so the pixels at x = 20 and 21 are pure.  Ground truth (Y, X) float32."""
+    rng = np.random.default_rng(seed)
+    pad = 12
+    front = 0.5 + 0.4 * _texture(rng, (size + 2 * pad,) * 2)
+    back = 0.3 + back_amp * _texture(rng, (size + 2 * pad,) * 2)
+    yy, xx = np.mgrid[0:size, 0:size].astype(np.float64)
+    c = n // 2
+    data = np.zeros((n, n, size, size, 1), np.float32)
+    for v in range(n):
+        for u in range(n):
+            f = ndimage.map_coordinates(front, [yy + d_near * (v - c) + pad, xx + d_near * (u - c) + pad], order=1)
+            b = ndimage.map_coordinates(back, [yy + d_far * (v - c) + pad, xx + d_far * (u - c) + pad], order=1)
+            data[v, u, :, :, 0] = np.where(xx + d_near * (u - c) > edge, f, b) + rng.normal(0.0, noise, (size, size))
+    gt = np.where(xx > edge, d_near, d_far).astype(np.float32)
+    return LightField(data, None, "srgb", {"disparity_range": [-2.0, 1.5]}), gt
+
+
+def test_coverage_relabel_does_not_read_noise_as_coverage():
+    """Beside a 0.5 px jump the background point clears the occluder in the views on one side only, where it
+    moves by 1.5-2 px: over a weak texture the centre view's samples of it are mostly noise, which shrinks the
+    regression's background coefficient towards 0 (regression dilution) and read as 'covered'.  The correct
+    map stays (without the reliability test 8 and 13 far pixels went to the near side, seeds 0 and 1;
+    measured 0); with a textured background a map whose edge is 1 px off is still put right (40 -> 20 wrong
+    pixels, 25 without the test)."""
+    for seed in (0, 1):
+        lf, gt = noisy_step_lightfield(back_amp=0.003, seed=seed)
+        moved = coverage_relabel(prepare_views(lf, grey=True), gt, jump=0.3) != gt
+        assert moved.sum() <= 2, (seed, moved.sum())
+    lf, gt = noisy_step_lightfield(back_amp=0.4)
+    wrong = gt.copy()
+    wrong[:, 20] = 0.0
+    after = np.count_nonzero(coverage_relabel(prepare_views(lf, grey=True), wrong, jump=0.3) != gt)
+    assert after <= 0.6 * np.count_nonzero(wrong != gt), after
+
+
+def test_white_noise_variance_of_a_textured_image():
+    """White noise of standard deviation 0.015 on a ramp with a smooth texture (no noise: estimate ~0) is
+    found within 10 % (measured 0.0152 and 0.0145 for the two seeds)."""
+    yy, xx = np.mgrid[0:80, 0:90].astype(np.float64)
+    clean = 0.2 + 0.004 * xx + 0.1 * np.sin(xx / 5.0) * np.cos(yy / 7.0)
+    assert _white_noise_variance(clean) < 1e-6
+    for seed in (0, 1):
+        noisy = clean + np.random.default_rng(seed).normal(0.0, 0.015, clean.shape)
+        assert abs(np.sqrt(_white_noise_variance(noisy)) - 0.015) < 0.0015
