@@ -264,9 +264,11 @@ def test_depth_thumbnail_has_a_colour_bar_and_greys_low_confidence(local_run):
 
 
 def test_min_confidence_option(tmp_path):
+    from plenodecode.io.depthio import DEFAULT_MIN_CONFIDENCE
+
     opt = BatchOptions(outputs=("depth",), db_dir=str(tmp_path))
     assert "min_confidence" not in opt.as_key_dict()          # the default keeps the keys of earlier runs
-    assert "min_confidence" not in replace(opt, min_confidence=0.2).as_key_dict()
+    assert "min_confidence" not in replace(opt, min_confidence=DEFAULT_MIN_CONFIDENCE).as_key_dict()
     assert replace(opt, min_confidence=0.5).as_key_dict()["min_confidence"] == 0.5
     assert "min_confidence" not in BatchOptions(outputs=("centre",), min_confidence=0.5).as_key_dict()
     for bad in (1.5, -0.1, float("nan")):

@@ -7,7 +7,7 @@ import pytest
 from click.testing import CliRunner
 
 from plenodecode.cli.main import cli
-from plenodecode.io.depthio import MASK_GREY
+from plenodecode.io.depthio import DEFAULT_MIN_CONFIDENCE, MASK_GREY
 from plenodecode.io.images import read_image
 from plenodecode.io.pfm import read_pfm
 from tests.cli.test_microscope import antleg  # noqa: F401  (the decoded ant-leg capture, a module fixture)
@@ -28,14 +28,14 @@ def test_depth_writes_the_confidence_and_greys_out_the_featureless_half(tmp_path
     out = tmp_path / "d.pfm"
     r = CliRunner().invoke(cli, ["depth", str(src), "-o", str(out), "--method", "fast"], obj={})
     assert r.exit_code == 0, r.output
-    assert "% below 0.2" in r.output
+    assert f"% below {DEFAULT_MIN_CONFIDENCE:g}" in r.output
     conf = read_image(tmp_path / "d_confidence.exr").squeeze()
     assert conf.shape == (64, 64)
     np.testing.assert_array_equal(read_image(tmp_path / "d_confidence.png").squeeze(),
                                   np.rint(255 * conf).astype(np.uint8))
     # the uniform right half of the background (away from the square) is below the default threshold, the
     # textured left half above it
-    assert np.median(conf[4:18, 40:60]) < 0.2 and np.median(conf[4:18, 4:20]) > 0.4
+    assert np.median(conf[4:18, 40:60]) < DEFAULT_MIN_CONFIDENCE and np.median(conf[4:18, 4:20]) > 0.4
     greyed = _grey_share(tmp_path / "d.png")
     r = CliRunner().invoke(cli, ["depth", str(src), "-o", str(out), "--method", "fast", "--overwrite",
                                  "--min-confidence", "0"], obj={})
@@ -85,11 +85,12 @@ def test_antleg_background_is_masked_and_the_structures_have_the_parallax_sign(a
     background = ~near
     background[:2, :] = background[:, :2] = False             # the partial lenses at the border
     assert background.mean() > 0.15
-    print(f"background {background.mean():.2f} of the map, {np.mean(conf[background] < 0.2):.3f} below 0.2; "
-          f"grey share of the PNG {_grey_share(out.with_suffix('.png')):.3f}, of the map {np.mean(conf < 0.2):.3f}")
-    assert np.mean(conf[background] < 0.2) > 0.9             # featureless: below the default --min-confidence
+    low = DEFAULT_MIN_CONFIDENCE
+    print(f"background {background.mean():.2f} of the map, {np.mean(conf[background] < low):.3f} below {low}; "
+          f"grey share of the PNG {_grey_share(out.with_suffix('.png')):.3f}, of the map {np.mean(conf < low):.3f}")
+    assert np.mean(conf[background] < low) > 0.9             # featureless: below the default --min-confidence
     # and greyed in the PNG (the map fills about half of the figure)
-    assert _grey_share(out.with_suffix(".png")) > 0.3 * np.mean(conf < 0.2)
+    assert _grey_share(out.with_suffix(".png")) > 0.3 * np.mean(conf < low)
     medians = []
     for blob in structures:
         rows, cols = np.flatnonzero(blob.any(axis=1)), np.flatnonzero(blob.any(axis=0))
