@@ -20,6 +20,7 @@ import numpy as np
 
 from .._numba import njit
 from ..imaging import luma
+from .confidence import image_noise
 from .cost import half_plane_cost_volume, worker_threads
 from .views import Views
 
@@ -294,15 +295,6 @@ def mixing_agrees(mixed: np.ndarray, covered: np.ndarray) -> np.ndarray:
     return same_side & (mixed > 0.0) & (mixed < 1.0)
 
 
-def _white_noise_variance(image: np.ndarray) -> float:
-    """Variance of the white noise of a (Y, X) image, from the median of its response to the 3 x 3 kernel
-    ``[1 -2 1; -2 4 -2; 1 -2 1]`` (zero on planes and on lines, ``6 s`` standard deviation on white noise of
-    standard deviation ``s``; Immerkaer, CVIU 1996, with a median for the mean): ``(median |r| / (0.6745 * 6))^2``."""
-    k = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
-    r = cv2.filter2D(np.ascontiguousarray(image, np.float32), -1, k)[1:-1, 1:-1]
-    return float((np.median(np.abs(r)) / (0.6745 * 6.0)) ** 2)
-
-
 def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int = 4, jump: float = 0.5,
                      significance: float = 2.0, agreed_significance: float = 0.5, min_views: int = 6,
                      flat_edge: float = 0.2, mixing_margin: float = 0.1) -> np.ndarray:
@@ -338,9 +330,8 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
     the regressor) and reads as coverage.  Beside a small jump the background point clears the occluder in
     a few views on one side only, where it moves by a few pixels, much of that a linear trend the offset
     terms take: with a weak texture what is left of ``B`` is mostly noise.  The noise variance ``s^2`` is
-    the centre view's white noise (:func:`_white_noise_variance`); a pixel whose reliability is below 1/2
-    is not decided by the regression (illum-mini decoded, a 0.5 px
-    edge beside a weakly textured wall: with ``jump`` 0.3 the far pixels along it went to the near side).
+    the centre view's white noise (:func:`~plenodecode.depth.confidence.image_noise`, robust); a pixel
+    whose reliability is below 1/2 is not decided by the regression (illum-mini decoded, a 0.5 px edge beside a weakly textured wall: with ``jump`` 0.3 the far pixels along it went to the near side).
 
     Where the regression cannot decide (fewer than ``min_views`` views, a background without texture or
     with a reliability below 1/2, not significant), a clean two-colour edge in the centre view decides
@@ -429,7 +420,7 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
     # the regressor, the centre view, is as noisy as the views it explains: least squares shrinks the
     # background's coefficient by the reliability 1 - noise / spread (regression dilution), which reads as
     # coverage
-    noise = _white_noise_variance(centre)
+    noise = image_noise(centre, robust=True) ** 2
     reliability = 1.0 - noise * sw / x_spread
     stderr = np.sqrt(residual / x_spread)
     covered = 1.0 - coef[:, 1]
