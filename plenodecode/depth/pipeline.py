@@ -320,8 +320,7 @@ def shift_noise_var(factor: float, reference_noise: float, noise: float) -> floa
     0 below; the ``noise_var`` of :func:`~plenodecode.depth.cost.half_plane_cost_volume`."""
     if not factor > 0 or not noise > 0:
         return 0.0
-    ramp = 1.0 if not reference_noise > 0 else min(1.0, max(0.0, noise / reference_noise - 1.0))
-    return float(factor) * ramp * noise * noise
+    return float(factor) * contrast_smooth_for(1.0, reference_noise, noise) * noise * noise
 
 
 #: The lowest fraction of a strip penalty that :func:`strip_penalty_for` lowers it to.
