@@ -30,7 +30,8 @@ from typing import Any, Sequence
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 
-from ...raymodel import Board, point_ray_distance, point_ray_offset, project_points, rotation_matrix, sample_rays
+from ...raymodel import (Board, point_ray_distance, point_ray_offset, pose_transform, project_points, rotation_matrix,
+                         sample_rays)
 from .corners import ViewCorners
 from .gauge import SOLVED_ENTRIES, recentred_intrinsics, solved_values
 from .initial import stacked_observations
@@ -363,7 +364,7 @@ def fit_pose(obs: Observations, h: np.ndarray, distortion: np.ndarray, capture: 
     points = obs.board_points[rows]
 
     def residuals(x: np.ndarray) -> np.ndarray:
-        return point_ray_offset(points @ rotation_matrix(x[3:]).T + x[:3], rays).ravel()
+        return point_ray_offset(pose_transform(x, points), rays).ravel()
 
     fit = least_squares(residuals, np.asarray(start, dtype=np.float64), method="lm")
     return fit.x, float(np.sqrt(np.mean(fit.fun ** 2)))
