@@ -58,8 +58,10 @@ REQUESTS: dict[str, Callable[[Mapping[str, Any]], tuple[str, str] | None]] = {
     "depth": _depth_request,
 }
 
-#: What to use instead of alpha, per keyword (library spelling; the CLI names its own options).
-ALPHA_INSTEAD = {"alpha": "refocus by slope instead", "units": "give START and STOP as slopes (units='slope')"}
+#: What to use instead, per keyword that asks for a conversion to a slope (library spelling; the CLI names its
+#: own options).
+INSTEAD = {"alpha": "refocus by slope instead", "units": "give START and STOP as slopes (units='slope')",
+           "distance_m": "refocus by slope instead"}
 
 
 def _name(item: LightField | RawCapture) -> str:
@@ -152,8 +154,7 @@ def check_product(item: LightField | RawCapture, name: str, *, rectified: bool =
     if failure is not None:
         why, missing = failure
         source = _name(item)
-        instead = ALPHA_INSTEAD[keyword] if need == "alpha" else "refocus by slope instead" if need == "distance" \
-            else None
+        instead = INSTEAD.get(keyword)
         raise MissingConstantsError(f"{source}: {why}" + (f"; {instead}" if instead and missing else ""),
                                     keyword=keyword, missing=missing, source=source, need=NEEDS[need])
 
