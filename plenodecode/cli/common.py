@@ -453,12 +453,12 @@ def focus_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     return fn
 
 
-def check_focus_options(given: Mapping[str, Any], no_depth: bool) -> None:
-    """Exactly one of the focus options in ``given`` (option name -> value or None) was typed, and
-    ``--no-depth`` only with ``--focus-at``; a usage error (exit 2) naming them otherwise."""
+def check_focus_options(given: Mapping[str, Any], no_depth: bool, *, optional: bool = False) -> None:
+    """Exactly one (with ``optional``, at most one) of the focus options in ``given`` (option name -> value or
+    None) was typed, and ``--no-depth`` only with ``--focus-at``; a usage error (exit 2) naming them otherwise."""
     typed = [name for name, value in given.items() if value is not None and value is not False]
-    if len(typed) != 1:
-        raise click.UsageError(f"pass exactly one of {', '.join(given)}"
+    if len(typed) != 1 and not (optional and not typed):
+        raise click.UsageError(f"pass {'at most' if optional else 'exactly'} one of {', '.join(given)}"
                                + (f" (got {' and '.join(typed)})" if typed else ""))
     if no_depth and given.get("--focus-at") is None:
         raise click.UsageError("--no-depth applies to --focus-at only")

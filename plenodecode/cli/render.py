@@ -1,7 +1,9 @@
 """``plenodecode RAW_OR_LF --refocus ALPHA -o out.png``: decode and refocus in one call (the card's form).
 
 ``--total-focus`` instead renders a focused-plenoptic (Raytrix) raw straight from its micro-images
-(the pipeline's 'total-focus' product): no light field is decoded.
+(the pipeline's 'total-focus' product): no light field is decoded.  Without a focus option the photograph
+is the camera's own: focused as captured (slope 0, as ``plenodecode batch``'s 'refocus' product), or for a
+focused-plenoptic raw, whose decoded light field has a few lenses' worth of pixels, its total focus.
 """
 
 from __future__ import annotations
@@ -29,13 +31,14 @@ def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float |
                          total_focus: bool, patch: float | None, focus_at: object = None,
                          distance_m: float | None = None, no_depth: bool = False) -> None:
     """Usage errors (exit 2, one line naming the option) for option combinations that make no sense, before
-    any work: exactly one of ``--refocus`` / ``--slope`` / ``--focus-at`` / ``--focus-distance`` /
-    ``--total-focus``; ``--patch`` only with ``--total-focus``, ``--method`` / ``--aperture`` only without it;
-    ``--total-focus`` needs a raw."""
+    any work: at most one of ``--refocus`` / ``--slope`` / ``--focus-at`` / ``--focus-distance`` /
+    ``--total-focus`` (none: :func:`default_focus`); ``--patch`` only with ``--total-focus``, ``--method`` /
+    ``--aperture`` only without it; ``--total-focus`` needs a raw."""
     from ..pipeline import input_kind
 
     check_focus_options({"--refocus ALPHA": alpha, "--slope S": slope, "--focus-at X,Y": focus_at,
-                         "--focus-distance M": distance_m, "--total-focus": total_focus or None}, no_depth)
+                         "--focus-distance M": distance_m, "--total-focus": total_focus or None}, no_depth,
+                        optional=True)
     if patch is not None and not total_focus:
         raise click.UsageError("--patch applies to --total-focus only")
     if total_focus:
@@ -45,6 +48,15 @@ def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float |
         if input_kind(input_path) != "raw":
             raise click.UsageError(f"--total-focus renders a focused-plenoptic raw (Raytrix image + RayCalibData "
                                    f"XML); {input_path} is a {input_kind(input_path)} input")
+
+
+def default_focus(ctx: click.Context, focused: bool) -> dict[str, object]:
+    """The focus of a photograph asked for without a focus option: ``{'total_focus': True}`` for a
+    focused-plenoptic raw (unless ``--method`` or ``--aperture`` asks for a refocus), else ``{'slope': 0.0}``:
+    the focus as captured, the default of ``plenodecode batch``'s 'refocus' product."""
+    if focused and not any(_given(ctx, name) for name in REFOCUS_ONLY):
+        return {"total_focus": True}
+    return {"slope": 0.0}
 
 
 @click.command("render")
@@ -76,9 +88,11 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
     """Decode RAW_OR_LF (using the calibration database for raws) and write the photograph refocused at ALPHA
     (or --slope, --focus-at, --focus-distance), or with --total-focus the all-in-focus image of a
     focused-plenoptic (Raytrix) raw.  Outside the refocusable range the photograph is written with a warning.
+    Without a focus option: focused as captured (slope 0), or a Raytrix raw's total focus.
 
     \b
     Examples:
+      plenodecode raw.lfr -o photo.png
       plenodecode raw.lfr --refocus 1.015 -o out.png
       plenodecode raw.lfr --focus-at 0.7,0.5 -o click.png
       plenodecode raw.lfr --refocus 0.98 -o far.png --database calib/ --bit-depth 8
@@ -93,6 +107,10 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       check=None if total_focus else {"refocus": {"alpha": alpha, "distance_m": distance_m}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
+    chosen = None
+    if not (total_focus or focus_at) and alpha is None and slope is None and distance_m is None:
+        chosen = default_focus(ctx, src.focused)
+        total_focus, slope = chosen.get("total_focus", False), chosen.get("slope")
     if total_focus:
         with usage_errors(param_hint="--patch"):
             check_total_focus_patch(src.calibration.grid, patch)       # its upper bound is the camera's
@@ -104,4 +122,8 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
     with usage_errors():
         write_product(photo, output, bit_depth=int(bit_depth), overwrite=overwrite)
     if not quiet(ctx):
-        click.echo(f"wrote {output} ({'total focus' if total_focus else describe_focus(photo.data)})")
+        how = "total focus" if total_focus else describe_focus(photo.data)
+        if chosen is not None:
+            how = (f"{'the camera' if total_focus else 'focused as captured'}: {how}; choose the focus with "
+                   f"--refocus, --slope, --focus-at or --focus-distance")
+        click.echo(f"wrote {output} ({how})")

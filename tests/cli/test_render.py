@@ -126,8 +126,20 @@ def test_usage_errors(tmp_path):
     src = save_npy(tmp_path, small_lf())
     assert run("refocus", src, "-o", tmp_path / "a.png").exit_code == 2                     # nothing asked
     assert run("refocus", src, "--slope", 1, "--alpha", 1, "-o", tmp_path / "a.png").exit_code == 2
-    assert run(src, "-o", tmp_path / "a.png").exit_code == 2                                # neither form
     assert run("refocus", src, "--slope", 0, "--aperture", 0, "-o", tmp_path / "a.png").exit_code == 2
+
+
+def test_the_one_liner_without_a_focus_option_renders_the_focus_as_captured(tmp_path):
+    """``plenodecode LF -o photo.png``: slope 0, the default of batch's 'refocus' product; the line says how to
+    choose another focus."""
+    src = save_npy(tmp_path, small_lf())
+    res = run(src, "-o", tmp_path / "photo.png", "--bit-depth", 16)
+    assert res.exit_code == 0, res.output
+    assert "focused as captured: slope +0.000 px/view" in res.output and "--focus-at" in res.output
+    assert run(src, "--slope", 0, "-o", tmp_path / "slope0.png", "--bit-depth", 16).exit_code == 0
+    photo = read_image(tmp_path / "photo.png")
+    np.testing.assert_array_equal(photo, read_image(tmp_path / "slope0.png"))
+    assert photo.shape == (14, 18, 3) and photo.std() > 1000      # the mean of 25 random views, not a constant
 
 
 def test_views_all_and_fractional(tmp_path):

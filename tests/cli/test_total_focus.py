@@ -115,7 +115,6 @@ def test_total_focus_patch_option(shoot, tmp_path):
 @pytest.mark.parametrize("args, option", [
     (["--total-focus", "--slope", 0.5], "--total-focus"),
     (["--total-focus", "--refocus", 1.0], "--total-focus"),
-    ([], "--total-focus"),
     (["--slope", 0.5, "--patch", 5], "--patch"),
     (["--total-focus", "--method", "shift-sum"], "--method"),
     (["--total-focus", "--aperture", 0.5], "--aperture"),
@@ -140,3 +139,14 @@ def test_total_focus_refuses_a_light_field_input(tmp_path):
     assert res.exit_code == 2 and "--total-focus" in res.output and "lightfield" in res.output
     with pytest.raises(ValueError, match="light field"):
         pipeline.render_product(pipeline.Source(lightfield=lf), "total-focus")
+
+
+def test_without_a_focus_option_a_focused_raw_gets_its_total_focus(shoot, tmp_path):
+    """``plenodecode RAW -o photo.png`` (no focus option) on a focused-plenoptic raw: the total focus (its
+    decoded light field has a few lenses' worth of pixels), as close to the ground truth as ``--total-focus``."""
+    res = run(shoot["raw"], "--white", shoot["white"], "-o", tmp_path / "photo.png")
+    assert res.exit_code == 0, res.output
+    assert "(the camera: total focus;" in res.output
+    explicit = run(shoot["raw"], "--white", shoot["white"], "--total-focus", "-o", tmp_path / "tf.png")
+    assert explicit.exit_code == 0, explicit.output
+    np.testing.assert_array_equal(read_image(tmp_path / "photo.png"), read_image(tmp_path / "tf.png"))

@@ -1,0 +1,59 @@
+"""``plenodecode RAW -o photo.png`` without a focus option: the camera's own photograph, focused as captured
+(slope 0, the default of batch's 'refocus' product) or, for a focused-plenoptic (Raytrix) raw, its total focus
+(the slope-0 rendering of a Raytrix raw's decoded light field is a 31 x 22 px thumbnail)."""
+
+from __future__ import annotations
+
+import numpy as np
+from click.testing import CliRunner
+
+from plenodecode.cli.main import cli
+from plenodecode.io.images import read_image
+from tests.conftest import shared_path
+
+CHOOSE = "choose the focus with --refocus, --slope, --focus-at or --focus-distance"
+
+
+def run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def test_real_f01_jpeg_without_a_focus_option_is_its_photograph_focused_as_captured(tmp_path):
+    jpeg = shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg")
+    res = run(jpeg, "-o", tmp_path / "photo.png")
+    assert res.exit_code == 0, res.output
+    assert "focused as captured: slope +0.000 px/view" in res.output and CHOOSE in res.output
+    photo = read_image(tmp_path / "photo.png")
+    explicit = run(jpeg, "--slope", "0", "-o", tmp_path / "slope0.png")
+    assert explicit.exit_code == 0, explicit.output
+    np.testing.assert_array_equal(photo, read_image(tmp_path / "slope0.png"))
+    # a photograph of the decoded views' size with the scene's tones, not a grey field
+    assert photo.shape == (383, 382, 3)
+    grey = photo.astype(np.float64).mean(axis=-1) / 65535.0
+    low, high = np.percentile(grey, [1, 99])
+    assert high - low > 0.6, (low, high)
+
+
+def test_real_raytrix_without_a_focus_option_is_its_total_focus(tmp_path):
+    r42 = shared_path("raytrix-r42", "sc2_klein.png")
+    res = run(r42, "-o", tmp_path / "photo.png")
+    assert res.exit_code == 0, res.output
+    assert "(the camera: total focus;" in res.output and CHOOSE in res.output
+    total = run(r42, "--total-focus", "-o", tmp_path / "total.png")
+    assert total.exit_code == 0, total.output
+    photo = read_image(tmp_path / "photo.png")
+    np.testing.assert_array_equal(photo, read_image(tmp_path / "total.png"))
+    assert photo.shape[0] > 100 and photo.shape[1] > 150, photo.shape
+
+
+def test_a_refocus_option_without_a_focus_asks_for_the_refocus_and_two_focus_options_are_refused(tmp_path):
+    """On a Raytrix raw ``--method`` means a refocus of the decoded light field (slope 0), not the total focus;
+    two focus options stay a usage error naming them, with nothing written."""
+    r42 = shared_path("raytrix-r42", "sc2_klein.png")
+    res = run(r42, "--method", "shift-sum", "-o", tmp_path / "refocus.png")
+    assert res.exit_code == 0, res.output
+    assert "focused as captured: slope +0.000 px/view" in res.output
+    two = run(r42, "--slope", "0", "--total-focus", "-o", tmp_path / "two.png")
+    assert two.exit_code == 2
+    assert "pass at most one of" in two.output and "--slope S and --total-focus" in two.output
+    assert not (tmp_path / "two.png").exists()
