@@ -43,7 +43,8 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    at an integer disparity is pulled off it.
 2. **Edge-aware regularisation** (:mod:`~plenodecode.depth.aggregation`): semi-global aggregation along
    ``paths`` directions (Hirschmueller, TPAMI 2008) whose large-jump penalty P2 falls at the centre view's
-   intensity edges, so depth edges follow image edges.  Its penalties are in units of the median per-pixel
+   intensity edges, so depth edges follow image edges (also where a mixed pixel spreads the edge over two
+   steps, as along an oblique edge).  Its penalties are in units of the median per-pixel
    cost span, which can outweigh the small span of a weakly textured surface seen through a slit of a few
    pixels: the winner of the aggregated cost is gated by the matching cost
    (:func:`~plenodecode.depth.refinement.cost_gate` with ``sgm_gate_ratio``, ``sgm_gate_floor``), so a pixel
