@@ -34,6 +34,16 @@ def _sgm_line(cost, guide, out, ys, xs, n, p1, p2, sigma, prev, cur, first):
     for i in range(1, n):
         y, x = ys[i], xs[i]
         g = abs(guide[y, x] - guide[ys[i - 1], xs[i - 1]])
+        # an edge spread over two steps by a mixed pixel (an oblique or blurred edge): the step across the
+        # pixel pair on either side of this one counts too
+        if i >= 2:
+            g2 = abs(guide[y, x] - guide[ys[i - 2], xs[i - 2]])
+            if g2 > g:
+                g = g2
+        if i + 1 < n:
+            g2 = abs(guide[ys[i + 1], xs[i + 1]] - guide[ys[i - 1], xs[i - 1]])
+            if g2 > g:
+                g = g2
         q2 = p2 / (1.0 + g / sigma)
         if q2 < p1:
             q2 = p1
@@ -107,8 +117,16 @@ def sgm(cost: np.ndarray, guide: np.ndarray, *, p1: float, p2: float, sigma: flo
 
         L_r(p, d) = C(p, d) + min(L_r(p-r, d), L_r(p-r, d+-1) + P1, min_k L_r(p-r, k) + P2(p)) - min_k L_r(p-r, k)
 
-    with the edge-adaptive ``P2(p) = max(P1, p2 / (1 + |g(p) - g(p-r)| / sigma))`` (``g`` the guide), and
-    ``S(p, d) = sum_r L_r(p, d)``.  Each pixel lies on exactly one line per direction, so the lines of a
+    with the edge-adaptive ``P2(p) = max(P1, p2 / (1 + G(p) / sigma))`` (``g`` the guide), and
+    ``S(p, d) = sum_r L_r(p, d)``, where
+
+        G(p) = max(|g(p) - g(p-r)|, |g(p) - g(p-2r)|, |g(p+r) - g(p-r)|)
+
+    is the guide's step at ``p`` along ``r`` including an edge spread over two steps: a pixel cut by an
+    oblique (or blurred) edge holds a mix of both sides' colours, which splits the step between neighbours in
+    two, so that P2 fell at neither of them (the thin scenes' 12 oblique ground-truth light fields: sum of
+    BadPix0.07 186.7 -> 187.8 %, the 24 others 76.0 -> 75.3; the 6 decoded ones mean 25.06 -> 23.24 %;
+    illum-mini GT / decoded 0.53 / 1.66 -> 0.45 / 1.38 %; hci-antinous 4.28 -> 4.21 %, MSE x100 1.837 -> 1.764).  Each pixel lies on exactly one line per direction, so the lines of a
     direction run in parallel.
 
     Parameters

@@ -4,7 +4,8 @@
 * :func:`half_plane_groups`: the used views per angular sector (:func:`sector_of`) and the weight of each
   group of consecutive sectors.
 * :func:`strip_groups`, :func:`line_kernel`: the views near a line through the centre view and the 1-px wide
-  segment that aggregates their cost along that line, for thin structures.
+  segment that aggregates their cost along that line, for thin structures; :func:`strip_halves`: the views of
+  an oblique strip on either side of its line.
 * :func:`half_plane_cost_volume`: the photo-consistency cost of every label, the minimum over half-planes
   of views (Kang, Szeliski & Chai, CVPR 2001) and, when asked, over oriented strips of views, optionally
   around a per-pixel base disparity.
@@ -107,6 +108,37 @@ def strip_groups(views: Views, n_orientations: int, width: float
     return out
 
 
+def strip_halves(views: Views, strips: list[tuple[float, list[tuple[int, int]], float]]
+                 ) -> list[list[tuple[list[tuple[int, int]], float]]]:
+    """The two halves of every strip whose views do not all lie on its line, split by the side of the line.
+
+    A strip at an angle the view grid has no line of views along (anything but rows, columns and diagonals)
+    holds views up to ``width`` off its line, ``n . o != 0``.  Behind a gap of that orientation, such a view
+    sees the gap's edges moved across it by ``(d_near - d_far) n . o`` relative to the far point, so a point
+    near one edge is hidden from the views off the line on that edge's side and seen by those on the other:
+    the half-plane argument of :func:`half_plane_cost_volume` across the strip.  Half ``s`` holds the views
+    with ``s n . o >= 0`` (the views on the line belong to both); a strip whose views are all on its line
+    (``n . o = 0``) has no halves.
+
+    Returns
+    -------
+    list, one entry per strip: ``[]`` or two ``(views, weight)``, each half with at least 2 views.
+    """
+    dv, du = views.offsets
+    out = []
+    for phi, members, _ in strips:
+        ny, nx = math.cos(phi), -math.sin(phi)
+        side = {vu: ny * dv[vu] + nx * du[vu] for vu in members}
+        halves = []
+        if any(abs(a) > 1e-9 for a in side.values()):
+            for sign in (1.0, -1.0):
+                part = [vu for vu in members if sign * side[vu] >= -1e-9]
+                if len(part) >= 2:
+                    halves.append((part, sum(float(views.weight[vu]) for vu in part)))
+        out.append(halves)
+    return out
+
+
 def line_kernel(phi: float, radius: int) -> np.ndarray:
     """A normalised 1-px wide segment along the direction ``(sin phi, cos phi)`` (y, x): (2 r + 1, 2 r + 1)
     float32 summing to 1.
@@ -160,7 +192,7 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
                            threads: int | None = None, strips: int = 0, strip_width: float = 0.5,
                            strip_radius: int = 2, strip_penalty: float = 1.0,
                            strip_channels: int | None = None, noise_var: float = 0.0,
-                           noise_rho: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+                           noise_rho: tuple[float, float] = (0.0, 0.0), halve_strips: bool = False) -> np.ndarray:
     """Occlusion-aware matching cost for every label.
 
     For label ``d`` every used view is shifted onto the centre view (:func:`shift_view`), and the
@@ -180,6 +212,8 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
     only where it is clearly better, as it averages fewer views)::
 
         C(p, d) = min( min_h ..., min_k  penalty * line_k[ sum_{(v,u) in strip k} w_vu |...|^2 ] / sum_k w_vu )
+
+    (with ``halve_strips`` also over the halves of the oblique strips, see below).
 
     Parameters
     ----------
@@ -204,6 +238,13 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
     strips, strip_width, strip_radius, strip_penalty
         Number of strip orientations (0 = none), their half-width in view steps, the radius of their line
         aggregation and the factor on their cost (see above).
+    halve_strips : bool
+        The minimum also runs over the two halves of every strip whose views are not all on its line
+        (:func:`strip_halves`), each half's penalty multiplied by its strip's view weight over its own
+        (``penalty W_k / W_half``: a half averages fewer views, so it must win by more).  On the grid of views
+        only rows, columns and diagonals have views exactly on their line; an oblique strip holds views up to
+        ``strip_width`` off it, which see the edges of a gap of that orientation moved across it, and a point
+        near one edge is then seen by the views off the line on the other edge's side only.
     strip_channels : int, optional
         The strips' cost sums only the first ``strip_channels`` channels (None: all).  The pipeline passes
         the intensity channels: a local contrast normalisation stacked beside them
@@ -257,6 +298,13 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
     for i, (_, members, _) in enumerate(lines):
         for vu in members:
             strips_of_view[vu].append(i)
+    halves = strip_halves(views, lines) if lines and halve_strips else [[] for _ in lines]
+    # (strip, half) of every half, and the halves each view belongs to
+    half_index = [(i, k) for i, hs in enumerate(halves) for k in range(len(hs))]
+    halves_of_view: dict[tuple[int, int], list[int]] = {vu: [] for vu in sector_of_view}
+    for j, (i, k) in enumerate(half_index):
+        for vu in halves[i][k][0]:
+            halves_of_view[vu].append(j)
     weights = {vu: np.float32(views.weight[vu]) for vu in sector_of_view}
     grid = None
     if base is not None:
@@ -287,6 +335,7 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
         # with strip channels: the groups' error over those channels alone, the strips' reference
         channel_sums = [np.zeros((Y, X), np.float32) for _ in range(n_sectors)] if strip_mask is not None else None
         line_sums = [np.zeros((Y, X), np.float32) for _ in lines]
+        half_sums = [np.zeros((Y, X), np.float32) for _ in half_index]
         dmap = None if base is None else base + np.float32(d)
         for vu, sector in sector_of_view.items():
             if dmap is None:
@@ -321,12 +370,19 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
                 cv2.add(channel_sums[sector], strip_err, dst=channel_sums[sector])
             for i in strips_of_view[vu]:
                 cv2.add(line_sums[i], strip_err, dst=line_sums[i])
+            for j in halves_of_view[vu]:
+                cv2.add(half_sums[j], strip_err, dst=half_sums[j])
         best = group_minimum(sums)
         if lines:
             strip_best = None
             for (_, _, weight), kernel, lsum in zip(lines, line_kernels, line_sums):
                 lsum = cv2.filter2D(lsum, -1, kernel * np.float32(strip_penalty / weight))
                 strip_best = lsum if strip_best is None else np.minimum(strip_best, lsum, out=strip_best)
+            for (i, h), hsum in zip(half_index, half_sums):
+                # a half averages fewer views than its strip: its penalty grows by the ratio of their weights
+                part_weight = halves[i][h][1]
+                factor = strip_penalty * lines[i][2] / (part_weight * part_weight)
+                np.minimum(strip_best, cv2.filter2D(hsum, -1, line_kernels[i] * np.float32(factor)), out=strip_best)
             if channel_sums is None:
                 np.minimum(best, strip_best, out=best)
             else:
@@ -352,4 +408,4 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
 
 
 __all__ = ["N_SECTORS", "Progress", "worker_threads", "sector_of", "make_labels", "half_plane_groups",
-           "strip_groups", "line_kernel", "interpolated_noise_gain", "half_plane_cost_volume"]
+           "strip_groups", "strip_halves", "line_kernel", "interpolated_noise_gain", "half_plane_cost_volume"]

@@ -25,7 +25,12 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    and a square box around a thin slat is mostly background: with ``strips`` the minimum also runs over
    oriented strips of views (those within ``strip_width`` of a line through the centre view), each
    aggregated along a 1-px line of its orientation and weighted by ``strip_penalty``
-   (:func:`~plenodecode.depth.cost.strip_groups`).  The strips match the intensity channels only (the
+   (:func:`~plenodecode.depth.cost.strip_groups`).  Only rows, columns and diagonals of the view grid lie
+   exactly on their line; an oblique strip's views sit up to ``strip_width`` off it, and behind a gap of that
+   orientation those off the line on one side see the gap's edge moved over a point near it, so with
+   ``strip_halves`` the cost volume also takes each oblique strip's two halves, the views on either side of
+   its line (:func:`~plenodecode.depth.cost.strip_halves`), at a penalty raised by the strip's view weight
+   over the half's.  The strips match the intensity channels only (the
    contrast channel mixes a thin structure with its surround) and scale the half-planes' cost by how much they
    beat them there (``strip_channels`` of :func:`~plenodecode.depth.cost.half_plane_cost_volume`); the
    refinement's strips, as long as its box, have their own ``refine_strip_penalty``.  Both penalties are
@@ -38,7 +43,8 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    at an integer disparity is pulled off it.
 2. **Edge-aware regularisation** (:mod:`~plenodecode.depth.aggregation`): semi-global aggregation along
    ``paths`` directions (Hirschmueller, TPAMI 2008) whose large-jump penalty P2 falls at the centre view's
-   intensity edges, so depth edges follow image edges.  Its penalties are in units of the median per-pixel
+   intensity edges, so depth edges follow image edges (also where a mixed pixel spreads the edge over two
+   steps, as along an oblique edge).  Its penalties are in units of the median per-pixel
    cost span, which can outweigh the small span of a weakly textured surface seen through a slit of a few
    pixels: the winner of the aggregated cost is gated by the matching cost
    (:func:`~plenodecode.depth.refinement.cost_gate` with ``sgm_gate_ratio``, ``sgm_gate_floor``), so a pixel
@@ -202,7 +208,7 @@ def disparity_range(lf: LightField, views: Callable[[], Views], requested: Any =
 PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "median_radius", "refine_radius",
                  "refine_range", "refine_samples", "grey", "pattern", "contrast_sigma", "contrast_eps",
                  "contrast_noise", "contrast_smooth", "contrast_smooth_noise", "contrast_weight", "min_view_weight",
-                 "disparity_range", "strips", "strip_width",
+                 "disparity_range", "strips", "strip_width", "strip_halves",
                  "strip_radius", "strip_penalty", "refine_strip_penalty", "strip_penalty_noise", "refine_penalty_noise",
                  "gate_ratio", "gate_floor", "sgm_gate_ratio", "sgm_gate_floor", "confidence_radius", "shift_noise",
                  "shift_noise_rho", "radius_noisy", "refine_radius_noisy", "contrast_weight_noisy", *EDGE_DEFAULTS)
@@ -247,7 +253,7 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
             continue
         if int(p[name]) < 0:
             raise ValueError(f"{name} must be >= 0 (or 'auto' for refine_radius), got {p[name]!r}")
-    for name in ("edge_visibility", "edge_coverage"):
+    for name in ("edge_visibility", "edge_coverage", "strip_halves"):
         if not isinstance(p[name], (bool, np.bool_)):
             raise ValueError(f"{name} must be True or False, got {p[name]!r}")
     for name in ("strip_width", "strip_penalty", "refine_strip_penalty"):
@@ -410,7 +416,8 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
         # clearly noisy views: a larger box averages the noise (a textured noise-free light field can measure
         # up to ~0.004: the 45 x 58 px slats-v-j1-weak scene of the tests, 9.6 -> 14.0 % with radius 3)
         radius = max(radius, int(p["radius_noisy"]))
-    cost = half_plane_cost_volume(views, labels, radius=radius, progress=stage(0), **strips)
+    cost = half_plane_cost_volume(views, labels, radius=radius, progress=stage(0), **strips,
+                                  halve_strips=bool(p["strip_halves"]))
     sub = cost[::4, ::4]
     span = float(np.median(sub.max(axis=-1) - sub.min(axis=-1)))
     cost *= np.float32(1.0 / max(span, 1e-12))

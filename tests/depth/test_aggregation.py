@@ -1,12 +1,14 @@
 """Aggregation: the SGM recurrence and the winner-take-all minimum with its confidence."""
 
 import numpy as np
+import pytest
 
 from plenodecode.depth.aggregation import SGM_DIRECTIONS, sgm, winner
 
 
 def _sgm_reference(cost, guide, p1, p2, sigma, dirs):
-    """Direct transcription of Hirschmueller's recurrence, pixel by pixel (slow, tiny inputs only)."""
+    """Direct transcription of Hirschmueller's recurrence with the P2 of :func:`sgm`, pixel by pixel (slow, tiny
+    inputs only)."""
     Y, X, D = cost.shape
     total = np.zeros_like(cost, dtype=np.float64)
     for dy, dx in dirs:
@@ -21,7 +23,13 @@ def _sgm_reference(cost, guide, p1, p2, sigma, dirs):
                     continue
                 prev = L[py, px]
                 m = prev.min()
-                q2 = max(p1, p2 / (1 + abs(guide[y, x] - guide[py, px]) / sigma))
+                # the guide's step, also across the pixel before or after (an edge spread over a mixed pixel)
+                steps = [abs(guide[y, x] - guide[py, px])]
+                if 0 <= py - dy < Y and 0 <= px - dx < X:
+                    steps.append(abs(guide[y, x] - guide[py - dy, px - dx]))
+                if 0 <= y + dy < Y and 0 <= x + dx < X:
+                    steps.append(abs(guide[y + dy, x + dx] - guide[py, px]))
+                q2 = max(p1, p2 / (1 + max(steps) / sigma))
                 for d in range(D):
                     cands = [prev[d], m + q2]
                     if d > 0:
@@ -73,3 +81,29 @@ def test_winner_subpixel_and_confidence():
     c2 = np.array([[cost[i, j][np.abs(idx - k[i, j]) > 3].min() for j in range(2)] for i in range(2)])
     c1 = cost.min(-1)
     np.testing.assert_allclose(conf, (c2 - c1) / c2, rtol=1e-5)
+
+
+@pytest.mark.parametrize("width", [1, 2, 3])
+def test_sgm_jump_penalty_falls_at_an_edge_spread_over_a_mixed_pixel(width):
+    """A strip of ``width`` px (labels 9 of 0..9) in a background (label 0), one row, so that only the
+    horizontal paths carry it across; each label costs 0.05 more than the right one.  Its guide step of 0.3
+    is sharp, or spread over a mixed pixel on either side (guide 0.15, costs halfway), as on an oblique edge.
+    P2 falls with the step across the mixed pixel (``G`` of :func:`sgm`), so the strip survives there as at
+    the sharp edges; with the step between neighbours alone (0.15 twice) it was smoothed away at 0.05."""
+    labels = np.arange(10, dtype=np.float64)
+    found = {}
+    for mixed in (False, True):
+        guide = np.zeros((1, 40), np.float32)
+        guide[:, 20:20 + width] = 0.3
+        cost = np.full((1, 40, 10), 0.05, np.float32)
+        cost[0, :, 0] = 0.0
+        cost[0, 20:20 + width, 0] = 0.05
+        cost[0, 20:20 + width, 9] = 0.0
+        if mixed:
+            for x in (19, 20 + width):
+                guide[0, x] = 0.15
+                cost[0, x] = 0.025
+                cost[0, x, [0, 9]] = 0.0
+        d, _ = winner(sgm(cost, guide, p1=0.1, p2=3.0, sigma=0.02, paths=8), labels)
+        found[mixed] = np.mean(np.abs(d[0, 20:20 + width] - 9) < 0.5)
+    assert found == {False: 1.0, True: 1.0}
