@@ -692,3 +692,35 @@ def test_cli_focus_distance_fails_raws_without_the_constants_before_decoding(dat
     assert any(line.startswith("scene1.lfr") and " failed " in line and "focus_distance_m" in line
                for line in lines), res.stdout
     assert decoded == [] and not (out / "nofocal").exists() and not (out / "scene1").exists()
+
+
+def test_cli_without_a_database_decodes_what_needs_none_and_fails_the_rest_with_the_reason(data, tmp_path,
+                                                                                              monkeypatch):
+    """No ``calib/`` folder and no ``--database``: a Raytrix raw (its XML is its calibration) is decoded, the
+    Lytro raws that need the database fail with what to pass, a damaged ``.lfr`` says it is no Lytro container.
+    With only raws that need it, the missing database is a usage error naming --database, before any work."""
+    from plenodecode import synthetic
+    from tests.cli.test_total_focus import COLOUR_RAYTRIX
+
+    shoot = tmp_path / "mixed"
+    sim = synthetic.simulate(COLOUR_RAYTRIX, seed=2, shape=(210, 300), noise=False)
+    synthetic.write_simulation(sim, shoot / "raytrix", name="scene")
+    shutil.copytree(data["shoot"] / "take1", shoot / "take1")
+    (shoot / "damaged.lfr").write_bytes(b"not a container at all")
+    monkeypatch.chdir(tmp_path)                                   # no calib/ here
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["batch", str(shoot), "-o", str(out), "--jobs", "1", "--outputs", "centre"])
+    assert res.exit_code == 1, res.output
+    rows = {Path(r["source"]).name: r for r in json.loads((out / "summary.json").read_text())["results"]}
+    assert rows["scene.png"]["status"] == "done"
+    centre = out / "scene" / "centre.png"
+    assert centre.is_file()
+    from plenodecode.io.images import read_image
+    assert read_image(centre).std() > 0                            # a picture, not a constant
+    assert rows["scene1.lfr"]["status"] == "failed" and "no calibration database in " in rows["scene1.lfr"]["error"]
+    assert "--database DIR" in rows["scene1.lfr"]["error"]
+    assert rows["damaged.lfr"]["status"] == "failed" and "not a Lytro container" in rows["damaged.lfr"]["error"]
+    # only raws that need the database: refused before any work, nothing written
+    res = CliRunner().invoke(cli, ["batch", str(shoot / "take1"), "-o", str(tmp_path / "none")])
+    assert res.exit_code == 2 and "--database" in res.output and "calib is not a folder" in res.output
+    assert not (tmp_path / "none").exists()

@@ -110,7 +110,11 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
     files = find_raws(inputs, exclude=[out_dir])
     if not files:
         raise click.UsageError(f"no raws found under {', '.join(map(str, inputs))}")
-    if white is None and not db_dir.is_dir() and not all(needs_no_database(f) for f in files):
+    # a --database typed that is no folder is refused; the default one missing only when no raw can do without it
+    # (the others are decoded; those that need it fail with the reason, as a batch goes past any bad raw)
+    if white is None and not db_dir.is_dir() and (
+            database is not None and not all(needs_no_database(f) for f in files)
+            or database is None and not any(needs_no_database(f) for f in files)):
         raise click.BadParameter(f"{db_dir} is not a folder; build the database with `plenodecode calibrate "
                                  "--database`", param_hint="--database")
     mosaic = current_mosaic_options()

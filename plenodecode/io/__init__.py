@@ -58,6 +58,10 @@ def read_raw(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None) ->
         return lytro.read_lytro(p)
     if p.suffix.lower() in LYTRO_PAIR_EXTENSIONS and lytro.find_sidecar(p) is not None:
         return lytro.read_raw_pair(p)
+    if p.suffix.lower() in (".lfp", ".lfr"):
+        # a Lytro name without the container's magic: say that, not what LibRaw makes of it
+        raise FormatError(f"{p}: not a Lytro container (it does not start with the LFP signature): the file is "
+                          "damaged or not a Lytro file")
     from . import generic, raytrix
 
     if raytrix.find_calibration_xml(p) is not None:

@@ -54,11 +54,13 @@ def _is_raw_candidate(p: Path) -> bool:
 
 
 def needs_no_database(p: Path) -> bool:
-    """True for an image mosaic with neither sidecar nor Raytrix XML: it is self-calibrated, never looked up."""
+    """True for a raw never looked up in the calibration database: an image mosaic with a Raytrix XML beside
+    it (the camera's own calibration) or with neither that nor a sidecar (self-calibrated)."""
     from . import generic, raytrix
 
-    return (p.suffix.lower() in MOSAIC_SUFFIXES and generic.find_sidecar(p) is None
-            and raytrix.find_calibration_xml(p) is None)
+    if p.suffix.lower() not in MOSAIC_SUFFIXES:
+        return False
+    return raytrix.find_calibration_xml(p) is not None or generic.find_sidecar(p) is None
 
 
 def _walk(folder: Path, exclude: set[Path], stop_marker: str | None) -> list[Path]:
