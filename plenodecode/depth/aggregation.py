@@ -126,8 +126,8 @@ def sgm(cost: np.ndarray, guide: np.ndarray, *, p1: float, p2: float, sigma: flo
     oblique (or blurred) edge holds a mix of both sides' colours, which splits the step between neighbours in
     two, so that P2 fell at neither of them (the thin scenes' 12 oblique ground-truth light fields: sum of
     BadPix0.07 186.7 -> 187.8 %, the 24 others 76.0 -> 75.3; the 6 decoded ones mean 25.06 -> 23.24 %;
-    illum-mini GT / decoded 0.53 / 1.66 -> 0.45 / 1.38 %; hci-antinous 4.28 -> 4.21 %, MSE x100 1.837 -> 1.764).  Each pixel lies on exactly one line per direction, so the lines of a
-    direction run in parallel.
+    illum-mini GT / decoded 0.53 / 1.66 -> 0.45 / 1.38 %; hci-antinous 4.28 -> 4.21 %, MSE x100 1.837 -> 1.764).
+    Each pixel lies on exactly one line per direction, so the lines of a direction run in parallel.
 
     Parameters
     ----------
