@@ -35,7 +35,13 @@ COSTVOLUME: dict[str, Any] = {
     "radius": 2,              # box aggregation radius of the matching cost (1: thin GT / decoded 11.4 / 33.7 %,
                               # 2: 10.8 / 32.2 %; hci-antinous 4.03 / 4.21 %, MSE x100 1.81 / 1.89)
     "confidence_radius": 1,   # box radius of the confidence's view agreement (2: thin GT AUSE/rnd 0.58, 1: 0.49)
-    "p1": 0.1,                # SGM small-step penalty, in units of the median per-pixel cost span
+    "p1": 0.15,               # SGM small-step penalty, in units of the median per-pixel cost span: labels are
+                              # 0.1 px apart, so a ramp of one-label steps replaces a 0.5 px jump (5 labels) at
+                              # 5 P1, 0.5 at 0.1 against P2 = 3, and SGM filled 6 px gaps between slats with
+                              # ramps.  0.1 / 0.15 / 0.2: 12 oblique thin GT scenes' sum of BadPix0.07 187.8 /
+                              # 177.6 / 171.1, decoded thin mean 23.25 / 22.03 / 21.07 %, hci-antinous 4.21 /
+                              # 4.21 / 4.43 %, MSE x100 1.764 / 1.779 / 1.827: 0.15 keeps antinous where it was
+                              # (its steep slopes need ramps near depth jumps)
     "p2": 3.0,                # SGM jump penalty (same units), lowered at image edges
     "edge_sigma": 0.02,       # guide step (grey centre view in [0, 1]) that halves P2
     "paths": 8,
