@@ -331,7 +331,8 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
     a few views on one side only, where it moves by a few pixels, much of that a linear trend the offset
     terms take: with a weak texture what is left of ``B`` is mostly noise.  The noise variance ``s^2`` is
     the centre view's white noise (:func:`~plenodecode.depth.confidence.image_noise`, robust); a pixel
-    whose reliability is below 1/2 is not decided by the regression (illum-mini decoded, a 0.5 px edge beside a weakly textured wall: with ``jump`` 0.3 the far pixels along it went to the near side).
+    whose reliability is below 1/2 is not decided by the regression (illum-mini decoded, a 0.5 px edge beside
+    a weakly textured wall: with ``jump`` 0.3 the far pixels along it went to the near side).
 
     Where the regression cannot decide (fewer than ``min_views`` views, a background without texture or
     with a reliability below 1/2, not significant), a clean two-colour edge in the centre view decides

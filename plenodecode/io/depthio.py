@@ -142,10 +142,10 @@ def colour_mapped(values: np.ndarray, *, cmap: str = DEPTH_CMAP, percentiles: tu
 
 
 #: Default ``min_confidence`` of the depth PNGs: pixels of lower confidence are greyed out.  On the benchmark
-#: scenes (``make bench-depth``, 'costvolume'; issue 20's confidence) the pixels below it are 9-75x as often
-#: wrong (BadPix0.07) as those above and are 18 % of hci-antinous (15.6 % against 1.7 %), 14 % of the decoded
-#: illum-mini scene (9.6 % against 0.5 %) and 34 % of its ideal light field (its flat background); on the
-#: ant-leg microscope capture they are its featureless background.  (0.2 greyed 22 % and 21 %, and speckled
+#: scenes (``make bench-depth``, 'costvolume'; issue 20's confidence, Nov 26) the pixels below it are 10-20x as
+#: often wrong (BadPix0.07) as those above and are 18 % of hci-antinous (15.8 % against 1.7 %), 14 % of the
+#: decoded illum-mini scene (7.5 % against 0.4 %) and 33 % of its ideal light field (its flat background); on
+#: the ant-leg microscope capture they are its featureless background.  (0.2 greyed 22 % and 21 %, and speckled
 #: the ant leg's structures.)
 DEFAULT_MIN_CONFIDENCE = 0.1
 #: Display colour (RGB in [0, 1]) of the pixels below ``min_confidence``.
