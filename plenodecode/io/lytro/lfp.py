@@ -59,7 +59,8 @@ def read_lytro(path: str | os.PathLike, *, verify: bool = True) -> RawCapture:
                           f"picture; run 'plenodecode info {where}' to list it")
     if c.kind != "raw":
         raise FormatError(f"{where}: holds no raw image: it is a processed Lytro Desktop file with "
-                          f"{summarise_contents(c.items)}; run 'plenodecode info {where}' to see what it holds")
+                          f"{summarise_contents(c.items)}; 'plenodecode extract {where} -o DIR' writes those items out "
+                          f"(images, depth maps) as files")
     if c.metadata is None:
         raise FormatError(f"{where}: the raw's frame metadata is missing (no metadata or metadataRef section); "
                           "the file is incomplete")

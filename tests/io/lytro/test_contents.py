@@ -26,7 +26,7 @@ def test_processed_container_contents_and_extraction(tmp_path):
     assert items["depth_map"].type == "depth" and items["depth_map"].shape == (3, 4)
     assert items["depth_map"].dtype == "float32"
     assert [items[f"focus_stack_{k:02d}"].shape for k in range(3)] == [(8, 16)] * 3
-    with pytest.raises(FormatError, match="no raw image.*3 x jpeg 16x8.*plenodecode info"):
+    with pytest.raises(FormatError, match="no raw image.*3 x jpeg 16x8.*plenodecode extract .* -o DIR"):
         read_lytro(path)
     files = extract_contents(path, tmp_path / "x")
     depth = np.load(tmp_path / "x" / "depth_map.npy")

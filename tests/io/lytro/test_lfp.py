@@ -134,7 +134,7 @@ def test_real_demo_lfp_illum_living_picture(tmp_path):
     depth = [it for it in items if it.type == "depth"]
     assert len(jpegs) == 10 and all(it.shape == (480, 704) for it in jpegs)
     assert len(depth) == 1 and depth[0].shape == (60, 88) and depth[0].size == 21120
-    with pytest.raises(FormatError, match="demo.LFP: holds no raw.*10 x jpeg 704x480.*plenodecode info"):
+    with pytest.raises(FormatError, match="demo.LFP: holds no raw.*10 x jpeg 704x480.*plenodecode extract .*demo.LFP -o DIR"):
         read_lytro(path)
     files = extract_contents(path, tmp_path)
     d = np.load(tmp_path / "depth_map.npy")
