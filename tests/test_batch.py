@@ -462,6 +462,22 @@ def test_cli_no_raws_is_a_usage_error(data, tmp_path):
     assert res.exit_code == 2 and "no raws" in res.output
 
 
+def test_cli_folder_of_unrecognised_images_says_to_name_the_raw(tmp_path):
+    """A microscope's raw beside its white and dark frames (as in ../shared/data/lf-microscopy-antleg): the folder
+    yields no raw, and the error names the images passed over and how to pass the raw."""
+    import cv2
+
+    shoot = tmp_path / "scope"
+    shoot.mkdir()
+    for name in ("light_field.png", "radiometry_frame.png", "dark_frame.tif"):
+        cv2.imwrite(str(shoot / name), np.full((64, 80), 1000, np.uint16))
+    res = CliRunner().invoke(cli, ["batch", str(shoot), "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2 and "no raws found" in res.output
+    assert "3 image(s) (dark_frame.tif, light_field.png, radiometry_frame.png) were not taken" in res.output
+    assert f"plenodecode batch {shoot}/RAW_IMAGE -o OUT" in res.output.replace("\n", "")
+    assert not (tmp_path / "o").exists()
+
+
 # -------------------------------------------------------------------- processes and Dask
 def test_latency_separates_each_workers_first_task():
     def res(worker, started, seconds, status="done"):

@@ -96,7 +96,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
       plenodecode batch shoot/ -o decoded/ --scheduler tcp://10.0.0.5:8786
     """
     from ..batch import BatchOptions, check_summary_files, find_raws, run_batch, write_summary
-    from ..io.discovery import needs_no_database
+    from ..io.discovery import images_not_taken, needs_no_database
     from ..calib.store import DEFAULT_DB
 
     if alpha is not None and distance_m is not None:
@@ -109,7 +109,14 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
             raise click.UsageError(str(exc)) from None
     files = find_raws(inputs, exclude=[out_dir])
     if not files:
-        raise click.UsageError(f"no raws found under {', '.join(map(str, inputs))}")
+        images = images_not_taken(inputs)
+        hint = ""
+        if images:          # e.g. a microscope's raw beside its white and dark frames: only the user knows which
+            names = ", ".join(p.name for p in images[:3]) + (f" and {len(images) - 3} more" if len(images) > 3 else "")
+            hint = (f"; {len(images)} image(s) ({names}) were not taken: a folder yields an image only with a sidecar"
+                    f" or at a known lenslet sensor's size: name the raw image itself, "
+                    f"'plenodecode batch {images[0].parent}/RAW_IMAGE -o OUT' (a microscope's with -w WHITE_IMAGE)")
+        raise click.UsageError(f"no raws found under {', '.join(map(str, inputs))}{hint}")
     # a --database typed that is no folder is refused; the default one missing only when no raw can do without it
     # (the others are decoded; those that need it fail with the reason, as a batch goes past any bad raw)
     if white is None and not db_dir.is_dir() and (

@@ -122,4 +122,19 @@ def find_raws(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os
     return unique
 
 
-__all__ = ["RAW_SUFFIXES", "PAIR_SUFFIXES", "MOSAIC_SUFFIXES", "find_raws", "needs_no_database"]
+def images_not_taken(inputs: Iterable[str | os.PathLike]) -> list[Path]:
+    """Images (:data:`MOSAIC_SUFFIXES`) in the folders among ``inputs`` that :func:`find_raws` does not take
+    (no sidecar, not a known sensor's size): what to name when a folder yields no raw.  Sorted."""
+    skipped: list[Path] = []
+    for item in inputs:
+        p = Path(item)
+        if not p.is_dir():
+            continue
+        for root, dirs, files in os.walk(p):
+            dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+            skipped.extend(Path(root) / f for f in sorted(files) if not f.startswith(".")
+                           and Path(f).suffix.lower() in MOSAIC_SUFFIXES and not _is_raw_candidate(Path(root) / f))
+    return skipped
+
+
+__all__ = ["RAW_SUFFIXES", "PAIR_SUFFIXES", "MOSAIC_SUFFIXES", "find_raws", "needs_no_database", "images_not_taken"]
