@@ -111,9 +111,9 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
             self_calibrate: bool, overwrite: bool, virtual_depth: float | None = None) -> None:
     """Refocus RAW_OR_LF (a raw, a saved light field or an HCI scene folder).
 
-    One photograph: --slope S, --alpha A, --focus-at X,Y or --focus-distance M, written to
-    OUTPUT (.png, .tif, .exr); outside the refocusable range it is written with a warning.  Of a
-    focused-plenoptic (Raytrix) raw: --virtual-depth V.
+    One photograph: --slope S, --alpha A, --focus-at X,Y or --focus-distance M (none: focused as
+    captured, slope 0), written to OUTPUT (.png, .tif, .exr); outside the refocusable range it is written
+    with a warning.  Of a focused-plenoptic (Raytrix) raw: --virtual-depth V.
     A focal stack: --focal-stack START:STOP:N writes OUTPUT/slice_000.png ...,
     OUTPUT/all_in_focus.png and OUTPUT/focal_stack.json (the slopes and alphas).
 
@@ -128,7 +128,10 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
     from ..pipeline import open_source, render_product, write_product
 
     check_focus_options({"--slope": slope, "--alpha": alpha, "--focus-at": focus_at, "--focus-distance": distance_m,
-                         "--focal-stack": stack, "--virtual-depth": virtual_depth}, no_depth)
+                         "--focal-stack": stack, "--virtual-depth": virtual_depth}, no_depth, optional=True)
+    as_captured = all(v is None for v in (slope, alpha, focus_at, distance_m, stack, virtual_depth))
+    if as_captured:             # no focus option: the photograph focused as captured, as batch's 'refocus' product
+        slope = 0.0
     if virtual_depth is not None:
         return refocus_at_virtual_depth(ctx, input_path, output, virtual_depth, bit_depth=int(bit_depth),
                                         overwrite=overwrite, inputs=calibration_kwargs(calibration, white, database,
@@ -151,7 +154,11 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
         with usage_errors():
             write_product(photo, output, bit_depth=int(bit_depth), overwrite=overwrite)
         if not quiet(ctx):
-            click.echo(f"wrote {output} ({describe_focus(photo.data)}; {method}, aperture {aperture:g})")
+            how = describe_focus(photo.data)
+            if as_captured:
+                how = (f"focused as captured: {how}; choose the focus with --slope, --alpha, --focus-at or "
+                       f"--focus-distance")
+            click.echo(f"wrote {output} ({how}; {method}, aperture {aperture:g})")
         return
     rendered = render_product(src, "focal-stack", start=start, stop=stop, n=n, units=stack_units, method=method,
                               aperture=aperture, upsample=upsample, progress=progress_bar("focal stack", ctx))

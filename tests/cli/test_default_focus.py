@@ -57,3 +57,20 @@ def test_a_refocus_option_without_a_focus_asks_for_the_refocus_and_two_focus_opt
     assert two.exit_code == 2
     assert "pass at most one of" in two.output and "--slope S and --total-focus" in two.output
     assert not (tmp_path / "two.png").exists()
+
+
+def test_refocus_command_without_a_focus_option_is_focused_as_captured(tmp_path):
+    """``plenodecode refocus RAW -o photo.png`` takes the same default as the one-liner (the real F01 JPEG)."""
+    jpeg = shared_path("lytro-f01-lenslet-jpg", "IMG_2.jpg")
+    res = run("refocus", jpeg, "-o", tmp_path / "photo.png")
+    assert res.exit_code == 0, res.output
+    assert "focused as captured: slope +0.000 px/view" in res.output
+    assert "choose the focus with --slope, --alpha, --focus-at or --focus-distance" in res.output
+    explicit = run("refocus", jpeg, "--slope", "0", "-o", tmp_path / "slope0.png")
+    assert explicit.exit_code == 0, explicit.output
+    photo = read_image(tmp_path / "photo.png")
+    np.testing.assert_array_equal(photo, read_image(tmp_path / "slope0.png"))
+    grey = photo.astype(np.float64).mean(axis=-1) / 65535.0
+    assert np.percentile(grey, 99) - np.percentile(grey, 1) > 0.3
+    two = run("refocus", jpeg, "--slope", "0", "--alpha", "1", "-o", tmp_path / "two.png")
+    assert two.exit_code == 2 and "pass at most one of" in two.output and "--slope and --alpha" in two.output
