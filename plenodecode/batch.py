@@ -34,6 +34,7 @@ the calibration database and ``out_dir`` under the same paths as the client (a s
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import logging
@@ -46,7 +47,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
-from .errors import PlenodecodeError
+from .errors import PlenodecodeError, one_line
 from .io.atomic import (OLD_MARK, TEMP_MARK, atomic_output, discard, is_temporary, remove_stale_temporaries,
                         write_text_atomic)
 from .registry import lookup
@@ -411,11 +412,6 @@ def _peak_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0   # KiB on Linux
 
 
-def _one_line(exc: BaseException) -> str:
-    text = f"{type(exc).__name__}: {exc}".strip()
-    return text.splitlines()[0] if text else type(exc).__name__
-
-
 def _read_marker(folder: Path) -> dict[str, Any] | None:
     try:
         doc = json.loads((folder / DONE_MARKER).read_text(encoding="utf-8"))
@@ -435,6 +431,11 @@ def _skip_result(src: Path, target: Path, key: str, t0: float, started: float) -
     return TaskResult(str(src), "skipped", tuple(str(o) for o in outs), thumbs,
                       seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb(),
                       started=started)
+
+
+def _lost_result(path: Path, exc: BaseException) -> TaskResult:
+    """The 'failed' result of a task whose worker died (or whose result could not come back)."""
+    return TaskResult(str(path), "failed", error=f"worker failed: {one_line(exc)}")
 
 
 def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: BatchOptions, *,
@@ -500,11 +501,11 @@ def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: Ba
                           started=started)
     except (PlenodecodeError, OSError) as exc:
         log.info("%s failed: %s", src, exc)
-        return TaskResult(str(src), "failed", error=_one_line(exc), seconds=time.perf_counter() - t0,
+        return TaskResult(str(src), "failed", error=one_line(exc), seconds=time.perf_counter() - t0,
                           worker=_worker_id(), worker_peak_mb=_peak_mb(), started=started)
     except Exception as exc:  # a bug, not bad data: keep the batch going, keep the traceback in the log
         log.error("unexpected error on %s:\n%s", src, traceback.format_exc())
-        return TaskResult(str(src), "failed", error=f"internal error: {_one_line(exc)}",
+        return TaskResult(str(src), "failed", error=f"internal error: {one_line(exc)}",
                           seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb(),
                           started=started)
 
@@ -674,14 +675,16 @@ def run_batch(inputs: Sequence[str | os.PathLike], out_dir: str | os.PathLike, o
     if progress is not None:
         progress(0, len(files))
     tasks = [(f, n) for f, n in zip(files, names)]
+    task = functools.partial(process_raw, out_dir=str(out), options=options, overwrite=overwrite)
     if scheduler is not None:
         from .batch_workers import run_dask
 
-        results = run_dask(tasks, out, options, scheduler, max_in_flight, overwrite, progress)
+        results = run_dask(tasks, task, _lost_result, options.outputs, scheduler, max_in_flight, progress)
     elif pool is not None:
         from .batch_workers import run_pool
 
-        results = run_pool(pool, tasks, out, options, jobs, max_in_flight or 2 * jobs, overwrite, threads, progress)
+        results = run_pool(pool, tasks, task, _lost_result, options.outputs, jobs, max_in_flight or 2 * jobs,
+                           threads, progress)
     else:
         results = []
         for i, (f, n) in enumerate(tasks):

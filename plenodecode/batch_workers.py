@@ -15,7 +15,9 @@ possible on anything else:
 - this process only waits on the results (no polling) and reports progress.
 
 A light field never travels: a task reads its raw and writes its outputs on the worker; only
-:class:`~plenodecode.batch.TaskResult` records come back.
+:class:`~plenodecode.batch.TaskResult` records come back.  The runners know nothing of a batch's options:
+:func:`~plenodecode.batch.run_batch` hands them the task (a picklable callable of the raw's path, its output
+name and the worker's threads) and how to record a task whose worker was lost.
 """
 
 from __future__ import annotations
@@ -28,10 +30,17 @@ import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import Any, Callable, Sequence
 
-if TYPE_CHECKING:
-    from .batch import BatchOptions, Progress, TaskResult
+from .errors import one_line
+
+#: ``task(path, name=..., threads=...) -> result``, run on a worker (picklable: a module-level function or a
+#: ``functools.partial`` of one).
+Task = Callable[..., Any]
+#: ``lost(path, exc) -> result``: the result recorded, in this process, for a task whose worker died.
+Lost = Callable[[Path, BaseException], Any]
+#: ``progress(done, total)`` or None.
+Progress = Callable[[int, int], None] | None
 
 log = logging.getLogger(__name__)
 
@@ -63,13 +72,6 @@ def preload_modules(outputs: Sequence[str]) -> tuple[str, ...]:
     return tuple(dict.fromkeys((*PRELOAD_MODULES, *extra)))
 
 
-def lost_result(path: Path, exc: BaseException) -> TaskResult:
-    """The 'failed' result of a task whose worker died (or whose result could not come back)."""
-    from .batch import TaskResult, _one_line
-
-    return TaskResult(str(path), "failed", error=f"worker failed: {_one_line(exc)}")
-
-
 def largest_first(tasks: Sequence[tuple[Path, str]]) -> list[int]:
     """Indices of ``tasks`` by decreasing input size (ties in input order): the longest tasks start first, so
     the workers finish together instead of one running a long task alone at the tail."""
@@ -97,16 +99,15 @@ def start_pool(jobs: int, outputs: Sequence[str]) -> tuple[ProcessPoolExecutor, 
     return worker_pool(jobs, threads, preload=preload_modules(outputs)), threads
 
 
-def run_pool(pool: ProcessPoolExecutor, tasks: list[tuple[Path, str]], out: Path, options: BatchOptions, jobs: int,
-             limit: int, overwrite: bool, threads: int, progress: Progress) -> list[TaskResult]:
-    """Run ``tasks`` on the local ``pool`` (:func:`start_pool`), at most ``limit`` submitted at a time, largest first.
+def run_pool(pool: ProcessPoolExecutor, tasks: list[tuple[Path, str]], task: Task, lost: Lost,
+             outputs: Sequence[str], jobs: int, limit: int, threads: int, progress: Progress) -> list[Any]:
+    """``task(path, name=name, threads=threads)`` for each ``(path, name)`` of ``tasks`` on the local ``pool``
+    (:func:`start_pool` of ``jobs`` and ``outputs``), at most ``limit`` submitted at a time, largest first.
 
-    A worker that dies (e.g. killed for memory) fails the tasks in flight and the pool is restarted
-    for the rest.  ``pool`` is shut down on return.
+    A worker that dies (e.g. killed for memory) fails the tasks in flight (``lost``) and the pool is restarted
+    for the rest.  ``pool`` is shut down on return.  Results in the order of ``tasks``.
     """
-    from .batch import process_raw
-
-    results: list[TaskResult | None] = [None] * len(tasks)
+    results: list[Any] = [None] * len(tasks)
     order = largest_first(tasks)
     pending: dict[Future, int] = {}
     nxt = finished = 0
@@ -116,10 +117,10 @@ def run_pool(pool: ProcessPoolExecutor, tasks: list[tuple[Path, str]], out: Path
                 idx = order[nxt]
                 f, n = tasks[idx]
                 try:
-                    fut = pool.submit(process_raw, f, out, options, name=n, overwrite=overwrite, threads=threads)
+                    fut = pool.submit(task, f, name=n, threads=threads)
                 except BrokenProcessPool:
                     pool.shutdown(wait=False, cancel_futures=True)
-                    pool = start_pool(jobs, options.outputs)[0]
+                    pool = start_pool(jobs, outputs)[0]
                     continue
                 pending[fut] = idx
                 nxt += 1
@@ -129,13 +130,13 @@ def run_pool(pool: ProcessPoolExecutor, tasks: list[tuple[Path, str]], out: Path
                 try:
                     results[idx] = fut.result()
                 except Exception as exc:  # the worker process died: report it, keep going
-                    results[idx] = lost_result(tasks[idx][0], exc)
+                    results[idx] = lost(tasks[idx][0], exc)
                 finished += 1
                 if progress is not None:
                     progress(finished, len(tasks))
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
-    return results  # type: ignore[return-value]
+    return results
 
 
 # ------------------------------------------------------------------------------- Dask
@@ -185,29 +186,28 @@ def release_dask_worker() -> bool:
     return _mallopt(_M_MMAP_THRESHOLD, mmap) and _mallopt(_M_TRIM_THRESHOLD, trim)
 
 
-def run_dask(tasks: list[tuple[Path, str]], out: Path, options: BatchOptions, scheduler: Any,
-             max_in_flight: int | None, overwrite: bool, progress: Progress) -> list[TaskResult]:
-    """The same tasks on a Dask distributed cluster, largest first, results streamed back as they finish.
+def run_dask(tasks: list[tuple[Path, str]], task: Task, lost: Lost, outputs: Sequence[str], scheduler: Any,
+             max_in_flight: int | None, progress: Progress) -> list[Any]:
+    """The same tasks as :func:`run_pool` (one thread each) on a Dask distributed cluster, largest first, results
+    streamed back as they finish; at most ``max_in_flight`` (default twice the workers) submitted at a time.
 
     Every worker is set up once (:func:`prepare_dask_worker`) before the first task and released
     (:func:`release_dask_worker`) at the end.
     """
     from distributed import Client, as_completed
 
-    from .batch import _one_line, process_raw
-
     own = not isinstance(scheduler, Client)
     client = Client(scheduler, set_as_default=False) if own else scheduler
     try:
         try:
-            setup = client.run(prepare_dask_worker, preload_modules(options.outputs))
+            setup = client.run(prepare_dask_worker, preload_modules(outputs))
         except Exception as exc:  # e.g. workers with another plenodecode: their tasks say so one by one
-            log.warning("dask workers not set up (%s); running the tasks without", _one_line(exc))
+            log.warning("dask workers not set up (%s); running the tasks without", one_line(exc))
         else:
             log.info("dask workers set up: %s", setup)
         n_workers = max(1, len(client.scheduler_info().get("workers", {})))
         limit = max_in_flight or 2 * n_workers
-        results: list[TaskResult | None] = [None] * len(tasks)
+        results: list[Any] = [None] * len(tasks)
         index: dict[str, int] = {}
         queue = iter(largest_first(tasks))
         tag = os.urandom(4).hex()
@@ -217,8 +217,7 @@ def run_dask(tasks: list[tuple[Path, str]], out: Path, options: BatchOptions, sc
             if i is None:
                 return None
             f, n = tasks[i]
-            fut = client.submit(process_raw, str(f), str(out), options, name=n, overwrite=overwrite, threads=1,
-                                key=f"plenodecode-batch-{tag}-{i}", pure=False)
+            fut = client.submit(task, str(f), name=n, threads=1, key=f"plenodecode-batch-{tag}-{i}", pure=False)
             index[fut.key] = i
             return fut
 
@@ -230,7 +229,7 @@ def run_dask(tasks: list[tuple[Path, str]], out: Path, options: BatchOptions, sc
             try:
                 results[i] = fut.result()
             except Exception as exc:   # worker lost (KilledWorker) or unpicklable result
-                results[i] = lost_result(tasks[i][0], exc)
+                results[i] = lost(tasks[i][0], exc)
             fut.release()
             finished += 1
             if progress is not None:
@@ -242,11 +241,11 @@ def run_dask(tasks: list[tuple[Path, str]], out: Path, options: BatchOptions, sc
             client.run(release_dask_worker)
         except Exception as exc:  # a worker left meanwhile: nothing to give back there
             log.info("dask workers not released: %s", exc)
-        return results  # type: ignore[return-value]
+        return results
     finally:
         if own:
             client.close()
 
 
 __all__ = ["PRELOAD_MODULES", "PRELOAD_BY_OUTPUT", "preload_modules", "largest_first", "start_pool", "run_pool",
-           "prepare_dask_worker", "release_dask_worker", "run_dask", "lost_result"]
+           "prepare_dask_worker", "release_dask_worker", "run_dask"]

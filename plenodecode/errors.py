@@ -55,5 +55,11 @@ class DecodeError(PlenodecodeError):
     """A raw cannot be decoded with the given grid or options."""
 
 
+def one_line(exc: BaseException) -> str:
+    """``'TypeName: first line of the message'`` of ``exc``, for tables and logs that give a failure one line."""
+    text = f"{type(exc).__name__}: {exc}".strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
 __all__ = ["PlenodecodeError", "FormatError", "MetadataError", "CalibrationError", "GeometryMismatchError",
-           "MissingConstantsError", "DecodeError"]
+           "MissingConstantsError", "DecodeError", "one_line"]
