@@ -260,7 +260,9 @@ def decode_samples(raw: RawCapture, grid: LensletGrid, **kw) -> tuple[LightField
 
     Takes :func:`decode`'s keywords but ``geometry`` (the samples are not rectified); the light field is
     the one :func:`decode` returns with them.  For fits that want the data where it was measured (geometric
-    calibration's corner fit) rather than interpolated by the hex -> rect step.
+    calibration's corner fit) rather than interpolated by the hex -> rect step.  The samples take about the
+    light field's memory again; a generated F01 capture (113 x 112 lenses, 9 x 9 views) costs 0.41 CPU s
+    instead of 0.22 (mostly the extrapolated share).
     """
     if kw.get("geometry") is not None:
         raise ValueError("decode_samples does not rectify: pass geometry=None")
@@ -453,4 +455,5 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
     return lf if calibration is None else rectify(lf, calibration)
 
 
-__all__ = ["decode", "decode_timed", "decode_samples", "LensSamples", "lens_positions", "DEMOSAIC_METHODS", "RESAMPLE_METHODS", "DEFAULT_DEMOSAIC"]
+__all__ = ["decode", "decode_timed", "decode_samples", "LensSamples", "lens_positions", "DEMOSAIC_METHODS",
+           "RESAMPLE_METHODS", "DEFAULT_DEMOSAIC"]
