@@ -40,10 +40,11 @@ from .demosaic import DEMOSAIC_METHODS
 _LAZY = {
     "decode": "plenodecode.decoding.decoder",
     "decode_timed": "plenodecode.decoding.decoder",
+    "decode_samples": "plenodecode.decoding.decoder",
     "DEFAULT_DEMOSAIC": "plenodecode.decoding.decoder",
     "RESAMPLE_METHODS": "plenodecode.decoding.resample",
 }
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 
-__all__ = ["decode", "decode_timed", "DEMOSAIC_METHODS", "RESAMPLE_METHODS", "DEFAULT_DEMOSAIC"]
+__all__ = ["decode", "decode_timed", "decode_samples", "DEMOSAIC_METHODS", "RESAMPLE_METHODS", "DEFAULT_DEMOSAIC"]

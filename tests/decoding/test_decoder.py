@@ -47,3 +47,31 @@ def test_small_page_empty_is_a_plain_writable_array_without_huge_page_advice():
 def test_small_arrays_come_from_numpy():
     a = small_page_empty((4, 5), np.int32)
     assert a.flags.owndata and a.shape == (4, 5) and a.dtype == np.int32
+
+
+def test_decode_samples_hands_out_what_the_views_are_interpolated_from():
+    """decode_samples: the same light field as decode; each lens row of samples, placed at ``position``
+    and interpolated linearly, gives that row of a 'linear' decode; the central views' samples are plain
+    bilinear (extrapolated share 0) inside the sensor, the corner views' are not."""
+    from plenodecode.calib import calibrate
+    from plenodecode.decoding import decode, decode_samples
+    from plenodecode.synthetic.checkerboard import simulate_checkerboard_set
+
+    cset = simulate_checkerboard_set("f01", (7, 5, 0.004), 1, seed=0)
+    grid = calibrate(cset.white)
+    kw = {"white": cset.white, "demosaic": "bilinear", "view_edges": "extrapolate", "resample": "linear"}
+    lf, samples = decode_samples(cset.raws[0], grid, **kw)
+    plain = decode(cset.raws[0], grid, **kw)
+    np.testing.assert_array_equal(lf.data, plain.data)
+    np.testing.assert_array_equal(lf.weight, plain.weight)
+    V, U, Y, X, C = lf.shape
+    assert samples.data.shape == (V, U, *grid.shape, C) and samples.position.shape == (*grid.shape, 2)
+    np.testing.assert_array_equal(samples.position[:, 0, 1], np.arange(Y))
+    x = np.arange(X)
+    for r in (10, 11, 50):
+        for v, u in ((4, 4), (2, 5)):
+            row = np.interp(x, samples.position[r, :, 0], samples.data[v, u, r, :, 1])
+            np.testing.assert_allclose(row, lf.data[v, u, r, :, 1], atol=2e-6)
+    inner = (slice(5, -5), slice(5, -5))
+    assert samples.extrapolated[4, 4][inner].max() == 0.0
+    assert samples.extrapolated[0, 0][inner].min() > 0.5

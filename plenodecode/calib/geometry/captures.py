@@ -77,16 +77,20 @@ class GeometryRun:
     skipped: list[tuple[str, str]]
 
 
-def _as_lightfield(item: LightField | RawCapture, grid: LensletGrid | None, white: RawCapture | None) -> LightField:
+def _as_lightfield(item, grid: LensletGrid | None, white: RawCapture | None):
+    """(LightField, LensSamples or None) of a capture: a raw is decoded with :data:`CAPTURE_DECODE`, keeping its
+    lens samples (the corners are fitted on them); a (LightField, LensSamples) pair is taken as it is."""
     if isinstance(item, LightField):
+        return item, None
+    if isinstance(item, tuple) and len(item) == 2 and isinstance(item[0], LightField):
         return item
     if isinstance(item, RawCapture):
         if grid is None:
             raise ValueError("raws need grid= (the lenslet grid of the white image the captures are decoded with)")
-        from ...decoding import decode
+        from ...decoding.decoder import decode_samples
 
-        return decode(item, grid, white=white, **CAPTURE_DECODE)
-    raise TypeError(f"expected LightField or RawCapture, got {type(item).__name__}")
+        return decode_samples(item, grid, white=white, **CAPTURE_DECODE)
+    raise TypeError(f"expected LightField, (LightField, LensSamples) or RawCapture, got {type(item).__name__}")
 
 
 def _quality(errors: Reprojection, names: Sequence[str], corners: Sequence[ViewCorners]) -> dict[str, Any]:
@@ -173,12 +177,12 @@ def run_geometric_calibration(raws_or_lightfields: Iterable[LightField | RawCapt
         if names is not None and n >= len(names):
             raise ValueError(f"names has {len(names)} entries for more captures")
         name = f"capture {n + 1}" if names is None else names[n]
-        lf = _as_lightfield(item, grid, white)
+        lf, samples = _as_lightfield(item, grid, white)
         if shape is not None and lf.shape[:4] != shape:
             raise CalibrationError(f"{name}: light field of shape {lf.shape[:4]}, the others {shape}; decode every "
                                    "capture with the same white image and grid")
         shape = lf.shape[:4]
-        found = detect_corners(lf, board, min_weight=min_weight)
+        found = detect_corners(lf, board, min_weight=min_weight, samples=samples)
         if found.count == 0:
             reason = f"no complete {board.rows} x {board.cols} board in the {found.searched} views searched"
             log.warning("%s: %s; skipped", name, reason)
@@ -227,7 +231,7 @@ def calibrate_geometry(raws_or_lightfields: Iterable[LightField | RawCapture],
     Each capture is decoded without rectification (raws: with ``grid`` and ``white``, the same for all,
     with :data:`CAPTURE_DECODE`: the bilinear demosaic, and views extrapolated at the micro-images' edge),
     the board's inner corners are found in its sub-aperture views (:func:`.corners.detect_corners`: the
-    sector detector, then a fit of each corner to the view),
+    sector detector, then a fit of each corner to the view's lens samples, or to the view of a bare light field),
     ``H`` and the poses are initialised in closed form (:mod:`.initial`), then ``H``, the distortion
     ``[k1, k2, k3, b1, b2]`` and the poses are refined jointly by minimising the 3-D distance between each
     corner and the ray of each sample that sees it (:mod:`.solve`; each capture weighted by the inverse of
@@ -236,8 +240,11 @@ def calibrate_geometry(raws_or_lightfields: Iterable[LightField | RawCapture],
 
     Parameters
     ----------
-    raws_or_lightfields : iterable of LightField or RawCapture
-        10-20 captures of a flat checkerboard at various distances and tilts, same zoom and focus.
+    raws_or_lightfields : iterable of LightField, (LightField, LensSamples) or RawCapture
+        10-20 captures of a flat checkerboard at various distances and tilts, same zoom and focus.  The corners
+        of a raw, or of a light field given with its lens samples (:func:`plenodecode.decoding.decode_samples`),
+        are fitted on the samples (:func:`.corners.refine_corners_on_samples`); those of a bare light field on
+        its views.
     board : Board, (rows, cols, square_m) or 'ROWSxCOLSxSQUARE_M'
         Inner corners (not squares) and their spacing in metres.
     names : sequence of str, optional

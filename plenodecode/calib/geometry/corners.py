@@ -2,8 +2,9 @@
 
 Every view ``lf.data[j, i]`` of a capture is searched for the board's ``rows x cols`` inner corners
 with OpenCV's sector-based detector (``cv2.findChessboardCornersSB``, sub-pixel accurate with
-``CALIB_CB_ACCURACY``); only complete detections count, and each corner is then fitted to the view itself
-(:func:`refine_corners`, a blurred X-junction in a window that stays inside the corner's squares).  Views
+``CALIB_CB_ACCURACY``); only complete detections count, and each corner is then fitted by a blurred X-junction
+in a window that stays inside the corner's squares: to the view's lens samples on the hex lattice when the
+decoder handed them out (:func:`refine_corners_on_samples`), else to the view itself (:func:`refine_corners`).  Views
 darker than ``min_weight`` of the central view's weight (the vignetted border of the angular disk) are not
 searched.
 
@@ -176,7 +177,7 @@ def view_weights(lf: LightField) -> np.ndarray:
 
 
 def detect_corners(lf: LightField, board: Board | tuple[int, int, float] | str, *,
-                   min_weight: float = MIN_VIEW_WEIGHT, refine: bool = True,
+                   min_weight: float = MIN_VIEW_WEIGHT, refine: bool = True, samples=None,
                    progress: Callable[[int, int], None] | None = None) -> ViewCorners:
     """The board's corners in every bright-enough sub-aperture view of ``lf``.
 
@@ -188,7 +189,10 @@ def detect_corners(lf: LightField, board: Board | tuple[int, int, float] | str, 
     min_weight : float
         Views with a mean weight below ``min_weight`` x the central view's are skipped.
     refine : bool
-        Fit each corner to the view (:func:`refine_corners`) after the detector.
+        Fit each corner after the detector: to the view (:func:`refine_corners`), or, with ``samples``, to
+        the view's lens samples (:func:`refine_corners_on_samples`).
+    samples : LensSamples, optional
+        The samples ``lf`` was resampled from (:func:`plenodecode.decoding.decoder.decode_samples`).
     progress : callable(done, total), optional
 
     Returns
@@ -206,7 +210,10 @@ def detect_corners(lf: LightField, board: Board | tuple[int, int, float] | str, 
     todo = [(i, j) for j in range(V) for i in range(U) if bright[j, i]]
     views, found = [], []
     for n, (i, j) in enumerate(todo):
-        xy = detect_view(luma(lf.data[j, i]), board, refine=refine)
+        xy = detect_view(luma(lf.data[j, i]), board, refine=refine and samples is None)
+        if xy is not None and refine and samples is not None:
+            xy, _ = refine_corners_on_samples(luma(samples.data[j, i]), samples.position, samples.weight[j, i], xy,
+                                              board.rows, board.cols)
         if xy is not None:
             views.append((i, j))
             found.append(xy)
@@ -258,7 +265,7 @@ def _window_radii(grid: np.ndarray) -> np.ndarray:
     return out
 
 
-def _junction_model(q: np.ndarray, px: np.ndarray, py: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _tanh_junction(q: np.ndarray, px: np.ndarray, py: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The X-junction of :func:`refine_corners` at pixels (N, P) for parameters q (N, 7)
     ``(cx, cy, th1, th2, sigma, a, b)``: values (N, P) and their Jacobian (N, P, 7)."""
     dx, dy = px - q[:, :1], py - q[:, 1:2]
@@ -275,9 +282,8 @@ def _junction_model(q: np.ndarray, px: np.ndarray, py: np.ndarray) -> tuple[np.n
 
 
 def _fit_junctions(img: np.ndarray, params: np.ndarray, radius: np.ndarray, iterations: int) -> np.ndarray:
-    """Levenberg-Marquardt fit of :func:`_junction_model` (one damping per corner) to the pixels of ``img``
+    """Levenberg-Marquardt fit of :func:`_tanh_junction` (one damping per corner) to the pixels of ``img``
     within ``radius`` (N,) of the starting ``params[:, :2]`` (an anti-aliased disk); (N, 7) float64."""
-    params = params.copy()
     half = int(np.ceil(radius.max() + 1.0))
     oy, ox = np.mgrid[-half:half + 1, -half:half + 1]
     centre = np.rint(params[:, :2]).astype(np.int64)
@@ -287,11 +293,56 @@ def _fit_junctions(img: np.ndarray, params: np.ndarray, radius: np.ndarray, iter
     distance = np.hypot(px - params[:, :1], py - params[:, 1:2])
     weight = np.clip(radius[:, None] - distance + 0.5, 0.0, 1.0) * inside
     value = img[np.clip(py, 0, img.shape[0] - 1), np.clip(px, 0, img.shape[1] - 1)]
-    _, jac = _junction_model(params, px, py)            # (a, b) enter linearly: solved first
+    return _fit_junction_points(px, py, value, weight, params, iterations)
+
+
+def _box_edge(d: np.ndarray, sigma: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A step edge (-1 | +1) averaged over a box of ``width`` and blurred by a Gaussian of ``sigma``, at
+    signed distances ``d``: ``E(d) = 2 (psi(d + w/2) - psi(d - w/2)) / w - 1`` with
+    ``psi(x) = x Phi(x / sigma) + sigma phi(x / sigma)`` (the integral of the Gaussian's CDF ``Phi``);
+    returns ``E``, ``dE / dd`` and ``dE / dsigma``."""
+    from scipy.special import ndtr
+
+    hi, lo = (d + width / 2) / sigma, (d - width / 2) / sigma
+    pdf_hi, pdf_lo = np.exp(-0.5 * hi ** 2) / np.sqrt(2 * np.pi), np.exp(-0.5 * lo ** 2) / np.sqrt(2 * np.pi)
+    cdf_hi, cdf_lo = ndtr(hi), ndtr(lo)
+    value = 2.0 * sigma * (hi * cdf_hi + pdf_hi - lo * cdf_lo - pdf_lo) / width - 1.0
+    return value, 2.0 * (cdf_hi - cdf_lo) / width, 2.0 * (pdf_hi - pdf_lo) / width
+
+
+def _box_junction_model(q: np.ndarray, px: np.ndarray, py: np.ndarray, width: float
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_tanh_junction` with :func:`_box_edge` edges instead of ``tanh(d / sigma)``:
+    ``I = a + b E(n1 . (p - c)) E(n2 . (p - c))``; values (N, P), Jacobian (N, P, 7)."""
+    dx, dy = px - q[:, :1], py - q[:, 1:2]
+    c1, s1, c2, s2 = np.cos(q[:, 2:3]), np.sin(q[:, 2:3]), np.cos(q[:, 3:4]), np.sin(q[:, 3:4])
+    d1, d2 = c1 * dx + s1 * dy, c2 * dx + s2 * dy
+    sigma, a, b = q[:, 4:5], q[:, 5:6], q[:, 6:7]
+    e1, de1, ds1 = _box_edge(d1, sigma, width)
+    e2, de2, ds2 = _box_edge(d2, sigma, width)
+    g1, g2 = b * de1 * e2, b * e1 * de2
+    jac = np.stack([-(g1 * c1 + g2 * c2), -(g1 * s1 + g2 * s2),
+                    g1 * (c1 * dy - s1 * dx), g2 * (c2 * dy - s2 * dx),
+                    b * (ds1 * e2 + e1 * ds2), np.ones_like(d1), e1 * e2], axis=-1)
+    return a + b * e1 * e2, jac
+
+
+def _fit_junction_points(px: np.ndarray, py: np.ndarray, value: np.ndarray, weight: np.ndarray, params: np.ndarray,
+                         iterations: int, box: float = 0.0) -> np.ndarray:
+    """Levenberg-Marquardt fit of :func:`_tanh_junction` (one damping per corner) to the values (N, P) at
+    ``(px, py)`` (N, P) with weights (N, P), from ``params`` (N, 7); (N, 7) float64.  ``box`` > 0 fits
+    :func:`_box_junction_model` with that box width instead."""
+    params = params.copy()
+    if box > 0:
+        def model(q, x, y):
+            return _box_junction_model(q, x, y, box)
+    else:
+        model = _tanh_junction
+    _, jac = model(params, px, py)            # (a, b) enter linearly: solved first
     basis = jac[..., 5:]
     gram = np.einsum("np,npi,npj->nij", weight, basis, basis) + 1e-12 * np.eye(2)
     params[:, 5:] = np.linalg.solve(gram, np.einsum("np,npi,np->ni", weight, basis, value)[..., None])[..., 0]
-    predicted, jac = _junction_model(params, px, py)
+    predicted, jac = model(params, px, py)
     cost = np.einsum("np,np->n", weight, (value - predicted) ** 2)
     damping = np.full(len(params), 1e-3)
     for _ in range(iterations):
@@ -302,7 +353,7 @@ def _fit_junctions(img: np.ndarray, params: np.ndarray, radius: np.ndarray, iter
                                gradient[..., None])[..., 0]
         trial = params + step
         trial[:, 4] = np.clip(trial[:, 4], 0.1, 10.0)
-        trial_predicted, trial_jac = _junction_model(trial, px, py)
+        trial_predicted, trial_jac = model(trial, px, py)
         trial_cost = np.einsum("np,np->n", weight, (value - trial_predicted) ** 2)
         better = trial_cost < cost
         params[better], predicted[better], jac[better], cost[better] = (trial[better], trial_predicted[better],
@@ -344,17 +395,106 @@ def refine_corners(image: np.ndarray, corners: np.ndarray, rows: int, cols: int,
         Which were refined.
     """
     img = np.asarray(image, dtype=np.float64)
+    c0, params, radius = _junction_start(corners, rows, cols)
+    for _ in range(max(1, int(passes))):
+        params = _fit_junctions(img, params, radius, iterations)
+    return _accept(c0, params)
+
+
+def _junction_start(corners: np.ndarray, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Detector corners (rows * cols, 2), the fit's start (N, 7): edges along the grid lines through each
+    corner, sigma 1 px, ``a = b = 0`` (solved first) and the window radii (N,) of :func:`refine_corners`."""
     c0 = np.asarray(corners, dtype=np.float64).reshape(-1, 2)
     grid = c0.reshape(rows, cols, 2)
     radius = np.clip(_window_radii(grid).ravel() - REFINE_EDGE_MARGIN_PX, *REFINE_RADIUS_PX)
-    # start: edges along the grid lines through the corner, sigma 1 px, (a, b) by linear least squares
     row_dir = np.gradient(grid, axis=1).reshape(-1, 2)
     col_dir = np.gradient(grid, axis=0).reshape(-1, 2)
     theta = np.stack([np.arctan2(row_dir[:, 1], row_dir[:, 0]) + np.pi / 2,
                       np.arctan2(col_dir[:, 1], col_dir[:, 0]) + np.pi / 2], axis=1)
     params = np.column_stack([c0, theta, np.ones(len(c0)), np.zeros((len(c0), 2))])
-    for _ in range(max(1, int(passes))):
-        params = _fit_junctions(img, params, radius, iterations)
+    return c0, params, radius
+
+
+def _accept(c0: np.ndarray, params: np.ndarray, valid: np.ndarray | bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """The fitted corners where the fit is finite, moved at most :data:`REFINE_MAX_SHIFT_PX` and sigma < 10;
+    the detector's elsewhere.  Returns (N, 2) float64 and the mask (N,) bool of fitted ones."""
     shift = np.linalg.norm(params[:, :2] - c0, axis=1)
-    ok = np.all(np.isfinite(params), axis=1) & (shift <= REFINE_MAX_SHIFT_PX) & (params[:, 4] < 10.0)
+    ok = np.all(np.isfinite(params), axis=1) & (shift <= REFINE_MAX_SHIFT_PX) & (params[:, 4] < 10.0) & valid
     return np.where(ok[:, None], params[:, :2], c0), ok
+
+
+#: Width (decoded px) of the box each lens sample averages the scene over, in the edge model of
+#: :func:`refine_corners_on_samples`: one lens footprint (the generator's is 1 x 1 decoded sample; a hex cell of
+#: the same area projects like a box of 1.05).  On 12 generated sets (bench/bench_geometry.py) the fit with
+#: ``tanh`` edges (0) left the shared corner error near the focus as it was and put H 1.00 % off on k1 = 4.
+SAMPLE_FOOTPRINT_PX = 1.0
+#: A corner with fewer lens samples than this in its window keeps the detector's position
+#: (:func:`refine_corners_on_samples`; the junction has 7 parameters).
+MIN_WINDOW_SAMPLES = 12
+
+
+def refine_corners_on_samples(values: np.ndarray, positions: np.ndarray, weights: np.ndarray, corners: np.ndarray,
+                              rows: int, cols: int, *, iterations: int = 30, passes: int = REFINE_PASSES,
+                              box: float = SAMPLE_FOOTPRINT_PX) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`refine_corners` fitted to a view's samples on the lens lattice, where they were measured.
+
+    The window is that of :func:`refine_corners` (a disk inside the corner's 2 x 2 squares), but its points are
+    the view's lens samples (:class:`plenodecode.decoding.decoder.LensSamples`) at their positions ``p_s`` on
+    the hex lattice, in the decoded view's pixel coordinates, instead of the pixels the hex -> rect step
+    interpolated from them; each enters with weight ``w_s * disk(|p_s - c|)``, ``w_s`` its reliability.  A
+    sample averages the scene over its lens's footprint, so each edge is a step averaged over a box of
+    ``box`` px and blurred by a Gaussian of fitted ``sigma`` (the defocus, the pixel and the interpolations):
+    ::
+
+        I(p) = a + b E(n1 . (p - c)) E(n2 . (p - c)),   E(d) = 2 (psi(d + w/2) - psi(d - w/2)) / w - 1,
+        psi(x) = x Phi(x / sigma) + sigma phi(x / sigma)
+
+    (``box`` = 0: ``E(d) = tanh(d / sigma)``, :func:`refine_corners`'s model).  Near the focus every view
+    samples an edge at the same lens positions and the box is most of its blur: ``tanh`` there misplaced
+    the corners alike in all views (bench/bench_geometry.py).
+
+    Parameters
+    ----------
+    values : (R, K) float
+        The view's samples (luma) on the lens lattice.
+    positions : (R, K, 2) float
+        Their ``(x, y)`` in the view's pixel coordinates.
+    weights : (R, K) float
+        Their reliability (0 = no sample); the slicer's sample weights.
+    corners : (rows * cols, 2) float
+        ``(x, y)`` from the detector on the decoded view, in :func:`canonical_order`.
+    box : float
+        Footprint width ``w`` (px), default :data:`SAMPLE_FOOTPRINT_PX`.
+
+    Returns
+    -------
+    corners : (rows * cols, 2) float64
+        Refined; a corner whose fit fails, has fewer than :data:`MIN_WINDOW_SAMPLES` samples or moves more than
+        :data:`REFINE_MAX_SHIFT_PX` keeps its input.
+    refined : (rows * cols,) bool
+    """
+    from scipy.spatial import cKDTree
+
+    v = np.asarray(values, dtype=np.float64).ravel()
+    pos = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+    w = np.asarray(weights, dtype=np.float64).ravel()
+    keep = (w > 0) & np.isfinite(v) & np.all(np.isfinite(pos), axis=1)
+    v, pos, w = v[keep], pos[keep], w[keep]
+    c0, params, radius = _junction_start(corners, rows, cols)
+    if len(v) < MIN_WINDOW_SAMPLES:
+        return c0.copy(), np.zeros(len(c0), bool)
+    tree = cKDTree(pos)
+    count = np.zeros(len(c0), np.int64)
+    for _ in range(max(1, int(passes))):
+        near = tree.query_ball_point(params[:, :2], radius + 0.5)
+        count = np.array([len(n) for n in near], np.int64)
+        index = np.zeros((len(c0), max(1, int(count.max()))), np.int64)
+        present = np.zeros(index.shape, bool)
+        for n, found in enumerate(near):
+            index[n, :len(found)] = found
+            present[n, :len(found)] = True
+        px, py = pos[index, 0], pos[index, 1]
+        distance = np.hypot(px - params[:, :1], py - params[:, 1:2])
+        weight = np.clip(radius[:, None] - distance + 0.5, 0.0, 1.0) * w[index] * present
+        params = _fit_junction_points(px, py, v[index], weight, params, iterations, box)
+    return _accept(c0, params, count >= MIN_WINDOW_SAMPLES)
