@@ -203,11 +203,6 @@ class LensSamples:
         Sample of view ``(v, u)`` under lens ``(r, k)`` (the slicer's output, colour matrix applied).
     weight : ndarray, shape (V, U, R, K), float32
         Its weight (the white's share of its bilinear footprint inside the lens; 0 = no sample).
-    extrapolated : ndarray, shape (V, U, R, K), float32
-        Share of its bilinear footprint (weights summing to 1) on pixels not usable in every channel
-        (another lens's, unmeasured, or a demosaic stencil cut, :func:`.slice.usable_pixels`): 0 for a plain
-        bilinear sample, up to 1 for one made by the slicer's extrapolation (or renormalisation) at the
-        micro-image's edge.
     position : ndarray, shape (R, K, 2), float64
         ``(x, y)`` of lens ``(r, k)`` in the decoded view's pixel coordinates (pixel centres at integers):
         ``x = (k p + s (r mod 2) - b0) / step``, ``y = r`` (``p`` pitch, ``s`` odd-row shift, ``b0`` and
@@ -216,7 +211,6 @@ class LensSamples:
 
     data: np.ndarray
     weight: np.ndarray
-    extrapolated: np.ndarray
     position: np.ndarray
 
 
@@ -230,47 +224,20 @@ def lens_positions(grid: LensletGrid) -> np.ndarray:
     return np.stack([x, r], axis=-1)
 
 
-def _footprint_cut(labels: np.ndarray, usable: np.ndarray, every: int, centres: np.ndarray, offsets: np.ndarray,
-                   first_label: int, label_cols: int) -> np.ndarray:
-    """Share (V, U, R, K) float32 of each sample's bilinear footprint on pixels not usable in every channel or
-    not its lens's (:class:`LensSamples` ``extrapolated``)."""
-    h, w = labels.shape
-    nr, nc = centres.shape[:2]
-    pos = centres[None, None] + offsets[:, :, None, None]               # (V, U, R, K, 2) sensor (row, col)
-    base = np.floor(np.nan_to_num(pos, nan=-10.0))
-    frac = np.nan_to_num(pos, nan=-10.0) - base
-    lab = first_label + np.arange(nr)[:, None] * label_cols + np.arange(nc)[None, :]
-    good = np.zeros(pos.shape[:-1], np.float64)
-    for dy in (0, 1):
-        for dx in (0, 1):
-            yy, xx = base[..., 0].astype(np.int64) + dy, base[..., 1].astype(np.int64) + dx
-            inside = (yy >= 0) & (yy < h) & (xx >= 0) & (xx < w)
-            yc, xc = np.clip(yy, 0, h - 1), np.clip(xx, 0, w - 1)
-            ok = inside & (labels[yc, xc] == lab) & (usable[yc, xc] == every)
-            wy = frac[..., 0] if dy else 1.0 - frac[..., 0]
-            wx = frac[..., 1] if dx else 1.0 - frac[..., 1]
-            good += ok * wy * wx
-    share = np.clip(1.0 - good, 0.0, 1.0)
-    share[share < 1e-9] = 0.0                      # the four bilinear weights' rounding
-    return share.astype(np.float32)
-
-
 def decode_samples(raw: RawCapture, grid: LensletGrid, **kw) -> tuple[LightField, LensSamples]:
     """:func:`decode` that also hands out every view's samples on the lens lattice (:class:`LensSamples`).
 
     Takes :func:`decode`'s keywords but ``geometry`` (the samples are not rectified); the light field is
     the one :func:`decode` returns with them.  For fits that want the data where it was measured (geometric
     calibration's corner fit) rather than interpolated by the hex -> rect step.  The samples take about the
-    light field's memory again; a generated F01 capture (113 x 112 lenses, 9 x 9 views) costs 0.41 CPU s
-    instead of 0.22 (mostly the extrapolated share).
+    light field's memory again.
     """
     if kw.get("geometry") is not None:
         raise ValueError("decode_samples does not rectify: pass geometry=None")
     kw.pop("geometry", None)
     store: dict = {}
     lf = _decode(raw, grid, timings=None, samples_out=store, **kw)
-    return lf, LensSamples(data=store["data"], weight=store["weight"], extrapolated=store["extrapolated"],
-                           position=lens_positions(grid))
+    return lf, LensSamples(data=store["data"], weight=store["weight"], position=lens_positions(grid))
 
 
 def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosaic: str = DEFAULT_DEMOSAIC,
@@ -332,7 +299,6 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
         n_rows = grid.shape[0]
         samples_out["data"] = np.zeros((nv, nv, n_rows, cols, nch), np.float32)
         samples_out["weight"] = np.zeros((nv, nv, n_rows, cols), np.float32)
-        samples_out["extrapolated"] = np.ones((nv, nv, n_rows, cols), np.float32)
 
     scratch = _Scratch()
     black = np.asarray(raw.black)
@@ -405,10 +371,6 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
         if samples_out is not None:
             samples_out["data"][:, :, band.i0:band.i1] = samples
             samples_out["weight"][:, :, band.i0:band.i1] = sw
-            if usable is None:
-                usable = np.isfinite(img[..., 0]).view(np.uint8) * np.uint8((1 << nch) - 1)
-            samples_out["extrapolated"][:, :, band.i0:band.i1] = _footprint_cut(
-                labels, usable, (1 << nch) - 1, own, offsets, (band.i0 - band.e0) * cols, cols)
         hex_to_rect(samples, sw, grid, first_row=band.i0, method=resample,
                     out=data[:, :, band.i0:band.i1], out_weight=weight[:, :, band.i0:band.i1])
         tick("hex->rect", t)

@@ -46,10 +46,13 @@ def geometry_captures(inputs: Sequence[str | os.PathLike]) -> list[Path]:
 
 
 def _lightfields(paths: Sequence[Path], calibration_options: dict[str, Any], mosaic: MosaicOptions | None,
-                 progress: Progress) -> Iterator[LightField]:
+                 progress: Progress) -> Iterator[Any]:
     """Each capture as a light field, decoded on demand (one in memory at a time); the raws share the
-    calibration chosen for the first."""
+    calibration chosen for the first and come with their lens samples, which the corners are fitted on
+    (``(LightField, LensSamples)``, :func:`plenodecode.decoding.decode_samples`)."""
     from ..calib.geometry.captures import CAPTURE_DECODE
+    from ..decoding import decode_samples
+    from ..io.raytrix import is_rgb_export
 
     chosen: Calibration | None = None
     for n, path in enumerate(paths):
@@ -59,7 +62,10 @@ def _lightfields(paths: Sequence[Path], calibration_options: dict[str, Any], mos
         else:
             if chosen is None:
                 chosen = choose_calibration(item, mosaic=mosaic, **calibration_options)   # logs its choice
-            yield decode_raw(item, chosen, **CAPTURE_DECODE)
+            if is_rgb_export(item):       # decoded plane by plane: no lens samples of its own
+                yield decode_raw(item, chosen, **CAPTURE_DECODE)
+            else:
+                yield decode_samples(item, chosen.grid, white=chosen.white, **CAPTURE_DECODE)
         if progress is not None:
             progress(n + 1, len(paths))
 
