@@ -61,9 +61,10 @@ COSTVOLUME: dict[str, Any] = {
     "refine_strip_penalty": 16.0,  # the same in the refinement, whose long strips (refine_radius) fit faint texture
     "strip_penalty_noise": 0.002,   # strip_penalty holds for views of noise sigma up to this, x (this / sigma)
     "refine_penalty_noise": 0.002,  # above, at least 0.15 of it (0: fixed); the same for refine_strip_penalty
-    "strip_floor": 1.0,       # the strip penalties apply above this x 2 sigma_low^2 on noisy views only
-                              # (pipeline.strip_floor_for; decoded thin means 22.03 -> 20.90 %, with gate_noise
-                              # 20.65 -> 19.84 %; thin GT, hci-antinous unchanged: their sigma_low is below 0.003)
+    "strip_floor": 1.0,       # the strip penalties apply above this x 2 sigma_low^2 on noisy views only, and the
+                              # edge pass's visibility check compares costs above it (pipeline.strip_floor_for,
+                              # edge_floor_for; decoded thin means 22.03 -> 20.74 %, with gate_noise 20.65 -> 19.62
+                              # %; thin GT, hci-antinous unchanged: their sigma_low is below 0.003)
     "gate_ratio": 2.0,        # clean-ups may not raise a pixel's matching cost above this x its own (0 = off)
     "gate_floor": 0.05,       # ... plus this (cost units: the median per-pixel cost span)
     "gate_noise": 1.0,        # ... above this x the noise's cost on noisy views (pipeline.gate_base_for; 0 = off;

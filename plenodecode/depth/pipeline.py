@@ -102,7 +102,7 @@ import numpy as np
 from ..types import LightField
 from .aggregation import sgm, winner
 from .confidence import estimate_confidence
-from .cost import N_SECTORS, Progress, half_plane_cost_volume, make_labels
+from .cost import FLOOR_MARGIN, N_SECTORS, Progress, floor_standard_error, half_plane_cost_volume, make_labels
 from .occlusion import EDGE_DEFAULTS, fix_occlusion_edges
 from .refinement import cost_gate, refine_disparity, refine_radius_for, weighted_median
 from .views import Views, add_contrast, colour_guide, noise_sigmas, prepare_views
@@ -356,6 +356,21 @@ def strip_floor_for(factor: float, reference_noise: float, noise_low: float, cha
     return float(factor) * contrast_smooth_for(1.0, reference_noise, noise_low) * 2.0 * noise_low * noise_low * channels
 
 
+def edge_floor_for(strip_floor: float, n_views: int, wedge: int) -> float:
+    """The ``noise_floor`` of :func:`~plenodecode.depth.occlusion.fix_occlusion_edges`' visibility check::
+
+        strip_floor * max(0, 1 - FLOOR_MARGIN * floor_standard_error(n_views * wedge / N_SECTORS, 9))
+
+    the strips' floor (:func:`strip_floor_for`, the intensity channel's share of the matching views' error)
+    less :data:`~plenodecode.depth.cost.FLOOR_MARGIN` standard errors of the smaller of its two costs, the
+    wedge's mean over 3 x 3 pixels (:func:`~plenodecode.depth.cost.floor_standard_error`).
+    """
+    if not strip_floor > 0 or n_views < 1:
+        return 0.0
+    n = max(1.0, n_views * wedge / N_SECTORS)
+    return float(strip_floor) * max(0.0, 1.0 - FLOOR_MARGIN * floor_standard_error(n, 9))
+
+
 #: The quantile (%) of the per-pixel minimum of the matching cost that :func:`gate_base_for` reads.
 GATE_BASE_QUANTILE = 10.0
 
@@ -509,7 +524,9 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
                                         jump=float(p["edge_jump"]), ratio=float(p["edge_ratio"]),
                                         wedge=int(p["edge_wedge"]), median_radius=int(p["edge_median_radius"]),
                                         intensities=intensities, visibility=bool(p["edge_visibility"]),
-                                        coverage=bool(p["edge_coverage"]), gate=gated)
+                                        coverage=bool(p["edge_coverage"]), gate=gated,
+                                        noise_floor=edge_floor_for(strips["strip_floor"], len(views.used()),
+                                                                   int(p["edge_wedge"])))
     # confidence at the final disparity: the view agreement of the map after the occlusion step, so a pixel the
     # edge pass moved to the far side is judged by the views that see it there, and its consistency with the
     # winner of the matching cost (low where the steps after the matching moved it off its own views' choice)
@@ -552,5 +569,5 @@ def run_preset(lf: LightField, method: str, preset: Mapping[str, Any], /, *, pro
 
 __all__ = ["VIEW_DEFAULTS", "PIPELINE_KEYS", "metadata_disparity_range", "estimate_disparity_range",
            "disparity_range", "strip_penalty_for", "contrast_smooth_for", "shift_noise_var", "strip_floor_for",
-           "gate_base_for", "merge_params", "preset_defaults", "check_params",
+           "gate_base_for", "edge_floor_for", "merge_params", "preset_defaults", "check_params",
            "run_pipeline", "run_preset"]

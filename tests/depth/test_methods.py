@@ -227,7 +227,7 @@ def test_noise_floor_keeps_a_weak_far_plane_between_noisy_slats():
     between them.  The strips' penalty on their whole error multiplied the noise every label shares, so the
     row lost to the half-planes' near disparity, and the clean-up gate's ratio of two noise-borne costs let
     the median carry the slats over the plane.  Measured BadPix0.07 54.7 % with neither noise floor, 51.9 %
-    with the gate's, 42.2 % with the strips', 39.1 % with both."""
+    with the gate's, 40.9 % with the strips' (and the edge pass's), 37.6 % with both."""
     import dataclasses
 
     from plenodecode.synthetic import THIN_SCENES, simulate_ideal
