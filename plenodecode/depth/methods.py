@@ -61,8 +61,14 @@ COSTVOLUME: dict[str, Any] = {
     "refine_strip_penalty": 16.0,  # the same in the refinement, whose long strips (refine_radius) fit faint texture
     "strip_penalty_noise": 0.002,   # strip_penalty holds for views of noise sigma up to this, x (this / sigma)
     "refine_penalty_noise": 0.002,  # above, at least 0.15 of it (0: fixed); the same for refine_strip_penalty
+    "strip_floor": 1.0,       # the strip penalties apply above this x 2 sigma_low^2 on noisy views only, and the
+                              # edge pass's visibility check compares costs above it (pipeline.strip_floor_for,
+                              # edge_floor_for; decoded thin means 22.03 -> 20.74 %, with gate_noise 20.65 -> 19.62
+                              # %; thin GT, hci-antinous unchanged: their sigma_low is below 0.003)
     "gate_ratio": 2.0,        # clean-ups may not raise a pixel's matching cost above this x its own (0 = off)
     "gate_floor": 0.05,       # ... plus this (cost units: the median per-pixel cost span)
+    "gate_noise": 1.0,        # ... above this x the noise's cost on noisy views (pipeline.gate_base_for; 0 = off;
+                              # decoded thin means 22.03 -> 20.65 %)
     "sgm_gate_ratio": 5.0,    # SGM's winner gives way to the matching cost's own where it costs more than this x
     "sgm_gate_floor": 0.03,   # ... plus this (0 ratio = off); see the pipeline's step 2
     "shift_noise": 1.0,       # noise_var of the cost volumes = this x noise sigma^2 above contrast_smooth_noise
@@ -100,8 +106,10 @@ FAST: dict[str, Any] = {
     "refine_strip_penalty": 1.0,
     "strip_penalty_noise": 0.0,
     "refine_penalty_noise": 0.0,
+    "strip_floor": 0.0,
     "gate_ratio": 0.0,
     "gate_floor": 0.05,
+    "gate_noise": 0.0,
     "sgm_gate_ratio": 0.0,
     "sgm_gate_floor": 0.03,
     "shift_noise": 0.0,

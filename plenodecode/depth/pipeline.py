@@ -36,6 +36,11 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    refinement's strips, as long as its box, have their own ``refine_strip_penalty``.  Both penalties are
    lowered on noisy views (:func:`strip_penalty_for`: ``x min(1, strip_penalty_noise / sigma)``, resp.
    ``refine_penalty_noise``, at least 0.15 of it): noise puts the same floor under every group's error.
+   On noisy views the penalties also apply above that floor only (``strip_floor`` x ``2 sigma_low^2``,
+   :func:`strip_floor_for`, with ``sigma_low`` the noise of the pixels that match,
+   :func:`~plenodecode.depth.views.noise_sigmas`, less a margin for a strip's few views): a strip that sees a
+   weakly textured far plane through a gap at its noise floor no longer loses to the near disparity of the
+   half-planes, whose box holds the gap's occluders.
    On noisy views (above ``contrast_smooth_noise``, ramped in up to twice it) every view's error also gets
    back the noise a fractional shift's interpolation averages away (``noise_var`` = ``shift_noise`` x the
    noise variance, with the noise's pixel-to-pixel correlation ``shift_noise_rho``; the same in the
@@ -64,7 +69,8 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    view (Ma et al., ICCV 2013), gated by the matching cost (:func:`~plenodecode.depth.refinement.cost_gate`,
    ``gate_ratio``, ``gate_floor``): a pixel keeps its value where the median's is clearly worse for the
    views, so a median window across a thin structure does not wipe it out (the same gate guards the edge
-   snapping of step 6).
+   snapping of step 6).  On noisy views the ratio compares the costs above the noise's (``gate_noise``,
+   :func:`gate_base_for`), which every label shares.
 5. **Sub-label refinement without the fronto-parallel bias**: a second, narrow cost volume of offsets
    ``+-refine_range`` labels around the estimate, every view warped per pixel by ``d(y, x) + offset``
    (bicubic), so slanted surfaces match exactly (SGM's label penalties favour fronto-parallel steps); its
@@ -96,10 +102,10 @@ import numpy as np
 from ..types import LightField
 from .aggregation import sgm, winner
 from .confidence import estimate_confidence
-from .cost import N_SECTORS, Progress, half_plane_cost_volume, make_labels
+from .cost import FLOOR_MARGIN, N_SECTORS, Progress, floor_standard_error, half_plane_cost_volume, make_labels
 from .occlusion import EDGE_DEFAULTS, fix_occlusion_edges
 from .refinement import cost_gate, refine_disparity, refine_radius_for, weighted_median
-from .views import Views, add_contrast, colour_guide, noise_sigma, prepare_views
+from .views import Views, add_contrast, colour_guide, noise_sigmas, prepare_views
 
 log = logging.getLogger(__name__)
 
@@ -210,8 +216,9 @@ PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "med
                  "contrast_noise", "contrast_smooth", "contrast_smooth_noise", "contrast_weight", "min_view_weight",
                  "disparity_range", "strips", "strip_width", "strip_halves",
                  "strip_radius", "strip_penalty", "refine_strip_penalty", "strip_penalty_noise", "refine_penalty_noise",
-                 "gate_ratio", "gate_floor", "sgm_gate_ratio", "sgm_gate_floor", "confidence_radius", "shift_noise",
-                 "shift_noise_rho", "radius_noisy", "refine_radius_noisy", "contrast_weight_noisy", *EDGE_DEFAULTS)
+                 "strip_floor", "gate_ratio", "gate_floor", "gate_noise", "sgm_gate_ratio", "sgm_gate_floor",
+                 "confidence_radius", "shift_noise", "shift_noise_rho", "radius_noisy", "refine_radius_noisy",
+                 "contrast_weight_noisy", *EDGE_DEFAULTS)
 
 
 def merge_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]) -> dict[str, Any]:
@@ -259,7 +266,8 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
     for name in ("strip_width", "strip_penalty", "refine_strip_penalty"):
         if not float(p[name]) > 0:
             raise ValueError(f"{name} must be positive, got {p[name]!r}")
-    for name in ("shift_noise", "strips", "strip_radius", "strip_penalty_noise", "refine_penalty_noise", "gate_ratio",
+    for name in ("shift_noise", "strips", "strip_radius", "strip_penalty_noise", "refine_penalty_noise", "strip_floor",
+                 "gate_ratio", "gate_noise",
                  "gate_floor", "sgm_gate_ratio", "sgm_gate_floor"):
         if not float(p[name]) >= 0:
             raise ValueError(f"{name} must be >= 0, got {p[name]!r}")
@@ -329,6 +337,64 @@ def shift_noise_var(factor: float, reference_noise: float, noise: float) -> floa
     return float(factor) * contrast_smooth_for(1.0, reference_noise, noise) * noise * noise
 
 
+def strip_floor_for(factor: float, reference_noise: float, noise_low: float, channels: int) -> float:
+    """The ``strip_floor`` of :func:`~plenodecode.depth.cost.half_plane_cost_volume`: the mean error per view
+    of views that differ by noise only, above which a strip's penalty applies::
+
+        factor * ramp * 2 sigma_low^2 * channels,   ramp = clip(sigma_low / reference_noise - 1, 0, 1)
+
+    ``sigma_low`` is the noise read on the pixels that match (:func:`~plenodecode.depth.views.noise_sigmas`),
+    not lifted by the edges of thin structures, and ``ramp`` that of :func:`contrast_smooth_for`.  On clean
+    views ``sigma_low`` is what a bilinear shift cannot reproduce of fine texture, which the bicubic refinement
+    does: there a floor of that size made the refinement's strips win a plane's sub-pixel minimum (a textured
+    plane at 0.8, sigma_low 0.0027: median error 0.013 -> 0.022 px at a floor of 1e-6), so it is ramped in
+    from ``reference_noise`` on (hci-antinous 0.0013, the noise-free thin scenes 0.0004-0.0032, their decoded
+    versions 0.006-0.011).
+    """
+    if not factor > 0 or not noise_low > 0:
+        return 0.0
+    return float(factor) * contrast_smooth_for(1.0, reference_noise, noise_low) * 2.0 * noise_low * noise_low * channels
+
+
+def edge_floor_for(strip_floor: float, n_views: int, wedge: int) -> float:
+    """The ``noise_floor`` of :func:`~plenodecode.depth.occlusion.fix_occlusion_edges`' visibility check::
+
+        strip_floor * max(0, 1 - FLOOR_MARGIN * floor_standard_error(n_views * wedge / N_SECTORS, 9))
+
+    the strips' floor (:func:`strip_floor_for`, the intensity channel's share of the matching views' error)
+    less :data:`~plenodecode.depth.cost.FLOOR_MARGIN` standard errors of the smaller of its two costs, the
+    wedge's mean over 3 x 3 pixels (:func:`~plenodecode.depth.cost.floor_standard_error`).
+    """
+    if not strip_floor > 0 or n_views < 1:
+        return 0.0
+    n = max(1.0, n_views * wedge / N_SECTORS)
+    return float(strip_floor) * max(0.0, 1.0 - FLOOR_MARGIN * floor_standard_error(n, 9))
+
+
+#: The quantile (%) of the per-pixel minimum of the matching cost that :func:`gate_base_for` reads.
+GATE_BASE_QUANTILE = 10.0
+
+
+def gate_base_for(cost: np.ndarray, factor: float, reference_noise: float, noise_low: float) -> float:
+    """The ``base`` of :func:`~plenodecode.depth.refinement.cost_gate`: the matching cost that noise alone
+    leaves at the best label, which the gate's ratio does not scale::
+
+        factor * ramp * P10( min_d C(p, d) ),   ramp = clip(sigma_low / reference_noise - 1, 0, 1)
+
+    the 10th percentile (:data:`GATE_BASE_QUANTILE`) over the pixels (every other row and column) of the
+    normalised cost volume's per-pixel minimum, ``sigma_low`` and ``ramp`` as :func:`strip_floor_for`.  On noisy
+    views every label's cost sits on that floor, so a ratio of two costs stays near 1 and the gate let the
+    weighted median move weakly textured far pixels between thin slats to the slats' disparity.
+    """
+    if not factor > 0 or not noise_low > 0:
+        return 0.0
+    ramp = contrast_smooth_for(1.0, reference_noise, noise_low)
+    if not ramp > 0:
+        return 0.0
+    floor = float(np.percentile(cost[::2, ::2].min(axis=-1), GATE_BASE_QUANTILE))
+    return float(factor) * ramp * max(0.0, floor)
+
+
 #: The lowest fraction of a strip penalty that :func:`strip_penalty_for` lowers it to.
 MIN_PENALTY_FRACTION = 0.15
 
@@ -356,7 +422,10 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
         The parameters used, with the disparity range and its source, the views' noise and the contrast
         ``eps`` and weight used (``contrast_weight_used``), the strip penalties used (``strip_penalty_used``,
         ``refine_strip_penalty_used``: :func:`strip_penalty_for`), the cost volumes' ``noise_var``
-        (``shift_noise_var_used``: :func:`shift_noise_var`), the box radii used, the number of labels and of views.
+        (``shift_noise_var_used``: :func:`shift_noise_var`), the noise of the matching pixels
+        (``noise_sigma_low``: :func:`~plenodecode.depth.views.noise_sigmas`), the strips' noise floor
+        (``strip_floor_used``: :func:`strip_floor_for`) and the cost gate's base (``gate_base_used``:
+        :func:`gate_base_for`), the box radii used, the number of labels and of views.
     """
     plain = prepare_views(lf, min_view_weight=float(p["min_view_weight"]), grey=bool(p["grey"]),
                           pattern=p["pattern"])
@@ -370,11 +439,11 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
         return built[eps, smooth, w]
 
     (lo, hi), source = disparity_range(lf, lambda: matching_views(floor), p["disparity_range"])
-    noise, eps, smooth = 0.0, floor, 0.0
+    noise, noise_low, eps, smooth = 0.0, 0.0, floor, 0.0
     if sigma > 0 and (k > 0 or float(p["contrast_smooth"]) > 0):
         # the normalisation's floor above the noise, so that noise in flat areas is not matched as texture,
         # and its smoothing on noisy views
-        noise = noise_sigma(plain, lo, hi)
+        noise, noise_low = noise_sigmas(plain, lo, hi)
         eps = max(floor, k * noise) if k > 0 else floor
         smooth = contrast_smooth_for(float(p["contrast_smooth"]), float(p["contrast_smooth_noise"]), noise)
         if weight is not None and p["contrast_weight_noisy"] is not None:
@@ -411,6 +480,9 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
               "strip_channels": views.data.shape[-1] // 2 if sigma > 0 and weight is not None else None,
               "noise_var": shift_noise_var(float(p["shift_noise"]), float(p["contrast_smooth_noise"]), noise),
               "noise_rho": (float(p["shift_noise_rho"][0]), float(p["shift_noise_rho"][1]))}
+    n_strip = strips["strip_channels"] or views.data.shape[-1]
+    strips["strip_floor"] = strip_floor_for(float(p["strip_floor"]), float(p["contrast_smooth_noise"]), noise_low,
+                                            n_strip)
     radius = int(p["radius"])
     if noise > 2 * float(p["contrast_smooth_noise"]) > 0:
         # clearly noisy views: a larger box averages the noise (a textured noise-free light field can measure
@@ -426,12 +498,14 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
               progress=stage(n_labels))
     disparity, peak_ratio = winner(agg, labels)
     del agg
+    gate_base = gate_base_for(cost, float(p["gate_noise"]), float(p["contrast_smooth_noise"]), noise_low)
+
     def gated(before: np.ndarray, after: np.ndarray, ratio: float = float(p["gate_ratio"]),
               floor: float = float(p["gate_floor"])) -> np.ndarray:
         # a step's result, except where the matching cost clearly prefers the value before it (ratio 0: off)
         if not ratio > 0:
             return after
-        return cost_gate(cost, labels, before, after, ratio=ratio, floor=floor)
+        return cost_gate(cost, labels, before, after, ratio=ratio, floor=floor, base=gate_base)
 
     # SGM's penalties, in units of the median cost span, outweigh the small cost span of a weakly textured far
     # plane seen through a slit: where the views clearly prefer their own winner, it stays
@@ -450,7 +524,9 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
                                         jump=float(p["edge_jump"]), ratio=float(p["edge_ratio"]),
                                         wedge=int(p["edge_wedge"]), median_radius=int(p["edge_median_radius"]),
                                         intensities=intensities, visibility=bool(p["edge_visibility"]),
-                                        coverage=bool(p["edge_coverage"]), gate=gated)
+                                        coverage=bool(p["edge_coverage"]), gate=gated,
+                                        noise_floor=edge_floor_for(strips["strip_floor"], len(views.used()),
+                                                                   int(p["edge_wedge"])))
     # confidence at the final disparity: the view agreement of the map after the occlusion step, so a pixel the
     # edge pass moved to the far side is judged by the views that see it there, and its consistency with the
     # winner of the matching cost (low where the steps after the matching moved it off its own views' choice)
@@ -462,6 +538,7 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
               "noise_sigma": noise, "contrast_eps_used": eps, "contrast_weight_used": weight,
               "contrast_smooth_used": smooth,
               "strip_penalty_used": strips["strip_penalty"], "shift_noise_var_used": strips["noise_var"],
+              "noise_sigma_low": noise_low, "strip_floor_used": strips["strip_floor"], "gate_base_used": gate_base,
               "refine_strip_penalty_used": refine_penalty,
               "disparity_range_source": source, "n_labels": n_labels, "views_used": len(views.used()) + 1}
     return disparity.astype(np.float32), confidence, params
@@ -491,6 +568,6 @@ def run_preset(lf: LightField, method: str, preset: Mapping[str, Any], /, *, pro
 
 
 __all__ = ["VIEW_DEFAULTS", "PIPELINE_KEYS", "metadata_disparity_range", "estimate_disparity_range",
-           "disparity_range", "strip_penalty_for", "contrast_smooth_for", "shift_noise_var", "merge_params",
-           "preset_defaults", "check_params",
+           "disparity_range", "strip_penalty_for", "contrast_smooth_for", "shift_noise_var", "strip_floor_for",
+           "gate_base_for", "edge_floor_for", "merge_params", "preset_defaults", "check_params",
            "run_pipeline", "run_preset"]

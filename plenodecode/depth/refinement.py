@@ -53,14 +53,15 @@ def cost_at(cost: np.ndarray, labels: np.ndarray, disparity: np.ndarray) -> np.n
 
 
 def cost_gate(cost: np.ndarray, labels: np.ndarray, before: np.ndarray, after: np.ndarray, *, ratio: float,
-              floor: float) -> np.ndarray:
+              floor: float, base: float = 0.0) -> np.ndarray:
     """Undo the changes of a clean-up step that the matching cost contradicts.
 
-    A pixel keeps ``before`` where ``C(after) > ratio * C(before) + floor``, with ``C`` the (unaggregated)
-    cost volume read at the map (:func:`cost_at`): the views say the new value is clearly worse than the old
-    one.  A median over a window that a thin structure (a 1-3 px slat or gap) crosses replaces it by the
-    surface around it, which its own pixels match badly; where the views cannot tell the values apart
-    (no texture, noise) ``C`` is about equal for both and the clean-up stands.  Regularisation then never
+    A pixel keeps ``before`` where ``C(after) - base > ratio * max(C(before) - base, 0) + floor``, with ``C``
+    the (unaggregated) cost volume read at the map (:func:`cost_at`) and ``base`` the cost noise alone
+    leaves (0 on clean views): the views say the new value is clearly worse than the old one.  A median over
+    a window that a thin structure (a 1-3 px slat or gap) crosses replaces it by the surface around it, which
+    its own pixels match badly; where the views cannot tell the values apart (no texture, noise) ``C`` is
+    about equal for both and the clean-up stands.  Regularisation then never
     smooths over an edge the views support, whatever the guide image shows.
 
     Parameters
@@ -72,12 +73,19 @@ def cost_gate(cost: np.ndarray, labels: np.ndarray, before: np.ndarray, after: n
         The map before and after the step.
     ratio, floor : float
         How much worse the new value's cost must be (factor, and an absolute margin in cost units).
+    base : float
+        The cost of views that differ by noise only (cost units), subtracted before the ratio: on noisy views
+        it is shared by every label, so a ratio of costs stays near 1 even where the views prefer one value.
 
     Returns
     -------
     ndarray (Y, X) float32, a new array.
     """
-    worse = cost_at(cost, labels, after) > np.float32(ratio) * cost_at(cost, labels, before) + np.float32(floor)
+    b = np.float32(base)
+    c_before = cost_at(cost, labels, before)
+    if b > 0:
+        c_before = np.maximum(c_before - b, np.float32(0.0))
+    worse = cost_at(cost, labels, after) - b > np.float32(ratio) * c_before + np.float32(floor)
     return np.where(worse, before, after).astype(np.float32)
 
 

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from plenodecode.depth.aggregation import winner
-from plenodecode.depth.cost import (N_SECTORS, half_plane_cost_volume, interpolated_noise_gain, line_kernel,
-                                    make_labels, strip_groups, strip_halves)
+from plenodecode.depth.cost import (N_SECTORS, floor_standard_error, half_plane_cost_volume, interpolated_noise_gain,
+                                    line_kernel, make_labels, strip_groups, strip_halves)
 from plenodecode.depth.views import Views, prepare_views
 
 
@@ -230,3 +230,16 @@ def test_noise_var_keeps_a_noisy_weak_plane_on_its_integer_disparity():
         errors.append((base + winner(cost, deltas)[0])[8:-8, 8:-8] + 1.0)
     assert np.median(errors[0]) < -0.1 and np.mean(np.abs(errors[0]) > 0.07) > 0.8
     assert abs(np.median(errors[1])) < 0.01 and np.mean(np.abs(errors[1]) > 0.07) < 0.3
+
+
+@pytest.mark.parametrize("n,length", [(14, 5), (6, 5), (14, 11)])
+def test_floor_standard_error_of_a_strip_on_noise(n, length):
+    """The mean over ``n`` views and ``length`` pixels of ``(a_v - c)^2`` (white noise, the centre view's ``c``
+    shared by every view) scatters around ``2 sigma^2`` by the predicted fraction."""
+    rng = np.random.default_rng(3)
+    c = rng.normal(size=(20000, length, 1))
+    a = rng.normal(size=(20000, length, n))
+    m = ((a - c) ** 2).mean(axis=(1, 2))
+    assert m.mean() == pytest.approx(2.0, rel=0.01)
+    assert m.std() / m.mean() == pytest.approx(floor_standard_error(n, length), rel=0.03)
+

@@ -221,6 +221,30 @@ def test_contrast_smoothing_on_noisy_views():
     assert badpix(lowered, gt, border=4) <= badpix(smoothed, gt, border=4)
 
 
+def test_noise_floor_keeps_a_weak_far_plane_between_noisy_slats():
+    """Issue 20's slats-h-j0.5-weak scene, small (45 x 58 px, 9 x 9 views), with white noise 0.01: a weakly
+    textured far plane behind horizontal slats 0.5 px per view step nearer, which only the row of views sees
+    between them.  The strips' penalty on their whole error multiplied the noise every label shares, so the
+    row lost to the half-planes' near disparity, and the clean-up gate's ratio of two noise-borne costs let
+    the median carry the slats over the plane.  Measured BadPix0.07 54.7 % with neither noise floor, 51.9 %
+    with the gate's, 40.9 % with the strips' (and the edge pass's), 37.6 % with both."""
+    import dataclasses
+
+    from plenodecode.synthetic import THIN_SCENES, simulate_ideal
+
+    lf, gt = simulate_ideal("illum-mini", seed=1, scene=THIN_SCENES["slats-h-j0.5-weak"], shape=(560, 720),
+                            n_views=9)
+    rng = np.random.default_rng(0)
+    lf = dataclasses.replace(lf, data=(lf.data + rng.normal(0, 0.01, lf.data.shape)).astype(np.float32))
+    bp = {}
+    for name, kw in (("none", {"strip_floor": 0.0, "gate_noise": 0.0}), ("gate", {"strip_floor": 0.0}),
+                     ("both", {})):
+        dm = estimate_depth(lf, method="costvolume", **kw)
+        bp[name] = badpix(dm, gt, border=4)
+    assert dm.params["strip_floor"] == 1.0 and dm.params["gate_noise"] == 1.0
+    assert bp["both"] < 0.8 * bp["none"] and bp["both"] < bp["gate"] - 6.0 and bp["gate"] < bp["none"], bp
+
+
 def test_importing_the_registry_stays_light():
     """The CLI builds click.Choice(list(DEPTH_METHODS)) at --help time: no numba or OpenCV import for it."""
     import subprocess

@@ -52,3 +52,14 @@ def test_refine_strip_penalty_keeps_a_floor_on_strong_noise():
 
     assert strip_penalty_for(16.0, 0.002, 0.03) == pytest.approx(16.0 * MIN_PENALTY_FRACTION)
     assert strip_penalty_for(16.0, 0.002, 0.01) == pytest.approx(3.2)      # 1 / noise above the reference
+
+
+def test_edge_floor_is_the_strip_floor_less_two_standard_errors():
+    """The visibility check's noise floor: the strips' floor less FLOOR_MARGIN standard errors of a wedge's
+    3 x 3 mean (a quarter of 176 views: 1 - 2 sqrt((1 + 3 / 44) / 18) = 0.513 of it); none without a floor,
+    less with fewer views, never negative."""
+    from plenodecode.depth.pipeline import edge_floor_for
+
+    assert edge_floor_for(1.0, 176, 2) == pytest.approx(1 - 2 * ((1 + 3 / 44) / 18) ** 0.5)
+    assert edge_floor_for(0.0, 176, 2) == 0.0 and edge_floor_for(1.0, 0, 2) == 0.0
+    assert 0.0 <= edge_floor_for(1.0, 8, 2) < edge_floor_for(1.0, 48, 2) < edge_floor_for(1.0, 176, 2)

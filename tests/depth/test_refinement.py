@@ -44,3 +44,16 @@ def test_cost_gate_keeps_what_the_views_support():
     out = cost_gate(cost, labels, before, after, ratio=2.0, floor=0.05)
     np.testing.assert_array_equal(out, [[3.0, 1.0, 1.0]])
     assert out.dtype == np.float32
+
+
+def test_cost_gate_subtracts_the_noise_base():
+    """On noisy views every label's cost sits on the noise's: a far pixel matching its own label at 1.0 and a
+    median's value at 1.3 passes a ratio of 2, but above a base of 0.9 the median's costs 4 x more."""
+    labels = np.arange(3, dtype=np.float64)
+    cost = np.array([[[1.0, 1.3, 1.3], [1.0, 1.02, 1.3]]], np.float32)
+    before = np.zeros((1, 2), np.float32)
+    after = np.ones((1, 2), np.float32)
+    np.testing.assert_array_equal(cost_gate(cost, labels, before, after, ratio=2.0, floor=0.05), [[1.0, 1.0]])
+    # the second pixel's values cost the same above the base too: the median stands
+    np.testing.assert_array_equal(cost_gate(cost, labels, before, after, ratio=2.0, floor=0.05, base=0.9),
+                                  [[0.0, 1.0]])
