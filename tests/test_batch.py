@@ -476,6 +476,11 @@ def test_cli_folder_of_unrecognised_images_says_to_name_the_raw(tmp_path):
     assert "3 image(s) (dark_frame.tif, light_field.png, radiometry_frame.png) were not taken" in res.output
     assert f"plenodecode batch {shoot}/RAW_IMAGE -o OUT" in res.output.replace("\n", "")
     assert not (tmp_path / "o").exists()
+    # the batch's own output folder inside the input is not searched, so its thumbnails are not listed
+    (shoot / "out" / "a").mkdir(parents=True)
+    cv2.imwrite(str(shoot / "out" / "a" / "centre.png"), np.full((8, 8), 1000, np.uint16))
+    res = CliRunner().invoke(cli, ["batch", str(shoot), "-o", str(shoot / "out")])
+    assert res.exit_code == 2 and "3 image(s) (dark_frame.tif, light_field.png, radiometry_frame.png)" in res.output
 
 
 # -------------------------------------------------------------------- processes and Dask

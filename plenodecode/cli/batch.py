@@ -95,7 +95,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
       plenodecode batch shoot/ -o decoded/ --outputs centre,refocus,depth --jobs 2
       plenodecode batch shoot/ -o decoded/ --scheduler tcp://10.0.0.5:8786
     """
-    from ..batch import BatchOptions, check_summary_files, find_raws, run_batch, write_summary
+    from ..batch import DONE_MARKER, BatchOptions, check_summary_files, find_raws, run_batch, write_summary
     from ..io.discovery import images_not_taken, needs_no_database
     from ..calib.store import DEFAULT_DB
 
@@ -109,7 +109,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
             raise click.UsageError(str(exc)) from None
     files = find_raws(inputs, exclude=[out_dir])
     if not files:
-        images = images_not_taken(inputs)
+        images = images_not_taken(inputs, exclude=[out_dir], stop_marker=DONE_MARKER)
         hint = ""
         if images:          # e.g. a microscope's raw beside its white and dark frames: only the user knows which
             names = ", ".join(p.name for p in images[:3]) + (f" and {len(images) - 3} more" if len(images) > 3 else "")

@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Iterable
+from typing import Callable, Iterable
 
 #: Suffixes always taken as raws when a folder is searched (Lytro containers, camera raws).
 RAW_SUFFIXES = (".lfr", ".lfp", ".dng", ".cr2", ".cr3", ".nef", ".arw", ".raf", ".orf", ".rw2")
@@ -63,8 +63,10 @@ def needs_no_database(p: Path) -> bool:
     return raytrix.find_calibration_xml(p) is not None or generic.find_sidecar(p) is None
 
 
-def _walk(folder: Path, exclude: set[Path], stop_marker: str | None) -> list[Path]:
-    """Raw candidates under ``folder``; skips hidden folders, ``exclude`` and folders holding ``stop_marker``."""
+def _walk(folder: Path, exclude: set[Path], stop_marker: str | None,
+          take: Callable[[Path], bool] = _is_raw_candidate) -> list[Path]:
+    """The files under ``folder`` that ``take`` accepts (default: raw candidates); skips hidden folders,
+    ``exclude`` and folders holding ``stop_marker``."""
     found: list[Path] = []
     for root, dirs, files in os.walk(folder):
         here = Path(root)
@@ -72,7 +74,7 @@ def _walk(folder: Path, exclude: set[Path], stop_marker: str | None) -> list[Pat
             dirs[:] = []
             continue
         dirs[:] = sorted(d for d in dirs if not d.startswith(".") and (here / d).resolve() not in exclude)
-        found.extend(here / f for f in sorted(files) if _is_raw_candidate(here / f))
+        found.extend(here / f for f in sorted(files) if take(here / f))
     return found
 
 
@@ -122,19 +124,18 @@ def find_raws(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os
     return unique
 
 
-def images_not_taken(inputs: Iterable[str | os.PathLike]) -> list[Path]:
-    """Images (:data:`MOSAIC_SUFFIXES`) in the folders among ``inputs`` that :func:`find_raws` does not take
-    (no sidecar, not a known sensor's size): what to name when a folder yields no raw.  Sorted."""
-    skipped: list[Path] = []
-    for item in inputs:
-        p = Path(item)
-        if not p.is_dir():
-            continue
-        for root, dirs, files in os.walk(p):
-            dirs[:] = sorted(d for d in dirs if not d.startswith("."))
-            skipped.extend(Path(root) / f for f in sorted(files) if not f.startswith(".")
-                           and Path(f).suffix.lower() in MOSAIC_SUFFIXES and not _is_raw_candidate(Path(root) / f))
-    return skipped
+def _image_not_taken(p: Path) -> bool:
+    return not p.name.startswith(".") and p.suffix.lower() in MOSAIC_SUFFIXES and not _is_raw_candidate(p)
+
+
+def images_not_taken(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os.PathLike] = (),
+                     stop_marker: str | None = None) -> list[Path]:
+    """Images (:data:`MOSAIC_SUFFIXES`) in the folders among ``inputs`` that :func:`find_raws` with the same
+    ``exclude`` and ``stop_marker`` does not take (no sidecar, not a known sensor's size): what to name when a
+    folder yields no raw.  Each folder's files sorted."""
+    skip = {Path(e).resolve() for e in exclude}
+    return [f for item in inputs if Path(item).is_dir() and Path(item).resolve() not in skip
+            for f in _walk(Path(item), skip, stop_marker, take=_image_not_taken)]
 
 
 __all__ = ["RAW_SUFFIXES", "PAIR_SUFFIXES", "MOSAIC_SUFFIXES", "find_raws", "needs_no_database", "images_not_taken"]
