@@ -265,24 +265,32 @@ def _window_radii(grid: np.ndarray) -> np.ndarray:
     return out
 
 
-def _tanh_junction(q: np.ndarray, px: np.ndarray, py: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The X-junction of :func:`refine_corners` at pixels (N, P) for parameters q (N, 7)
-    ``(cx, cy, th1, th2, sigma, a, b)``: values (N, P) and their Jacobian (N, P, 7)."""
+def _tanh_edge(d: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The edge of :func:`refine_corners`, ``E(d) = tanh(d / sigma)``: ``E``, ``dE / dd``, ``dE / dsigma``."""
+    t = np.tanh(d / sigma)
+    slope = (1 - t ** 2) / sigma
+    return t, slope, -slope * d / sigma
+
+
+def _junction(q: np.ndarray, px: np.ndarray, py: np.ndarray, edge=_tanh_edge) -> tuple[np.ndarray, np.ndarray]:
+    """The X-junction ``I = a + b E(n1 . (p - c)) E(n2 . (p - c))`` at pixels (N, P) for parameters q (N, 7)
+    ``(cx, cy, th1, th2, sigma, a, b)``, with ``edge(d, sigma) -> (E, dE / dd, dE / dsigma)`` (default
+    :func:`_tanh_edge`): values (N, P) and their Jacobian (N, P, 7)."""
     dx, dy = px - q[:, :1], py - q[:, 1:2]
     c1, s1, c2, s2 = np.cos(q[:, 2:3]), np.sin(q[:, 2:3]), np.cos(q[:, 3:4]), np.sin(q[:, 3:4])
     d1, d2 = c1 * dx + s1 * dy, c2 * dx + s2 * dy
     sigma, a, b = q[:, 4:5], q[:, 5:6], q[:, 6:7]
-    t1, t2 = np.tanh(d1 / sigma), np.tanh(d2 / sigma)
-    g1 = b * (1 - t1 ** 2) * t2 / sigma                  # dI / d d1
-    g2 = b * t1 * (1 - t2 ** 2) / sigma                  # dI / d d2
+    e1, de1, ds1 = edge(d1, sigma)
+    e2, de2, ds2 = edge(d2, sigma)
+    g1, g2 = b * de1 * e2, b * e1 * de2                                     # dI / d d1, dI / d d2
     jac = np.stack([-(g1 * c1 + g2 * c2), -(g1 * s1 + g2 * s2),             # d / d (cx, cy)
                     g1 * (c1 * dy - s1 * dx), g2 * (c2 * dy - s2 * dx),       # d / d (th1, th2)
-                    -(g1 * d1 + g2 * d2) / sigma, np.ones_like(d1), t1 * t2], axis=-1)
-    return a + b * t1 * t2, jac
+                    b * (ds1 * e2 + e1 * ds2), np.ones_like(d1), e1 * e2], axis=-1)
+    return a + b * e1 * e2, jac
 
 
 def _fit_junctions(img: np.ndarray, params: np.ndarray, radius: np.ndarray, iterations: int) -> np.ndarray:
-    """Levenberg-Marquardt fit of :func:`_tanh_junction` (one damping per corner) to the pixels of ``img``
+    """Levenberg-Marquardt fit of :func:`_junction` (one damping per corner) to the pixels of ``img``
     within ``radius`` (N,) of the starting ``params[:, :2]`` (an anti-aliased disk); (N, 7) float64."""
     half = int(np.ceil(radius.max() + 1.0))
     oy, ox = np.mgrid[-half:half + 1, -half:half + 1]
@@ -310,34 +318,17 @@ def _box_edge(d: np.ndarray, sigma: np.ndarray, width: float) -> tuple[np.ndarra
     return value, 2.0 * (cdf_hi - cdf_lo) / width, 2.0 * (pdf_hi - pdf_lo) / width
 
 
-def _box_junction_model(q: np.ndarray, px: np.ndarray, py: np.ndarray, width: float
-                        ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_tanh_junction` with :func:`_box_edge` edges instead of ``tanh(d / sigma)``:
-    ``I = a + b E(n1 . (p - c)) E(n2 . (p - c))``; values (N, P), Jacobian (N, P, 7)."""
-    dx, dy = px - q[:, :1], py - q[:, 1:2]
-    c1, s1, c2, s2 = np.cos(q[:, 2:3]), np.sin(q[:, 2:3]), np.cos(q[:, 3:4]), np.sin(q[:, 3:4])
-    d1, d2 = c1 * dx + s1 * dy, c2 * dx + s2 * dy
-    sigma, a, b = q[:, 4:5], q[:, 5:6], q[:, 6:7]
-    e1, de1, ds1 = _box_edge(d1, sigma, width)
-    e2, de2, ds2 = _box_edge(d2, sigma, width)
-    g1, g2 = b * de1 * e2, b * e1 * de2
-    jac = np.stack([-(g1 * c1 + g2 * c2), -(g1 * s1 + g2 * s2),
-                    g1 * (c1 * dy - s1 * dx), g2 * (c2 * dy - s2 * dx),
-                    b * (ds1 * e2 + e1 * ds2), np.ones_like(d1), e1 * e2], axis=-1)
-    return a + b * e1 * e2, jac
-
-
 def _fit_junction_points(px: np.ndarray, py: np.ndarray, value: np.ndarray, weight: np.ndarray, params: np.ndarray,
                          iterations: int, box: float = 0.0) -> np.ndarray:
-    """Levenberg-Marquardt fit of :func:`_tanh_junction` (one damping per corner) to the values (N, P) at
+    """Levenberg-Marquardt fit of :func:`_junction` (one damping per corner) to the values (N, P) at
     ``(px, py)`` (N, P) with weights (N, P), from ``params`` (N, 7); (N, 7) float64.  ``box`` > 0 fits
-    :func:`_box_junction_model` with that box width instead."""
+    :func:`_box_edge` edges of that box width instead of ``tanh``."""
     params = params.copy()
     if box > 0:
         def model(q, x, y):
-            return _box_junction_model(q, x, y, box)
+            return _junction(q, x, y, edge=lambda d, sigma: _box_edge(d, sigma, box))
     else:
-        model = _tanh_junction
+        model = _junction
     _, jac = model(params, px, py)            # (a, b) enter linearly: solved first
     basis = jac[..., 5:]
     gram = np.einsum("np,npi,npj->nij", weight, basis, basis) + 1e-12 * np.eye(2)
