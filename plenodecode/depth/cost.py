@@ -11,8 +11,8 @@
   around a per-pixel base disparity.
 * :func:`interpolated_noise_gain`: how much noise a fractional shift averages away, which the cost volume
   adds back on noisy views.
-* :func:`floor_standard_error`: how far a strip's mean error on noise alone strays from its noise floor,
-  the margin the strips' penalty keeps below that floor.
+* :func:`floor_standard_error`: how far a strip's mean error on noise alone strays from its noise floor;
+  :func:`floor_less_margin`: that floor less the margin the strips' penalty keeps below it.
 """
 
 from __future__ import annotations
@@ -180,6 +180,13 @@ def floor_standard_error(n_views: float, n_pixels: int) -> float:
     (the centre view's noise does not average over the views: 0.35 for a row of 14 views and 5 pixels).
     """
     return math.sqrt((1.0 + 3.0 / max(float(n_views), 1e-9)) / (2.0 * max(int(n_pixels), 1)))
+
+
+def floor_less_margin(floor: float, n_views: float, n_pixels: int) -> float:
+    """A noise floor less :data:`FLOOR_MARGIN` standard errors (:func:`floor_standard_error`) of a mean over
+    ``n_views`` views and ``n_pixels`` pixels, at least 0: ``floor max(0, 1 - FLOOR_MARGIN SE)``, what such a
+    mean on noise alone stays above but by chance."""
+    return float(floor) * max(0.0, 1.0 - FLOOR_MARGIN * floor_standard_error(n_views, n_pixels))
 
 
 def interpolated_noise_gain(f: np.ndarray | float, interpolation: int, rho: float = 0.0) -> np.ndarray | float:
@@ -371,7 +378,7 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
             return np.float32(0.0)
         w = np.array([float(views.weight[vu]) for vu in members])
         n = w.sum() ** 2 / max(float((w * w).sum()), 1e-12)
-        return np.float32(strip_floor * max(0.0, 1.0 - FLOOR_MARGIN * floor_standard_error(n, 2 * strip_radius + 1)))
+        return np.float32(floor_less_margin(strip_floor, n, 2 * strip_radius + 1))
 
     line_floors = [group_floor(members) for _, members, _ in lines]
     half_floors = [group_floor(halves[i][k][0]) for i, k in half_index]
@@ -470,4 +477,4 @@ def half_plane_cost_volume(views: Views, labels: np.ndarray, *, radius: int = 2,
 
 __all__ = ["N_SECTORS", "Progress", "worker_threads", "sector_of", "make_labels", "half_plane_groups",
            "strip_groups", "strip_halves", "line_kernel", "interpolated_noise_gain", "floor_standard_error",
-           "FLOOR_MARGIN", "half_plane_cost_volume"]
+           "floor_less_margin", "FLOOR_MARGIN", "half_plane_cost_volume"]

@@ -102,7 +102,7 @@ import numpy as np
 from ..types import LightField
 from .aggregation import sgm, winner
 from .confidence import estimate_confidence
-from .cost import FLOOR_MARGIN, N_SECTORS, Progress, floor_standard_error, half_plane_cost_volume, make_labels
+from .cost import N_SECTORS, Progress, floor_less_margin, half_plane_cost_volume, make_labels
 from .occlusion import EDGE_DEFAULTS, fix_occlusion_edges
 from .refinement import cost_gate, refine_disparity, refine_radius_for, weighted_median
 from .views import Views, add_contrast, colour_guide, noise_sigmas, prepare_views
@@ -362,13 +362,13 @@ def edge_floor_for(strip_floor: float, n_views: int, wedge: int) -> float:
         strip_floor * max(0, 1 - FLOOR_MARGIN * floor_standard_error(n_views * wedge / N_SECTORS, 9))
 
     the strips' floor (:func:`strip_floor_for`, the intensity channel's share of the matching views' error)
-    less :data:`~plenodecode.depth.cost.FLOOR_MARGIN` standard errors of the smaller of its two costs, the
-    wedge's mean over 3 x 3 pixels (:func:`~plenodecode.depth.cost.floor_standard_error`).
+    less the margin of the smaller of its two costs, the wedge's mean over 3 x 3 pixels
+    (:func:`~plenodecode.depth.cost.floor_less_margin`).
     """
     if not strip_floor > 0 or n_views < 1:
         return 0.0
     n = max(1.0, n_views * wedge / N_SECTORS)
-    return float(strip_floor) * max(0.0, 1.0 - FLOOR_MARGIN * floor_standard_error(n, 9))
+    return floor_less_margin(strip_floor, n, 9)
 
 
 #: The quantile (%) of the per-pixel minimum of the matching cost that :func:`gate_base_for` reads.
