@@ -77,7 +77,7 @@ class GeometryRun:
     skipped: list[tuple[str, str]]
 
 
-def _as_lightfield(item, grid: LensletGrid | None, white: RawCapture | None):
+def _lightfield_and_samples(item, grid: LensletGrid | None, white: RawCapture | None):
     """(LightField, LensSamples or None) of a capture: a raw is decoded with :data:`CAPTURE_DECODE`, keeping its
     lens samples (the corners are fitted on them); a (LightField, LensSamples) pair is taken as it is."""
     if isinstance(item, LightField):
@@ -177,7 +177,7 @@ def run_geometric_calibration(raws_or_lightfields: Iterable[LightField | RawCapt
         if names is not None and n >= len(names):
             raise ValueError(f"names has {len(names)} entries for more captures")
         name = f"capture {n + 1}" if names is None else names[n]
-        lf, samples = _as_lightfield(item, grid, white)
+        lf, samples = _lightfield_and_samples(item, grid, white)
         if shape is not None and lf.shape[:4] != shape:
             raise CalibrationError(f"{name}: light field of shape {lf.shape[:4]}, the others {shape}; decode every "
                                    "capture with the same white image and grid")
