@@ -52,10 +52,20 @@ class Rendered:
         return [f"{stem}.{ext}" for stem, _ in self.images] + [name for name, _ in self.documents]
 
 
+def view_image(lf: LightField, v: int, u: int) -> Any:
+    """View ``(v, u)`` as an image (Y, X, C) float32, its edge gaps (weight below
+    :data:`~plenodecode.imaging.MIN_DATA_WEIGHT`: no lens sample, e.g. the hex -> rect grid's alternate edge
+    pixels) filled from the nearest sample (:func:`~plenodecode.imaging.fill_gaps`)."""
+    from ..imaging import MIN_DATA_WEIGHT, fill_gaps
+
+    image = lf.data[v, u]
+    return image if lf.weight is None else fill_gaps(image, lf.weight[v, u] >= MIN_DATA_WEIGHT)
+
+
 def render_centre(src: Source) -> Rendered:
-    """The centre view ``(V // 2, U // 2)``, image (Y, X, C)."""
+    """The centre view ``(V // 2, U // 2)`` (:func:`view_image`), image (Y, X, C)."""
     lf = src.lightfield
-    return Rendered("centre", (("centre", lf.centre_view()),), lf.colour)
+    return Rendered("centre", (("centre", view_image(lf, *lf.centre_index)),), lf.colour)
 
 
 def view_names(shape: Sequence[int]) -> list[str]:
@@ -64,15 +74,16 @@ def view_names(shape: Sequence[int]) -> list[str]:
 
 
 def render_views(src: Source, *, view: tuple[float, float] | None = None, interp: str = "linear") -> Rendered:
-    """Every sub-aperture view (a folder of ``view_VV_UU`` images), or with ``view=(v, u)`` the perspective view
-    at that (fractional) position (:func:`plenodecode.render.perspective`, ``interp`` 'linear' or 'cubic')."""
+    """Every sub-aperture view (a folder of ``view_VV_UU`` images, :func:`view_image`), or with ``view=(v, u)``
+    the perspective view at that (fractional) position (:func:`plenodecode.render.perspective`, ``interp``
+    'linear' or 'cubic')."""
     lf = src.lightfield
     if view is not None:
         from ..render import perspective
 
         return Rendered("views", (("view", perspective(lf, view[0], view[1], interp=interp)),), lf.colour)
     nu = lf.shape[1]
-    images = tuple((name, lf.data[i // nu, i % nu]) for i, name in enumerate(view_names(lf.shape)))
+    images = tuple((name, view_image(lf, i // nu, i % nu)) for i, name in enumerate(view_names(lf.shape)))
     return Rendered("views", images, lf.colour, folder=True)
 
 
