@@ -36,11 +36,14 @@ def test_real_f01_jpeg_photograph_has_no_black_edge_pixels(tmp_path):
         assert 0.8 < np.median(ratio) < 1.25, name
 
 
-def test_real_antleg_centre_view_and_photograph_edges_match_their_neighbours(tmp_path):
+def test_real_antleg_centre_view_and_photograph_edges_match_their_neighbours(tmp_path, caplog):
     folder = shared_path("lf-microscopy-antleg")
     res = run("batch", folder / "light_field.png", "-w", folder / "radiometry_frame.png", "--dark",
               folder / "dark_frame.tif", "--outputs", "centre,refocus", "-o", tmp_path / "out")
     assert res.exit_code == 0, res.output
+    # the dark frame's own levels are not used: no guess at them is shown (the raw's and the white's still are)
+    logged = caplog.text
+    assert "light_field.png: black" in logged and "dark_frame.tif" not in logged
     # before: the centre view's left column and half its top row were 0, one left pixel 4.8x its neighbour; the
     # photograph's left column up to 7.8x its neighbour.  The noisy specimen itself gives 0.72-1.64 on the right
     for name in ("centre.png", "refocus_s+0.00.png"):
