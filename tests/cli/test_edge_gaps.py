@@ -67,3 +67,17 @@ def test_real_f01_jpeg_parallax_frames_and_views_have_no_black_edges(tmp_path):
         grey = read_image(path).astype(np.float64).mean(axis=-1)
         edges = np.concatenate([grey[0], grey[-1], grey[:, 0], grey[:, -1]])
         assert np.count_nonzero(edges == 0) == 0, path.name
+
+
+def test_real_f01_jpeg_all_in_focus_has_no_black_edge_pixels(tmp_path):
+    # before: 363 black pixels on its edges (the centre view's gaps where it fell back to it, and views' zeros
+    # interpolated in elsewhere)
+    res = run("batch", shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg"), "--outputs", "all-in-focus",
+              "-o", tmp_path / "out")
+    assert res.exit_code == 0, res.output
+    image = read_image(tmp_path / "out" / "IMG_1" / "all_in_focus.png")
+    grey = image.astype(np.float64).mean(axis=-1)
+    edges = np.concatenate([grey[0], grey[-1], grey[:, 0], grey[:, -1]])
+    assert np.count_nonzero(edges == 0) == 0
+    for name, ratio in edge_ratios(image).items():
+        assert 0.8 < np.median(ratio) < 1.25, name
