@@ -158,3 +158,43 @@ def remap_view(img: np.ndarray, disparity: np.ndarray, dv: float, du: float, gri
 
 
 __all__ = ["INTERPOLATION_TAPS", "KEYS_A", "interpolation_taps", "LUMA_WEIGHTS", "luma", "shift_view", "remap_view"]
+
+
+#: Weight below which a view's sample (or a photograph's pixel, its weight sum per unit of aperture) counts as no
+#: data in images: the decoder divides by the white, so a sample with 1 % of a full lens's white carries 100x the
+#: noise (a microscope's border lens with 1e-4 of it read 25x its neighbours).
+MIN_DATA_WEIGHT = 0.01
+
+#: Deepest gap (px) that :func:`fill_gaps` fills: the frame edges a decode leaves without samples (the hex ->
+#: rect grid's alternate edge pixels, a lens row half off the sensor) are 1 px deep; larger holes are parts of
+#: a view that no lens sees, and stay as they are.
+GAP_DEPTH_PX = 2.0
+
+
+def fill_gaps(image: np.ndarray, known: np.ndarray, depth: float = GAP_DEPTH_PX) -> np.ndarray:
+    """``image`` with each unknown pixel within ``depth`` px of a known one set to its nearest known pixel.
+
+    ``out(p) = image(q*)``, ``q* = argmin_{q known} |p - q|`` (Euclidean, from
+    :func:`scipy.ndimage.distance_transform_edt`), where ``0 < |p - q*| <= depth``; elsewhere ``out = image``.
+
+    Parameters
+    ----------
+    image : ndarray (Y, X) or (Y, X, C)
+    known : ndarray (Y, X) bool
+        The pixels that carry data.
+    depth : float
+
+    Returns
+    -------
+    ndarray, like ``image`` (a copy when anything is filled, else ``image`` itself)
+    """
+    known = np.asarray(known, dtype=bool)
+    if known.all() or not known.any():
+        return image
+    from scipy.ndimage import distance_transform_edt
+
+    distance, (iy, ix) = distance_transform_edt(~known, return_indices=True)
+    fill = (distance > 0) & (distance <= depth)
+    out = np.array(image, copy=True)
+    out[fill] = image[iy[fill], ix[fill]]
+    return out

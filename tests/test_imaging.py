@@ -72,3 +72,20 @@ def test_remap_view_is_shift_view_for_a_constant_disparity():
     for flag in (cv2.INTER_LINEAR, cv2.INTER_CUBIC):
         np.testing.assert_allclose(remap_view(img, d, -1.0, 2.0, grid, flag), shift_view(img, 1.25, -1.0, 2.0, flag),
                                    atol=1e-5)
+
+
+def test_fill_gaps_takes_the_nearest_known_pixel_up_to_the_depth_and_leaves_deeper_holes():
+    from plenodecode.imaging import fill_gaps
+
+    image = np.arange(8 * 10 * 2, dtype=np.float32).reshape(8, 10, 2)
+    known = np.ones((8, 10), bool)
+    known[0, ::2] = False                      # a 1 px edge gap (the hex -> rect grid's alternate pixels)
+    known[:, 0] = False                        # a column with no lens
+    known[3:8, 6:10] = False                   # a 5 x 4 hole: its inner pixels are more than 2 px from data
+    out = fill_gaps(image, known, depth=2.0)
+    np.testing.assert_array_equal(out[known], image[known])
+    assert any(np.array_equal(out[0, 4], image[y, x]) for y, x in ((0, 3), (0, 5), (1, 4)))   # 1 px away
+    np.testing.assert_array_equal(out[5, 0], image[5, 1])        # nearest known: to the right
+    np.testing.assert_array_equal(out[5, 7], image[5, 5])        # 2 px right of the hole's left edge
+    np.testing.assert_array_equal(out[7, 9], image[7, 9])        # 4 px deep: left as it was
+    assert fill_gaps(image, np.zeros((8, 10), bool)) is image and fill_gaps(image, np.ones((8, 10), bool)) is image

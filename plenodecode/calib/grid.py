@@ -90,6 +90,42 @@ def residual_statistics(residuals: np.ndarray, lens_ij: np.ndarray, *, block: in
     return out
 
 
+#: Degree of the polynomial field (in the lens indices) that :func:`smooth_distortion` fits to a grid's residuals.
+SMOOTH_FIELD_DEGREE = 3
+
+
+def smooth_distortion(grid: LensletGrid, degree: int = SMOOTH_FIELD_DEGREE) -> dict[str, float] | None:
+    """How far the measured lens centres of ``grid`` depart from its regular lattice smoothly, and the rest.
+
+    Optics between the lens array and the sensor (a microscope's relay lens) bend the array's image: the
+    measured centres ``c_rk`` (``grid.refined``) then depart from the lattice ``l_rk`` by a smooth field that
+    the decoder follows (it uses each lens's measured centre), on top of the centres' own scatter.  Fitted per
+    axis by least squares, ``c_rk - l_rk = sum_{i + j <= degree} a_ij r'^i k'^j + e_rk`` (``r', k'`` the lens
+    indices, centred and scaled to [-1, 1]).
+
+    Returns
+    -------
+    dict or None
+        ``max_px``: the largest ``|field|`` over the measured lenses; ``rest_rms_px``: ``sqrt(mean |e|^2)``;
+        None with fewer than 5 measured lenses per coefficient.
+    """
+    if grid.refined is None:
+        return None
+    d = grid.refined - grid.lattice_centres().reshape(grid.refined.shape)
+    ok = np.all(np.isfinite(d), axis=-1)
+    r, k = (np.nonzero(ok)[a].astype(np.float64) for a in (0, 1))
+    terms = [(i, j) for i in range(degree + 1) for j in range(degree + 1 - i)]
+    if len(r) < 5 * len(terms):
+        return None
+    r = (r - 0.5 * (r.min() + r.max())) / max(0.5 * (r.max() - r.min()), 1.0)
+    k = (k - 0.5 * (k.min() + k.max())) / max(0.5 * (k.max() - k.min()), 1.0)
+    design = np.stack([r ** i * k ** j for i, j in terms], axis=1)
+    coef, *_ = np.linalg.lstsq(design, d[ok], rcond=None)
+    field = design @ coef
+    rest = d[ok] - field
+    return {"max_px": float(np.hypot(*field.T).max()), "rest_rms_px": float(np.sqrt(np.mean(np.sum(rest ** 2, 1))))}
+
+
 def inner_lens_count(grid: LensletGrid, margin: float = 1.0) -> int:
     """Lenses of ``grid`` whose centre lies more than ``margin`` pitches inside the sensor."""
     c = grid.centres()

@@ -135,11 +135,22 @@ def open_raw(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None,
 def read_dark_frame(dark: str | os.PathLike | RawCapture | None,
                     mosaic: MosaicOptions | None = None) -> RawCapture | None:
     """The dark frame (``--dark``), read like a raw; None for None.  :func:`plenodecode.decoding.decode`
-    subtracts it pixel by pixel from the raw and the white image instead of the black level."""
+    subtracts it pixel by pixel from the raw and the white image instead of the black level.
+
+    Its own black and white levels are not used, so the reader's warnings about them (a mosaic without a
+    sidecar: levels estimated 'from the gaps between micro-images', which a dark frame has none of) are not
+    shown; an unreadable file still raises.
+    """
     if dark is None or isinstance(dark, RawCapture):
         return dark
     log.info("dark frame %s", dark)
-    return _read_raw(Path(dark), mosaic)
+    reader = logging.getLogger("plenodecode.io.generic")
+    level = reader.level
+    reader.setLevel(logging.ERROR)
+    try:
+        return _read_raw(Path(dark), mosaic)
+    finally:
+        reader.setLevel(level)
 
 
 #: Input kind -> reader ``fn(path) -> LightField | RawCapture``.

@@ -6,9 +6,10 @@ Part of :mod:`plenodecode.pipeline` (see its docstring for the five steps).
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Mapping
 
 from ..registry import lazy, lookup
 from ..types import LensletGrid, LightField, RawCapture
@@ -27,8 +28,9 @@ class Rendered:
     ----------
     product : str
         Its key in :data:`PRODUCTS`.
-    images : tuple of (str, ndarray)
-        File stem and image (H, W, C) float32 of every image; one for single-image products.
+    images : sequence of (str, ndarray)
+        File stem and image (H, W, C) float32 of every image; one for single-image products.  A folder of many
+        images may render each one when it is read (:class:`ViewImages`).
     colour : str
         Colour state of the images ('camera', 'linear-srgb' or 'srgb'); decides the display encoding.
     folder : bool
@@ -41,7 +43,7 @@ class Rendered:
     """
 
     product: str
-    images: tuple[tuple[str, Any], ...]
+    images: Sequence[tuple[str, Any]]
     colour: str
     folder: bool = False
     documents: tuple[tuple[str, Callable[[str], Mapping[str, Any]]], ...] = ()
@@ -49,13 +51,37 @@ class Rendered:
 
     def file_names(self, ext: str) -> list[str]:
         """The names written into a folder product: images ``<stem>.<ext>``, then the documents."""
-        return [f"{stem}.{ext}" for stem, _ in self.images] + [name for name, _ in self.documents]
+        stems = self.images.stems if isinstance(self.images, ViewImages) else [stem for stem, _ in self.images]
+        return [f"{stem}.{ext}" for stem in stems] + [name for name, _ in self.documents]
+
+
+class ViewImages(Sequence):
+    """Every view of a light field as ``(view_VV_UU, image)`` pairs, each image rendered by
+    :func:`plenodecode.render.perspective` when it is read: a folder of views costs one view's memory at a time,
+    not a copy of the light field."""
+
+    def __init__(self, lf: LightField) -> None:
+        self.lf = lf
+        self.stems = view_names(lf.shape)
+
+    def __len__(self) -> int:
+        return len(self.stems)
+
+    def __getitem__(self, i: int) -> tuple[str, Any]:
+        from ..render import perspective
+
+        nu = self.lf.shape[1]
+        k = range(len(self))[i]
+        return self.stems[k], perspective(self.lf, k // nu, k % nu)
 
 
 def render_centre(src: Source) -> Rendered:
-    """The centre view ``(V // 2, U // 2)``, image (Y, X, C)."""
+    """The centre view ``(V // 2, U // 2)`` (:func:`plenodecode.render.perspective`: its edge gaps filled), image
+    (Y, X, C)."""
+    from ..render import perspective
+
     lf = src.lightfield
-    return Rendered("centre", (("centre", lf.centre_view()),), lf.colour)
+    return Rendered("centre", (("centre", perspective(lf, *lf.centre_index)),), lf.colour)
 
 
 def view_names(shape: Sequence[int]) -> list[str]:
@@ -65,15 +91,14 @@ def view_names(shape: Sequence[int]) -> list[str]:
 
 def render_views(src: Source, *, view: tuple[float, float] | None = None, interp: str = "linear") -> Rendered:
     """Every sub-aperture view (a folder of ``view_VV_UU`` images), or with ``view=(v, u)`` the perspective view
-    at that (fractional) position (:func:`plenodecode.render.perspective`, ``interp`` 'linear' or 'cubic')."""
+    at that (fractional) position; both by :func:`plenodecode.render.perspective` (``interp`` 'linear' or
+    'cubic'), which fills the views' edge gaps."""
+    from ..render import perspective
+
     lf = src.lightfield
     if view is not None:
-        from ..render import perspective
-
         return Rendered("views", (("view", perspective(lf, view[0], view[1], interp=interp)),), lf.colour)
-    nu = lf.shape[1]
-    images = tuple((name, lf.data[i // nu, i % nu]) for i, name in enumerate(view_names(lf.shape)))
-    return Rendered("views", images, lf.colour, folder=True)
+    return Rendered("views", ViewImages(lf), lf.colour, folder=True)
 
 
 def refocus_stem(*, slope: float | None = None, alpha: float | None = None) -> str:

@@ -5,10 +5,11 @@ Part of :mod:`plenodecode.pipeline` (see its docstring for the five steps).
 
 from __future__ import annotations
 
+import functools
 import logging
 import os
 from functools import cached_property
-from typing import TYPE_CHECKING, Any, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 from ..types import LightField, RawCapture
 from .inputs import Progress, open_input, read_dark_frame
@@ -105,6 +106,11 @@ def check_geometry(geometry: GeometricCalibration, *, lightfield: LightField | N
         check_shape(geometry, decoded_shape(calibration.grid, n_views), "decoded light field")
 
 
+def _channel_progress(progress: Callable[[int, int], None], channel: int, done: int, total: int) -> None:
+    """``progress`` of channel ``channel``'s decode as a part of three: ``(channel total + done, 3 total)``."""
+    progress(channel * total + done, 3 * total)
+
+
 def decode_raw(raw: RawCapture, calibration: Calibration, *, progress: Progress = None,
                geometry: GeometricCalibration | None = None, **decode_options: Any) -> LightField:
     """Decode ``raw`` with ``calibration`` (:func:`plenodecode.decoding.decode`; devignetted by its white),
@@ -129,8 +135,18 @@ def decode_raw(raw: RawCapture, calibration: Calibration, *, progress: Progress 
 
     white = calibration.white
     whites = rgb_export_channels(white) if white is not None and is_rgb_export(white) else [white] * 3
-    planes = [decode(plane, calibration.grid, white=w, progress=progress, **decode_options)
-              for plane, w in zip(rgb_export_channels(raw), whites)]
+    planes = []
+    decoder_log = logging.getLogger("plenodecode.decoding.decoder")
+    level = decoder_log.level
+    for c, (plane, w) in enumerate(zip(rgb_export_channels(raw), whites)):
+        # one progress bar over the three decodes, and the decoder's warnings (the same for every channel) once
+        part = None if progress is None else functools.partial(_channel_progress, progress, c)
+        if c > 0:
+            decoder_log.setLevel(logging.ERROR)
+        try:
+            planes.append(decode(plane, calibration.grid, white=w, progress=part, **decode_options))
+        finally:
+            decoder_log.setLevel(level)
     state = "camera" if decode_options.get("colour") == "camera" else "linear-srgb"
     lf = planes[0].replace(data=np.concatenate([lf.data for lf in planes], axis=-1), colour=state)
     if geometry is None:

@@ -33,10 +33,12 @@ from typing import Any, Callable
 import cv2
 import numpy as np
 
+from ..imaging import MIN_DATA_WEIGHT
 from ..registry import lookup
 from ..types import LightField
 from ._common import check_lightfield
 from .focalstack import check_per_pixel_args, default_slopes, depth_from_focus, focal_stack, refocus_per_pixel
+from .viewpoints import perspective
 from ._common import REFOCUS_METHODS
 
 log = logging.getLogger(__name__)
@@ -76,7 +78,7 @@ def pair_noise(lf: LightField, disparity: np.ndarray, *, interp: int = cv2.INTER
     vc, uc = lf.centre_index
     yy, xx = np.mgrid[0:ny, 0:nx].astype(np.float32)
     inner = (slice(border, max(border, ny - border)), slice(border, max(border, nx - border)))
-    centre = lf.data[vc, uc].reshape(ny, nx, nc)
+    centre = perspective(lf, vc, uc).reshape(ny, nx, nc)          # its edge gaps filled
     diffs = []
     for dv, du in ((0, 1), (1, 0), (0, -1), (-1, 0)):
         if 0 <= vc + dv < nv and 0 <= uc + du < nu:
@@ -87,6 +89,24 @@ def pair_noise(lf: LightField, disparity: np.ndarray, *, interp: int = cv2.INTER
         return NOISE_FLOOR
     r = np.concatenate(diffs)
     return max(float(1.4826 * np.median(np.abs(r - np.median(r)))), NOISE_FLOOR)
+
+
+def _weighted_remap(img: np.ndarray, data: np.ndarray, weight: np.ndarray, mx: np.ndarray, my: np.ndarray,
+                    flags: int) -> tuple[np.ndarray, np.ndarray]:
+    """A view resampled at ``(my, mx)`` by normalised convolution, ``remap(w L) / remap(w)``, so that its samples
+    without data (weight 0, holding 0: the decode's edge gaps) do not darken their neighbours, and where it has
+    data (``remap(w)`` at least :data:`~plenodecode.imaging.MIN_DATA_WEIGHT`; elsewhere ``img``, the plain
+    ``remap(L)``).  (Y, X, C) float32 and (Y, X) bool."""
+    if np.all(weight > 0):
+        return img, np.ones(weight.shape, bool)
+    ny, nx = weight.shape
+    premultiplied = cv2.remap(data * weight[..., None], mx, my, flags, borderMode=cv2.BORDER_REPLICATE)
+    premultiplied = premultiplied.reshape(ny, nx, -1)         # (OpenCV drops a single channel's axis)
+    norm = cv2.remap(weight, mx, my, flags, borderMode=cv2.BORDER_REPLICATE)
+    ok = norm >= MIN_DATA_WEIGHT
+    out = img.reshape(premultiplied.shape).copy()
+    out[ok] = premultiplied[ok] / norm[ok][:, None]
+    return out, ok
 
 
 def render_visible(lf: LightField, disparity: np.ndarray, *, confidence: np.ndarray | None = None,
@@ -105,7 +125,8 @@ def render_visible(lf: LightField, disparity: np.ndarray, *, confidence: np.ndar
     ``vis_t`` the z-buffer visibility of the module docstring, ``C`` channels, ``k = consistency`` and ``sigma``
     the views' difference noise (:func:`pair_noise`).  The centre view ``L_c`` always sees ``p`` (``c = 1``).
     Where the views that see ``p`` carry less than ``min_visible`` of the weight all views would
-    (``sum_t a_t w_t``), or the depth confidence is below ``min_confidence``, the pixel is the centre view's.
+    (``sum_t a_t w_t``), or the depth confidence is below ``min_confidence``, the pixel is the centre view's
+    (:func:`~plenodecode.render.perspective`'s: its edge gaps filled).
 
     Parameters
     ----------
@@ -141,7 +162,7 @@ def render_visible(lf: LightField, disparity: np.ndarray, *, confidence: np.ndar
     if consistency < 0 or tolerance < 0:
         raise ValueError(f"consistency and tolerance must be >= 0, got {consistency}, {tolerance}")
     vc, uc = lf.centre_index
-    centre = lf.data[vc, uc].reshape(ny, nx, nc)
+    centre = perspective(lf, vc, uc).reshape(ny, nx, nc)          # its edge gaps filled
     yy, xx = np.mgrid[0:ny, 0:nx].astype(np.float32)
     near_enough = d + np.float32(tolerance)
     if consistency > 0:
@@ -155,9 +176,12 @@ def render_visible(lf: LightField, disparity: np.ndarray, *, confidence: np.ndar
         mx, my = xx - d * np.float32(du), yy - d * np.float32(dv)
         # the centre view takes part even outside a mask that leaves it out, with a vanishing weight
         w = np.full((ny, nx), mask[v, u] if mask[v, u] > 0 else 1e-6, np.float32)
+        img = cv2.remap(lf.data[v, u], mx, my, flags, borderMode=cv2.BORDER_REPLICATE).reshape(ny, nx, nc)
         if lf.weight is not None:
             w *= cv2.remap(lf.weight[v, u], mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        img = cv2.remap(lf.data[v, u], mx, my, flags, borderMode=cv2.BORDER_REPLICATE).reshape(ny, nx, nc)
+            img, has_data = _weighted_remap(img, lf.data[v, u], lf.weight[v, u], mx, my, flags)
+            img = img.reshape(ny, nx, nc)
+            w *= has_data
         used = w
         if (dv, du) != (0, 0):
             z = cv2.remap(nearest_surface(d, dv, du), mx, my, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE)

@@ -31,7 +31,7 @@ from typing import Callable
 import cv2
 import numpy as np
 
-from ..imaging import INTERPOLATION_TAPS, interpolation_taps
+from ..imaging import INTERPOLATION_TAPS, fill_gaps, interpolation_taps
 from ..types import LightField
 from ._common import aperture_mask, check_lightfield, check_slopes, check_upsample
 
@@ -42,13 +42,19 @@ _TILED_MIN_SLOPES = 8
 #: ... and from this many samples V U Y X on (a full Illum light field has 61 M), even one photograph: there the
 #: kernel saves 0.1-0.5 CPU s per photograph (3x with a weight), which repays its compile time within a session.
 _TILED_MIN_SAMPLES = 16_000_000
+#: A photograph's pixel that less than this share of the aperture's light reaches (weight sum over ``sum m``)
+#: is a gap at the frame's edge, filled from its neighbours (:func:`_fill_empty`): the column of a microscope's
+#: lenses half off the sensor got 0.1-5 % of it, from one side of the aperture, and read up to 25x too bright.
+MIN_APERTURE_SHARE = 0.1
+
 #: Contiguous blocks of view columns the OpenCV path sums separately (on as many threads as OpenCV has, up to this).
 _COLUMN_BLOCKS = 4
 
 
 def _sum_shifted_views_opencv(data: np.ndarray, weight: np.ndarray | None, vmask: np.ndarray,
                               taps_y: tuple[np.ndarray, np.ndarray], taps_x: tuple[np.ndarray, np.ndarray],
-                              chunks: int, step: Callable[[], None]) -> np.ndarray:
+                              chunks: int, step: Callable[[], None], empty: float = 0.0,
+                              min_den: float = 1e-12) -> np.ndarray:
     """:func:`sum_shifted_views` by separable OpenCV filters (see the module docstring).
 
     The view columns are split in ``_COLUMN_BLOCKS`` contiguous blocks summed on up to ``cv2.getNumThreads()``
@@ -117,12 +123,13 @@ def _sum_shifted_views_opencv(data: np.ndarray, weight: np.ndarray | None, vmask
         return np.multiply(acc, np.float32(1.0 / float(vmask.sum())), out=acc)
     den = acc[..., nc:]
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(den > 1e-12, acc[..., :nc] / den, np.float32(0.0)).astype(np.float32, copy=False)
+        return np.where(den > min_den, acc[..., :nc] / den, np.float32(empty)).astype(np.float32, copy=False)
 
 
 def sum_shifted_views(lf: LightField, vmask: np.ndarray, taps_y: tuple[np.ndarray, np.ndarray],
                       taps_x: tuple[np.ndarray, np.ndarray], chunks: int = 1,
-                      step: Callable[[], None] = lambda: None) -> np.ndarray:
+                      step: Callable[[], None] = lambda: None, empty: float = 0.0,
+                      min_den: float = 1e-12) -> np.ndarray:
     """Shift-and-add with given separable taps, weight-normalised (see the module docstring).
 
     ``out[s, y, x] = sum_{v,u,t,r} m_vu w_vu L_vu(y + by[s,v] + t, x + bx[s,u] + r) wy[s,v,t] wx[s,u,r]``
@@ -141,6 +148,9 @@ def sum_shifted_views(lf: LightField, vmask: np.ndarray, taps_y: tuple[np.ndarra
         ``bx`` (S, U) int64, ``wx`` (S, U, T) float32, likewise along x.
     chunks : int
         The work is done in ``chunks`` parts, ``step()`` after each.
+    empty, min_den : float
+        The value of the pixels whose weight sum ``sum m w wy wx`` is at most ``min_den`` (that no view has data
+        for); with no weight every pixel has data.
 
     Returns
     -------
@@ -156,8 +166,8 @@ def sum_shifted_views(lf: LightField, vmask: np.ndarray, taps_y: tuple[np.ndarra
     if len(taps_y[0]) >= _TILED_MIN_SLOPES or data.size // data.shape[-1] >= _TILED_MIN_SAMPLES:
         from .shiftsum_tiles import sum_shifted_views_tiled
 
-        return sum_shifted_views_tiled(data, weight, vmask, taps_y, taps_x, chunks, step)
-    return _sum_shifted_views_opencv(data, weight, vmask, taps_y, taps_x, chunks, step)
+        return sum_shifted_views_tiled(data, weight, vmask, taps_y, taps_x, chunks, step, empty, min_den)
+    return _sum_shifted_views_opencv(data, weight, vmask, taps_y, taps_x, chunks, step, empty, min_den)
 
 
 def _shift_sum_phase(lf: LightField, slopes: np.ndarray, vmask: np.ndarray, interp: str,
@@ -173,7 +183,18 @@ def _shift_sum_phase(lf: LightField, slopes: np.ndarray, vmask: np.ndarray, inte
     b = np.arange(nu, dtype=np.float64) - uc
     by, wy = interpolation_taps(offset[0] - slopes[:, None] * a[None, :], interp)       # (S, V), (S, V, T)
     bx, wx = interpolation_taps(offset[1] - slopes[:, None] * b[None, :], interp)       # (S, U), (S, U, T)
-    return sum_shifted_views(lf, vmask, (by, wy), (bx, wx), chunks, step)
+    return sum_shifted_views(lf, vmask, (by, wy), (bx, wx), chunks, step, empty=np.nan,
+                             min_den=MIN_APERTURE_SHARE * float(vmask.sum()))
+
+
+def _fill_empty(photos: np.ndarray) -> np.ndarray:
+    """Photographs (S, Y, X, C) float32 with their pixels that no view has data for (NaN: a weight sum below
+    :data:`MIN_APERTURE_SHARE` of the aperture's) filled by
+    :func:`~plenodecode.imaging.fill_gaps` (the frame's edge) or else 0, in place."""
+    empty = np.isnan(photos[..., 0])
+    for i in np.flatnonzero(empty.any(axis=(1, 2))):
+        photos[i] = fill_gaps(photos[i], ~empty[i])
+    return np.nan_to_num(photos, copy=False, nan=0.0)
 
 
 def shift_sum(lf: LightField, slopes: float | np.ndarray, *, aperture: float | np.ndarray = 1.0,
@@ -184,9 +205,11 @@ def shift_sum(lf: LightField, slopes: float | np.ndarray, *, aperture: float | n
     ``E_s(y, x) = sum_{v,u} m_vu w_vu(y', x') L_vu(y', x') / sum_{v,u} m_vu w_vu(y', x')`` with
     ``(y', x') = (y - s (v - vc), x - s (u - uc))``, ``m`` the aperture mask and ``w`` the light field's weight
     (1 when it has none).  Each view is shifted by separable interpolation, samples outside a view taking the
-    nearest edge value.  A few slopes of a small light field go through OpenCV, a focal stack or a large light
-    field through one compiled pass over the data
-    (see the module docstring); a photograph is the same to float32 rounding whatever other slopes are asked with
+    nearest edge value.  A pixel that no view has data for (``sum m w`` below :data:`MIN_APERTURE_SHARE`
+    ``sum m``: the gaps a decode leaves at the frame's edge) takes the nearest pixel that has, up to
+    :data:`~plenodecode.imaging.GAP_DEPTH_PX` away, else 0.  A few slopes of a small light field go through
+    OpenCV, a focal stack or a large light field through one compiled pass over the data (see the module
+    docstring); a photograph is the same to float32 rounding whatever other slopes are asked with
     it (exactly the same when the same path computes both).
 
     Parameters
@@ -225,12 +248,12 @@ def shift_sum(lf: LightField, slopes: float | np.ndarray, *, aperture: float | n
             progress(done[0], total)
 
     if k == 1:
-        return _shift_sum_phase(lf, s, vmask, interp, (0.0, 0.0), chunks, step)
+        return _fill_empty(_shift_sum_phase(lf, s, vmask, interp, (0.0, 0.0), chunks, step))
     out = np.empty((len(s), k * ny, k * nx, nc), np.float32)
     for py in range(k):
         for px in range(k):
             out[:, py::k, px::k] = _shift_sum_phase(lf, s, vmask, interp, (py / k, px / k), chunks, step)
-    return out
+    return _fill_empty(out)
 
 
 __all__ = ["shift_sum"]

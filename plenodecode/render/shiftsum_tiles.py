@@ -223,14 +223,15 @@ def _copy_weighted(dst, src, wrow, xa, i0, i1, width, nx, nc):
 # the kernel
 # ---------------------------------------------------------------------------------------------------------------
 @njit(nogil=True, cache=True, fastmath=_FM)
-def _shift_sum_kernel(data, weight, nc, vmask, bx, wx, tx0, tx1, by, wy, nb, xcuts, sg, task0, task1, inv_n, out):
+def _shift_sum_kernel(data, weight, nc, vmask, bx, wx, tx0, tx1, by, wy, nb, xcuts, sg, task0, task1, inv_n, empty,
+                      min_den, out):
     """Shift-sum photographs of the tiles ``task0 <= task < task1`` (see the module docstring).
 
     data (V, U, Y, X*C) f32; weight (V, U, Y, X) f32 or (0, 0, 0, 0); vmask (V, U) f32 aperture weights;
     bx (S, U) i64, wx (S, U, T) f32: x tap ``t`` of view column ``u`` at slope ``s`` reads ``x + bx + t``,
     ``tx0 <= t < tx1`` being its non-zero taps; by (S, V), wy (S, V, T) likewise along y (all taps used);
     nb: tile rows; xcuts (i64): tile column ``j`` covers pixels ``xcuts[j] .. xcuts[j+1]``; sg: slopes per group;
-    inv_n: 1 / sum(vmask) (no weight);
+    inv_n: 1 / sum(vmask) (no weight); empty: the value of a pixel whose weight sum is at most min_den;
     out (S, Y, X*C) f32, every pixel of the tasks' tiles written.
     Task order: slope group fastest, then tile row, then tile column.
     """
@@ -361,9 +362,13 @@ def _shift_sum_kernel(data, weight, nc, vmask, bx, wx, tx0, tx1, by, wy, nb, xcu
                 if has_w:
                     for x in range(nxp):
                         den = arow[x * cp + nc]
-                        inv = 1.0 / den if den > 1e-12 else 0.0
-                        for c in range(nc):
-                            orow[x * nc + c] = arow[x * cp + c] * inv
+                        if den > min_den:
+                            inv = 1.0 / den
+                            for c in range(nc):
+                                orow[x * nc + c] = arow[x * cp + c] * inv
+                        else:
+                            for c in range(nc):
+                                orow[x * nc + c] = empty
                 else:
                     for j in range(nxp * nc):
                         orow[j] = arow[j] * inv_n
@@ -388,7 +393,8 @@ def _column_cuts(n: int, edge: int, size: int) -> np.ndarray:
 
 def sum_shifted_views_tiled(data: np.ndarray, weight: np.ndarray | None, vmask: np.ndarray,
                             taps_y: tuple[np.ndarray, np.ndarray], taps_x: tuple[np.ndarray, np.ndarray],
-                            chunks: int = 1, step: Callable[[], None] = lambda: None) -> np.ndarray:
+                            chunks: int = 1, step: Callable[[], None] = lambda: None,
+                            empty: float = 0.0, min_den: float = 1e-12) -> np.ndarray:
     """The compiled, tiled shift-and-add with given separable taps, weight-normalised (see the module docstring).
 
     ``out[s, y, x] = sum_{v,u,t,r} m_vu w_vu L_vu(y + by[s,v] + t, x + bx[s,u] + r) wy[s,v,t] wx[s,u,r]``
@@ -405,6 +411,8 @@ def sum_shifted_views_tiled(data: np.ndarray, weight: np.ndarray | None, vmask: 
     chunks : int
         The tiles are computed in ``chunks`` rounds, ``step()`` after each; within a round, blocks of tiles go
         to ``numba.get_num_threads()`` threads (:func:`plenodecode._numba.run_in_blocks`).
+    empty, min_den : float
+        The value of the pixels whose weight sum is at most ``min_den`` (that no view has data for).
 
     Returns
     -------
@@ -432,7 +440,9 @@ def sum_shifted_views_tiled(data: np.ndarray, weight: np.ndarray | None, vmask: 
     bounds = np.linspace(0, n_tasks, chunks + 1).round().astype(int)
     for c0, c1 in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
         run_in_blocks(lambda t0, t1: _shift_sum_kernel(flat, weight, nc, vmask, bx, wx, tx0, tx1, by, wy, _ROWS,
-                                                       xcuts, sg, c0 + t0, c0 + t1, inv_n, out), c1 - c0)
+                                                       xcuts, sg, c0 + t0, c0 + t1, inv_n,
+                                                       np.float32(empty), np.float32(min_den), out),
+                     c1 - c0)
         step()
     return out.reshape(ns, ny, nx, nc)
 

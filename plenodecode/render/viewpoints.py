@@ -4,6 +4,9 @@ A view at a fractional position ``(v, u)`` (absolute view indices, ``0 <= v <= V
 the neighbouring views with no disparity compensation (the light field is treated as a function of the
 aperture position, sampled on the view grid): bilinear over the 4 neighbours, or Keys' bicubic convolution
 (Keys 1981, a = -0.5) over 4 x 4 neighbours with edge views repeated.  Both are exact at integer positions.
+With the light field's weight ``w`` the interpolation is weighted, ``sum t w L / sum t w`` (``t`` the taps),
+and a pixel with ``sum t w`` below :data:`~plenodecode.imaging.MIN_DATA_WEIGHT` (no lens sample: the frame's
+edge gaps a decode leaves) takes its nearest neighbour with data (:func:`~plenodecode.imaging.fill_gaps`).
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..imaging import INTERPOLATION_TAPS, interpolation_taps
+from ..imaging import INTERPOLATION_TAPS, MIN_DATA_WEIGHT, fill_gaps, interpolation_taps
 from ..types import LightField
 from ._common import check_lightfield
 
@@ -47,7 +50,7 @@ def perspective(lf: LightField, v: float, u: float, *, interp: str = "linear") -
     Returns
     -------
     ndarray, shape (Y, X, C), float32
-        ``lf.data[v, u]`` exactly (a copy) at integer positions.
+        ``lf.data[v, u]`` exactly (a copy) at integer positions, where it has data (module docstring).
     """
     check_lightfield(lf)
     nv, nu = lf.shape[:2]
@@ -56,15 +59,28 @@ def perspective(lf: LightField, v: float, u: float, *, interp: str = "linear") -
     for name, p, n in (("v", v, nv), ("u", u, nu)):
         if not (math.isfinite(p) and 0 <= p <= n - 1):
             raise ValueError(f"{name} must be within [0, {n - 1}] (view index), got {p}")
-    tv = _axis_taps(float(v), nv, interp)
-    tu = _axis_taps(float(u), nu, interp)
-    if len(tv) == 1 and len(tu) == 1:
-        return lf.data[tv[0][0], tu[0][0]].copy()
-    out = np.zeros(lf.shape[2:], np.float32)
-    for i, wi in tv:
-        for j, wj in tu:
-            out += np.float32(wi * wj) * lf.data[i, j]
-    return out
+    taps = [(i, j, np.float32(wi * wj)) for i, wi in _axis_taps(float(v), nv, interp)
+            for j, wj in _axis_taps(float(u), nu, interp)]
+    if len(taps) == 1:
+        out = lf.data[taps[0][0], taps[0][1]].copy()
+    else:
+        out = np.zeros(lf.shape[2:], np.float32)
+        for i, j, t in taps:
+            out += t * lf.data[i, j]
+    if lf.weight is None:
+        return out
+    if len(taps) == 1:
+        den = lf.weight[taps[0][0], taps[0][1]]
+    else:
+        num = np.zeros(lf.shape[2:], np.float32)
+        den = np.zeros(lf.shape[2:4], np.float32)
+        for i, j, t in taps:
+            tw = t * lf.weight[i, j]
+            num += tw[..., None] * lf.data[i, j]
+            den += tw
+        known = den >= MIN_DATA_WEIGHT
+        out[known] = num[known] / den[known, None]
+    return fill_gaps(out, den >= MIN_DATA_WEIGHT)
 
 
 def parallax_path(lf: LightField, n_frames: int = 24, radius: float | None = None) -> list[tuple[float, float]]:

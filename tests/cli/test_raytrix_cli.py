@@ -201,3 +201,20 @@ def test_r42_batch_total_focus_with_colour_thumbnails(r42, tmp_path):
     thumb = read_image(folder / "thumbs" / "total_focus.png")
     assert thumb.ndim == 3 and thumb.shape[2] == 3 and channels_differ(thumb) > 0.2
     assert read_image(folder / "total_focus.png").shape[2] == 3
+
+
+def test_real_r42_rgb_export_decodes_with_one_progress_and_one_warning(tmp_path, caplog):
+    """An RGB export is decoded channel by channel; the user sees one progress bar that runs once from 0 to its
+    total (it ran three times) and the decoder's 'no white image' warning once (it was shown three times)."""
+    from plenodecode.pipeline.source import open_source
+
+    seen = []
+    src = open_source(shared_path("raytrix-r42", "sc2_klein.png"),
+                      progress=lambda done, total: seen.append((done, total)))
+    assert src.lightfield.shape[-1] == 3
+    done = [d for d, _ in seen]
+    assert len({t for _, t in seen}) == 1 and done == sorted(done) and done[-1] == seen[0][1], seen
+    assert sum("no white image" in r.getMessage() for r in caplog.records) == 1
+    res = run("views", shared_path("raytrix-r42", "sc2_klein.png"), "-o", tmp_path / "views")
+    assert res.exit_code == 0, res.output
+    assert res.output.count("decoding") == 1, res.output

@@ -82,3 +82,27 @@ def test_render_parallax_frames_are_the_perspective_views():
         np.testing.assert_array_equal(frame, perspective(lf, v, u))
     assert calls == list(range(1, 7))
     assert not np.allclose(frames[0], frames[3])                        # the viewpoint moves
+
+
+def test_weighted_perspective_leaves_out_samples_without_data_and_fills_the_edge_gaps():
+    """A decoded light field's weight-0 samples (hex -> rect edge gaps, lenses off the sensor) hold 0: a
+    perspective view between views must not blend those zeros in (the parallax animation's edges flickered
+    black), and a view's own gaps take their nearest neighbour's value."""
+    lf = random_lf()
+    weight = np.ones(lf.shape[:4], np.float32)
+    weight[2, 5, :, 0] = 0.0                   # view (2, 5): its left column has no samples
+    weight[:, :, 0, ::2] = 0.0                 # every view: alternate pixels of the top row
+    data = lf.data * (weight[..., None] > 0)
+    holed = LightField(data, weight=weight)
+    out = perspective(holed, 2.25, 5.6)
+    # the left column from the three views that have it, their bilinear taps renormalised
+    taps = {(2, 6): 0.75 * 0.6, (3, 5): 0.25 * 0.4, (3, 6): 0.25 * 0.6}
+    expect = sum(t * lf.data[v, u, 1:, 0] for (v, u), t in taps.items()) / sum(taps.values())
+    np.testing.assert_allclose(out[1:, 0], expect, atol=1e-5)
+    # where every view has data, as without weights
+    np.testing.assert_allclose(out[1:, 1:], perspective(lf, 2.25, 5.6)[1:, 1:], atol=1e-6)
+    # an integer position: the view as it is, its gaps from the nearest pixel with data
+    view = perspective(holed, 2, 5)
+    np.testing.assert_array_equal(view[1:, 1:], lf.data[2, 5, 1:, 1:])
+    assert np.all(view[0, ::2] > 0) and np.all(view[1:, 0] > 0)
+    assert any(np.array_equal(view[0, 2], lf.data[2, 5, y, x]) for y, x in ((0, 1), (0, 3), (1, 2)))
