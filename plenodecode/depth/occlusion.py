@@ -356,8 +356,13 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
     ``mixing_margin`` from 1/2.  The regression needs a background that moves; this needs two surfaces of
     different colour, and the flatness keeps out the shaded rims the colour of the background, where the
     mixing says nothing about coverage.  Only pixels next to the other side are tested, once; the others
-    keep their side.  Both models mix light, so a linear light field's views are taken with their display
-    encoding undone (:meth:`Views.linear`); stored sRGB values are used as stored.
+    keep their side.  A decided pixel takes its surface's hypothesis also where the map had it on that side
+    already: matching puts a mixed pixel between the two surfaces (with a jump of 0.5 px the mix's cost is
+    lowest in between), and such a value, on the right side but neither surface, was kept (thin scenes'
+    ground-truth mean BadPix0.07 6.72 -> 6.49 %, decoded 19.45 -> 18.94 %; illum-mini ideal / decoded
+    0.38 / 1.19 -> 0.07 / 0.99 %; hci-antinous 4.20 -> 4.18 %, MSE x100 1.814 -> 1.820).  Both models mix
+    light, so a linear light field's views are taken with their display encoding undone
+    (:meth:`Views.linear`); stored sRGB values are used as stored.
 
     Photo-consistency alone cannot do this: with a smooth background a mixed pixel matches the occluder's
     disparity almost as well as a fully covered one, so the relabel before it (:func:`visibility_relabel`)
@@ -473,11 +478,13 @@ def coverage_relabel(intensities: Views, disparity: np.ndarray, *, radius: int =
     decided = tested | clean_edge
     estimate = np.where(clean_edge, mixed, covered)
     side = is_near[ys, xs]
-    to_near, to_far = decided & ~side & (estimate > 0.5), decided & side & (estimate < 0.5)
+    # a decided pixel takes its surface's hypothesis, also on the side it was on (a mix matched in between)
+    to_near, to_far = decided & (estimate > 0.5), decided & (estimate < 0.5)
     out[ys[to_near], xs[to_near]] = h_near[ys[to_near], xs[to_near]]
     out[ys[to_far], xs[to_far]] = h_far[ys[to_far], xs[to_far]]
-    log.debug("coverage relabel: %d edge pixels, %d to the near side, %d to the far side", len(ys),
-              int(to_near.sum()), int(to_far.sum()))
+    log.debug("coverage relabel: %d edge pixels, %d to the near side (%d from the far side), %d to the far side "
+              "(%d from the near side)", len(ys), int(to_near.sum()), int((to_near & ~side).sum()),
+              int(to_far.sum()), int((to_far & side).sum()))
     return out
 
 

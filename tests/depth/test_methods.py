@@ -294,13 +294,13 @@ def test_costvolume_keeps_thin_gaps(name, bp_max, band_max):
 
 def test_costvolume_halves_oblique_strips():
     """Slits and slats at 30 deg (45 x 58 px, 9 x 9 views): the oblique strips' views sit off their line, and
-    the strips' halves (strip_halves) see the far plane by an edge.  Measured BadPix0.07 18.2 % against 19.4 %
-    without them on slits-o-j2-tex (in the 2 px band 22.2 % against 23.6 %), 11.3 % against 12.1 % on
-    slats-o-j1-tex (13.1 % against 14.1 %)."""
+    the strips' halves (strip_halves) see the far plane by an edge.  Measured BadPix0.07 17.5 % against 18.9 %
+    without them on slits-o-j2-tex (in the 2 px band 21.3 % against 23.1 %), 10.8 % against 11.6 % on
+    slats-o-j1-tex (12.5 % against 13.3 %)."""
     from plenodecode.depth.scores import badpix_in_band
     from plenodecode.synthetic import THIN_SCENES, simulate_ideal
 
-    for name, bound in (("slits-o-j2-tex", 18.7), ("slats-o-j1-tex", 11.7)):
+    for name, bound in (("slits-o-j2-tex", 18.2), ("slats-o-j1-tex", 11.2)):
         lf, gt = simulate_ideal("illum-mini", seed=1, scene=THIN_SCENES[name], shape=(560, 720), n_views=9)
         halves = estimate_depth(lf, method="costvolume")
         whole = estimate_depth(lf, method="costvolume", strip_halves=False)

@@ -214,7 +214,9 @@ def test_coverage_relabel_gives_mixed_pixels_to_the_surface_at_their_centre():
         after = np.count_nonzero(np.abs(coverage_relabel(plain, wrong_map) - gt) > 0.5)   # 6 and 4
         assert before > 50 and after < 0.2 * before, (before, after)
         np.testing.assert_array_equal(wrong_map, kept)                  # input not modified
-    moved = coverage_relabel(plain, gt) != gt                     # 2 px, both covered by 8/16 samples
+    # 2 px, both covered by 8/16 samples (the others may take their side's hypothesis, a Gaussian mean of
+    # the side's equal values: the same up to float rounding)
+    moved = np.abs(coverage_relabel(plain, gt) - gt) > 1e-4
     assert moved.sum() <= 3 and np.all(np.abs(cover[moved] - 0.5) < 0.07), cover[moved]
     flat_lf, _, _ = disc_lightfield(flat_back=True)
     flat = prepare_views(flat_lf, grey=True)
@@ -392,3 +394,17 @@ def test_coverage_relabel_finds_the_background_beside_oblique_slats(monkeypatch)
     assert before > 1000 and after < 0.2 * before, (before, after)
     monkeypatch.setattr(occlusion, "BACKGROUND_MARGIN", 2)
     assert wrong(coverage_relabel(plain, touched, jump=0.3)) > 0.6 * before
+
+
+def test_coverage_relabel_gives_a_decided_pixel_its_surface():
+    """A pixel the coverage relabel gives to a surface takes that surface's disparity also where the map had it
+    on that side already: a matched value between the two surfaces (a mix, a ramp left by the window) was kept.
+    End to end, BadPix0.07 3.4 % on slats-o-j2-weak and 0.6 % on slats-v-j2-tex (4.2 and 1.3 % before)."""
+    from plenodecode.depth import estimate_depth
+    from plenodecode.depth.scores import badpix
+    from plenodecode.synthetic import simulate_ideal
+    from plenodecode.synthetic.thin import THIN_SCENES
+
+    for name, bound in (("slats-o-j2-weak", 3.8), ("slats-v-j2-tex", 1.0)):
+        lf, gt = simulate_ideal("illum-mini", seed=1, scene=THIN_SCENES[name])
+        assert badpix(estimate_depth(lf, method="costvolume"), gt, 0.07, border=5) <= bound, name
