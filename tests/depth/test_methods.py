@@ -294,13 +294,13 @@ def test_costvolume_keeps_thin_gaps(name, bp_max, band_max):
 
 def test_costvolume_halves_oblique_strips():
     """Slits and slats at 30 deg (45 x 58 px, 9 x 9 views): the oblique strips' views sit off their line, and
-    the strips' halves (strip_halves) see the far plane by an edge.  Measured BadPix0.07 18.2 % against 19.4 %
-    without them on slits-o-j2-tex (in the 2 px band 22.2 % against 23.6 %), 11.3 % against 12.1 % on
-    slats-o-j1-tex (13.1 % against 14.1 %)."""
+    the strips' halves (strip_halves) see the far plane by an edge.  Measured BadPix0.07 17.3 % against 18.8 %
+    without them on slits-o-j2-tex (in the 2 px band 21.1 % against 22.9 %), 9.5 % against 10.6 % on
+    slats-o-j1-tex (11.0 % against 12.4 %)."""
     from plenodecode.depth.scores import badpix_in_band
     from plenodecode.synthetic import THIN_SCENES, simulate_ideal
 
-    for name, bound in (("slits-o-j2-tex", 18.7), ("slats-o-j1-tex", 11.7)):
+    for name, bound in (("slits-o-j2-tex", 18.1), ("slats-o-j1-tex", 10.1)):
         lf, gt = simulate_ideal("illum-mini", seed=1, scene=THIN_SCENES[name], shape=(560, 720), n_views=9)
         halves = estimate_depth(lf, method="costvolume")
         whole = estimate_depth(lf, method="costvolume", strip_halves=False)
@@ -346,11 +346,12 @@ def test_strip_penalties_fall_on_noisy_views():
 def test_sgm_small_step_penalty_keeps_ramps_out_of_gaps():
     """Slats at 30 deg over a far plane 0.5 and 1 px per view step behind them (45 x 58 px, 9 x 9 views): with
     labels 0.1 px apart a run of one-label steps at P1 each stands in for a jump, and at P1 = 0.1 SGM bridged
-    the 6 px gaps between slats with ramps.  Measured BadPix0.07 32.1 % (P1 = 0.15) against 36.3 % with
-    P1 = 0.1 on slats-o-j0.5-tex, 24.1 % against 26.0 % on slats-o-j1-weak."""
+    the 6 px gaps between slats with ramps.  Measured BadPix0.07 27.0 % (P1 = 0.15) against 32.2 % with
+    P1 = 0.1 on slats-o-j0.5-tex, 26.0 % against 26.9 % on slats-o-j1-weak (24.1 and 26.0 % before the edge
+    pass's visibility relabel settled band pixels on their side's hypothesis)."""
     from plenodecode.synthetic import THIN_SCENES, simulate_ideal
 
-    for name, bound in (("slats-o-j0.5-tex", 34.0), ("slats-o-j1-weak", 25.0)):
+    for name, bound in (("slats-o-j0.5-tex", 29.5), ("slats-o-j1-weak", 26.4)):
         lf, gt = simulate_ideal("illum-mini", seed=1, scene=THIN_SCENES[name], shape=(560, 720), n_views=9)
         now = estimate_depth(lf, method="costvolume")
         before = estimate_depth(lf, method="costvolume", p1=0.1)

@@ -214,7 +214,9 @@ def test_coverage_relabel_gives_mixed_pixels_to_the_surface_at_their_centre():
         after = np.count_nonzero(np.abs(coverage_relabel(plain, wrong_map) - gt) > 0.5)   # 6 and 4
         assert before > 50 and after < 0.2 * before, (before, after)
         np.testing.assert_array_equal(wrong_map, kept)                  # input not modified
-    moved = coverage_relabel(plain, gt) != gt                     # 2 px, both covered by 8/16 samples
+    # 2 px, both covered by 8/16 samples (the others may take their side's hypothesis, a Gaussian mean of
+    # the side's equal values: the same up to float rounding)
+    moved = np.abs(coverage_relabel(plain, gt) - gt) > 1e-4
     assert moved.sum() <= 3 and np.all(np.abs(cover[moved] - 0.5) < 0.07), cover[moved]
     flat_lf, _, _ = disc_lightfield(flat_back=True)
     flat = prepare_views(flat_lf, grey=True)
@@ -346,3 +348,85 @@ def test_despeckling_median_is_gated_so_thin_slats_survive(monkeypatch):
     plain = occlusion.visibility_relabel
     monkeypatch.setattr(occlusion, "visibility_relabel", lambda *a, **kw: plain(*a, **{**kw, "despeckle": True}))
     assert thinnest_quarter_wrong()[0] > 0.05
+
+
+def _near_coverage(scene, shape: tuple[int, int], n: int = 8) -> np.ndarray:
+    """Fraction of each centre-view pixel that the stripes supports of ``scene`` cover, from ``n x n``
+    point samples per pixel: (Y, X) float64."""
+    from plenodecode.synthetic.scene import stripes_signed_distance
+
+    offsets = (np.arange(n) + 0.5) / n - 0.5
+    yy, xx = np.mgrid[0:shape[0], 0:shape[1]].astype(np.float64)
+    prms = [np.array([np.cos(np.radians(p.support[1])), np.sin(np.radians(p.support[1])), *p.support[2:]])
+            for p in scene.planes if p.support[0] == "stripes"]
+    cover = np.zeros(shape)
+    for oy in offsets:
+        for ox in offsets:
+            inside = np.zeros(shape, bool)
+            for prm in prms:
+                inside |= stripes_signed_distance(prm, yy + oy, xx + ox) <= 0.0
+            cover += inside
+    return cover / (n * n)
+
+
+def test_coverage_relabel_finds_the_background_beside_oblique_slats(monkeypatch):
+    """Oblique 1-5 px slats 1 px nearer than a textured plane (slats-o-j1-tex): a map that gives the slats
+    every pixel they touch is moved to the pixel-centre outline, 1240 wrong pixels -> 133 (bound: a fifth).
+    The fit needs the background clear of the occluder by BACKGROUND_MARGIN px; at 2 px, between slats 6 px
+    apart whose mixed pixels the map gives the slats, few views' background points are clear: 1100 stayed
+    wrong (bound: more than 60 %)."""
+    from plenodecode.depth import occlusion
+    from plenodecode.synthetic import simulate_ideal
+    from plenodecode.synthetic.thin import THIN_SCENES
+
+    build = THIN_SCENES["slats-o-j1-tex"]
+    lf, gt = simulate_ideal("illum-mini", seed=1, scene=build)
+    cover = _near_coverage(build(*gt.shape, seed=1), gt.shape)
+    assert np.mean((cover > 0.5) == (gt > 0)) > 0.99               # pixel centre inside <=> covered by > 1/2
+    plain = prepare_views(lf, grey=True)
+    touched = np.where(cover > 0, gt.max(), gt.min()).astype(np.float32)
+
+    def wrong(m: np.ndarray) -> int:
+        return int(np.count_nonzero((np.abs(m - gt) > 0.07)[5:-5, 5:-5]))
+
+    before = wrong(touched)
+    after = wrong(coverage_relabel(plain, touched, jump=0.3))
+    assert before > 1000 and after < 0.2 * before, (before, after)
+    monkeypatch.setattr(occlusion, "BACKGROUND_MARGIN", 2)
+    assert wrong(coverage_relabel(plain, touched, jump=0.3)) > 0.6 * before
+
+
+def test_coverage_relabel_gives_a_decided_pixel_its_surface():
+    """A pixel the coverage relabel gives to a surface takes that surface's disparity also where the map had it
+    on that side already: a matched value between the two surfaces (a mix, a ramp left by the window) was kept.
+    End to end, BadPix0.07 3.4 % on slats-o-j2-weak and 0.6 % on slats-v-j2-tex (4.2 and 1.3 % before)."""
+    from plenodecode.depth import estimate_depth
+    from plenodecode.depth.scores import badpix
+    from plenodecode.synthetic import simulate_ideal
+    from plenodecode.synthetic.thin import THIN_SCENES
+
+    for name, bound in (("slats-o-j2-weak", 3.8), ("slats-v-j2-tex", 1.0)):
+        lf, gt = simulate_ideal("illum-mini", seed=1, scene=THIN_SCENES[name])
+        assert badpix(estimate_depth(lf, method="costvolume"), gt, 0.07, border=5) <= bound, name
+
+
+def test_visibility_relabel_settles_values_between_the_surfaces(monkeypatch):
+    """Oblique slats 0.5 px nearer than a textured plane (slats-o-j0.5-tex): their mixed pixels, and the windows
+    across their edges, leave values between the two surfaces.  A band pixel whose side the views prefer takes
+    that side's hypothesis where it explains the pixel's colour at least as well as the pixel's value does:
+    BadPix0.07 14.0 % end to end, 16.8 % without (bound 15.4 %)."""
+    from plenodecode.depth import estimate_depth
+    from plenodecode.depth import occlusion
+    from plenodecode.depth.scores import badpix
+    from plenodecode.synthetic import simulate_ideal
+    from plenodecode.synthetic.thin import THIN_SCENES
+
+    lf, gt = simulate_ideal("illum-mini", seed=1, scene=THIN_SCENES["slats-o-j0.5-tex"])
+
+    def wrong() -> float:
+        return badpix(estimate_depth(lf, method="costvolume"), gt, 0.07, border=5)
+
+    assert wrong() <= 15.4
+    plain = occlusion.visibility_relabel
+    monkeypatch.setattr(occlusion, "visibility_relabel", lambda *a, **kw: plain(*a, **{**kw, "settle": False}))
+    assert wrong() > 15.4
