@@ -10,7 +10,7 @@ threads of the Dask workers).
 Layout of ``out_dir``::
 
     out_dir/<name>/           one folder per raw, <name> = the raw's file stem (made unique)
-        centre.png, refocus_s+0.00.png, disparity.pfm, lightfield.zarr, views/ ...
+        refocus_s+0.00.png (or total_focus.png: 'photo'), centre.png, disparity.pfm, lightfield.zarr, views/ ...
         thumbs/<product>.png  8-bit thumbnails (longest side <= THUMB_SIZE) for the index
         .done.json            the task key, the products and thumbnails (written last)
     out_dir/summary.json      every result of the last run
@@ -59,7 +59,7 @@ Progress = Callable[[int, int], None] | None
 
 #: Outputs a batch can produce per raw (the CLI's --outputs choices): the decoded light field, and products of
 #: :data:`plenodecode.pipeline.PRODUCTS` under the same names (their options: :class:`BatchOptions`).
-BATCH_OUTPUTS = ("lightfield", "views", "centre", "refocus", "depth", "all-in-focus", "total-focus")
+BATCH_OUTPUTS = ("photo", "lightfield", "views", "centre", "refocus", "depth", "all-in-focus", "total-focus")
 #: Light-field file formats of the 'lightfield' output -> name of the written file or folder.
 LIGHTFIELD_NAMES = {"zarr": "lightfield.zarr", "views": "lightfield_views", "mat": "lightfield.mat",
                     "npy": "lightfield.npy", "eslf": "lightfield.eslf.png"}
@@ -89,7 +89,8 @@ class BatchOptions:
     Attributes
     ----------
     outputs : tuple of str
-        Non-empty subset of :data:`BATCH_OUTPUTS`.
+        Non-empty subset of :data:`BATCH_OUTPUTS`; default 'photo', the camera's photograph
+        (:func:`plenodecode.pipeline.products.render_photo`, as the one-liner writes it).
     db_dir : str or None
         Calibration database folder (default :data:`plenodecode.calib.store.DEFAULT_DB`).
     lightfield_format : str
@@ -97,12 +98,14 @@ class BatchOptions:
     bit_depth : {8, 16, 32}
         Image outputs: 8/16-bit sRGB-encoded PNG, or 32 = linear float EXR.
     slope : float
-        Refocus slope of the 'refocus' output (px per view step, design.md), unless ``alpha`` or ``distance_m``.
+        Refocus slope of the 'refocus' and 'photo' outputs (px per view step, design.md), unless ``alpha`` or
+        ``distance_m``.
     alpha : float or None
-        Ng's relative film depth of the 'refocus' output instead of ``slope`` (the same name as
+        Ng's relative film depth of the 'refocus' and 'photo' outputs instead of ``slope`` (the same name as
         :func:`plenodecode.render.refocus` and ``--alpha``).
     distance_m : float or None
-        Focus distance (m) of the 'refocus' output instead of ``slope`` (needs the focus distance in the metadata).
+        Focus distance (m) of the 'refocus' and 'photo' outputs instead of ``slope`` (needs the focus distance in
+        the metadata).
     depth_method : str or None
         Method of the 'depth' output (None: the library's default).
     min_confidence : float in [0, 1] or None
@@ -124,7 +127,7 @@ class BatchOptions:
         shape differs fails before decoding.
     """
 
-    outputs: tuple[str, ...] = ("centre",)
+    outputs: tuple[str, ...] = ("photo",)
     db_dir: str | None = None
     lightfield_format: str = "zarr"
     bit_depth: int = 16
@@ -531,7 +534,7 @@ def _thumbnail(image: Any, path: Path, *, colour: str) -> Path:
 
 def _image_product_options(product: str, options: BatchOptions) -> dict[str, Any]:
     """Options of an image product of :data:`plenodecode.pipeline.PRODUCTS` taken from ``options``."""
-    if product != "refocus":
+    if product not in ("refocus", "photo"):
         return {}
     if options.alpha is not None:
         return {"alpha": options.alpha}
@@ -567,8 +570,10 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     written: list[tuple[Path, Path | None]] = []
 
     def centre_thumbnail(name: str) -> Path:
+        from .render import perspective
+
         lf = src.lightfield
-        return _thumbnail(lf.centre_view(), thumbs / f"{name}.png", colour=lf.colour)
+        return _thumbnail(perspective(lf, *lf.centre_index), thumbs / f"{name}.png", colour=lf.colour)
 
     for product in options.outputs:
         if product == "lightfield":

@@ -145,7 +145,7 @@ def test_calibration_policy_logs_one_line(shoot, tmp_path, caplog):
 
 
 def test_products_registry_names():
-    assert set(pipeline.PRODUCTS) == {"centre", "views", "refocus", "focal-stack", "all-in-focus", "parallax",
+    assert set(pipeline.PRODUCTS) == {"photo", "centre", "views", "refocus", "focal-stack", "all-in-focus", "parallax",
                                       "depth", "total-focus", "focused-refocus"}
     with pytest.raises(ValueError, match="product must be one of"):
         pipeline.render_product(pipeline.Source(lightfield=small_lf()), "thumbnail")

@@ -56,8 +56,10 @@ def _microscope_fields() -> dict:
 @jobs_option
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="Dask scheduler address (tcp://host:8786): run the tasks on that cluster (--jobs is ignored).")
-@click.option("--outputs", default="centre", show_default=True, callback=_parse_outputs,
-              help=f"Comma-separated products per raw: {', '.join(OUTPUT_CHOICES)}.")
+@click.option("--outputs", default="photo", show_default=True, callback=_parse_outputs,
+              help=f"Comma-separated products per raw: {', '.join(OUTPUT_CHOICES)}. 'photo': the camera's "
+                   "photograph, as 'plenodecode RAW -o photo.png' writes it (focused as captured, or --slope / "
+                   "--alpha / --focus-distance; a Raytrix raw's total focus).")
 @database_option
 @click.option("--white", "-w", "white", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
               help="White (radiometry) image for every raw: the lenslet grid and devignetting (microscopes; "
@@ -69,11 +71,14 @@ def _microscope_fields() -> dict:
               show_default=True,
               help="Format of the 'lightfield' product.")
 @bit_depth_option
-@click.option("--slope", type=FINITE, default=0.0, show_default=True, help="Refocus slope of the 'refocus' product.")
+@click.option("--slope", type=FINITE, default=0.0, show_default=True,
+              help="Refocus slope of the 'refocus' and 'photo' products.")
 @click.option("--alpha", "--refocus", "alpha", type=POSITIVE, default=None,
-              help="Refocus the 'refocus' product at Ng's relative film depth ALPHA instead of --slope.")
+              help="Refocus the 'refocus' and 'photo' products at Ng's relative film depth ALPHA instead of "
+                   "--slope.")
 @click.option("--focus-distance", "distance_m", type=POSITIVE, default=None, metavar="METRES",
-              help="Refocus the 'refocus' product at this distance (m) instead of --slope (cameras with geometry).")
+              help="Refocus the 'refocus' and 'photo' products at this distance (m) instead of --slope (cameras "
+                   "with geometry).")
 @click.option("--depth-method", type=RegistryChoice("plenodecode.depth", "DEPTH_METHODS"),
               default=DEFAULT_DEPTH_METHOD, show_default=True, help="Method of the 'depth' product.")
 @click.option("--min-confidence", "min_confidence", type=UNIT_INTERVAL, default=DEFAULT_MIN_CONFIDENCE,

@@ -54,6 +54,7 @@ def _depth_request(options: Mapping[str, Any]) -> tuple[str, str] | None:
 #: :data:`~plenodecode.pipeline.products.STACK_UNITS`) or a disparity into metres.
 REQUESTS: dict[str, Callable[[Mapping[str, Any]], tuple[str, str] | None]] = {
     "refocus": _refocus_request,
+    "photo": _refocus_request,
     "focal-stack": _stack_request,
     "depth": _depth_request,
 }

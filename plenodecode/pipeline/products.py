@@ -386,8 +386,23 @@ def render_focused_refocus(src: Source, *, virtual_depth: float, colour: str = "
                     data={"render": res, "virtual_depth": virtual_depth})
 
 
+def render_photo(src: Source, *, slope: float | None = None, alpha: float | None = None,
+                 distance_m: float | None = None) -> Rendered:
+    """The camera's photograph, as ``plenodecode RAW -o photo.png`` writes it without a focus option: a
+    focused-plenoptic (Raytrix) raw's total focus (:func:`render_total_focus`; its decoded views have one pixel
+    per lens, a thumbnail), else the photograph refocused (:func:`render_refocus`) at ``slope``, ``alpha`` or
+    ``distance_m``, by default as captured (slope 0).  The rendered product says which ('total-focus' or
+    'refocus')."""
+    if src.focused:
+        return render_total_focus(src)
+    if slope is None and alpha is None and distance_m is None:
+        slope = 0.0
+    return render_refocus(src, slope=slope, alpha=alpha, distance_m=distance_m)
+
+
 #: Product name -> ``fn(source, **options) -> Rendered``; the same names in the CLI, batch and Python.
 PRODUCTS: dict[str, Callable[..., Rendered]] = {
+    "photo": render_photo,
     "centre": render_centre,
     "views": render_views,
     "refocus": render_refocus,

@@ -218,3 +218,20 @@ def test_real_r42_rgb_export_decodes_with_one_progress_and_one_warning(tmp_path,
     res = run("views", shared_path("raytrix-r42", "sc2_klein.png"), "-o", tmp_path / "views")
     assert res.exit_code == 0, res.output
     assert res.output.count("decoding") == 1, res.output
+
+
+def test_batch_default_is_the_cameras_photograph_as_the_one_liner_writes_it(tmp_path):
+    """'plenodecode batch FOLDER -o OUT' with no --outputs wrote each raw's centre view: for the real R42 a
+    31 x 22 px thumbnail.  Its default is now 'photo', the one-liner's photograph: the R42's total focus and the
+    F01 JPEG focused as captured, the same files the one-liner writes."""
+    r42, jpeg = shared_path("raytrix-r42", "sc2_klein.png"), shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg")
+    res = run("batch", r42, jpeg, "-o", tmp_path / "out")
+    assert res.exit_code == 0, res.output
+    assert sorted(p.name for p in (tmp_path / "out" / "sc2_klein").glob("*.png")) == ["total_focus.png"]
+    assert sorted(p.name for p in (tmp_path / "out" / "IMG_1").glob("*.png")) == ["refocus_s+0.00.png"]
+    for raw, written in ((r42, tmp_path / "out" / "sc2_klein" / "total_focus.png"),
+                         (jpeg, tmp_path / "out" / "IMG_1" / "refocus_s+0.00.png")):
+        single = run(raw, "-o", tmp_path / f"{raw.stem}.png")
+        assert single.exit_code == 0, single.output
+        np.testing.assert_array_equal(read_image(written), read_image(tmp_path / f"{raw.stem}.png"))
+    assert read_image(tmp_path / "out" / "sc2_klein" / "total_focus.png").shape[1] > 150
