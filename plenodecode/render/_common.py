@@ -14,6 +14,25 @@ from ..registry import lazy, lookup
 from ..types import LightField
 
 
+#: A photograph's pixel that less than this share of the aperture's light reaches (weight sum over ``sum m``)
+#: is a gap at the frame's edge, filled from its neighbours (:func:`fill_empty_pixels`): the column of a
+#: microscope's lenses half off the sensor got 0.1-5 % of it, from one side of the aperture, and read up to 25x
+#: too bright.
+MIN_APERTURE_SHARE = 0.1
+
+
+def fill_empty_pixels(photos: np.ndarray) -> np.ndarray:
+    """Photographs (S, Y, X, C) float32 with their pixels that no view has data for (NaN: a weight sum below
+    :data:`MIN_APERTURE_SHARE` of the aperture's) filled by :func:`~plenodecode.imaging.fill_gaps` (the frame's
+    edge) or else 0, in place."""
+    from ..imaging import fill_gaps
+
+    empty = np.isnan(photos[..., 0])
+    for i in np.flatnonzero(empty.any(axis=(1, 2))):
+        photos[i] = fill_gaps(photos[i], ~empty[i])
+    return np.nan_to_num(photos, copy=False, nan=0.0)
+
+
 def aperture_mask(shape: tuple[int, int], aperture: float | np.ndarray = 1.0) -> np.ndarray:
     """Per-view weights of a synthetic aperture.
 

@@ -34,7 +34,7 @@ import scipy.special
 from .._numba import njit, run_in_blocks
 from ..threads import task_threads
 from ..types import LightField
-from ._common import aperture_mask, check_lightfield, check_upsample
+from ._common import MIN_APERTURE_SHARE, aperture_mask, check_lightfield, check_upsample, fill_empty_pixels
 
 log = logging.getLogger(__name__)
 
@@ -170,7 +170,9 @@ class FourierRefocuser:
     ----------
     lf : LightField
         ``data`` (V, U, Y, X, C) float32; with a ``weight`` the photographs are weight-normalised
-        (the weight is transformed as an extra channel).
+        (the weight is transformed as an extra channel), and their pixels with less than
+        :data:`~plenodecode.render._common.MIN_APERTURE_SHARE` of the aperture's weight filled from their
+        neighbours (:func:`~plenodecode.render._common.fill_empty_pixels`), as the shift-sum's.
     aperture : float or ndarray (V, U)
         Synthetic aperture, see :func:`plenodecode.render.aperture_mask`.
     max_slope : float
@@ -330,12 +332,14 @@ class FourierRefocuser:
         ny, nx, nc = self.shape[2:]
         p = self.pad * k
         img = img[p:p + k * ny, p:p + k * nx]
-        if self.has_weight:
-            den = img[..., nc:]
-            out = np.where(den > 1e-6, img[..., :nc] / np.where(den > 1e-6, den, 1), 0)
-        else:
-            out = img / self.n_views
-        return np.ascontiguousarray(out, np.float32)
+        if not self.has_weight:
+            return np.ascontiguousarray(img / self.n_views, np.float32)
+        # weight-normalised; pixels with less than MIN_APERTURE_SHARE of the aperture's weight are the frame's
+        # edge gaps, filled as the shift-sum fills them
+        den = img[..., nc:]
+        known = den > MIN_APERTURE_SHARE * self.n_views
+        out = np.where(known, img[..., :nc] / np.where(known, den, 1), np.nan).astype(np.float32)
+        return np.ascontiguousarray(fill_empty_pixels(out[None])[0])
 
 
 def _check_refocuser(ref: FourierRefocuser, lf: LightField, aperture: float | np.ndarray, largest: float,

@@ -31,9 +31,10 @@ from typing import Callable
 import cv2
 import numpy as np
 
-from ..imaging import INTERPOLATION_TAPS, fill_gaps, interpolation_taps
+from ..imaging import INTERPOLATION_TAPS, interpolation_taps
 from ..types import LightField
-from ._common import aperture_mask, check_lightfield, check_slopes, check_upsample
+from ._common import (MIN_APERTURE_SHARE, aperture_mask, check_lightfield, check_slopes, check_upsample,
+                      fill_empty_pixels)
 
 log = logging.getLogger(__name__)
 
@@ -42,11 +43,6 @@ _TILED_MIN_SLOPES = 8
 #: ... and from this many samples V U Y X on (a full Illum light field has 61 M), even one photograph: there the
 #: kernel saves 0.1-0.5 CPU s per photograph (3x with a weight), which repays its compile time within a session.
 _TILED_MIN_SAMPLES = 16_000_000
-#: A photograph's pixel that less than this share of the aperture's light reaches (weight sum over ``sum m``)
-#: is a gap at the frame's edge, filled from its neighbours (:func:`_fill_empty`): the column of a microscope's
-#: lenses half off the sensor got 0.1-5 % of it, from one side of the aperture, and read up to 25x too bright.
-MIN_APERTURE_SHARE = 0.1
-
 #: Contiguous blocks of view columns the OpenCV path sums separately (on as many threads as OpenCV has, up to this).
 _COLUMN_BLOCKS = 4
 
@@ -187,16 +183,6 @@ def _shift_sum_phase(lf: LightField, slopes: np.ndarray, vmask: np.ndarray, inte
                              min_den=MIN_APERTURE_SHARE * float(vmask.sum()))
 
 
-def _fill_empty(photos: np.ndarray) -> np.ndarray:
-    """Photographs (S, Y, X, C) float32 with their pixels that no view has data for (NaN: a weight sum below
-    :data:`MIN_APERTURE_SHARE` of the aperture's) filled by
-    :func:`~plenodecode.imaging.fill_gaps` (the frame's edge) or else 0, in place."""
-    empty = np.isnan(photos[..., 0])
-    for i in np.flatnonzero(empty.any(axis=(1, 2))):
-        photos[i] = fill_gaps(photos[i], ~empty[i])
-    return np.nan_to_num(photos, copy=False, nan=0.0)
-
-
 def shift_sum(lf: LightField, slopes: float | np.ndarray, *, aperture: float | np.ndarray = 1.0,
               upsample: int = 1, interp: str = "cubic",
               progress: Callable[[int, int], None] | None = None) -> np.ndarray:
@@ -205,9 +191,9 @@ def shift_sum(lf: LightField, slopes: float | np.ndarray, *, aperture: float | n
     ``E_s(y, x) = sum_{v,u} m_vu w_vu(y', x') L_vu(y', x') / sum_{v,u} m_vu w_vu(y', x')`` with
     ``(y', x') = (y - s (v - vc), x - s (u - uc))``, ``m`` the aperture mask and ``w`` the light field's weight
     (1 when it has none).  Each view is shifted by separable interpolation, samples outside a view taking the
-    nearest edge value.  A pixel that no view has data for (``sum m w`` below :data:`MIN_APERTURE_SHARE`
-    ``sum m``: the gaps a decode leaves at the frame's edge) takes the nearest pixel that has, up to
-    :data:`~plenodecode.imaging.GAP_DEPTH_PX` away, else 0.  A few slopes of a small light field go through
+    nearest edge value.  A pixel that no view has data for (``sum m w`` below
+    :data:`~plenodecode.render._common.MIN_APERTURE_SHARE` ``sum m``: the gaps a decode leaves at the frame's
+    edge) takes the nearest pixel that has, up to :data:`~plenodecode.imaging.GAP_DEPTH_PX` away, else 0.  A few slopes of a small light field go through
     OpenCV, a focal stack or a large light field through one compiled pass over the data (see the module
     docstring); a photograph is the same to float32 rounding whatever other slopes are asked with
     it (exactly the same when the same path computes both).
@@ -248,12 +234,12 @@ def shift_sum(lf: LightField, slopes: float | np.ndarray, *, aperture: float | n
             progress(done[0], total)
 
     if k == 1:
-        return _fill_empty(_shift_sum_phase(lf, s, vmask, interp, (0.0, 0.0), chunks, step))
+        return fill_empty_pixels(_shift_sum_phase(lf, s, vmask, interp, (0.0, 0.0), chunks, step))
     out = np.empty((len(s), k * ny, k * nx, nc), np.float32)
     for py in range(k):
         for px in range(k):
             out[:, py::k, px::k] = _shift_sum_phase(lf, s, vmask, interp, (py / k, px / k), chunks, step)
-    return _fill_empty(out)
+    return fill_empty_pixels(out)
 
 
 __all__ = ["shift_sum"]

@@ -165,6 +165,26 @@ def test_slope_zero_with_weights_is_the_weighted_mean():
     np.testing.assert_allclose(refocus(lf, slope=0.0, method="fourier-slice"), expect, atol=3e-3)
 
 
+@pytest.mark.parametrize("method", ["shift-sum", "fourier-slice"])
+def test_pixels_no_view_has_data_for_take_their_nearest_neighbour(method):
+    """A decode's edge gaps (weight 0 in every view: the hex -> rect grid's alternate edge pixels) were written
+    0, black dots along the photograph's edge; a pixel with less than MIN_APERTURE_SHARE of the aperture's
+    weight takes its nearest neighbour's value, the others keep the weighted mean."""
+    lf, _ = two_planes(n=5, shape=(30, 40), weight=True)
+    weight = lf.weight.copy()
+    weight[:, :, 0, ::2] = 0.0                 # top row: alternate pixels without data in every view
+    weight[:, :, :, -1] *= 0.05                # right column: 5 % of the weight (a lens half off the sensor)
+    holed = lf.replace(data=lf.data * (weight[..., None] > 0), weight=weight)
+    out = refocus(holed, slope=0.0, method=method)
+    w = weight[..., None]
+    expect = (lf.data * w).sum((0, 1)) / np.maximum(w.sum((0, 1)), 1e-12)
+    tol = 1e-6 if method == "shift-sum" else 3e-3
+    np.testing.assert_allclose(out[1:, :-1], expect[1:, :-1], atol=tol)
+    for x in range(2, 38, 2):                  # each gap: one of its nearest neighbours (left, right, below)
+        assert min(np.abs(out[0, x] - expect[y, xx]).max() for y, xx in ((0, x - 1), (0, x + 1), (1, x))) < tol
+    np.testing.assert_allclose(out[1:, -1], expect[1:, -2], atol=tol)
+
+
 @pytest.mark.parametrize("s", [0.45, -1.3, 2.6, 7.0])
 @pytest.mark.parametrize("weighted", [False, True])
 def test_linear_shift_sum_equals_direct_reference(s, weighted):
