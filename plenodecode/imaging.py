@@ -1,4 +1,5 @@
-"""Low-level image operations shared by decoding, rendering and depth: interpolation taps, luma and view warps.
+"""Low-level image operations shared by decoding, rendering and depth: interpolation taps, luma, view warps and
+the filling of the gaps a decode leaves at the frame's edge.
 
 Everything here is a pure function of numpy arrays; nothing depends on the light-field types, so any
 layer of the package can use it (``types.py`` stays free of OpenCV: this module imports it, types does not
@@ -157,7 +158,6 @@ def remap_view(img: np.ndarray, disparity: np.ndarray, dv: float, du: float, gri
     return cv2.remap(img, mx, my, interpolation, borderMode=cv2.BORDER_REPLICATE)
 
 
-__all__ = ["INTERPOLATION_TAPS", "KEYS_A", "interpolation_taps", "LUMA_WEIGHTS", "luma", "shift_view", "remap_view"]
 
 
 #: Weight below which a view's sample (or a photograph's pixel, its weight sum per unit of aperture) counts as no
@@ -198,3 +198,7 @@ def fill_gaps(image: np.ndarray, known: np.ndarray, depth: float = GAP_DEPTH_PX)
     out = np.array(image, copy=True)
     out[fill] = image[iy[fill], ix[fill]]
     return out
+
+
+__all__ = ["INTERPOLATION_TAPS", "KEYS_A", "interpolation_taps", "LUMA_WEIGHTS", "luma", "shift_view", "remap_view",
+           "MIN_DATA_WEIGHT", "GAP_DEPTH_PX", "fill_gaps"]
