@@ -8,8 +8,9 @@ from __future__ import annotations
 import json
 import logging
 import os
+from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Callable, Iterator
 
 from ..types import LightField, RawCapture
 
@@ -132,6 +133,18 @@ def open_raw(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None,
     return with_optics(raw, beside.merged(optics) if beside is not None else optics)
 
 
+@contextmanager
+def quieted(logger: str) -> Iterator[None]:
+    """Within the block, the logger ``logger`` shows errors only (its warnings would repeat or not apply)."""
+    log_ = logging.getLogger(logger)
+    level = log_.level
+    log_.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        log_.setLevel(level)
+
+
 def read_dark_frame(dark: str | os.PathLike | RawCapture | None,
                     mosaic: MosaicOptions | None = None) -> RawCapture | None:
     """The dark frame (``--dark``), read like a raw; None for None.  :func:`plenodecode.decoding.decode`
@@ -144,13 +157,8 @@ def read_dark_frame(dark: str | os.PathLike | RawCapture | None,
     if dark is None or isinstance(dark, RawCapture):
         return dark
     log.info("dark frame %s", dark)
-    reader = logging.getLogger("plenodecode.io.generic")
-    level = reader.level
-    reader.setLevel(logging.ERROR)
-    try:
+    with quieted("plenodecode.io.generic"):
         return _read_raw(Path(dark), mosaic)
-    finally:
-        reader.setLevel(level)
 
 
 #: Input kind -> reader ``fn(path) -> LightField | RawCapture``.

@@ -5,6 +5,7 @@ Part of :mod:`plenodecode.pipeline` (see its docstring for the five steps).
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
 import os
@@ -12,7 +13,7 @@ from functools import cached_property
 from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 from ..types import LightField, RawCapture
-from .inputs import Progress, open_input, read_dark_frame
+from .inputs import Progress, open_input, quieted, read_dark_frame
 from .calibration import Calibration, choose_calibration
 from .needs import check_product
 
@@ -136,17 +137,11 @@ def decode_raw(raw: RawCapture, calibration: Calibration, *, progress: Progress 
     white = calibration.white
     whites = rgb_export_channels(white) if white is not None and is_rgb_export(white) else [white] * 3
     planes = []
-    decoder_log = logging.getLogger("plenodecode.decoding.decoder")
-    level = decoder_log.level
     for c, (plane, w) in enumerate(zip(rgb_export_channels(raw), whites)):
         # one progress bar over the three decodes, and the decoder's warnings (the same for every channel) once
         part = None if progress is None else functools.partial(_channel_progress, progress, c)
-        if c > 0:
-            decoder_log.setLevel(logging.ERROR)
-        try:
+        with quieted("plenodecode.decoding.decoder") if c > 0 else contextlib.nullcontext():
             planes.append(decode(plane, calibration.grid, white=w, progress=part, **decode_options))
-        finally:
-            decoder_log.setLevel(level)
     state = "camera" if decode_options.get("colour") == "camera" else "linear-srgb"
     lf = planes[0].replace(data=np.concatenate([lf.data for lf in planes], axis=-1), colour=state)
     if geometry is None:
