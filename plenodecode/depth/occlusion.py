@@ -115,6 +115,12 @@ def _as_pixel_image(a: np.ndarray, rows: int, cols: int) -> np.ndarray:
     return flat.reshape((rows, cols) + a.shape[1:])
 
 
+def _hypothesis_sigma(radius: int) -> float:
+    """Width (px) of the Gaussian over which a side's hypothesis averages its band pixels: ``radius / 2``, at
+    least 1."""
+    return max(radius / 2.0, 1.0)
+
+
 def _band_hypotheses(d: np.ndarray, radius: int, jump: float
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(band, is_near, h_near, h_far), all (Y, X): the pixels within ``radius`` of a jump (:func:`_edge_band`)
@@ -123,7 +129,7 @@ def _band_hypotheses(d: np.ndarray, radius: int, jump: float
     band's pixels on each side."""
     near, far, band = _edge_band(d, radius, jump)
     is_near = d > 0.5 * (near + far)
-    sigma = max(radius / 2.0, 1.0)
+    sigma = _hypothesis_sigma(radius)
     h_near = _side_fill(d, band & is_near, sigma)
     h_far = _side_fill(d, band & ~is_near, sigma)
     band &= (h_near - h_far) > np.float32(jump)
@@ -273,11 +279,8 @@ def visibility_relabel(intensities: Views, disparity: np.ndarray, *, radius: int
             (np.abs(e) < np.float32(search) - np.float32(1e-6))
         old_far = hyp["far"].reshape(-1)[:n]
         value = np.zeros(d.shape, np.float32)
-        value[ys, xs] = old_far + e
-        sigma = max(radius / 2.0, 1.0)
-        weight = cv2.GaussianBlur(support.astype(np.float32), (0, 0), sigma)[ys, xs]
-        fitted = _side_fill(value, support, sigma)[ys, xs]
-        hyp["far"] = as_image(np.where(weight > 1e-3, fitted, old_far).astype(np.float32))
+        value[ys, xs] = old_far + np.where(support[ys, xs], e, np.float32(0.0))   # the old one where no support
+        hyp["far"] = as_image(_side_fill(value, support, _hypothesis_sigma(radius))[ys, xs])
     near_cost = best_cost(hyp["near"], None)
     near_value, far_value = hyp["near"].reshape(-1)[:n], hyp["far"].reshape(-1)[:n]
     r = np.float32(ratio)
