@@ -70,17 +70,16 @@ def perspective(lf: LightField, v: float, u: float, *, interp: str = "linear") -
     if lf.weight is None:
         return out
     if len(taps) == 1:
-        den = lf.weight[taps[0][0], taps[0][1]]
-    else:
-        num = np.zeros(lf.shape[2:], np.float32)
-        den = np.zeros(lf.shape[2:4], np.float32)
-        for i, j, t in taps:
-            tw = t * lf.weight[i, j]
-            num += tw[..., None] * lf.data[i, j]
-            den += tw
-        known = den >= MIN_DATA_WEIGHT
-        out[known] = num[known] / den[known, None]
-    return fill_gaps(out, den >= MIN_DATA_WEIGHT)
+        return fill_gaps(out, lf.weight[taps[0][0], taps[0][1]] >= MIN_DATA_WEIGHT)
+    num = np.zeros(lf.shape[2:], np.float32)
+    den = np.zeros(lf.shape[2:4], np.float32)
+    for i, j, t in taps:
+        tw = t * lf.weight[i, j]
+        num += tw[..., None] * lf.data[i, j]
+        den += tw
+    known = den >= MIN_DATA_WEIGHT
+    out[known] = num[known] / den[known, None]
+    return fill_gaps(out, known)
 
 
 def parallax_path(lf: LightField, n_frames: int = 24, radius: float | None = None) -> list[tuple[float, float]]:
