@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from ..errors import DecodeError
-from ..imaging import LUMA_WEIGHTS, luma, shift_view
+from ..imaging import LUMA_WEIGHTS, MIN_DATA_WEIGHT, fill_gaps, luma, shift_view
 from ..types import LightField
 
 log = logging.getLogger(__name__)
@@ -102,7 +102,9 @@ def prepare_views(lf: LightField, *, min_view_weight: float = 0.1, grey: bool = 
     Parameters
     ----------
     lf : LightField
-        (V, U, Y, X, C) float32; NaN samples (no data) are set to 0 and do not count.
+        (V, U, Y, X, C) float32; NaN samples (no data) are set to 0 and do not count.  A sample whose
+        ``lf.weight`` is below :data:`~plenodecode.imaging.MIN_DATA_WEIGHT` (the frame's edge, a lens half off
+        the sensor) takes its view's nearest sample with data (:func:`~plenodecode.imaging.fill_gaps`).
     min_view_weight : float
         Views whose weight (median of ``lf.weight`` over the view, relative to the centre view) is below this
         are not used; the others are weighted by it.
@@ -154,6 +156,10 @@ def prepare_views(lf: LightField, *, min_view_weight: float = 0.1, grey: bool = 
         for u in range(U):
             if weight[v, u] > 0:
                 img = centre if (v, u) == (vc, uc) else _clean(lf.data[v, u], grey)
+                if lf.weight is not None:
+                    # a sample without data (the frame's edge, a lens half off the sensor) is 0: matched as it is,
+                    # its step to the data beside it is texture the other views do not show
+                    img = fill_gaps(img, np.asarray(lf.weight[v, u]) >= MIN_DATA_WEIGHT, depth=np.inf)
                 out[v, u] = _display_encode(img, scale, gamma).reshape(Y, X, nc)
     plain = Views(out, weight, (vc, uc), luma(out[vc, uc]).copy(), 2.2 if gamma else 1.0)
     return add_contrast(plain, contrast_sigma, contrast_eps, contrast_weight) if contrast_sigma > 0 else plain

@@ -83,12 +83,17 @@ def test_antleg_background_is_masked_and_the_structures_have_the_parallax_sign(a
     structures = [blobs == 1 + i for i in np.argsort(sizes)[::-1][:2]]
     near = ndimage.binary_dilation(structures[0] | structures[1], iterations=8)
     background = ~near
-    background[:2, :] = background[:, :2] = False             # the partial lenses at the border
     assert background.mean() > 0.15
     low = DEFAULT_MIN_CONFIDENCE
-    print(f"background {background.mean():.2f} of the map, {np.mean(conf[background] < low):.3f} below {low}; "
-          f"grey share of the PNG {_grey_share(out.with_suffix('.png')):.3f}, of the map {np.mean(conf < low):.3f}")
+    # the frame's edge: lens rows half off the sensor leave outer views without samples there (confident blobs
+    # of made-up texture before their gaps were filled for the matching: 114 pixels in the top 4 rows)
+    frame = np.ones_like(background)
+    frame[4:-4, 4:-4] = False
+    print(f"background {background.mean():.2f} of the map, {np.mean(conf[background] < low):.3f} below {low}, "
+          f"{np.mean(conf[background & frame] < low):.3f} at the frame's edge; grey share of the PNG "
+          f"{_grey_share(out.with_suffix('.png')):.3f}, of the map {np.mean(conf < low):.3f}")
     assert np.mean(conf[background] < low) > 0.9             # featureless: below the default --min-confidence
+    assert np.mean(conf[background & frame] < low) > 0.99
     # and greyed in the PNG (the map fills about half of the figure)
     assert _grey_share(out.with_suffix(".png")) > 0.3 * np.mean(conf < low)
     medians = []
