@@ -219,3 +219,25 @@ def test_constants_missing_from_a_raw_are_those_its_light_field_lacks(change, mi
             alpha_to_slope(1.01, lf)
     else:
         assert alpha_to_slope(1.01, lf) > 0
+
+
+def test_views_partly_outside_the_micro_images_are_black():
+    """``ViewImages`` (the ``views`` product) writes a view whose samples carry data in under
+    :data:`~plenodecode.imaging.MIN_VIEW_DATA` of the pixels black, and every other view as ``perspective``."""
+    from plenodecode.imaging import MIN_VIEW_DATA, view_data_share
+    from plenodecode.pipeline.products import ViewImages
+    from plenodecode.render import perspective
+
+    rng = np.random.default_rng(0)
+    data = rng.uniform(0.2, 0.8, (3, 3, 20, 24, 3)).astype(np.float32)
+    weight = np.ones((3, 3, 20, 24), np.float32)
+    weight[0, 0, ::2] = 0.005       # half the rows below MIN_DATA_WEIGHT: the lens edges of a corner view
+    weight[0, 2, :1] = 0.0          # one row without data: the frame's edge
+    lf = LightField(data=data, weight=weight)
+    share = view_data_share(weight)
+    assert share[0, 0] == pytest.approx(0.5) and share[0, 2] == pytest.approx(19 / 20) and share[1, 1] == 1.0
+    images = ViewImages(lf)
+    assert images.dark == [(0, 0)] and share[0, 2] >= MIN_VIEW_DATA
+    assert len(images) == 9 and not images[0][1].any() and images[0][0] == "view_00_00"
+    for k in range(1, 9):
+        np.testing.assert_array_equal(images[k][1], perspective(lf, k // 3, k % 3))

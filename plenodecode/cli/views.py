@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from ..imaging import MIN_VIEW_DATA
 from ..pipeline import IMAGE_EXTENSIONS
 from .common import (NON_NEGATIVE, RegistryChoice, bit_depth_option, calibration_kwargs, check_output, input_options,
                      output_option, overwrite_option, progress_bar, quiet, usage_errors)
@@ -55,4 +56,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, view: tuple[floa
             click.echo(f"wrote {output} (view {view[0]:g}, {view[1]:g})")
         else:
             nv, nu = lf.shape[:2]
-            click.echo(f"wrote {len(written)} views ({nv}x{nu}) to {output}")
+            dark = rendered.images.dark
+            names = ", ".join(f"view_{v:02d}_{u:02d}" for v, u in dark[:4]) + (", ..." if len(dark) > 4 else "")
+            note = "" if not dark else (f"; {len(dark)} partly outside the micro-images (data in under "
+                                        f"{MIN_VIEW_DATA:.0%} of their samples) written black: {names}")
+            click.echo(f"wrote {len(written)} views ({nv}x{nu}) to {output}{note}")

@@ -58,20 +58,32 @@ class Rendered:
 class ViewImages(Sequence):
     """Every view of a light field as ``(view_VV_UU, image)`` pairs, each image rendered by
     :func:`plenodecode.render.perspective` when it is read: a folder of views costs one view's memory at a time,
-    not a copy of the light field."""
+    not a copy of the light field.  A view partly outside the micro-images (data in fewer than
+    :data:`~plenodecode.imaging.MIN_VIEW_DATA` of its samples, :func:`~plenodecode.imaging.view_data_share`) is
+    black: it would show the lenses' edges and the gaps between them as stripes and holes.  ``dark`` lists them."""
 
     def __init__(self, lf: LightField) -> None:
+        import numpy as np
+
+        from ..imaging import MIN_VIEW_DATA, view_data_share
+
         self.lf = lf
         self.stems = view_names(lf.shape)
+        share = np.ones(lf.shape[:2]) if lf.weight is None else view_data_share(lf.weight)
+        self.dark = [(int(v), int(u)) for v, u in zip(*np.nonzero(share < MIN_VIEW_DATA))]
 
     def __len__(self) -> int:
         return len(self.stems)
 
     def __getitem__(self, i: int) -> tuple[str, Any]:
+        import numpy as np
+
         from ..render import perspective
 
         nu = self.lf.shape[1]
         k = range(len(self))[i]
+        if (k // nu, k % nu) in self.dark:
+            return self.stems[k], np.zeros(self.lf.shape[2:], self.lf.data.dtype)
         return self.stems[k], perspective(self.lf, k // nu, k % nu)
 
 
