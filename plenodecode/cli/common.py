@@ -289,6 +289,17 @@ def quiet(ctx: click.Context) -> bool:
     return bool((ctx.obj or {}).get("quiet"))
 
 
+#: How a light field's colour state reads in a summary line.
+COLOUR_WORDS = {"camera": "camera RGB", "linear-srgb": "linear sRGB", "srgb": "sRGB"}
+
+
+def lightfield_summary(shape: tuple[int, ...], colour: str) -> str:
+    """``'9x9 views of 381x381, camera RGB'`` for a (V, U, Y, X, C) light field; one channel reads 'monochrome'."""
+    V, U, Y, X, C = shape
+    words = "monochrome" if C == 1 else COLOUR_WORDS.get(colour, colour)
+    return f"{V}x{U} views of {Y}x{X}, {words}"
+
+
 output_option = click.option("-o", "--output", "output", type=click.Path(path_type=Path), required=True,
                              help="Output file or folder.")
 overwrite_option = click.option("--overwrite", is_flag=True, help="Replace existing outputs.")

@@ -8,8 +8,8 @@ from pathlib import Path
 import click
 
 from .common import (RegistryChoice, bit_depth_option, calibration_kwargs, input_options, lightfield_output_format,
-                     output_option, overwrite_option, progress_bar, quiet, refuse_database_with_grid,
-                     usage_errors)
+                     lightfield_summary, output_option, overwrite_option, progress_bar, quiet,
+                     refuse_database_with_grid, usage_errors)
 
 log = logging.getLogger(__name__)
 
@@ -78,6 +78,5 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
         out = write_lightfield(lf, output, format=name, bit_depth=int(bit_depth), overwrite=overwrite,
                                progress=progress_bar(f"writing {name}", ctx))
     if not quiet(ctx):
-        V, U, Y, X, C = lf.shape
         rectified = ", rectified" if lf.geometry.ray_model else ""
-        click.echo(f"wrote {out} ({name}: {V}x{U} views of {Y}x{X}x{C}, colour {lf.colour}{rectified})")
+        click.echo(f"wrote {out} ({name}: {lightfield_summary(lf.shape, lf.colour)}{rectified})")

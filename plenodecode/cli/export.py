@@ -8,8 +8,8 @@ import click
 
 from ..pipeline import IMAGE_EXTENSIONS
 from ..registry import lazy
-from .common import (RegistryChoice, bit_depth_option, check_output, lightfield_output_format, output_option,
-                     overwrite_option, progress_bar)
+from .common import (RegistryChoice, bit_depth_option, check_output, lightfield_output_format, lightfield_summary,
+                     output_option, overwrite_option, progress_bar)
 
 #: Exports that are pages for people, not light fields (they never load back; their extensions are
 #: :data:`plenodecode.io.lightfield.PAGE_EXTENSIONS`): name -> ``write(lf, path, *, overwrite, progress)``.
@@ -101,6 +101,5 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
     except ValueError as exc:
         raise click.UsageError(str(exc)) from exc
     if not (ctx.obj or {}).get("quiet"):
-        V, U, Y, X, C = lf.shape
         colour = "srgb" if srgb or page is not None else lf.colour
-        click.echo(f"wrote {out} ({name}: {V}x{U} views of {Y}x{X}x{C}, colour {colour})")
+        click.echo(f"wrote {out} ({name}: {lightfield_summary(lf.shape, colour)})")

@@ -177,7 +177,7 @@ def test_r42_decode_says_in_one_line_what_to_run(r42, tmp_path):
     assert not (tmp_path / "lf.zarr").exists()
     res = run("decode", r42, "--views-anyway", "-o", tmp_path / "lf.zarr")        # asked for: colour views
     assert res.exit_code == 0, res.output
-    assert "x3, colour linear-srgb" in res.output
+    assert "views of 22x31, linear sRGB" in res.output         # three channels, not the grey mosaic
 
 
 def test_r42_refocus_at_a_virtual_depth_in_the_lens_types_range(r42, tmp_path):
