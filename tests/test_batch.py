@@ -483,6 +483,24 @@ def test_cli_folder_of_unrecognised_images_says_to_name_the_raw(tmp_path):
     assert res.exit_code == 2 and "3 image(s) (dark_frame.tif, light_field.png, radiometry_frame.png)" in res.output
 
 
+def test_cli_real_desktop_exports_fail_for_their_reason_and_passed_over_images_are_named(tmp_path):
+    """``batch`` over the real Lytro Desktop exports and the ant-leg folder, with no calibration database: each
+    export is reported as holding no raw (before: the whole batch refused, '--database: calib is not a
+    folder'), and the images the folders held without a sidecar are named (before: not a word)."""
+    from tests.conftest import shared_path
+
+    containers, scope = shared_path("lytro-containers"), shared_path("lf-microscopy-antleg")
+    res = CliRunner().invoke(cli, ["batch", str(containers), str(scope), "-o", str(tmp_path / "o"), "--database",
+                                   str(tmp_path / "no_db")])
+    assert "--database" in res.output                       # a --database typed that is no folder is refused
+    res = CliRunner().invoke(cli, ["batch", str(containers), str(scope), "-o", str(tmp_path / "o")])
+    assert res.exit_code == 1, res.output
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["total"] == 4 and summary["failed"] == 4
+    assert all("holds no raw image" in r["error"] for r in summary["results"])
+    assert "note: 3 image(s) (dark_frame.tif, light_field.png, radiometry_frame.png) were not taken" in res.output
+
+
 # -------------------------------------------------------------------- processes and Dask
 def test_latency_separates_each_workers_first_task():
     def res(worker, started, seconds, status="done"):

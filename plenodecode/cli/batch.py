@@ -113,15 +113,17 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
         except FileExistsError as exc:
             raise click.UsageError(str(exc)) from None
     files = find_raws(inputs, exclude=[out_dir])
+    # e.g. a microscope's raw beside its white and dark frames: only the user knows which image is the raw
+    images = images_not_taken(inputs, exclude=[out_dir], stop_marker=DONE_MARKER)
+    names = ", ".join(p.name for p in images[:3]) + (f" and {len(images) - 3} more" if len(images) > 3 else "")
+    not_taken = (f"{len(images)} image(s) ({names}) were not taken: a folder yields an image only with a sidecar"
+                 f" or at a known lenslet sensor's size: name the raw image itself") if images else ""
     if not files:
-        images = images_not_taken(inputs, exclude=[out_dir], stop_marker=DONE_MARKER)
-        hint = ""
-        if images:          # e.g. a microscope's raw beside its white and dark frames: only the user knows which
-            names = ", ".join(p.name for p in images[:3]) + (f" and {len(images) - 3} more" if len(images) > 3 else "")
-            hint = (f"; {len(images)} image(s) ({names}) were not taken: a folder yields an image only with a sidecar"
-                    f" or at a known lenslet sensor's size: name the raw image itself, "
-                    f"'plenodecode batch {images[0].parent}/RAW_IMAGE -o OUT' (a microscope's with -w WHITE_IMAGE)")
+        hint = (f"; {not_taken}, 'plenodecode batch {images[0].parent}/RAW_IMAGE -o OUT' (a microscope's with "
+                f"-w WHITE_IMAGE)") if images else ""
         raise click.UsageError(f"no raws found under {', '.join(map(str, inputs))}{hint}")
+    if images and not (ctx.obj or {}).get("quiet"):
+        click.echo(f"note: {not_taken}", err=True)
     # a --database typed that is no folder is refused; the default one missing only when no raw can do without it
     # (the others are decoded; those that need it fail with the reason, as a batch goes past any bad raw)
     if white is None and not db_dir.is_dir() and (

@@ -55,9 +55,18 @@ def _is_raw_candidate(p: Path) -> bool:
 
 def needs_no_database(p: Path) -> bool:
     """True for a raw never looked up in the calibration database: an image mosaic with a Raytrix XML beside
-    it (the camera's own calibration) or with neither that nor a sidecar (self-calibrated)."""
+    it (the camera's own calibration) or with neither that nor a sidecar (self-calibrated); also a Lytro
+    container that holds no raw (a Desktop export, or not a container at all: it fails for its own reason)."""
     from . import generic, raytrix
 
+    if p.suffix.lower() in (".lfp", ".lfr"):
+        from ..errors import PlenodecodeError
+        from .lytro.container import read_container
+
+        try:
+            return read_container(p, verify=False).kind != "raw"
+        except (PlenodecodeError, OSError, ValueError):
+            return True
     if p.suffix.lower() not in MOSAIC_SUFFIXES:
         return False
     return raytrix.find_calibration_xml(p) is not None or generic.find_sidecar(p) is None
