@@ -73,6 +73,14 @@ COSTVOLUME: dict[str, Any] = {
     "sgm_gate_floor": 0.03,   # ... plus this (0 ratio = off); see the pipeline's step 2
     "shift_noise": 1.0,       # noise_var of the cost volumes = this x noise sigma^2 above contrast_smooth_noise
                               # (pipeline step 1; decoded thin means 31.04 -> 28.16 %, 1 vs 0)
+    "refine_shift_noise": 2.8,  # the refinement's noise_var is at least this x sigma_low^2 (the noise of the pixels
+                              # that match), each view's over its weight (cost.half_plane_cost_volume's
+                              # noise_weighted): noise_sigma reads 0.60 x the noise of decoded views (0.0062
+                              # against 0.0103 on an illum-mini plane, noisy minus noise-free decode), as
+                              # neighbouring views share sensor pixels (noise correlation 0.43), so 2.8 =
+                              # (1 / 0.60)^2.  Without it the bicubic refinement pulled a decoded weak plane at -1
+                              # to -0.92 (BadPix0.07 9.6 -> 74.3 %, now 1.1 %; at 0: 67.9 -> 17.5 %); decoded
+                              # thin mean 17.18 -> 17.12 %, thin GT 5.767 -> 5.762 %, illum-mini dec 0.85 -> 0.78 %
     "shift_noise_rho": (0.0, 0.3),  # correlation of the noise of neighbouring pixels (y, x): 0.0 / 0.28-0.30 on
                               # a decoded illum-mini plane's views (the hex resampling interpolates along rows)
     "refine_radius_noisy": 5, # refinement box radius at least this on views noisier than contrast_smooth_noise
@@ -113,6 +121,7 @@ FAST: dict[str, Any] = {
     "sgm_gate_ratio": 0.0,
     "sgm_gate_floor": 0.03,
     "shift_noise": 0.0,
+    "refine_shift_noise": 0.0,
     "shift_noise_rho": (0.0, 0.0),
     "refine_radius_noisy": 0,
     "radius_noisy": 0,

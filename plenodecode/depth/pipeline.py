@@ -43,9 +43,10 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    half-planes, whose box holds the gap's occluders.
    On noisy views (above ``contrast_smooth_noise``, ramped in up to twice it) every view's error also gets
    back the noise a fractional shift's interpolation averages away (``noise_var`` = ``shift_noise`` x the
-   noise variance, with the noise's pixel-to-pixel correlation ``shift_noise_rho``; the same in the
-   refinement of step 5): otherwise the cost is lowest at fractional shifts and a weakly textured surface
-   at an integer disparity is pulled off it.
+   noise variance, with the noise's pixel-to-pixel correlation ``shift_noise_rho``; in the refinement of
+   step 5 ``refine_shift_noise`` x the noise variance, over each view's weight: ``noise_weighted`` of
+   :func:`~plenodecode.depth.cost.half_plane_cost_volume`): otherwise the cost is lowest at fractional shifts
+   and a weakly textured surface at an integer disparity is pulled off it.
 2. **Edge-aware regularisation** (:mod:`~plenodecode.depth.aggregation`): semi-global aggregation along
    ``paths`` directions (Hirschmueller, TPAMI 2008) whose large-jump penalty P2 falls at the centre view's
    intensity edges, so depth edges follow image edges (also where a mixed pixel spreads the edge over two
@@ -217,7 +218,8 @@ PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "med
                  "disparity_range", "strips", "strip_width", "strip_halves",
                  "strip_radius", "strip_penalty", "refine_strip_penalty", "strip_penalty_noise", "refine_penalty_noise",
                  "strip_floor", "gate_ratio", "gate_floor", "gate_noise", "sgm_gate_ratio", "sgm_gate_floor",
-                 "confidence_radius", "shift_noise", "shift_noise_rho", "radius_noisy", "refine_radius_noisy",
+                 "confidence_radius", "shift_noise", "refine_shift_noise", "shift_noise_rho", "radius_noisy",
+                 "refine_radius_noisy",
                  "contrast_weight_noisy", *EDGE_DEFAULTS)
 
 
@@ -266,7 +268,8 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
     for name in ("strip_width", "strip_penalty", "refine_strip_penalty"):
         if not float(p[name]) > 0:
             raise ValueError(f"{name} must be positive, got {p[name]!r}")
-    for name in ("shift_noise", "strips", "strip_radius", "strip_penalty_noise", "refine_penalty_noise", "strip_floor",
+    for name in ("shift_noise", "refine_shift_noise", "strips", "strip_radius", "strip_penalty_noise",
+                 "refine_penalty_noise", "strip_floor",
                  "gate_ratio", "gate_noise",
                  "gate_floor", "sgm_gate_ratio", "sgm_gate_floor"):
         if not float(p[name]) >= 0:
@@ -513,12 +516,18 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
         disparity = gated(winner(cost, labels)[0], disparity, float(p["sgm_gate_ratio"]), float(p["sgm_gate_floor"]))
     disparity = gated(disparity, weighted_median(guide, disparity, int(p["median_radius"])))
     refine_penalty = strip_penalty_for(float(p["refine_strip_penalty"]), float(p["refine_penalty_noise"]), noise)
+    # the refinement's bicubic offsets average the noise of the views at their real variance, which noise_sigma
+    # underestimates on decoded views (see refine_shift_noise); at least that of the pixels that match
+    refine_noise_var = max(strips["noise_var"], shift_noise_var(float(p["refine_shift_noise"]),
+                                                                float(p["contrast_smooth_noise"]), noise_low))
     if n_refine:
         log.info("refinement strip penalty %.2f (view noise sigma %.4f)", refine_penalty, noise)
         disparity = refine_disparity(views, disparity, half_range=float(p["refine_range"]) * step,
                                      samples=n_refine, radius=refine_radius, progress=stage(n_labels + n_paths),
                                      **{**strips, "strip_radius": max(strips["strip_radius"], refine_radius),
-                                        "strip_penalty": refine_penalty})
+                                        "strip_penalty": refine_penalty,
+                                        "noise_var": refine_noise_var,
+                                        "noise_weighted": True})
     if int(p["edge_radius"]) > 0:
         disparity = fix_occlusion_edges(views, disparity, colour_guide(lf), radius=int(p["edge_radius"]),
                                         jump=float(p["edge_jump"]), ratio=float(p["edge_ratio"]),
