@@ -16,17 +16,19 @@ Per raw pixel (:func:`sensor_virtual_depth`):
 
 1. luminance, standardised within every micro-image by a local window that never leaves the lens's usable
    disk: ``n = (L - mu_5x5) / (sigma_5x5 + eps)`` (gain and blur-contrast differences between the three lens
-   types of a multi-focus array cancel);
+   types of a multi-focus array cancel; ``eps`` = the noise level, :func:`relative_noise`), kept only where the
+   window lies wholly inside the disk;
 2. for every candidate ``P`` (step ``step`` px) and every baseline: the truncated absolute difference
-   ``min(|n(x) - n(x + s)|, tau)``, counted only where ``x`` lies in its lens's usable disk and ``x + s`` in the
-   neighbour's (``|m + sign b P / D| < r - nmargin``); summed over baselines and a ``win`` x ``win`` window,
-   divided by the number of valid pairs;
+   ``min(|n(x) - n(x + s)|, tau)``, counted only where both ``x`` and ``x + s`` are kept
+   (``|m + sign b P / D| < r_kept``); summed over baselines and a ``window`` x ``window`` window, divided by the
+   number of valid pairs;
 3. the winner, refined by a parabola through its neighbours (sub-label); a winner at the end of a pixel's
    searchable range (its neighbour candidate has no valid pair, e.g. a micro-image centre at v ~ 2 that no
    neighbour sees) is no minimum: confidence 0;
-4. confidence = texture ``t^2 / (t^2 + 0.02^2)`` (``t`` the local standard deviation over the lens mean
-   brightness; low on featureless micro-images) x ``clip((1 - c1 / c2) / 0.3, 0, 1)`` (``c2`` the lowest cost
-   at least 2 px of ``P`` away from the winner; low on ambiguous or flat cost curves).
+4. confidence = texture ``t^2 / (t^2 + 0.02^2)`` (``t`` the local standard deviation, noise removed, over the
+   lens mean brightness; low on featureless micro-images) x ``clip((1 - c1 / c2) / 0.3, 0, 1)`` (``c2`` the
+   lowest cost at least 2 px of ``P`` away from the winner; low on ambiguous or flat cost curves) x 0.1 where
+   no neighbour's pixel showing the same point found the same ``P`` (:func:`_cross_check`, a left-right check).
 
 The per-pixel depth is then carried to the total-focus image (:func:`estimate_focused_depth`) with the
 rendering's own output-pixel -> sensor-pixel mapping (:func:`plenodecode.decoding.focused.map_to_render`),
@@ -176,7 +178,10 @@ def _normalised_luminance(img: np.ndarray, grid: LensletGrid, margin: float, lcn
     n = np.where(usable, (lm - mu) / (sd + eps), 0.0).astype(np.float32)
     signal = np.sqrt(np.maximum((sd / lens_mean) ** 2 - np.float32(noise) ** 2, 0.0))
     texture = np.where(usable, signal, 0.0).astype(np.float32)
-    return usable, my, mx, n, texture, noise
+    # only pixels whose standardisation window lies wholly in the disk: a clipped window shifts the local mean
+    # and scale with the position in the micro-image, which biased P by 1 - 2 % (the exact planes of the tests)
+    complete = usable & (n0 >= lcn * lcn - 0.5)
+    return complete, my, mx, n, texture, noise
 
 
 def relative_noise(lum: np.ndarray, usable: np.ndarray, lens_mean: np.ndarray) -> float:
@@ -195,7 +200,7 @@ def relative_noise(lum: np.ndarray, usable: np.ndarray, lens_mean: np.ndarray) -
 
 def sensor_virtual_depth(image, grid: LensletGrid, *, keplerian: bool, p_range: tuple[float, float] | None = None,
                          step: float = 0.5, window: int = 9, lcn: int = 5, tau: float = 1.5, margin: float = 1.5,
-                         nmargin: float = 2.5, max_baseline: float = 2.05,
+                         max_baseline: float = 2.05,
                          progress: Callable[[int, int], None] | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """Virtual depth of every raw pixel inside a micro-image (see the module docstring for the cost).
 
@@ -216,8 +221,9 @@ def sensor_virtual_depth(image, grid: LensletGrid, *, keplerian: bool, p_range: 
         Window of the local standardisation, px (odd).
     tau : float
         Truncation of the per-pixel cost (standardised units).
-    margin, nmargin : float
-        px kept off the usable disk's edge (``grid.radius``) for the reference pixel and for its match.
+    margin : float
+        px kept off the usable disk's edge (``grid.radius``); a pixel is compared when its whole ``lcn`` window
+        lies within (the match: within ``radius - margin - (lcn // 2) sqrt 2``).
     max_baseline : float
         Farthest neighbour compared, in lens pitches.
 
@@ -244,7 +250,7 @@ def sensor_virtual_depth(image, grid: LensletGrid, *, keplerian: bool, p_range: 
     base = lattice_baselines(grid, max_baseline)
     sign = 1.0 if keplerian else -1.0
     r_use = float(grid.radius) - margin
-    r2 = np.float32((float(grid.radius) - nmargin) ** 2)
+    r2 = np.float32((r_use - (lcn // 2) * math.sqrt(2.0)) ** 2)
     area = window * window
     pad = window // 2 + 1
     band = int(max(16, min(h, BAND_BYTES // max(1, 4 * nt * w))))
