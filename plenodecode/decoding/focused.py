@@ -24,7 +24,9 @@ This module renders with a per-lens ``P`` (an array, or estimated from the data)
 * :func:`render_total_focus` adds a per-lens focus measure (Tenengrad: mean squared gradient of
   the micro-image centre relative to its brightness) as a weight ``focus ** sharpness`` so that,
   with Raytrix multi-focus MLAs (three interleaved lens types, Perwass & Wietzke, SPIE 2012),
-  each region of the image comes from the lens type that is sharp there: "total focus".
+  each region of the image comes from the lens type that is sharp there: "total focus";
+* :func:`map_to_render` carries any per-sensor-pixel quantity (e.g. the virtual depth of
+  :mod:`plenodecode.depth.focused`) to a rendering's grid through the same mapping and weights.
 
 Geometry: the output pixel ``q`` lies at sensor position ``q / s`` with ``s = spacing / D``; lens
 ``k`` sits at ``s * c_k`` and shows, at output offset ``delta = q - s * c_k``, its micro-image
