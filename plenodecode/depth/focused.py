@@ -181,6 +181,8 @@ def _normalised_luminance(img: np.ndarray, grid: LensletGrid, margin: float, lcn
     # only pixels whose standardisation window lies wholly in the disk: a clipped window shifts the local mean
     # and scale with the position in the micro-image, which biased P by 1 - 2 % (the exact planes of the tests)
     complete = usable & (n0 >= lcn * lcn - 0.5)
+    my[~complete] = 1e4
+    mx[~complete] = 1e4
     return complete, my, mx, n, texture, noise
 
 
@@ -265,8 +267,11 @@ def sensor_virtual_depth(image, grid: LensletGrid, *, keplerian: bool, p_range: 
         y1 = min(h, y0 + band)
         a0, a1 = max(0, y0 - pad), min(h, y1 + pad)
         bh = a1 - a0
-        nb_ref, u_b, my_b, mx_b = n[a0:a1], usable[a0:a1], my[a0:a1], mx[a0:a1]
+        nb_ref, my_b, mx_b = n[a0:a1], my[a0:a1], mx[a0:a1]
         vol = np.full((nt, y1 - y0, w), np.inf, np.float32)
+        moved, diff = np.empty((bh, w), np.float32), np.empty((bh, w), np.float32)
+        qy, qx = np.empty((bh, w), np.float32), np.empty((bh, w), np.float32)
+        ones = np.ones((bh, w), np.float32)
         for t in range(nt):
             acc = np.zeros((bh, w), np.float32)
             cnt = np.zeros((bh, w), np.float32)
@@ -274,11 +279,19 @@ def sensor_virtual_depth(image, grid: LensletGrid, *, keplerian: bool, p_range: 
                 d = sign * b * patches[t] / pitch          # offset change in the neighbour
                 s = b + d                                  # sensor shift of the match
                 m = np.float32([[1, 0, s[1]], [0, 1, s[0] + a0]])
-                moved = cv2.warpAffine(n, m, (w, bh), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                                       borderMode=cv2.BORDER_CONSTANT)
-                valid = u_b & ((my_b + np.float32(d[0])) ** 2 + (mx_b + np.float32(d[1])) ** 2 < r2)
-                acc += np.where(valid, np.minimum(np.abs(nb_ref - moved), np.float32(tau)), np.float32(0.0))
-                cnt += valid
+                cv2.warpAffine(n, m, (w, bh), dst=moved, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                               borderMode=cv2.BORDER_CONSTANT)
+                # the match inside the neighbour's kept disk: |m + d| < r_kept (my, mx huge off the kept pixels)
+                np.add(my_b, np.float32(d[0]), out=qy)
+                np.multiply(qy, qy, out=qy)
+                np.add(mx_b, np.float32(d[1]), out=qx)
+                np.multiply(qx, qx, out=qx)
+                np.add(qy, qx, out=qy)
+                valid = np.less(qy, r2).view(np.uint8)
+                cv2.absdiff(nb_ref, moved, dst=diff)
+                np.minimum(diff, np.float32(tau), out=diff)
+                cv2.accumulate(diff, acc, mask=valid)
+                cv2.accumulate(ones, cnt, mask=valid)
                 done += 1
             num = _box(cnt, window)[y0 - a0:y1 - a0]
             cost = _box(acc, window)[y0 - a0:y1 - a0] / np.maximum(num, 1.0)
@@ -322,8 +335,12 @@ def _winner(vol: np.ndarray, patches: np.ndarray, step: float, ex: int) -> tuple
     """Sub-label winner ``P`` (NaN without one) and ambiguity confidence of a cost volume (T, h, w) (inf =
     no valid pair)."""
     nt = vol.shape[0]
-    best = np.argmin(vol, axis=0)
-    c1 = np.take_along_axis(vol, best[None], 0)[0]
+    best = np.zeros(vol.shape[1:], np.int64)
+    c1 = vol[0].copy()
+    for t in range(1, nt):                        # a loop over planes: argmin over axis 0 strides badly
+        better = vol[t] < c1
+        best[better] = t
+        np.minimum(c1, vol[t], out=c1)
     cm = np.take_along_axis(vol, np.maximum(best - 1, 0)[None], 0)[0]
     cp = np.take_along_axis(vol, np.minimum(best + 1, nt - 1)[None], 0)[0]
     interior = (best > 0) & (best < nt - 1) & np.isfinite(cm) & np.isfinite(cp) & np.isfinite(c1)
