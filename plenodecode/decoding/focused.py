@@ -564,8 +564,8 @@ def focus_weights(focus: np.ndarray, sharpness: float = 2.0) -> np.ndarray:
     return (np.maximum(f, 0.0) / med) ** sharpness
 
 
-def map_to_render(planes: np.ndarray, grid: LensletGrid, render: FocusedRender, *, lens_weight: np.ndarray | None = None,
-                  feather: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+def map_to_render(planes: np.ndarray, grid: LensletGrid, render: FocusedRender, *,
+                  lens_weight: np.ndarray | None = None, feather: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Per-sensor-pixel quantities carried onto a rendering's output grid by the rendering's own mapping.
 
     Output pixel ``q`` takes from lens ``k`` (output position ``s c_k``, patch ``P_k``) its sensor pixel
