@@ -99,3 +99,22 @@ def test_depth_aligns_with_the_total_focus_pixel_for_pixel(raytrix):
     for dy, dx in ((0, 1), (0, -1), (1, 0), (-1, 0)):
         assert here < err(dy, dx), (dy, dx)
         assert 1.2 * here < err(2 * dy, 2 * dx), (dy, dx)
+
+
+def test_featureless_micro_images_are_not_confident():
+    """Flat micro-images with 4 % noise: confident (>= 0.1) on 2.2 % of the pixels (measured); the textured plane
+    under the same noise: 93 %, median error 1.6 %."""
+    from plenodecode.synthetic import make_grid
+
+    grid = make_grid("raytrix", shape=(330, 460))
+    rng = np.random.default_rng(0)
+    textured = focused_raw(grid, 4.0, keplerian=True)
+    inside = textured > 0
+    noise = 0.02 * rng.standard_normal(textured.shape)
+    for image, share in ((np.where(inside, 0.5 + noise, 0.0), (0.0, 0.05)),
+                         (np.where(inside, textured + noise, 0.0), (0.8, 1.0))):
+        v, conf, info = sensor_virtual_depth(image.astype(np.float32), grid, keplerian=True)
+        usable = info["usable"]
+        sure = usable & (conf >= 0.1)
+        assert share[0] <= sure.sum() / usable.sum() <= share[1]
+    assert np.median(np.abs(v[sure] - 4.0) / 4.0) < 0.03
