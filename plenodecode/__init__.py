@@ -33,6 +33,7 @@ _LAZY = {
     "perspective": "plenodecode.render",
     "estimate_depth": "plenodecode.depth",
     "disparity_to_depth": "plenodecode.depth",
+    "estimate_focused_depth": "plenodecode.depth.focused",
     "save_lightfield": "plenodecode.io.lightfield",
     "load_lightfield": "plenodecode.io.lightfield",
 }

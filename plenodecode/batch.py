@@ -10,7 +10,8 @@ threads of the Dask workers).
 Layout of ``out_dir``::
 
     out_dir/<name>/           one folder per raw, <name> = the raw's file stem (made unique)
-        refocus_s+0.00.png (or total_focus.png: 'photo'), centre.png, disparity.pfm, lightfield.zarr, views/ ...
+        refocus_s+0.00.png (or total_focus.png: 'photo'), centre.png, disparity.pfm (virtual_depth.pfm: a focused
+                              raw's 'depth'), lightfield.zarr, views/ ...
         thumbs/<product>.png  8-bit thumbnails (longest side <= THUMB_SIZE) for the index
         .done.json            the task key, the products and thumbnails (written last)
     out_dir/summary.json      every result of the last run
@@ -541,6 +542,12 @@ def _image_product_options(product: str, options: BatchOptions) -> dict[str, Any
     return {"distance_m": options.distance_m} if options.distance_m is not None else {"slope": options.slope}
 
 
+def depth_stem(rendered: Any) -> str:
+    """File stem of a 'depth' output: 'virtual_depth' for a focused-plenoptic (Raytrix) raw's virtual depth,
+    else 'disparity'."""
+    return "virtual_depth" if rendered.data.get("method") == "focused" else "disparity"
+
+
 def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
                     threads: int | None = None) -> list[tuple[Path, Path | None]]:
     """Calibrate and decode ``raw`` and write ``options.outputs`` into ``folder``, all through
@@ -586,13 +593,14 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
             written.append((dest, centre_thumbnail("views")))
         elif product == "depth":
             rendered = pipeline.render_product(src, "depth", method=options.depth_method)
-            dest, = pipeline.write_depth(rendered, folder / "disparity.pfm", full=False)
+            stem = depth_stem(rendered)
+            dest, = pipeline.write_depth(rendered, folder / f"{stem}.pfm", full=False)
             dm = rendered.data["depthmap"]
             threshold = DEFAULT_MIN_CONFIDENCE if options.min_confidence is None else options.min_confidence
             masked = dm.confidence < np.float32(threshold) if threshold > 0 else None
             colours = colour_map_image(rendered.data["values"], label=rendered.data["label"], cmap=THUMB_CMAP,
                                        percentiles=THUMB_PERCENTILES, masked=masked, **THUMB_FIGURE)
-            written.append((dest, _thumbnail(colours, thumbs / "disparity.png", colour="srgb")))
+            written.append((dest, _thumbnail(colours, thumbs / f"{stem}.png", colour="srgb")))
         else:
             rendered = pipeline.render_product(src, product, **_image_product_options(product, options))
             (stem, image), = rendered.images

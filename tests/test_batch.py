@@ -763,3 +763,40 @@ def test_cli_without_a_database_decodes_what_needs_none_and_fails_the_rest_with_
     res = CliRunner().invoke(cli, ["batch", str(shoot / "take1"), "-o", str(tmp_path / "none")])
     assert res.exit_code == 2 and "--database" in res.output and "calib is not a folder" in res.output
     assert not (tmp_path / "none").exists()
+
+
+def test_batch_depth_of_a_raytrix_raw_is_the_depth_commands_virtual_depth(tmp_path):
+    """'batch --outputs depth' on a focused-plenoptic raw: the same virtual depth map as 'plenodecode depth' (the
+    total focus's grid, not the decoded views' one pixel per lens), written as virtual_depth.pfm with its
+    colour-mapped thumbnail."""
+    from plenodecode import synthetic
+    from plenodecode.io.pfm import read_pfm
+
+    sim = synthetic.simulate("raytrix", seed=3, shape=(280, 380), noise=False)
+    paths = synthetic.write_simulation(sim, tmp_path / "shoot", name="scene")
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["-q", "batch", str(paths["raw"]), "-o", str(out), "--jobs", "1",
+                                   "--outputs", "depth"], catch_exceptions=False)
+    assert res.exit_code == 0, res.output
+    folder = out / "scene"
+    assert sorted(p.name for p in folder.glob("*.pfm")) == ["virtual_depth.pfm"]
+    assert (folder / "thumbs" / "virtual_depth.png").is_file()
+    res = CliRunner().invoke(cli, ["-q", "depth", str(paths["raw"]), "-o", str(tmp_path / "d.pfm")])
+    assert res.exit_code == 0, res.output
+
+    def values(path):
+        v = read_pfm(path)
+        return v[0] if isinstance(v, tuple) else v
+
+    batch, single = values(folder / "virtual_depth.pfm"), values(tmp_path / "d.pfm")
+    np.testing.assert_array_equal(batch, single)
+    assert batch.shape[0] > 4 * sim.grid.shape[0] and np.isfinite(batch).mean() > 0.9
+    # the truth at every output pixel's sensor position q / scale of the total focus
+    import cv2
+
+    from plenodecode import pipeline
+
+    scale = pipeline.render_product(pipeline.open_source(paths["raw"]), "total-focus").data["render"].scale
+    qy, qx = np.mgrid[0:batch.shape[0], 0:batch.shape[1]].astype(np.float32)
+    truth = cv2.remap(sim.truth["virtual_depth"], qx / scale, qy / scale, cv2.INTER_NEAREST)
+    assert np.nanmedian(np.abs(batch - truth) / truth) < 0.03

@@ -31,6 +31,16 @@ def parse_range(text: str | None) -> tuple[float, float] | None:
     return lo, hi
 
 
+def check_focused_options(ctx: click.Context) -> None:
+    """A focused-plenoptic (Raytrix) raw's depth is searched over its virtual depth range from its micro-images:
+    a usage error naming ``--method`` or ``--disparity-range`` when typed (options of a light field's depth)."""
+    for name, opt in (("method", "--method"), ("disparity_range", "--disparity-range")):
+        if ctx.get_parameter_source(name) == click.core.ParameterSource.COMMANDLINE:
+            raise click.BadParameter("a focused-plenoptic (Raytrix) raw's depth is its virtual depth, estimated from "
+                                     "its micro-images over its lens types' range; leave this light-field option out",
+                                     param_hint=opt)
+
+
 @click.command("depth")
 @click.argument("input_path", metavar="RAW_OR_LF", type=click.Path(exists=True, path_type=Path))
 @output_option
@@ -62,7 +72,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
     map in [0, 1] as OUTPUT_confidence.exr and .png: disparity in px per view step (HCI sign: positive =
     closer than the focus plane), or depth in metres with --metric (micrometres for a light-field
     microscope, whose optics come from --magnification, --na, ..., --optics FILE or a metadata.txt
-    beside the raw).
+    beside the raw).  A focused-plenoptic (Raytrix) raw gives its virtual depth (v = a / B) at the
+    resolution of its total-focus image ('plenodecode RAW -o photo.png'), aligned with it pixel for pixel.
 
     \b
     Examples:
@@ -89,13 +100,27 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       check={"depth": {"metric": metric, "points": ply is not None, "focus_distance": focus_distance}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
-    rendered = render_product(src, "depth", method=method, disparity_range=rng, metric=metric,
-                              points=ply is not None, focus_distance=focus_distance,
-                              progress=progress_bar(f"depth ({method})", ctx))
+    if src.focused:
+        check_focused_options(ctx)
+        rendered = render_product(src, "depth", progress=progress_bar("depth (focused: virtual depth)", ctx))
+        method = rendered.data["method"]
+    else:
+        rendered = render_product(src, "depth", method=method, disparity_range=rng, metric=metric,
+                                  points=ply is not None, focus_distance=focus_distance,
+                                  progress=progress_bar(f"depth ({method})", ctx))
     with usage_errors():
         written = write_depth(rendered, output, ply=ply, title=f"{input_path.name}: {method}",
                               min_confidence=min_confidence, overwrite=overwrite)
-    if not quiet(ctx):
+    if not quiet(ctx) and src.focused:
+        v, conf = rendered.data["values"], rendered.data["depthmap"].confidence
+        lo, hi = np.nanpercentile(v, [2, 98]) if np.isfinite(v).any() else (np.nan, np.nan)
+        click.echo(f"focused-plenoptic raw: virtual depth {lo:.2f} .. {hi:.2f} (2nd..98th percentile) on the "
+                   f"{v.shape[1]} x {v.shape[0]} total-focus grid, mean confidence {float(conf.mean()):.2f} "
+                   f"({100 * float(np.mean(conf < min_confidence)):.0f} % below {min_confidence:g}), "
+                   f"{rendered.data['depthmap'].params['seconds']:.1f} s")
+        for p in written:
+            click.echo(f"wrote {p}")
+    elif not quiet(ctx):
         dm = rendered.data["depthmap"]
         d = dm.disparity
         click.echo(f"{method}: disparity {float(np.nanmin(d)):.3f} .. {float(np.nanmax(d)):.3f} px/view, "

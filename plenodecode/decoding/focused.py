@@ -24,7 +24,9 @@ This module renders with a per-lens ``P`` (an array, or estimated from the data)
 * :func:`render_total_focus` adds a per-lens focus measure (Tenengrad: mean squared gradient of
   the micro-image centre relative to its brightness) as a weight ``focus ** sharpness`` so that,
   with Raytrix multi-focus MLAs (three interleaved lens types, Perwass & Wietzke, SPIE 2012),
-  each region of the image comes from the lens type that is sharp there: "total focus".
+  each region of the image comes from the lens type that is sharp there: "total focus";
+* :func:`map_to_render` carries any per-sensor-pixel quantity (e.g. the virtual depth of
+  :mod:`plenodecode.depth.focused`) to a rendering's grid through the same mapping and weights.
 
 Geometry: the output pixel ``q`` lies at sensor position ``q / s`` with ``s = spacing / D``; lens
 ``k`` sits at ``s * c_k`` and shows, at output offset ``delta = q - s * c_k``, its micro-image
@@ -541,6 +543,68 @@ def render_focused(image, grid: LensletGrid, *, patch: float | np.ndarray, keple
                          spacing=sp, scale=scale, spread=spread, keplerian=bool(keplerian))
 
 
+def focus_weights(focus: np.ndarray, sharpness: float = 2.0) -> np.ndarray:
+    """Per-lens weight of the total focus: ``(focus / median(focus > 0)) ** sharpness`` (all 1 for
+    ``sharpness = 0``).
+
+    Parameters
+    ----------
+    focus : ndarray (rows, cols) float64
+        :func:`focus_measure` (0 = unknown).
+    sharpness : float
+
+    Returns
+    -------
+    ndarray (rows, cols) float64
+    """
+    f = np.asarray(focus, np.float64)
+    if sharpness <= 0:
+        return np.ones(f.shape)
+    med = float(np.median(f[f > 0])) if np.any(f > 0) else 1.0
+    return (np.maximum(f, 0.0) / med) ** sharpness
+
+
+def map_to_render(planes: np.ndarray, grid: LensletGrid, render: FocusedRender, *,
+                  lens_weight: np.ndarray | None = None, feather: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Per-sensor-pixel quantities carried onto a rendering's output grid by the rendering's own mapping.
+
+    Output pixel ``q`` takes from lens ``k`` (output position ``s c_k``, patch ``P_k``) its sensor pixel
+    ``c_k + flip (q - s c_k) P_k / spacing`` (bilinear) with weight ``lens_weight_k (1 - |q - s c_k| / reach)``,
+    ``reach = feather * spacing``, as :func:`render_focused` does for the image: a value made from the same
+    sensor pixels as the rendered pixel, so the two align pixel for pixel.
+
+    Parameters
+    ----------
+    planes : ndarray (H, W, K) float32
+        Values on the sensor; a sample touching a NaN is skipped (use 0 and a weight plane instead).
+    grid : LensletGrid
+    render : FocusedRender
+        Its ``patch``, ``scale``, ``spacing`` and ``keplerian`` (and output shape) are used.
+    lens_weight : ndarray (rows, cols), optional
+        Weight per lens (default: the total focus's, :func:`focus_weights` of ``render.focus``).
+    feather : float
+        Blending radius in output lens spacings (as the rendering).
+
+    Returns
+    -------
+    sums : ndarray (Ho, Wo, K) float64
+        ``sum_k w_k planes_k`` at every output pixel.
+    wsum : ndarray (Ho, Wo) float64
+        ``sum_k w_k``.
+    """
+    pl = np.ascontiguousarray(planes, np.float32)
+    if pl.ndim != 3 or pl.shape[:2] != tuple(grid.sensor_shape):
+        raise ValueError(f"planes must be (H, W, K) with (H, W) = {tuple(grid.sensor_shape)}, got {pl.shape}")
+    lw = focus_weights(render.focus) if lens_weight is None else np.asarray(lens_weight, np.float64)
+    ho, wo = render.image.shape[:2]
+    sums = np.zeros((ho, wo, pl.shape[2]), np.float64)
+    sq = np.zeros((ho, wo), np.float64)
+    wsum = np.zeros((ho, wo), np.float64)
+    _render(pl, grid.centres_2d(), np.asarray(render.patch, np.float64), lw, render.scale, render.spacing,
+            -1.0 if render.keplerian else 1.0, feather * render.spacing, grid.radius - 1.0, sums, sq, wsum)
+    return sums, wsum
+
+
 def render_total_focus(raw, grid: LensletGrid, *, patch: float | np.ndarray | None = None, white=None,
                        keplerian: bool | None = None, spacing: float | None = None, sharpness: float = 2.0,
                        feather: float = 1.0, p_range: tuple[float, float] | None = None,
@@ -592,8 +656,7 @@ def render_total_focus(raw, grid: LensletGrid, *, patch: float | np.ndarray | No
     f = focus_measure(img, grid)
     if progress:
         progress(3, 4)
-    med = float(np.median(f[f > 0])) if np.any(f > 0) else 1.0
-    lw = (np.maximum(f, 0.0) / med) ** sharpness if sharpness > 0 else np.ones(grid.shape)
+    lw = focus_weights(f, sharpness)
     res = render_focused(img, grid, patch=p, keplerian=keplerian, spacing=spacing, feather=feather, lens_weight=lw)
     if progress:
         progress(4, 4)
@@ -707,5 +770,6 @@ def render_at_virtual_depth(raw, grid: LensletGrid, virtual_depth: float, *, whi
 
 
 __all__ = ["FocusedRender", "estimate_patch_sizes", "focus_measure", "render_focused", "render_total_focus",
+           "focus_weights", "map_to_render",
            "virtual_depth_range", "check_virtual_depth", "lens_weights_at", "detect_orientation",
            "render_at_virtual_depth"]

@@ -15,7 +15,8 @@ Three requests need metadata (:data:`REQUESTS`):
   :func:`~plenodecode.render.alpha.distance_to_slope` ('refocus' with ``distance_m=``): the same constants and
   the camera's own focus distance; it does not apply to a light-field microscope;
 * 'metric': metric depth (:func:`plenodecode.depth.metric.depth_constants`; 'depth' with ``metric`` or
-  ``points``, ``focus_distance`` standing in for the camera's).
+  ``points``, ``focus_distance`` standing in for the camera's); never for a focused-plenoptic (Raytrix) raw,
+  whose depth is virtual depth (:data:`FOCUSED_NOT_METRIC`).
 
 A light field rectified by a geometric calibration takes its metric geometry from the calibration, so
 'distance' and 'metric' are not checked against the camera's metadata then (``rectified=True``).
@@ -123,6 +124,21 @@ def _missing(item: LightField | RawCapture, need: str, options: Mapping[str, Any
     return None
 
 
+#: Why a focused-plenoptic raw's depth stays in virtual depth (:func:`check_product`).
+FOCUSED_NOT_METRIC = ("a focused-plenoptic (Raytrix) raw's depth is virtual depth (v = a / B): metres need the main "
+                      "lens and the MLA-sensor distance B, which its RayCalibData does not hold; write virtual depth "
+                      "instead (without --metric and --ply)")
+
+
+def is_focused_raw(item: LightField | RawCapture) -> bool:
+    """True for a raw read with a Raytrix RayCalibData that has lens types (its grid will have them:
+    :attr:`~plenodecode.pipeline.Source.focused`), known before calibrating."""
+    if not isinstance(item, RawCapture) or item.metadata is None:
+        return False
+    cal = (item.metadata.extra or {}).get("raytrix")
+    return isinstance(cal, Mapping) and bool(cal.get("lens_types"))
+
+
 def check_product(item: LightField | RawCapture, name: str, *, rectified: bool = False, **options: Any) -> None:
     """Refuse a product request that the input's metadata cannot serve, without calibrating or decoding.
 
@@ -151,7 +167,10 @@ def check_product(item: LightField | RawCapture, name: str, *, rectified: bool =
     if asked is None:
         return
     keyword, need = asked
-    failure = None if (rectified and need != "alpha") else _missing(item, need, options)
+    if need == "metric" and is_focused_raw(item):
+        failure: tuple[str, tuple[str, ...]] | None = (FOCUSED_NOT_METRIC, ())
+    else:
+        failure = None if (rectified and need != "alpha") else _missing(item, need, options)
     if failure is not None:
         why, missing = failure
         source = _name(item)
@@ -160,4 +179,4 @@ def check_product(item: LightField | RawCapture, name: str, *, rectified: bool =
                                     keyword=keyword, missing=missing, source=source, need=NEEDS[need])
 
 
-__all__ = ["NEEDS", "REQUESTS", "check_product"]
+__all__ = ["NEEDS", "REQUESTS", "FOCUSED_NOT_METRIC", "check_product", "is_focused_raw"]

@@ -236,10 +236,16 @@ def render_depth(src: Source, *, method: str | None = None, disparity_range: tup
 
     ``data``: 'depthmap' (DepthMap), 'values' (Y, X) float32 (depth in 'unit' with ``metric``, else disparity),
     'unit', 'label', and with ``points`` 'points' (Y, X, 3) in 'unit' and 'colours' (Y, X, 3) uint8.
+
+    A focused-plenoptic (Raytrix) raw (``src.focused``) is not decoded (its views have one pixel per lens):
+    :func:`render_focused_depth` gives its virtual depth at the total-focus image's resolution.
     """
     from ..depth import DEFAULT_METHOD, disparity_to_depth, estimate_depth
     from ..depth.metric import depth_constants, depth_to_points, depth_unit
 
+    if src.focused:
+        return render_focused_depth(src, disparity_range=disparity_range, metric=metric, points=points,
+                                    progress=progress)
     lf = src.lightfield
     method = method or DEFAULT_METHOD
     overrides = {} if focus_distance is None else {"focus_distance_m": focus_distance}
@@ -258,6 +264,53 @@ def render_depth(src: Source, *, method: str | None = None, disparity_range: tup
         data["points"] = depth_to_points(depth, lf, **overrides) * scale
         data["colours"] = display_colours(lf.centre_view(), lf.colour)
     return Rendered("depth", (), lf.colour, data=data)
+
+
+def render_focused_depth(src: Source, *, disparity_range: tuple[float, float] | None = None, metric: bool = False,
+                         points: bool = False, progress: Progress = None) -> Rendered:
+    """Virtual depth of a focused-plenoptic (Raytrix) raw on its total-focus image's grid
+    (:func:`plenodecode.depth.focused.estimate_focused_depth`: per raw pixel against the neighbouring
+    micro-images, carried to the total focus by its own mapping, so depth and :func:`render_total_focus`'s
+    photograph align pixel for pixel).
+
+    ``data``: 'values' (Ho, Wo) float32 virtual depth ``v = a / B``, 'label', 'unit', 'method' ('focused'),
+    'focused' (the FocusedDepth) and 'depthmap', a DepthMap whose 'disparity' is the micro-image disparity
+    ``D / v`` (px per lens step) with the confidence.
+
+    Raises
+    ------
+    ValueError
+        A light-field input; ``disparity_range`` (px per view step: a light field's).
+    MissingConstantsError
+        ``metric`` or ``points``: virtual depth has no metric scale here
+        (:data:`plenodecode.pipeline.needs.FOCUSED_NOT_METRIC`).
+    """
+    import numpy as np
+
+    from ..depth import DepthMap
+    from ..depth.focused import VIRTUAL_DEPTH_LABEL, VIRTUAL_DEPTH_UNIT, estimate_focused_depth
+    from ..errors import MissingConstantsError
+    from .needs import FOCUSED_NOT_METRIC, NEEDS
+
+    if src.raw is None:
+        raise ValueError("a focused-plenoptic depth map is estimated on a raw; the input is a light field")
+    for keyword, asked in (("metric", metric), ("points", points)):
+        if asked:
+            name = Path(src.raw.path).name if src.raw.path else "the raw"
+            raise MissingConstantsError(f"{name}: {FOCUSED_NOT_METRIC}", keyword=keyword, missing=(), source=name,
+                                        need=NEEDS["metric"])
+    if disparity_range is not None:
+        raise ValueError("disparity_range (px per view step) is a light field's; a focused-plenoptic raw is searched "
+                         "over its lens types' virtual depth range")
+    image, white, _ = _focused_input(src, "depth")
+    grid = src.calibration.grid
+    fd = estimate_focused_depth(image, grid, white=white, progress=progress)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        disparity = (np.float32(grid.pitch) / fd.virtual_depth).astype(np.float32)
+    dm = DepthMap(disparity=disparity, confidence=fd.confidence, method="focused", params=dict(fd.params))
+    return Rendered("depth", (), "srgb", data={
+        "depthmap": dm, "method": "focused", "focused": fd, "values": fd.virtual_depth, "unit": VIRTUAL_DEPTH_UNIT,
+        "label": VIRTUAL_DEPTH_LABEL})
 
 
 def check_total_focus_patch(grid: LensletGrid, patch: Any) -> None:

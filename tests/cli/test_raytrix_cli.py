@@ -235,3 +235,73 @@ def test_batch_default_is_the_cameras_photograph_as_the_one_liner_writes_it(tmp_
         assert single.exit_code == 0, single.output
         np.testing.assert_array_equal(read_image(written), read_image(tmp_path / f"{raw.stem}.png"))
     assert read_image(tmp_path / "out" / "sc2_klein" / "total_focus.png").shape[1] > 150
+
+
+# ------------------------------------------------------------------------------------------ depth of a focused raw
+def read_depth(path):
+    from plenodecode.io.pfm import read_pfm
+
+    values = read_pfm(path)
+    return values[0] if isinstance(values, tuple) else values
+
+
+def test_depth_of_a_focused_raw_is_virtual_depth_on_the_total_focus_grid(shoot, tmp_path):
+    """'plenodecode depth' on a Raytrix raw wrote the decoded views' one-pixel-per-lens disparity; now its virtual
+    depth on the total-focus image's grid, said so; metric options and light-field options are usage errors naming
+    the option, before any work."""
+    raw = shoot["raw"]
+    out = tmp_path / "d.pfm"
+    res = run("depth", raw, "-o", out)
+    assert res.exit_code == 0, res.output
+    assert "focused-plenoptic raw: virtual depth" in res.output
+    photo = tmp_path / "photo.png"
+    assert run(raw, "-o", photo).exit_code == 0
+    v = read_depth(out)
+    assert v.shape == read_image(photo).shape[:2]
+    lf_shape = pipeline.open_source(raw).calibration.grid.shape
+    assert v.shape[0] > 4 * lf_shape[0] and v.shape[1] > 4 * lf_shape[1]
+    conf = read_image(tmp_path / "d_confidence.png") / 255.0
+    assert np.mean(conf >= 0.1) > 0.5
+    for option in (["--metric"], ["--ply", tmp_path / "c.ply"], ["--method", "fast"], ["--disparity-range", "0:1"]):
+        target = tmp_path / f"refused{len(option)}{option[0][2:]}.pfm"
+        res = run("depth", raw, "-o", target, *option)
+        err = error_lines(res)
+        assert res.exit_code == 2 and len(err) == 1 and option[0] in err[0], res.output
+        assert "virtual depth" in err[0]
+        assert not target.exists() and not (tmp_path / "c.ply").exists()
+
+
+def test_r42_depth_at_total_focus_resolution_agrees_with_the_per_lens_patch_sizes(r42, tmp_path):
+    """The R42 crop's depth map was 31 x 22 px; now the total focus's 176 x 122.  Per lens, the median of its
+    confident output pixels (within half a lens spacing of the lens) against estimate_patch_sizes' v = D / P:
+    measured over 442 lenses r = 0.78, median difference 1.8 %; confident values (1st..99th percentile 5.0 ..
+    7.3) within the lenses' range 3.65 .. 7.77."""
+    from plenodecode.decoding.focused import estimate_patch_sizes
+
+    out = tmp_path / "d.pfm"
+    res = run("depth", r42, "-o", out)
+    assert res.exit_code == 0, res.output
+    v = read_depth(out)
+    conf = read_image(tmp_path / "d_confidence.png") / 255.0
+    src = pipeline.open_source(r42)
+    render = pipeline.render_product(src, "total-focus").data["render"]
+    assert v.shape == render.image.shape[:2] == (122, 176)
+    grid = src.calibration.grid
+    p, score = estimate_patch_sizes(read_raytrix_linear_rgb(r42), grid, keplerian=render.keplerian)
+    centres = grid.centres_2d() * render.scale
+    qy, qx = np.mgrid[0:v.shape[0], 0:v.shape[1]]
+    sure = (conf >= 0.1) & np.isfinite(v)
+    ours, theirs = [], []
+    for i, j in np.ndindex(grid.shape):
+        near = sure & ((qy - centres[i, j, 0]) ** 2 + (qx - centres[i, j, 1]) ** 2 < (0.5 * render.spacing) ** 2)
+        # lenses matched confidently and not at the patch search's lower end (0.12 D)
+        if near.sum() >= 10 and score[i, j] >= 0.5 and p[i, j] > 0.12 * grid.pitch + 0.3:
+            ours.append(np.median(v[near]))
+            theirs.append(grid.pitch / p[i, j])
+    ours, theirs = np.array(ours), np.array(theirs)
+    assert ours.size > 300
+    assert np.corrcoef(ours, theirs)[0, 1] > 0.6
+    assert np.median(np.abs(ours - theirs) / theirs) < 0.04
+    lo, hi = np.percentile(v[sure], [1, 99])
+    assert theirs.min() <= lo < hi <= 1.05 * theirs.max()
+    assert np.mean(sure) > 0.7
