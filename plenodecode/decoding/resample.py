@@ -228,14 +228,16 @@ def _hex_design(pitch: float, row_spacing: float, shift: float, b0: float, step:
         rhs = np.empty((nx, nt))
         for x0 in range(0, nx, 256):
             rhs[x0:x0 + 256] = np.cos(2 * np.pi * np.einsum("fk,xtk->xtf", f, d[x0:x0 + 256])).sum(-1)
-        # min w' G w - 2 r' w  subject to  C w = c: the moments of the taps about the output position
-        # (exact for polynomials of degree HEX_DEGREE).  Lagrange: w = G^-1 (r + C' mu),
-        # (C G^-1 C') mu = c - C G^-1 r
+        # min w' G w - 2 r' w  subject to  C w = c: each row's weights sum to 1 (own row) or 0 -- exact for
+        # any function of a alone, as the row kernels -- and the moments a^i b^j (j >= 1, i + j <= degree)
+        # about the output position vanish -- exact for polynomials of that degree.
+        # Lagrange: w = G^-1 (r + C' mu), (C G^-1 C') mu = c - C G^-1 r
         da, db = d[..., 0] / pitch, d[..., 1] / pitch
-        mono = [np.ones_like(da)] + [da ** (k - m) * db ** m for k in range(1, degree + 1) for m in range(k + 1)]
+        mono = [np.broadcast_to((drow == r).astype(np.float64), (nx, nt)) for r in rows]
+        mono += [da ** (k - m) * db ** m for k in range(1, degree + 1) for m in range(1, k + 1)]
         con = np.stack(mono, 1)                                    # (X, M, T)
         c = np.zeros((nx, con.shape[1]))
-        c[:, 0] = 1.0
+        c[:, HEX_CONTEXT] = 1.0
         g_r = np.linalg.solve(gram, rhs[..., None])[..., 0]                   # (X, T)
         g_c = np.linalg.solve(gram, con.transpose(0, 2, 1))                    # (X, T, M)
         mu = np.linalg.solve(con @ g_c, (c - np.einsum("xmt,xt->xm", con, g_r))[..., None])[..., 0]
