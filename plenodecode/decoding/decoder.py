@@ -148,7 +148,9 @@ def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray
     hot_pixels : bool
         Repair hot pixels (:func:`plenodecode.decoding.devignette.repair_hot_pixels`).
     resample : str
-        Hex -> rect kernel, key of :data:`plenodecode.decoding.resample.RESAMPLE_METHODS`.
+        Hex -> rect kernel, key of :data:`plenodecode.decoding.resample.RESAMPLE_METHODS`: ``'cubic'`` (along
+        each lens row), ``'linear'``, or ``'hex'`` (2-D on the lattice: no row-alternating zipper on vertical
+        edges, about 1.5x the decode's CPU time).
     floor : float
         Pixels receiving less than ``floor`` of their lens's peak white are treated as missing.
     workers : int, optional
