@@ -74,7 +74,7 @@ class Band:
     r1: int
 
 
-def plan_bands(grid: LensletGrid, *, max_pixels: int = 2_500_000, margin: int = 4) -> list[Band]:
+def plan_bands(grid: LensletGrid, *, max_pixels: int = 2_500_000, margin: int = 4, context: int = 0) -> list[Band]:
     """Split the lens rows into bands whose sensor footprint has at most about ``max_pixels`` pixels.
 
     Parameters
@@ -84,6 +84,9 @@ def plan_bands(grid: LensletGrid, *, max_pixels: int = 2_500_000, margin: int = 
         Target number of sensor pixels per band (memory per worker is about 40 bytes per pixel).
     margin : int
         Extra sensor rows above and below the lens cells (demosaicing and hot-pixel neighbourhoods).
+    context : int
+        Lens rows above and below ``[i0, i1)`` that are sampled too (a 2-D resampling kernel reads them):
+        ``ext`` widens by as many.
 
     Returns
     -------
@@ -103,7 +106,7 @@ def plan_bands(grid: LensletGrid, *, max_pixels: int = 2_500_000, margin: int = 
     bands = []
     for i0 in range(0, rows, n_per):
         i1 = min(rows, i0 + n_per)
-        e0, e1 = max(0, i0 - 1), min(rows, i1 + 1)
+        e0, e1 = max(0, i0 - 1 - context), min(rows, i1 + 1 + context)
         r0 = int(math.floor(lo[e0:e1].min()))
         r1 = int(math.ceil(hi[e0:e1].max())) + 1
         r0 = max(0, min(h, r0))

@@ -232,3 +232,35 @@ def test_decode_writes_the_typed_geometry(decoded):
     conv = to_linear_srgb(camera_lf)
     assert conv.geometry == dataclasses.replace(camera_lf.geometry, colour="linear-srgb")
     assert "colour_matrix" in conv.provenance
+
+
+def test_hex_resample_removes_the_zipper_on_vertical_slats():
+    """'hex' against 'cubic' on a noise-free decode of thin vertical slats (issue 20's slats-v-j1-tex).
+
+    Zipper = RMS of the row-alternating part ``r[y] - (r[y-1] + r[y+1]) / 2`` of the centre view's error
+    ``r`` (luma, against the ground truth) over the ground truth's spread: measured 18.7 % 'cubic',
+    10.1 % 'hex'; centre-view PSNR 29.49 -> 31.37 dB.  The band decode equals resampling all samples at once.
+    """
+    from plenodecode.decoding import decode_samples
+    from plenodecode.decoding.resample import hex_to_rect
+    from plenodecode.imaging import luma
+    from plenodecode.synthetic.thin import THIN_SCENES
+
+    sim = synthetic.simulate("illum-mini", seed=1, noise=False, scene=THIN_SCENES["slats-v-j1-tex"])
+    gt = sim.ground_truth_lightfield(n_views=3)
+    truth = luma(gt.data[1, 1]).astype(np.float64)[2:-2, 2:-2]
+    zipper, centre = {}, {}
+    for method in ("cubic", "hex"):
+        lf, s = decode_samples(sim.raw, sim.grid, white=sim.white, n_views=3, resample=method)
+        r = luma(lf.data[1, 1]).astype(np.float64)[2:-2, 2:-2] - truth
+        alt = r[1:-1] - 0.5 * (r[:-2] + r[2:])
+        zipper[method] = float(np.sqrt(np.mean(alt ** 2)) / truth.std())
+        centre[method] = float(view_psnrs(lf, gt)[1, 1])
+        if method == "hex":
+            whole, _ = hex_to_rect(s.data, s.weight, sim.grid, method="hex")
+            np.testing.assert_array_equal(whole, lf.data)
+    print(f"\nzipper cubic {100 * zipper['cubic']:.1f} %, hex {100 * zipper['hex']:.1f} %; centre view "
+          f"{centre['cubic']:.2f} -> {centre['hex']:.2f} dB")
+    assert zipper["cubic"] > 0.09
+    assert zipper["hex"] < 0.65 * zipper["cubic"]
+    assert centre["hex"] > centre["cubic"] + 1.0
