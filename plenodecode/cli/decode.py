@@ -24,6 +24,11 @@ log = logging.getLogger(__name__)
 @bit_depth_option
 @click.option("--demosaic", type=RegistryChoice("plenodecode.decoding.demosaic", "DEMOSAIC_METHODS", sort=True),
               default="malvar", show_default=True, help="Demosaicing method (within each micro-image).")
+@click.option("--resample", type=RegistryChoice("plenodecode.decoding.resample", "RESAMPLE_METHODS"), default="cubic",
+              show_default=True,
+              help="Hex -> rect resampling: 'cubic' along each lens row; 'hex' a 2-D kernel over 5 lens rows, half the "
+                   "row-alternating zipper at vertical edges and up to 2 dB sharper, 50 % slower, softer on "
+                   "fine oblique detail.")
 @click.option("--views", "n_views", type=int, default=None,
               help="Views per angular axis (odd) [default: 2*floor(pitch/2)+1].")
 @click.option("--colour", type=RegistryChoice("plenodecode.decoding.colour", "DECODE_COLOURS"), default="linear-srgb",
@@ -36,8 +41,8 @@ log = logging.getLogger(__name__)
 @click.pass_context
 def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path | None, white: Path | None,
             database: Path | None, self_calibrate: bool, fmt: str | None, bit_depth: str,
-            demosaic: str, n_views: int | None, colour: str, no_hot_pixels: bool, views_anyway: bool,
-            overwrite: bool) -> None:
+            demosaic: str, resample: str, n_views: int | None, colour: str, no_hot_pixels: bool,
+            views_anyway: bool, overwrite: bool) -> None:
     """Decode RAW into a 4D light field (V, U, Y, X, C) and write it to OUTPUT.
 
     The lenslet grid comes from --calibration, from --white (calibrated on the fly), from the camera's
@@ -71,8 +76,8 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
                                "--total-focus -o photo.png' (or pass --views-anyway)")
     if geometry is not None:
         check_geometry(geometry, calibration=cal, n_views=n_views)
-    lf = decode_raw(raw, cal, dark=read_dark_frame(dark, inputs["mosaic"]), demosaic=demosaic, colour=colour,
-                    n_views=n_views, hot_pixels=not no_hot_pixels, progress=progress_bar("decoding", ctx),
+    lf = decode_raw(raw, cal, dark=read_dark_frame(dark, inputs["mosaic"]), demosaic=demosaic, resample=resample,
+                    colour=colour, n_views=n_views, hot_pixels=not no_hot_pixels, progress=progress_bar("decoding", ctx),
                     geometry=geometry)
     with usage_errors():
         out = write_lightfield(lf, output, format=name, bit_depth=int(bit_depth), overwrite=overwrite,
