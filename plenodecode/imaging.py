@@ -30,6 +30,10 @@ import numpy as np
 
 #: Interpolation kernels of :func:`interpolation_taps`: name -> number of taps.
 INTERPOLATION_TAPS = {"linear": 2, "cubic": 4}
+#: The decoder's hex -> rect kernels: name -> number of taps (the row kernels above; ``'hex'``: 4 lenses in each of
+#: 5 rows, :func:`plenodecode.decoding.resample.hex_taps`).  Here, not in the resampler, so that the CLI's
+#: ``--resample`` help does not import numba.
+RESAMPLE_METHODS = {**INTERPOLATION_TAPS, "hex": 20}
 
 #: Keys' free parameter; -0.5 makes the kernel third-order accurate (Keys 1981).
 KEYS_A = -0.5
@@ -223,5 +227,6 @@ def fill_gaps(image: np.ndarray, known: np.ndarray, depth: float = GAP_DEPTH_PX)
     return out
 
 
-__all__ = ["INTERPOLATION_TAPS", "KEYS_A", "interpolation_taps", "LUMA_WEIGHTS", "luma", "shift_view", "remap_view",
-           "MIN_DATA_WEIGHT", "GAP_DEPTH_PX", "fill_gaps", "MIN_VIEW_DATA", "view_data_share"]
+__all__ = ["INTERPOLATION_TAPS", "RESAMPLE_METHODS", "KEYS_A", "interpolation_taps", "LUMA_WEIGHTS", "luma",
+           "shift_view", "remap_view", "MIN_DATA_WEIGHT", "GAP_DEPTH_PX", "fill_gaps", "MIN_VIEW_DATA",
+           "view_data_share"]

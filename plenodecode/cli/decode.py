@@ -24,7 +24,7 @@ log = logging.getLogger(__name__)
 @bit_depth_option
 @click.option("--demosaic", type=RegistryChoice("plenodecode.decoding.demosaic", "DEMOSAIC_METHODS", sort=True),
               default="malvar", show_default=True, help="Demosaicing method (within each micro-image).")
-@click.option("--resample", type=RegistryChoice("plenodecode.decoding.resample", "RESAMPLE_METHODS"), default="cubic",
+@click.option("--resample", type=RegistryChoice("plenodecode.imaging", "RESAMPLE_METHODS"), default="cubic",
               show_default=True,
               help="Hex -> rect resampling: 'cubic' along each lens row; 'hex' a 2-D kernel over 5 lens rows, half the "
                    "row-alternating zipper at vertical edges and up to 2 dB sharper, 50 % slower, softer on "

@@ -42,14 +42,10 @@ from functools import lru_cache
 import numpy as np
 
 from .._numba import njit
-from ..imaging import INTERPOLATION_TAPS, interpolation_taps
+from ..imaging import INTERPOLATION_TAPS, RESAMPLE_METHODS, interpolation_taps
 from ..registry import lookup
 from ..types import LensletGrid
 
-
-#: Kernels: name -> number of taps (the row kernels are :func:`plenodecode.imaging.interpolation_taps`;
-#: ``'hex'``: :func:`hex_taps`).
-RESAMPLE_METHODS = {**INTERPOLATION_TAPS, "hex": 20}
 #: Lens rows ``'hex'`` reads above and below each output row.
 HEX_CONTEXT = 2
 #: ``'hex'`` design: fraction of the lattice's Nyquist hexagon fitted, ridge on the weights.
