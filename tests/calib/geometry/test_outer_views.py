@@ -4,8 +4,8 @@ A noise-free F01 raw of a board facing the camera at 0.3 m (disparity +1.14 px p
 geometric calibration decodes its captures (:data:`~plenodecode.calib.geometry.captures.CAPTURE_DECODE`) and its
 corners fitted on the lens samples, started at the truth.  The decoder's default hot-pixel rule took sharp board
 edges on the micro-images' rims for hot pixels and filled them from inside the disk, which pulled the corners of
-the views 2.2-3.6 steps off centre towards the central view's (parallax -3.4e-3); the calibration's rule
-(``hot_pixels='isolated'``) leaves them.
+the views 2.2-3.6 steps off centre towards the central view's (parallax scale -3.8e-3); the calibration's rule
+(``hot_pixels='isolated'``) leaves them (+1.25e-3, as without any repair: the extrapolated demosaiced channels).
 """
 
 from __future__ import annotations
@@ -93,7 +93,7 @@ def test_outer_views_keep_their_parallax(capture):
     from plenodecode.calib.geometry.captures import CAPTURE_DECODE
 
     assert CAPTURE_DECODE["hot_pixels"] == "isolated"
-    assert abs(_outer_parallax_scale(capture, "isolated")) < 1.5e-3
+    assert abs(_outer_parallax_scale(capture, "isolated")) < 2e-3
     # the default rule: the rim's board edges repaired as hot pixels, the outer views' parallax compressed
     assert _outer_parallax_scale(capture, True) < -2.5e-3
 
