@@ -119,7 +119,7 @@ def _check_views(n_views: int | None, grid: LensletGrid) -> int:
 
 def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray | None = None,
            dark: RawCapture | np.ndarray | None = None, demosaic: str = DEFAULT_DEMOSAIC,
-           colour: str = "linear-srgb", n_views: int | None = None, hot_pixels: bool = True,
+           colour: str = "linear-srgb", n_views: int | None = None, hot_pixels: bool | str = True,
            resample: str = "cubic", floor: float = DEFAULT_FLOOR, workers: int | None = None,
            progress: Callable[[int, int], None] | None = None, geometry: GeometricCalibration | None = None,
            view_edges: str = "renormalise") -> LightField:
@@ -145,8 +145,10 @@ def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray
         colour matrix the light field stays in camera colour and a warning is logged.
     n_views : int, optional
         Views per angular axis (odd); default ``grid.n_views()``.
-    hot_pixels : bool
-        Repair hot pixels (:func:`plenodecode.decoding.devignette.repair_hot_pixels`).
+    hot_pixels : bool or 'isolated'
+        Repair hot pixels (:func:`plenodecode.decoding.devignette.repair_hot_pixels`); 'isolated' repairs only the
+        raw's pixels that are also brighter than their 8 adjacent ones once divided by the white (``isolated=True``:
+        sharp scene edges on the micro-images' rims are left alone; geometric calibration uses it).
     resample : str
         Hex -> rect kernel, key of :data:`plenodecode.decoding.resample.RESAMPLE_METHODS`: ``'cubic'`` (along
         each lens row), ``'linear'``, or ``'hex'`` (2-D on the lattice: no row-alternating zipper on vertical
@@ -243,7 +245,7 @@ def decode_samples(raw: RawCapture, grid: LensletGrid, **kw) -> tuple[LightField
 
 
 def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosaic: str = DEFAULT_DEMOSAIC,
-            colour: str = "linear-srgb", n_views=None, hot_pixels: bool = True, resample: str = "cubic",
+            colour: str = "linear-srgb", n_views=None, hot_pixels: bool | str = True, resample: str = "cubic",
             floor: float = DEFAULT_FLOOR, workers=None, progress=None, timings=None, geometry=None,
             view_edges: str = "renormalise", samples_out: dict | None = None) -> LightField:
     # samples_out: when a dict, filled with the per-lens samples of every band (decode_samples)
@@ -258,6 +260,9 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
             f"{raw.shape[0]}x{raw.shape[1]}; pass the grid calibrated from this camera's white images")
     lookup(DEMOSAIC_METHODS, demosaic, param="demosaic")
     extrapolate = lookup(VIEW_EDGES, view_edges, param="view_edges")
+    if isinstance(hot_pixels, str) and hot_pixels != "isolated":
+        raise ValueError(f"hot_pixels must be True, False or 'isolated', got {hot_pixels!r}")
+    isolated = isinstance(hot_pixels, str)
     if colour not in _colour.DECODE_COLOURS:
         raise ValueError(f"colour must be one of {_colour.DECODE_COLOURS}, got {colour!r}")
     lookup(RESAMPLE_METHODS, resample, param="resample")
@@ -328,15 +333,7 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
         dark_b = None if dark_p is None else dark_p[0][r0:r1]
         x = normalise(raw.mosaic[r0:r1], black, level, dark=dark_b, out=buf("x", shape, np.float32))
         t = tick("levels", t)
-        n_hot = 0
-        if hot_pixels:
-            x, n_hot = repair_hot_pixels(x, out=buf("x_fixed", shape, np.float32), flags=buf("hot", shape, np.bool_))
-        t = tick("hot pixels", t)
-        ext = centres[band.e0:band.e1] - np.array([r0, 0.0])
-        labels, dist = lens_labels(ext, shape, reach, out=(buf("labels", shape, np.int32),
-                                                           buf("dist", shape, np.float32)))
-        t = tick("labels", t)
-        rel = buf("rel", shape, np.float32)
+        wn = None
         if white_p is not None:
             arr, wb, ww = white_p
             if arr.dtype.kind == "f":
@@ -346,6 +343,18 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
             if hot_pixels:
                 wn, _ = repair_hot_pixels(wn, out=buf("white_fixed", shape, np.float32),
                                           flags=buf("hot", shape, np.bool_))
+        t = tick("white", t)
+        n_hot = 0
+        if hot_pixels:
+            x, n_hot = repair_hot_pixels(x, out=buf("x_fixed", shape, np.float32), flags=buf("hot", shape, np.bool_),
+                                         isolated=isolated, white=wn)
+        t = tick("hot pixels", t)
+        ext = centres[band.e0:band.e1] - np.array([r0, 0.0])
+        labels, dist = lens_labels(ext, shape, reach, out=(buf("labels", shape, np.int32),
+                                                           buf("dist", shape, np.float32)))
+        t = tick("labels", t)
+        rel = buf("rel", shape, np.float32)
+        if wn is not None:
             relative_white(wn, cfa, window=window, out=rel)
             x = _dv.devignette(x, wn, rel, floor=floor, out=buf("ratio", shape, np.float32))
         else:

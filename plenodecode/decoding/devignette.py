@@ -87,23 +87,63 @@ def normalise(mosaic: np.ndarray, black: np.ndarray, white: np.ndarray, *, dark:
 _SAME_COLOUR_RING = np.zeros((5, 5), np.uint8)
 _SAME_COLOUR_RING[::2, ::2] = 1
 _SAME_COLOUR_RING[2, 2] = 0
+#: the 8 pixels adjacent to the centre of a 3 x 3 window (any colour): :func:`find_hot_pixels` with ``isolated``
+_ADJACENT_RING = np.ones((3, 3), np.uint8)
+_ADJACENT_RING[1, 1] = 0
+#: Smallest normalised white a pixel is divided by in the ``isolated`` test (the gaps between micro-images).
+ISOLATION_MIN_WHITE = 0.02
 
 
-def _flag_hot(x: np.ndarray, threshold: np.float32, relative: np.float32, flags: np.ndarray) -> int:
+def _brighter_than(x: np.ndarray, ring: np.ndarray, threshold: np.float32, relative: np.float32,
+                   out: np.ndarray) -> np.ndarray:
+    """``out = x > m + max(threshold, relative * m)`` (float32), ``m`` the maximum of ``x`` over ``ring`` about each
+    pixel (an OpenCV dilation whose constant border stands for "no pixel", -inf); returns ``m``."""
+    m = cv2.dilate(x, ring, borderType=cv2.BORDER_CONSTANT, borderValue=-np.inf)
+    margin = np.multiply(m, relative)
+    np.maximum(margin, threshold, out=margin)
+    margin += m
+    np.greater(x, margin, out=out)
+    return m
+
+
+def _balanced_radiance(x: np.ndarray, white: np.ndarray | None) -> np.ndarray:
+    """What the ``isolated`` test compares, (H, W) float32: ``y = x / max(white, ISOLATION_MIN_WHITE)`` (``x``
+    without a white), each of the 2 x 2 CFA positions divided by its median over the pixels whose white is at least
+    :data:`ISOLATION_MIN_WHITE` (a grey-world balance: a grey scene's channels differ by the camera's colour gains,
+    up to 1.7x on the F01 preset, which the white image need not carry)."""
+    if white is None:
+        return np.asarray(x, np.float32)
+    w = np.asarray(white, np.float32)
+    y = x / np.maximum(w, np.float32(ISOLATION_MIN_WHITE))
+    for r in range(2):
+        for c in range(2):
+            lit = w[r::2, c::2] >= ISOLATION_MIN_WHITE
+            if np.any(lit):
+                scale = float(np.median(y[r::2, c::2][lit]))
+                if scale > 0:
+                    y[r::2, c::2] /= np.float32(scale)
+    return y
+
+
+def _flag_hot(x: np.ndarray, threshold: np.float32, relative: np.float32, flags: np.ndarray,
+              isolated: bool = False, white: np.ndarray | None = None) -> int:
     """Write the hot-pixel mask of ``x`` into ``flags``; return how many are hot (see :func:`find_hot_pixels`).
 
     ``m`` (the maximum of the same-colour ring) is an OpenCV dilation by :data:`_SAME_COLOUR_RING`; its constant
     border stands for "no pixel" (-inf), so pixels near the edge use their neighbours inside the image, as the
     rule says (in an image of at most 3 x 3 a pixel can have none: it is not hot).  Then
-    ``flags = x > m + max(threshold, relative * m)`` in float32.
+    ``flags = x > m + max(threshold, relative * m)`` in float32; with ``isolated`` the same must hold of the
+    white-normalised, channel-balanced ``y`` (:func:`_balanced_radiance`) against its maximum over the 8
+    adjacent pixels (:data:`_ADJACENT_RING`).
     """
-    m = cv2.dilate(x, _SAME_COLOUR_RING, borderType=cv2.BORDER_CONSTANT, borderValue=-np.inf)
-    margin = np.multiply(m, relative)
-    np.maximum(margin, threshold, out=margin)
-    margin += m
-    np.greater(x, margin, out=flags)
+    m = _brighter_than(x, _SAME_COLOUR_RING, threshold, relative, flags)
     if max(x.shape) <= 3:                # pixels without any same-colour neighbour in the image are not hot
         flags &= m > -np.inf
+    if isolated:
+        y = _balanced_radiance(x, white)
+        alone = np.empty_like(flags)
+        _brighter_than(y, _ADJACENT_RING, threshold, relative, alone)
+        flags &= alone
     return int(np.count_nonzero(flags))
 
 
@@ -153,14 +193,23 @@ def _repair(x: np.ndarray, flags: np.ndarray, out: np.ndarray) -> None:
     out[ys, xs] = np.where(m > 0, np.float32(0.5) * (lo + hi), np.float32(0.0))
 
 
-def find_hot_pixels(mosaic: np.ndarray, *, threshold: float = 0.1, relative: float = 0.5) -> np.ndarray:
+def find_hot_pixels(mosaic: np.ndarray, *, threshold: float = 0.1, relative: float = 0.5,
+                    isolated: bool = False, white: np.ndarray | None = None) -> np.ndarray:
     """Pixels brighter than all their (up to 8) same-colour neighbours by a clear margin.
 
     A pixel ``p`` is hot when ``x[p] > m + max(threshold, relative * m)`` with ``m`` the maximum of
     its same-colour neighbours (2 px away along rows, columns and diagonals, so the rule holds
-    for every Bayer position and for monochrome sensors).  Optical detail cannot do this: the
-    micro-images are smooth at 2 px, and a lenslet rim always has a brighter neighbour inside.
+    for every Bayer position and for monochrome sensors).  Optical detail rarely does this: the
+    micro-images are smooth at 2 px, and a lenslet rim usually has a brighter neighbour inside.
     Two hot pixels 2 px apart hide each other (a known limit of the rule).
+
+    Not always: a sharp edge of the scene imaged across the rim (a light square seen by the rim pixel, a dark one
+    by the pixels 2 px inside, the falling disk outside) passes the rule; on generated checkerboard raws 20-364
+    pixels per capture, most within 1 px of the rim (for ~34 true hot pixels), and their repair pulled the outer
+    views' corners towards the centre (parallax -2 to -5e-3 per view ring, issue 22).  ``isolated`` adds
+    the same test of the radiance ``x / white`` (the white image of the same pixels) against the 8 adjacent
+    pixels of any colour: a defect is a single pixel, whereas such an edge also lights the rim pixels beside
+    it; divided by the white, they are not darker for being farther out on the disk's falling edge.
 
     Parameters
     ----------
@@ -170,18 +219,24 @@ def find_hot_pixels(mosaic: np.ndarray, *, threshold: float = 0.1, relative: flo
         Absolute margin (normalised units).
     relative : float
         Margin relative to the neighbours' maximum.
+    isolated : bool
+        Also brighter than its 8 adjacent pixels by that margin, divided by ``white``.
+    white : ndarray, shape (H, W), float32, optional
+        The normalised white image (``isolated`` only; without it the mosaic's own values are compared).
 
     Returns
     -------
     ndarray, shape (H, W), bool
     """
     flags = np.empty(mosaic.shape, np.bool_)
-    _flag_hot(np.ascontiguousarray(mosaic, np.float32), np.float32(threshold), np.float32(relative), flags)
+    _flag_hot(np.ascontiguousarray(mosaic, np.float32), np.float32(threshold), np.float32(relative), flags,
+              isolated, white)
     return flags
 
 
 def repair_hot_pixels(mosaic: np.ndarray, *, threshold: float = 0.1, relative: float = 0.5,
-                      out: np.ndarray | None = None, flags: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+                      out: np.ndarray | None = None, flags: np.ndarray | None = None,
+                      isolated: bool = False, white: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     """Replace hot pixels by the median of their lit same-colour neighbours.
 
     The neighbours are the (up to 8) same-colour pixels 2 px away that are not hot themselves;
@@ -192,7 +247,7 @@ def repair_hot_pixels(mosaic: np.ndarray, *, threshold: float = 0.1, relative: f
     ----------
     mosaic : ndarray, shape (H, W), float32
         Normalised mosaic; not modified.
-    threshold, relative : float
+    threshold, relative, isolated, white
         See :func:`find_hot_pixels`.
     out : ndarray, shape (H, W), float32, optional
         Destination of the repaired copy (not ``mosaic`` itself).
@@ -208,7 +263,7 @@ def repair_hot_pixels(mosaic: np.ndarray, *, threshold: float = 0.1, relative: f
     """
     x = np.ascontiguousarray(mosaic, np.float32)
     flags = np.empty(x.shape, np.bool_) if flags is None else flags
-    n = _flag_hot(x, np.float32(threshold), np.float32(relative), flags)
+    n = _flag_hot(x, np.float32(threshold), np.float32(relative), flags, isolated, white)
     if n == 0:
         return mosaic, 0
     out = np.empty_like(x) if out is None else out

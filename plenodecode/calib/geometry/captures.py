@@ -40,9 +40,15 @@ CAPTURE_DEMOSAIC = "bilinear"
 #: views at their nominal offsets; the default 'renormalise' pulls them up to 0.35 view steps inwards, and H
 #: from 16 generated F01 captures came out 0.64 % off instead of 0.30 % (bench/bench_geometry.py).
 CAPTURE_VIEW_EDGES = "extrapolate"
+#: Hot-pixel repair of captures (``decode(hot_pixels=)``): 'isolated' repairs only pixels brighter than their 8
+#: adjacent ones too.  The default rule also took sharp board edges on the micro-images' rims for hot pixels
+#: (20-364 per generated F01 capture, for ~34 defects) and filled them from inside the disk, which compressed
+#: the parallax of the views 2.2-3.6 steps off centre by 2-5e-3 and put H's entries ~0.25 % low in every set
+#: (bench/bench_geometry.py).
+CAPTURE_HOT_PIXELS = "isolated"
 #: The keywords of :func:`plenodecode.decoding.decode` a capture is decoded with, wherever it is decoded
 #: (here from a RawCapture, in :mod:`plenodecode.pipeline.geometry` from files).
-CAPTURE_DECODE = {"demosaic": CAPTURE_DEMOSAIC, "view_edges": CAPTURE_VIEW_EDGES}
+CAPTURE_DECODE = {"demosaic": CAPTURE_DEMOSAIC, "view_edges": CAPTURE_VIEW_EDGES, "hot_pixels": CAPTURE_HOT_PIXELS}
 #: Cells per spatial sample (each axis) of the raster :func:`field_coverage` measures areas on.
 COVERAGE_CELLS_PER_SAMPLE = 1
 #: A calibration whose boards leave more than this fraction of the field beyond their largest radius logs a
