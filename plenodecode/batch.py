@@ -74,10 +74,6 @@ SUMMARY_FILES = (SUMMARY_JSON, INDEX_HTML)
 SUMMARY_FORMAT = "plenodecode.BatchSummary"
 #: Longest side of a thumbnail, px.
 THUMB_SIZE = 256
-#: Colour map and percentile range of the disparity thumbnails (:func:`plenodecode.io.depthio.colour_map_image`,
-#: with a colour bar; pixels below ``min_confidence`` grey).
-THUMB_CMAP = "viridis"
-THUMB_PERCENTILES = (2.0, 98.0)
 #: Width (inches at 100 dpi) and text size (points) of the map in a disparity thumbnail.
 THUMB_FIGURE = {"width_in": 1.9, "dpi": 100, "fontsize": 6}
 
@@ -598,8 +594,10 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
             dm = rendered.data["depthmap"]
             threshold = DEFAULT_MIN_CONFIDENCE if options.min_confidence is None else options.min_confidence
             masked = dm.confidence < np.float32(threshold) if threshold > 0 else None
-            colours = colour_map_image(rendered.data["values"], label=rendered.data["label"], cmap=THUMB_CMAP,
-                                       percentiles=THUMB_PERCENTILES, masked=masked, **THUMB_FIGURE)
+            # the colour map and range of the depth PNG ``plenodecode depth`` writes, with a colour bar; pixels
+            # below min_confidence grey
+            colours = colour_map_image(rendered.data["values"], label=rendered.data["label"], masked=masked,
+                                       **THUMB_FIGURE)
             written.append((dest, _thumbnail(colours, thumbs / f"{stem}.png", colour="srgb")))
         else:
             rendered = pipeline.render_product(src, product, **_image_product_options(product, options))

@@ -233,25 +233,25 @@ def test_summary_json_and_index(local_run):
 
 
 def test_depth_thumbnail_has_a_colour_bar_and_greys_low_confidence(local_run):
-    """The disparity thumbnail: the map, then a viridis colour bar (bright at the top) with its unit; the pixels
-    below the default min_confidence are the mask grey."""
+    """The disparity thumbnail: the map, then the colour bar of ``plenodecode depth``'s PNG (its colour map, the
+    highest value at the top) with its unit; the pixels below the default min_confidence are the mask grey."""
     from matplotlib import colormaps
 
-    from plenodecode.io.depthio import DEFAULT_MIN_CONFIDENCE, MASK_GREY
+    from plenodecode.io.depthio import DEFAULT_MIN_CONFIDENCE, DEPTH_CMAP, MASK_GREY
     from plenodecode.io.images import read_image
 
     thumb = read_image(local_run["out"] / "scene1" / "thumbs" / "disparity.png")[..., :3].astype(np.float64) / 255
     h, w = thumb.shape[:2]
     assert max(h, w) <= 256 and w > h
-    viridis = colormaps["viridis"](np.linspace(0, 1, 256))[:, :3]
-    # the colour bar: a column in the right third whose colours run down viridis from its top to its bottom
+    cmap = colormaps[DEPTH_CMAP](np.linspace(0, 1, 256))[:, :3]
+    # the colour bar: a column in the right third whose colours run down the colour map from its top to its bottom
     found = False
     for x in range(2 * w // 3, w):
         col = thumb[:, x]
         coloured = np.flatnonzero(np.abs(col - col.mean(axis=1, keepdims=True)).max(axis=1) > 0.08)
         if coloured.size < h // 3:
             continue
-        index = np.argmin(((col[coloured, None, :] - viridis[None]) ** 2).sum(-1), axis=1)
+        index = np.argmin(((col[coloured, None, :] - cmap[None]) ** 2).sum(-1), axis=1)
         if np.corrcoef(coloured, index)[0, 1] < -0.95 and index.max() - index.min() > 180:
             found = True
             break
