@@ -226,6 +226,10 @@ def estimate_depth(lf: LightField, *, method: str = DEFAULT_METHOD,
     if not isinstance(lf, LightField):
         raise ValueError(f"lf must be a LightField, got {type(lf).__name__}")
     estimate = lookup(DEPTH_METHODS, method, param="method")
+    if (lf.geometry.calibration or {}).get("lens_type") is not None:
+        log.warning("this light field was decoded from a focused-plenoptic (Raytrix) raw: its views have one pixel "
+                    "per lens, and so will this depth map; plenodecode.estimate_focused_depth(raw, grid) gives the "
+                    "virtual depth of every pixel of its total-focus image")
     t0 = time.perf_counter()
     disparity, confidence, params = estimate(lf, progress=progress, **kw)
     seconds = time.perf_counter() - t0

@@ -118,3 +118,25 @@ def test_featureless_micro_images_are_not_confident():
         sure = usable & (conf >= 0.1)
         assert share[0] <= sure.sum() / usable.sum() <= share[1]
     assert np.median(np.abs(v[sure] - 4.0) / 4.0) < 0.03
+
+
+def test_estimate_depth_on_a_focused_raws_views_says_what_to_use(caplog):
+    """``pd.decode`` + ``pd.estimate_depth`` on a focused raw give a map of one pixel per lens: said once, with the
+    function that gives the per-pixel virtual depth; an unfocused light field gets no such warning."""
+    import logging
+
+    from plenodecode import synthetic
+    from plenodecode.decoding import decode
+    from plenodecode.depth import estimate_depth
+
+    sim = synthetic.simulate("raytrix", shape=(300, 400), seed=1)
+    lf = decode(sim.raw, sim.grid, white=sim.white, n_views=5)
+    with caplog.at_level(logging.WARNING, logger="plenodecode.depth"):
+        estimate_depth(lf, method="fast")
+    hints = [r for r in caplog.records if "estimate_focused_depth" in r.getMessage()]
+    assert len(hints) == 1 and "one pixel per lens" in hints[0].getMessage()
+    caplog.clear()
+    plain = synthetic.simulate("f01", shape=(120, 130), seed=1)
+    with caplog.at_level(logging.WARNING, logger="plenodecode.depth"):
+        estimate_depth(decode(plain.raw, plain.grid, white=plain.white), method="fast")
+    assert not [r for r in caplog.records if "estimate_focused_depth" in r.getMessage()]
