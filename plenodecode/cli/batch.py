@@ -114,7 +114,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
             raise click.UsageError(str(exc)) from None
     files = find_raws(inputs, exclude=[out_dir])
     # e.g. a microscope's raw beside its white and dark frames: only the user knows which image is the raw
-    images = images_not_taken(inputs, exclude=[out_dir], stop_marker=DONE_MARKER)
+    images = images_not_taken(inputs, exclude=[out_dir], stop_marker=DONE_MARKER, taken=files)
     names = ", ".join(p.name for p in images[:3]) + (f" and {len(images) - 3} more" if len(images) > 3 else "")
     not_taken = (f"{len(images)} image(s) ({names}) were not taken: a folder yields an image only with a sidecar"
                  f" or at a known lenslet sensor's size: name the raw image itself") if images else ""

@@ -133,18 +133,22 @@ def find_raws(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os
     return unique
 
 
-def _image_not_taken(p: Path) -> bool:
-    return not p.name.startswith(".") and p.suffix.lower() in MOSAIC_SUFFIXES and not _is_raw_candidate(p)
-
-
 def images_not_taken(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os.PathLike] = (),
-                     stop_marker: str | None = None) -> list[Path]:
+                     stop_marker: str | None = None, taken: Iterable[str | os.PathLike] | None = None) -> list[Path]:
     """Images (:data:`MOSAIC_SUFFIXES`) in the folders among ``inputs`` that :func:`find_raws` with the same
     ``exclude`` and ``stop_marker`` does not take (no sidecar, not a known sensor's size): what to name when a
-    folder yields no raw.  Each folder's files sorted."""
+    folder yields no raw.  Each folder's files sorted.  ``taken``: what that :func:`find_raws` returned, so that
+    no image's header, sidecar or Raytrix XML is looked up a second time."""
     skip = {Path(e).resolve() for e in exclude}
+    found = None if taken is None else {Path(f).resolve() for f in taken}
+
+    def not_taken(p: Path) -> bool:
+        if p.name.startswith(".") or p.suffix.lower() not in MOSAIC_SUFFIXES:
+            return False
+        return not _is_raw_candidate(p) if found is None else p.resolve() not in found
+
     return [f for item in inputs if Path(item).is_dir() and Path(item).resolve() not in skip
-            for f in _walk(Path(item), skip, stop_marker, take=_image_not_taken)]
+            for f in _walk(Path(item), skip, stop_marker, take=not_taken)]
 
 
 __all__ = ["RAW_SUFFIXES", "PAIR_SUFFIXES", "MOSAIC_SUFFIXES", "find_raws", "needs_no_database", "images_not_taken"]
