@@ -1,5 +1,6 @@
 """Low-level image operations shared by decoding, rendering and depth: interpolation taps, luma, view warps, the
-filling of the gaps a decode leaves at the frame's edge, and each view's share of samples with data (:func:`view_data_share`).
+filling of the gaps a decode leaves at the frame's edge, and each view's share of samples with data
+(:func:`view_data_share`).
 
 Everything here is a pure function of numpy arrays; nothing depends on the light-field types, so any
 layer of the package can use it (``types.py`` stays free of OpenCV: this module imports it, types does not
@@ -160,8 +161,6 @@ def remap_view(img: np.ndarray, disparity: np.ndarray, dv: float, du: float, gri
     mx = xx - disparity * np.float32(du)
     my = yy - disparity * np.float32(dv)
     return cv2.remap(img, mx, my, interpolation, borderMode=cv2.BORDER_REPLICATE)
-
-
 
 
 #: Weight below which a view's sample (or a photograph's pixel, its weight sum per unit of aperture) counts as no

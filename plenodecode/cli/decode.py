@@ -77,8 +77,8 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
     if geometry is not None:
         check_geometry(geometry, calibration=cal, n_views=n_views)
     lf = decode_raw(raw, cal, dark=read_dark_frame(dark, inputs["mosaic"]), demosaic=demosaic, resample=resample,
-                    colour=colour, n_views=n_views, hot_pixels=not no_hot_pixels, progress=progress_bar("decoding", ctx),
-                    geometry=geometry)
+                    colour=colour, n_views=n_views, hot_pixels=not no_hot_pixels,
+                    progress=progress_bar("decoding", ctx), geometry=geometry)
     with usage_errors():
         out = write_lightfield(lf, output, format=name, bit_depth=int(bit_depth), overwrite=overwrite,
                                progress=progress_bar(f"writing {name}", ctx))
