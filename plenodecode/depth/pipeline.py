@@ -55,7 +55,10 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    pixels: the winner of the aggregated cost is gated by the matching cost
    (:func:`~plenodecode.depth.refinement.cost_gate` with ``sgm_gate_ratio``, ``sgm_gate_floor``), so a pixel
    keeps the winner of its own cost where SGM's costs it more than that ratio (thin scenes' ground-truth mean
-   BadPix0.07 17.7 -> 12.5 %).
+   BadPix0.07 17.7 -> 12.5 %).  Where even the pixels that match are noisy (``sigma_low`` above
+   :data:`NOISY_LOW` x ``contrast_smooth_noise``: decoded raws, not ideal light fields) P1 is at least
+   ``p1_noisy_low``: a weakly textured surface seen by few views has a cost nearly flat under the noise, and a
+   run of one-label steps at the plain P1 let it wander.
 3. **Winner-take-all**: best label with a parabola through its neighbours' aggregated cost; confidence
    (:mod:`~plenodecode.depth.confidence`) is the product of the centre view's texture along the baselines
    against its noise, the peak ratio of the aggregated cost and the agreement of all views with the best
@@ -76,7 +79,8 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    ``+-refine_range`` labels around the estimate, every view warped per pixel by ``d(y, x) + offset``
    (bicubic), so slanted surfaces match exactly (SGM's label penalties favour fronto-parallel steps); its
    parabolic minimum is added to the estimate.  Its strips aggregate along lines as long as its box; on
-   noisy views (above ``contrast_smooth_noise``) the box radius is at least ``refine_radius_noisy``.
+   noisy views (above ``contrast_smooth_noise``) the box radius is at least ``refine_radius_noisy``, where
+   the matching pixels are noisy (as for ``p1_noisy_low``) at least ``refine_radius_noisy_low``.
 6. **Occlusion edges** (:mod:`~plenodecode.depth.occlusion`, parameters ``edge_*``): within ``edge_radius``
    px of a disparity jump, a pixel on the near side whose cost over *all* views (an occluder is seen by
    every view) exceeds ``edge_ratio`` x the far disparity's cost over the best wedge of views moves to the
@@ -219,7 +223,7 @@ PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "med
                  "strip_radius", "strip_penalty", "refine_strip_penalty", "strip_penalty_noise", "refine_penalty_noise",
                  "strip_floor", "gate_ratio", "gate_floor", "gate_noise", "sgm_gate_ratio", "sgm_gate_floor",
                  "confidence_radius", "shift_noise", "refine_shift_noise", "shift_noise_rho", "radius_noisy",
-                 "refine_radius_noisy",
+                 "refine_radius_noisy", "refine_radius_noisy_low", "p1_noisy_low",
                  "contrast_weight_noisy", *EDGE_DEFAULTS)
 
 
@@ -241,7 +245,7 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
     """Merge keywords into the defaults (:func:`merge_params`); ValueError naming an unknown or invalid
     parameter."""
     p = merge_params(method, defaults, kw)
-    for name in ("label_step", "p1", "p2", "edge_sigma", "refine_range", "contrast_eps"):
+    for name in ("label_step", "p1", "p2", "edge_sigma", "refine_range", "contrast_eps", "p1_noisy_low"):
         if not float(p[name]) > 0:
             raise ValueError(f"{name} must be positive, got {p[name]!r}")
     for name in ("contrast_sigma", "contrast_noise", "contrast_smooth", "contrast_smooth_noise"):
@@ -257,7 +261,7 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
         raise ValueError(f"edge_jump and edge_ratio must be positive, got edge_jump={p['edge_jump']!r}, "
                          f"edge_ratio={p['edge_ratio']!r}")
     for name in ("radius", "median_radius", "refine_radius", "edge_radius", "edge_median_radius", "confidence_radius",
-                 "radius_noisy", "refine_radius_noisy"):
+                 "radius_noisy", "refine_radius_noisy", "refine_radius_noisy_low"):
         if name == "refine_radius" and p[name] == "auto":
             continue
         if int(p[name]) < 0:
@@ -280,6 +284,12 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
     if int(p["refine_samples"]) < 3:
         raise ValueError(f"refine_samples must be >= 3, got {p['refine_samples']!r}")
     return p
+
+
+#: Views count as noisy for ``p1_noisy_low`` and ``refine_radius_noisy_low`` where the noise of the pixels that
+#: match (``sigma_low`` of :func:`~plenodecode.depth.views.noise_sigmas`) is above this x ``contrast_smooth_noise``
+#: (0.0045: between the noise-free thin scenes' 0.0004-0.0032 and the decoded thin raws' 0.0057-0.0114).
+NOISY_LOW = 1.5
 
 
 def strip_penalty_for(penalty: float, reference_noise: float, noise: float) -> float:
@@ -466,6 +476,9 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     if refine_radius > 0 and noise > float(p["contrast_smooth_noise"]) > 0:
         # noisy views: a longer refinement box averages the noise (never shorter than the size's own)
         refine_radius = max(refine_radius, int(p["refine_radius_noisy"]))
+    if refine_radius > 0 and noise_low > NOISY_LOW * float(p["contrast_smooth_noise"]) > 0:
+        # ... longer still where even the pixels that match are noisy (decoded raws)
+        refine_radius = max(refine_radius, int(p["refine_radius_noisy_low"]))
     n_refine = int(p["refine_samples"]) if refine_radius > 0 else 0
     total = n_labels + n_paths + n_refine
 
@@ -486,18 +499,20 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     n_strip = strips["strip_channels"] or views.data.shape[-1]
     strips["strip_floor"] = strip_floor_for(float(p["strip_floor"]), float(p["contrast_smooth_noise"]), noise_low,
                                             n_strip)
-    radius = int(p["radius"])
+    radius, p1 = int(p["radius"]), float(p["p1"])
     if noise > 2 * float(p["contrast_smooth_noise"]) > 0:
         # clearly noisy views: a larger box averages the noise (a textured noise-free light field can measure
         # up to ~0.004: the 45 x 58 px slats-v-j1-weak scene of the tests, 9.6 -> 14.0 % with radius 3)
         radius = max(radius, int(p["radius_noisy"]))
+    if noise_low > NOISY_LOW * float(p["contrast_smooth_noise"]) > 0:
+        p1 = max(p1, float(p["p1_noisy_low"]))
     cost = half_plane_cost_volume(views, labels, radius=radius, progress=stage(0), **strips,
                                   halve_strips=bool(p["strip_halves"]))
     sub = cost[::4, ::4]
     span = float(np.median(sub.max(axis=-1) - sub.min(axis=-1)))
     cost *= np.float32(1.0 / max(span, 1e-12))
     guide = views.guide()
-    agg = sgm(cost, guide, p1=float(p["p1"]), p2=float(p["p2"]), sigma=float(p["edge_sigma"]), paths=n_paths,
+    agg = sgm(cost, guide, p1=p1, p2=float(p["p2"]), sigma=float(p["edge_sigma"]), paths=n_paths,
               progress=stage(n_labels))
     disparity, peak_ratio = winner(agg, labels)
     del agg
@@ -543,7 +558,8 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     confidence = estimate_confidence(views, peak_ratio, disparity, radius=int(p["confidence_radius"]), valid=valid,
                                      cost=cost, labels=labels)
     del cost
-    params = {**p, "radius": radius, "refine_radius": refine_radius, "disparity_range": [float(lo), float(hi)],
+    params = {**p, "radius": radius, "p1": p1, "refine_radius": refine_radius,
+              "disparity_range": [float(lo), float(hi)],
               "noise_sigma": noise, "contrast_eps_used": eps, "contrast_weight_used": weight,
               "contrast_smooth_used": smooth,
               "strip_penalty_used": strips["strip_penalty"], "shift_noise_var_used": strips["noise_var"],
