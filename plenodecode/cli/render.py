@@ -32,7 +32,7 @@ def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float |
                          distance_m: float | None = None, no_depth: bool = False) -> None:
     """Usage errors (exit 2, one line naming the option) for option combinations that make no sense, before
     any work: at most one of ``--refocus`` / ``--slope`` / ``--focus-at`` / ``--focus-distance`` /
-    ``--total-focus`` (none: :func:`default_focus`); ``--patch`` only with ``--total-focus``, ``--method`` /
+    ``--total-focus`` (none: :func:`plenodecode.pipeline.products.photo_focus`); ``--patch`` only with ``--total-focus``, ``--method`` /
     ``--aperture`` only without it; ``--total-focus`` needs a raw."""
     from ..pipeline import input_kind
 
@@ -48,15 +48,6 @@ def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float |
         if input_kind(input_path) != "raw":
             raise click.UsageError(f"--total-focus renders a focused-plenoptic raw (Raytrix image + RayCalibData "
                                    f"XML); {input_path} is a {input_kind(input_path)} input")
-
-
-def default_focus(ctx: click.Context, focused: bool) -> dict[str, object]:
-    """The focus of a photograph asked for without a focus option: ``{'total_focus': True}`` for a
-    focused-plenoptic raw (unless ``--method`` or ``--aperture`` asks for a refocus), else ``{'slope': 0.0}``:
-    the focus as captured, the default of ``plenodecode batch``'s 'refocus' product."""
-    if focused and not any(_given(ctx, name) for name in REFOCUS_ONLY):
-        return {"total_focus": True}
-    return {"slope": 0.0}
 
 
 @click.command("render")
@@ -100,6 +91,7 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
       plenodecode raytrix.png --total-focus -o photo.png --white raytrix_white.png
     """
     from ..pipeline import check_total_focus_patch, open_source, render_product, write_product
+    from ..pipeline.products import photo_focus
 
     check_render_options(ctx, input_path, alpha=alpha, slope=slope, total_focus=total_focus, patch=patch,
                          focus_at=focus_at, distance_m=distance_m, no_depth=no_depth)
@@ -109,7 +101,8 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     chosen = None
     if not (total_focus or focus_at) and alpha is None and slope is None and distance_m is None:
-        chosen = default_focus(ctx, src.focused)
+        # --method / --aperture ask for a refocus of the decoded light field, even of a Raytrix raw
+        chosen = photo_focus(src.focused, refocus=any(_given(ctx, name) for name in REFOCUS_ONLY))
         total_focus, slope = chosen.get("total_focus", False), chosen.get("slope")
     if total_focus:
         with usage_errors(param_hint="--patch"):

@@ -451,17 +451,25 @@ def render_focused_refocus(src: Source, *, virtual_depth: float, colour: str = "
                     data={"render": res, "virtual_depth": virtual_depth})
 
 
+def photo_focus(focused: bool, *, refocus: bool = False) -> dict[str, Any]:
+    """How the camera's photograph is focused when no focus is asked for (the one rule of :func:`render_photo`
+    and ``plenodecode RAW -o photo.png``): ``{'total_focus': True}`` for a focused-plenoptic (Raytrix) raw, whose
+    decoded views have one pixel per lens (a thumbnail), unless ``refocus`` (a refocusing option was asked for:
+    the decoded light field is refocused); else ``{'slope': 0.0}``, the focus as captured."""
+    return {"total_focus": True} if focused and not refocus else {"slope": 0.0}
+
+
 def render_photo(src: Source, *, slope: float | None = None, alpha: float | None = None,
                  distance_m: float | None = None) -> Rendered:
-    """The camera's photograph, as ``plenodecode RAW -o photo.png`` writes it without a focus option: a
-    focused-plenoptic (Raytrix) raw's total focus (:func:`render_total_focus`; its decoded views have one pixel
-    per lens, a thumbnail), else the photograph refocused (:func:`render_refocus`) at ``slope``, ``alpha`` or
-    ``distance_m``, by default as captured (slope 0).  The rendered product says which ('total-focus' or
-    'refocus')."""
-    if src.focused:
+    """The camera's photograph, as ``plenodecode RAW -o photo.png`` writes it without a focus option
+    (:func:`photo_focus`): a focused-plenoptic (Raytrix) raw's total focus (:func:`render_total_focus`), else the
+    photograph refocused (:func:`render_refocus`) at ``slope``, ``alpha`` or ``distance_m``, by default as
+    captured.  The rendered product says which ('total-focus' or 'refocus')."""
+    chosen = photo_focus(src.focused)
+    if chosen.get("total_focus"):
         return render_total_focus(src)
     if slope is None and alpha is None and distance_m is None:
-        slope = 0.0
+        slope = chosen["slope"]
     return render_refocus(src, slope=slope, alpha=alpha, distance_m=distance_m)
 
 
