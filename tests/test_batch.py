@@ -800,3 +800,22 @@ def test_batch_depth_of_a_raytrix_raw_is_the_depth_commands_virtual_depth(tmp_pa
     qy, qx = np.mgrid[0:batch.shape[0], 0:batch.shape[1]].astype(np.float32)
     truth = cv2.remap(sim.truth["virtual_depth"], qx / scale, qy / scale, cv2.INTER_NEAREST)
     assert np.nanmedian(np.abs(batch - truth) / truth) < 0.03
+
+
+def test_cli_photo_and_refocus_at_the_same_focus_write_one_file(data, tmp_path):
+    """'--outputs photo,refocus' failed every raw after decoding it (FileExistsError: both are the photograph
+    focused as captured, refocus_s+0.00.png); the image is now written once and listed once."""
+    raw = data["shoot"] / "take1" / "scene1.lfr"
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["batch", str(raw), "-o", str(out), "--jobs", "1", "--database", str(data["db"]),
+                                   "--outputs", "photo,refocus"])
+    assert res.exit_code == 0, res.output
+    folder = out / "scene1"
+    assert sorted(p.name for p in folder.glob("*.png")) == ["refocus_s+0.00.png"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert [Path(o).name for o in summary["results"][0]["outputs"]] == ["refocus_s+0.00.png"]
+    single = tmp_path / "single.png"
+    assert CliRunner().invoke(cli, [str(raw), "--database", str(data["db"]), "-o", str(single)]).exit_code == 0
+    from plenodecode.io.images import read_image
+
+    np.testing.assert_array_equal(read_image(folder / "refocus_s+0.00.png"), read_image(single))
