@@ -819,3 +819,18 @@ def test_cli_photo_and_refocus_at_the_same_focus_write_one_file(data, tmp_path):
     from plenodecode.io.images import read_image
 
     np.testing.assert_array_equal(read_image(folder / "refocus_s+0.00.png"), read_image(single))
+
+
+def test_cli_white_images_skipped_on_purpose_are_not_named_as_passed_over(tmp_path):
+    """'batch sample_raws/' said 'scene_white.png were not taken: ... name the raw image itself' of the white
+    image that its sidecar flags (skipped on purpose); only images skipped for want of a sidecar are named."""
+    from plenodecode.synthetic import simulate, write_simulation
+
+    paths = write_simulation(simulate("square", seed=1, shape=(330, 400)), tmp_path / "sq", name="lfm")
+    assert Path(paths["white"]).name == "lfm_white.png"
+    (tmp_path / "sq" / "notes.png").write_bytes(b"\x89PNG")                 # an image without a sidecar
+    res = CliRunner().invoke(cli, ["batch", str(tmp_path / "sq"), "-o", str(tmp_path / "out"), "--jobs", "1",
+                                   "--outputs", "centre", "--white", str(paths["white"])])
+    assert res.exit_code == 0, res.output
+    assert "note: 1 image(s) (notes.png) were not taken" in res.output and "lfm_white" not in res.output
+    assert (tmp_path / "out" / "lfm" / "centre.png").is_file()
