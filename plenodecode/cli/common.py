@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterator, Mapping
 
 import click
+from click.core import ParameterSource
 
 from ..pipeline import BIT_DEPTHS
 
@@ -307,6 +308,26 @@ bit_depth_option = click.option("--bit-depth", type=click.Choice([str(b) for b i
                                 help="Bits per sample of image outputs (32 = float).")
 jobs_option = click.option("--jobs", "-j", type=click.IntRange(min=1), default=None,
                            help="Worker processes (default: all cores).")
+
+
+def image_bit_depth(ctx: click.Context, bit_depth: str, suffix: str, *, param_hint: str = "-o / --output") -> int:
+    """The bit depth of image files of type ``suffix`` ('.jpg'), checked before any work: ``--bit-depth`` as
+    typed, else its default (16) or, for a type that cannot hold it, the deepest the type holds (8 for JPEG, 32 for
+    PFM).  Usage errors (exit 2): a type that is no image file (naming ``param_hint``, the option that gave it) and
+    a typed ``--bit-depth`` the type cannot hold."""
+    from ..io.images import IMAGE_FORMATS
+
+    ext = suffix.lower() if suffix.startswith(".") else f".{suffix.lower()}"
+    if ext not in IMAGE_FORMATS:
+        raise click.BadParameter(f"an image file ends in {', '.join(sorted(IMAGE_FORMATS))}; got "
+                                 f"{suffix or 'no extension'!r}", param_hint=param_hint)
+    holds = IMAGE_FORMATS[ext]
+    if ctx.get_parameter_source("bit_depth") is not ParameterSource.COMMANDLINE and int(bit_depth) not in holds:
+        return max(holds)
+    if int(bit_depth) not in holds:
+        raise click.BadParameter(f"{ext} files hold {' or '.join(map(str, holds))} bits per sample, not {bit_depth}",
+                                 param_hint="--bit-depth")
+    return int(bit_depth)
 
 
 def check_output(path: Path, overwrite: bool) -> None:

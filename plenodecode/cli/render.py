@@ -14,8 +14,8 @@ import click
 from click.core import ParameterSource
 
 from .common import (FINITE, POSITIVE, FiniteFloat, bit_depth_option, calibration_kwargs, check_focus_options, check_output,
-                     describe_focus, focus_options, focus_point, input_options, output_option, overwrite_option,
-                     progress_bar, quiet, usage_errors)
+                     describe_focus, focus_options, focus_point, image_bit_depth, input_options, output_option,
+                     overwrite_option, progress_bar, quiet, usage_errors)
 from .refocus import REFOCUS_METHOD_CHOICE
 
 #: The refocusing options that mean nothing to --total-focus (parameter name -> option).
@@ -96,6 +96,7 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
     check_render_options(ctx, input_path, alpha=alpha, slope=slope, total_focus=total_focus, patch=patch,
                          focus_at=focus_at, distance_m=distance_m, no_depth=no_depth)
     check_output(output, overwrite)
+    bits = image_bit_depth(ctx, bit_depth, output.suffix)
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       check=None if total_focus else {"refocus": {"alpha": alpha, "distance_m": distance_m}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
@@ -113,7 +114,7 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
                                at=focus_point(focus_at, src.lightfield.shape),
                                at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture)
     with usage_errors():
-        write_product(photo, output, bit_depth=int(bit_depth), overwrite=overwrite)
+        write_product(photo, output, bit_depth=bits, overwrite=overwrite)
     if not quiet(ctx):
         how = "total focus" if total_focus else describe_focus(photo.data)
         if chosen is not None:
