@@ -834,3 +834,30 @@ def test_cli_white_images_skipped_on_purpose_are_not_named_as_passed_over(tmp_pa
     assert res.exit_code == 0, res.output
     assert "note: 1 image(s) (notes.png) were not taken" in res.output and "lfm_white" not in res.output
     assert (tmp_path / "out" / "lfm" / "centre.png").is_file()
+
+
+def test_cli_light_field_folders_are_named_as_light_fields_not_as_images_to_name(tmp_path):
+    """'batch ../shared/data' listed the 81 views of the HCI scene among the images 'not taken: ... name the raw
+    image itself', and 'batch hci-antinous' said to run 'plenodecode batch hci-antinous/RAW_IMAGE'; a folder of
+    views (HCI scene, saved 'views' light field) is now named as a light field, to give to refocus, views or
+    depth."""
+    from plenodecode.io.lightfield import save_lightfield
+    from plenodecode.types import LightField
+    from tests.conftest import shared_path
+
+    hci = shared_path("hci-antinous")
+    res = CliRunner().invoke(cli, ["batch", str(hci), "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2 and "no raws found" in res.output, res.output
+    assert f"{hci} is a light field (views), not a raw" in res.output and "RAW_IMAGE" not in res.output
+    assert not (tmp_path / "o").exists()
+    saved = save_lightfield(LightField(np.zeros((3, 3, 8, 8, 1), np.float32), None, "srgb", {}), tmp_path / "lf",
+                            format="views")
+    scope = tmp_path / "scope"
+    scope.mkdir()
+    import cv2
+
+    cv2.imwrite(str(scope / "light_field.png"), np.full((64, 80), 1000, np.uint16))
+    res = CliRunner().invoke(cli, ["batch", str(saved), str(scope), "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2, res.output
+    assert "1 image(s) (light_field.png) were not taken" in res.output
+    assert f"{saved} is a light field (views), not a raw" in res.output
