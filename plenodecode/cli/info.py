@@ -180,8 +180,14 @@ def _describe_other(path: Path) -> list[str]:
     lines = [f"{path}: raw image"]
     lines += _camera_lines(m.model, m.make, m.serial)
     lines.append(f"  kind     {'raw, white image' if m.is_white_image else 'raw'}")
-    lines.append(f"  raw      {w} x {h}, {raw.cfa or 'monochrome'}, black {_levels(raw.black)}, "
-                 f"white {_levels(raw.white)}, values {int(raw.mosaic.min())}..{int(raw.mosaic.max())}")
+    from ..io.raytrix import is_rgb_export
+
+    if is_rgb_export(raw):      # its RawCapture holds the luminance, scaled to 16 bits: not what the file is
+        lines.append(f"  raw      {w} x {h}, RGB export ({m.extra['stored_channels']} channels, already demosaiced): "
+                     "rendered in colour; its luminance locates the lenses")
+    else:
+        lines.append(f"  raw      {w} x {h}, {raw.cfa or 'monochrome'}, black {_levels(raw.black)}, "
+                     f"white {_levels(raw.white)}, values {int(raw.mosaic.min())}..{int(raw.mosaic.max())}")
     lines += _lens_lines(m)
     return lines
 

@@ -373,3 +373,12 @@ def test_metric_depth_of_a_focused_raw_calibrated_by_hand_is_refused(shoot, tmp_
     assert src.focused
     with pytest.raises(MissingConstantsError, match="virtual depth"):
         pipeline.render_product(src, "depth", metric=True, focus_distance=1.0)
+
+
+def test_info_on_the_r42_says_it_is_an_rgb_export_not_a_monochrome_raw(r42):
+    """'plenodecode info' called the R42's 8-bit RGB export 'monochrome, black 0, white 65535' (the luminance
+    its reader makes to locate the lenses), though every rendering of it is in colour."""
+    res = run("info", r42)
+    assert res.exit_code == 0, res.output
+    line = next(line for line in res.output.splitlines() if line.strip().startswith("raw "))
+    assert "964 x 670, RGB export (3 channels" in line and "monochrome" not in line and "65535" not in line
