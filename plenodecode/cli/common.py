@@ -470,6 +470,14 @@ def focus_point(at: tuple[float, float, bool] | None, shape: tuple[int, ...]) ->
         return check_point(point, shape[2:4])
 
 
+def focus_hint(*, alpha: Any = None, distance_m: Any = None, focus_at: Any = None, stack: Any = None) -> str:
+    """The option a photograph's focus came from, as a usage error about it names it (``--slope`` when none of
+    the others, which covers the default, slope 0)."""
+    given = [(alpha, "--refocus / --alpha"), (distance_m, "--focus-distance"), (focus_at, "--focus-at"),
+             (stack, "--focal-stack")]
+    return next((hint for value, hint in given if value is not None), "--slope")
+
+
 def focus_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     """``--focus-at X,Y``, ``--no-depth`` and ``--focus-distance METRES``: the ways besides slope and alpha of
     saying where a photograph is focused (:func:`plenodecode.render.refocus_methods.focus_slope`)."""

@@ -11,7 +11,7 @@ import math
 
 from ..pipeline import IMAGE_EXTENSIONS, MAX_STACK_SLICES, STACK_UNITS, focal_stack_names
 from .common import (FINITE, POSITIVE, FiniteFloat, RegistryChoice, bit_depth_option, calibration_kwargs,
-                     check_focus_options, check_folder_output, check_output, describe_focus, focus_options,
+                     check_focus_options, check_folder_output, check_output, describe_focus, focus_hint, focus_options,
                      focus_point, image_bit_depth, input_options, output_option, overwrite_option, progress_bar, quiet,
                      usage_errors)
 
@@ -151,10 +151,11 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
                       else {"focal-stack": {"units": stack_units}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     if stack is None:
-        photo = render_product(src, "refocus", slope=slope, alpha=alpha, distance_m=distance_m,
-                               at=focus_point(focus_at, src.lightfield.shape),
-                               at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture,
-                               upsample=upsample)
+        at = focus_point(focus_at, src.lightfield.shape)
+        with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
+            photo = render_product(src, "refocus", slope=slope, alpha=alpha, distance_m=distance_m, at=at,
+                                   at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture,
+                                   upsample=upsample)
         with usage_errors():
             write_product(photo, output, bit_depth=bits, overwrite=overwrite)
         if not quiet(ctx):
@@ -164,8 +165,9 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
                        f"--focus-distance")
             click.echo(f"wrote {output} ({how}; {method}, aperture {aperture:g})")
         return
-    rendered = render_product(src, "focal-stack", start=start, stop=stop, n=n, units=stack_units, method=method,
-                              aperture=aperture, upsample=upsample, progress=progress_bar("focal stack", ctx))
+    with usage_errors(param_hint="--focal-stack"):
+        rendered = render_product(src, "focal-stack", start=start, stop=stop, n=n, units=stack_units, method=method,
+                                  aperture=aperture, upsample=upsample, progress=progress_bar("focal stack", ctx))
     with usage_errors():
         write_product(rendered, output, bit_depth=bits, ext=ext, overwrite=overwrite)
     if not quiet(ctx):

@@ -13,9 +13,9 @@ from pathlib import Path
 import click
 from click.core import ParameterSource
 
-from .common import (FINITE, POSITIVE, FiniteFloat, bit_depth_option, calibration_kwargs, check_focus_options, check_output,
-                     describe_focus, focus_options, focus_point, image_bit_depth, input_options, output_option,
-                     overwrite_option, progress_bar, quiet, usage_errors)
+from .common import (FINITE, POSITIVE, FiniteFloat, bit_depth_option, calibration_kwargs, check_focus_options,
+                     check_output, describe_focus, focus_hint, focus_options, focus_point, image_bit_depth,
+                     input_options, output_option, overwrite_option, progress_bar, quiet, usage_errors)
 from .refocus import REFOCUS_METHOD_CHOICE
 
 #: The refocusing options that mean nothing to --total-focus (parameter name -> option).
@@ -110,9 +110,10 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
             check_total_focus_patch(src.calibration.grid, patch)       # its upper bound is the camera's
         photo = render_product(src, "total-focus", patch=patch, progress=progress_bar("rendering", ctx))
     else:
-        photo = render_product(src, "refocus", alpha=alpha, slope=slope, distance_m=distance_m,
-                               at=focus_point(focus_at, src.lightfield.shape),
-                               at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture)
+        at = focus_point(focus_at, src.lightfield.shape)
+        with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
+            photo = render_product(src, "refocus", alpha=alpha, slope=slope, distance_m=distance_m, at=at,
+                                   at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture)
     with usage_errors():
         write_product(photo, output, bit_depth=bits, overwrite=overwrite)
     if not quiet(ctx):
