@@ -336,11 +336,16 @@ def check_output(path: Path, overwrite: bool) -> None:
         raise click.UsageError(f"{path} exists; pass --overwrite to replace it")
 
 
-def check_folder_output(folder: Path, names: list[str], overwrite: bool) -> None:
-    """Refuse a folder output that is a file, or where one of ``names`` exists without ``--overwrite``
-    (usage error, exit 2).  Creates nothing: the folder appears only when its files are written."""
+def check_folder_output(folder: Path, names: list[str], overwrite: bool, *, what: str = "the output") -> None:
+    """Refuse a folder output that is a file, that is named like an image file (``-o stack.png`` would make a
+    folder called stack.png), or where one of ``names`` exists without ``--overwrite`` (usage error, exit 2).
+    Creates nothing: the folder appears only when its files are written."""
+    from ..io.images import ANIMATION_FORMATS, IMAGE_FORMATS
     from ..pipeline import refuse_folder_clash
 
+    if not folder.is_dir() and folder.suffix.lower() in (*IMAGE_FORMATS, *ANIMATION_FORMATS):
+        raise click.BadParameter(f"{what} goes into a folder, and {folder.name} names an image file; give a "
+                                 f"folder, e.g. {folder.with_suffix('')}/", param_hint="-o / --output")
     with usage_errors():
         refuse_folder_clash(folder, names, overwrite)
 

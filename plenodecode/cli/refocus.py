@@ -144,7 +144,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
     else:
         start, stop, n = parse_stack(stack, stack_units)
         names = focal_stack_names(n, ext)
-        check_folder_output(output, names, overwrite)
+        check_folder_output(output, names, overwrite, what="a focal stack")
         bits = image_bit_depth(ctx, bit_depth, ext, param_hint="--ext")
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       check={"refocus": {"alpha": alpha, "distance_m": distance_m}} if stack is None

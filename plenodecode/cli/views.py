@@ -8,8 +8,9 @@ import click
 
 from ..imaging import MIN_VIEW_DATA
 from ..pipeline import IMAGE_EXTENSIONS
-from .common import (NON_NEGATIVE, RegistryChoice, bit_depth_option, calibration_kwargs, check_output, image_bit_depth,
-                     input_options, output_option, overwrite_option, progress_bar, quiet, usage_errors)
+from .common import (NON_NEGATIVE, RegistryChoice, bit_depth_option, calibration_kwargs, check_folder_output,
+                     check_output, image_bit_depth, input_options, output_option, overwrite_option, progress_bar, quiet,
+                     usage_errors)
 
 #: Angular interpolation kernels of perspective views, for ``--interp``.
 INTERP_CHOICE = RegistryChoice("plenodecode.render.viewpoints", "PERSPECTIVE_INTERPOLATIONS")
@@ -43,6 +44,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, view: tuple[floa
 
     if view is not None:
         check_output(output, overwrite)
+    else:       # the names depend on the light field's shape: their clash is checked when they are written
+        check_folder_output(output, [], overwrite, what="every view (without --view)")
     bits = (image_bit_depth(ctx, bit_depth, output.suffix) if view is not None
             else image_bit_depth(ctx, bit_depth, ext, param_hint="--ext"))
     src = open_source(input_path, progress=progress_bar("decoding", ctx),

@@ -65,3 +65,21 @@ def test_an_image_type_or_bit_depth_that_cannot_be_written_is_refused_before_dec
     errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
     assert len(errors) == 1 and f"Invalid value for {option}:" in errors[0] and words in errors[0], res.output
     assert no_work == [] and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("args, words", [
+    (["refocus", "--focal-stack", "-1:1:3", "-o", "stack.png"], "a focal stack goes into a folder"),
+    (["views", "-o", "views.png"], "every view (without --view) goes into a folder"),
+    (["extract", "-o", "items.jpg"], "every item goes into a folder"),
+], ids=["focal-stack", "views", "extract"])
+def test_a_folder_output_named_like_an_image_is_refused(tmp_path, args, words):
+    """'refocus --focal-stack ... -o stack.png' wrote a folder called stack.png holding slice_000.png ...; an
+    output that is a folder of files but is named like an image is now refused, naming -o, with nothing made."""
+    out = tmp_path / args[-1]
+    res = run(args[0], ILLUM, "--database", ROOT / "calib", *args[1:-1], out) if args[0] != "extract" else \
+        run("extract", ILLUM, "-o", out)
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert res.exit_code == 2 and len(errors) == 1, res.output
+    assert "Invalid value for -o / --output:" in errors[0] and words in errors[0], res.output
+    assert f"give a folder, e.g. {out.with_suffix('')}/" in errors[0]
+    assert not out.exists()

@@ -244,7 +244,7 @@ def test_a_slope_that_moves_the_views_past_the_picture_is_refused_naming_its_opt
              (["refocus", lf_path, "--focal-stack", "-1e9:1e9:3"], "--focal-stack", "slope 1e+09 px/view"),
              ([lf_path, "--refocus", 0.2], "--refocus / --alpha", "slope 243.3 px/view moves the outermost views")]
     for i, (args, option, words) in enumerate(cases):
-        out = tmp_path / f"out{i}.png"
+        out = tmp_path / (f"out{i}" if "--focal-stack" in args else f"out{i}.png")
         res = run(*args, "-o", out)
         errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
         assert res.exit_code == 2 and len(errors) == 1, res.output
