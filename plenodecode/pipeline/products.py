@@ -326,16 +326,16 @@ def _focused_input(src: Source, what: str) -> tuple[Any, Any, str]:
     is read again in colour, linear sRGB (:func:`~plenodecode.io.raytrix.read_raytrix_linear_rgb`), and so is
     its white image when that is an export too (else the white's normalised mosaic divides every channel);
     any other raw is rendered from its mosaic (demosaiced within the micro-images), in camera RGB.
-    ``src`` holds a raw; ``what`` names the product in the warning for a grid without lens types.  Read once per
-    source (:meth:`~plenodecode.pipeline.Source.shared`).
+    ``src`` holds a raw; ``what`` names the product in the warning for a grid without lens types.  Read (and
+    warned about) once per source (:meth:`~plenodecode.pipeline.Source.shared`).
     """
+    return src.shared("focused-input", lambda: _read_focused_input(src, what))
+
+
+def _read_focused_input(src: Source, what: str) -> tuple[Any, Any, str]:
     if not src.focused:
         log.warning("the lenslet grid of %s has no lens types: %s expects a focused-plenoptic raw",
                     src.raw.path or "the raw", what)
-    return src.shared("focused-input", lambda: _read_focused_input(src))
-
-
-def _read_focused_input(src: Source) -> tuple[Any, Any, str]:
     from ..io.raytrix import is_rgb_export, read_raytrix_linear_rgb
 
     white = src.calibration.white
