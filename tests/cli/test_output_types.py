@@ -83,3 +83,21 @@ def test_a_folder_output_named_like_an_image_is_refused(tmp_path, args, words):
     assert "Invalid value for -o / --output:" in errors[0] and words in errors[0], res.output
     assert f"give a folder, e.g. {out.with_suffix('')}/" in errors[0]
     assert not out.exists()
+
+
+def test_export_of_a_raw_says_to_decode_it_first(tmp_path):
+    """'plenodecode export scene.lfr -o page.html' said \"cannot tell the light-field format; pass format= one of
+    [...]\" (a Python keyword; export has no input format option) and the real R42 PNG 'is not a whole number of
+    14x14 view tiles'; a raw given to export is now a usage error naming LF_IN that says to decode it first."""
+    from tests.conftest import shared_path
+
+    for raw in (ILLUM, shared_path("raytrix-r42", "sc2_klein.png")):
+        res = run("export", raw, "-o", tmp_path / "page.html")
+        errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+        assert res.exit_code == 2 and len(errors) == 1, res.output
+        assert f"Invalid value for LF_IN: {raw.name} is not a saved light field" in errors[0]
+        assert f"'plenodecode decode {raw} -o lf.zarr'" in errors[0] and "format=" not in errors[0]
+    assert list(tmp_path.iterdir()) == []
+    assert run("decode", ILLUM, "--database", ROOT / "calib", "-o", tmp_path / "lf.zarr").exit_code == 0
+    res = run("export", tmp_path / "lf.zarr", "-o", tmp_path / "page.html")
+    assert res.exit_code == 0 and (tmp_path / "page.html").stat().st_size > 10000, res.output
