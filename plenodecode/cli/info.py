@@ -153,7 +153,13 @@ def _describe_sidecar(path: Path) -> list[str]:
     from ..errors import MetadataError
     from ..io import lytro
 
-    doc = lytro.read_sidecar(path)
+    try:
+        doc = lytro.read_sidecar(path)
+    except FormatError:         # a .txt that is no JSON: not the damaged sidecar of a raw, just another file
+        if not any(path.with_suffix(ext).is_file() for ext in (".RAW", ".raw")):
+            raise FormatError(f"{path}: not JSON, so not the metadata of a Lytro raw (MOD_NNNN.TXT, *__frame.json); "
+                              "info describes raws, containers, their metadata and light fields") from None
+        raise
     try:
         if not isinstance(doc, Mapping):
             raise MetadataError(f"expected a JSON object, found {type(doc).__name__}")

@@ -121,3 +121,18 @@ def test_a_white_image_without_its_txt_says_the_metadata_is_missing(tmp_path):
     shutil.copy(bundled / "MOD_0000.TXT", tmp_path / "MOD_0000.TXT")
     res = run(white)
     assert res.exit_code == 0 and "white image" in res.output, res.output
+
+
+def test_info_on_a_text_file_that_is_no_metadata_says_so(tmp_path):
+    """'plenodecode info notes.txt' said 'the metadata sidecar is not valid JSON ... the file is damaged' of a
+    plain text file; it says the file is no Lytro metadata, and a MOD_0000.TXT beside its .RAW keeps the damage
+    message."""
+    notes = tmp_path / "notes.txt"
+    notes.write_text("shot list: the lilies at f/2\n")
+    res = CliRunner().invoke(cli, ["info", str(notes)])
+    assert res.exit_code == 1 and "not JSON, so not the metadata of a Lytro raw" in res.output, res.output
+    assert "damaged" not in res.output
+    (tmp_path / "MOD_0000.RAW").write_bytes(b"\0" * 64)
+    (tmp_path / "MOD_0000.TXT").write_text("{broken")
+    res = CliRunner().invoke(cli, ["info", str(tmp_path / "MOD_0000.TXT")])
+    assert res.exit_code == 1 and "the metadata file is damaged" in res.output, res.output
