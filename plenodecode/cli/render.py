@@ -32,8 +32,8 @@ def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float |
                          distance_m: float | None = None, no_depth: bool = False) -> None:
     """Usage errors (exit 2, one line naming the option) for option combinations that make no sense, before
     any work: at most one of ``--refocus`` / ``--slope`` / ``--focus-at`` / ``--focus-distance`` /
-    ``--total-focus`` (none: :func:`plenodecode.pipeline.products.photo_focus`); ``--patch`` only with ``--total-focus``, ``--method`` /
-    ``--aperture`` only without it; ``--total-focus`` needs a raw."""
+    ``--total-focus`` (none: :func:`plenodecode.pipeline.products.photo_focus`); ``--patch`` only with
+    ``--total-focus``, ``--method`` / ``--aperture`` only without it; ``--total-focus`` needs a raw."""
     from ..pipeline import input_kind
 
     check_focus_options({"--refocus ALPHA": alpha, "--slope S": slope, "--focus-at X,Y": focus_at,
