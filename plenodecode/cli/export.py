@@ -53,11 +53,12 @@ def _load(lf_in: Path):
     """The light field saved at ``lf_in``; a file that is none (a raw, most often) is a usage error naming LF_IN
     that says to decode it first, rather than the reader's words about light-field formats."""
     from ..errors import PlenodecodeError
+    from ..io.discovery import MOSAIC_SUFFIXES, PAIR_SUFFIXES, RAW_SUFFIXES
     from ..io.lightfield import load_lightfield
     from ..pipeline import input_kind
 
-    if input_kind(lf_in) != "raw":
-        return load_lightfield(lf_in)
+    if input_kind(lf_in) != "raw" or lf_in.suffix.lower() not in (*RAW_SUFFIXES, *PAIR_SUFFIXES, *MOSAIC_SUFFIXES):
+        return load_lightfield(lf_in)       # e.g. an HTML page: the reader says what it is
     try:
         return load_lightfield(lf_in)
     except (PlenodecodeError, ValueError) as exc:
