@@ -555,7 +555,9 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
 
     Returns
     -------
-    list of (product path, thumbnail path or None), in the order of ``options.outputs``.
+    list of (product path, thumbnail path or None), in the order of ``options.outputs``; a product that is the
+    same image as an earlier one ('photo' and 'refocus' at the same focus, 'photo' and 'total-focus' of a
+    focused raw) is written once.
     """
     import numpy as np
 
@@ -603,6 +605,10 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
             rendered = pipeline.render_product(src, product, **_image_product_options(product, options))
             (stem, image), = rendered.images
             name = f"{stem}.{pipeline.default_extension(bits)}"
+            if any(dest.name == name for dest, _ in written):
+                # 'photo' is the 'refocus' at the same focus, or a focused raw's 'total-focus': one file
+                log.info("%s: %s is the same image as an earlier output", product, name)
+                continue
             dest, = pipeline.write_product(rendered, folder / name, bit_depth=bits)
             written.append((dest, _thumbnail(image, thumbs / f"{stem}.png", colour=rendered.colour)))
     return written

@@ -800,3 +800,64 @@ def test_batch_depth_of_a_raytrix_raw_is_the_depth_commands_virtual_depth(tmp_pa
     qy, qx = np.mgrid[0:batch.shape[0], 0:batch.shape[1]].astype(np.float32)
     truth = cv2.remap(sim.truth["virtual_depth"], qx / scale, qy / scale, cv2.INTER_NEAREST)
     assert np.nanmedian(np.abs(batch - truth) / truth) < 0.03
+
+
+def test_cli_photo_and_refocus_at_the_same_focus_write_one_file(data, tmp_path):
+    """'--outputs photo,refocus' failed every raw after decoding it (FileExistsError: both are the photograph
+    focused as captured, refocus_s+0.00.png); the image is now written once and listed once."""
+    raw = data["shoot"] / "take1" / "scene1.lfr"
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["batch", str(raw), "-o", str(out), "--jobs", "1", "--database", str(data["db"]),
+                                   "--outputs", "photo,refocus"])
+    assert res.exit_code == 0, res.output
+    folder = out / "scene1"
+    assert sorted(p.name for p in folder.glob("*.png")) == ["refocus_s+0.00.png"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert [Path(o).name for o in summary["results"][0]["outputs"]] == ["refocus_s+0.00.png"]
+    single = tmp_path / "single.png"
+    assert CliRunner().invoke(cli, [str(raw), "--database", str(data["db"]), "-o", str(single)]).exit_code == 0
+    from plenodecode.io.images import read_image
+
+    np.testing.assert_array_equal(read_image(folder / "refocus_s+0.00.png"), read_image(single))
+
+
+def test_cli_white_images_skipped_on_purpose_are_not_named_as_passed_over(tmp_path):
+    """'batch sample_raws/' said 'scene_white.png were not taken: ... name the raw image itself' of the white
+    image that its sidecar flags (skipped on purpose); only images skipped for want of a sidecar are named."""
+    from plenodecode.synthetic import simulate, write_simulation
+
+    paths = write_simulation(simulate("square", seed=1, shape=(330, 400)), tmp_path / "sq", name="lfm")
+    assert Path(paths["white"]).name == "lfm_white.png"
+    (tmp_path / "sq" / "notes.png").write_bytes(b"\x89PNG")                 # an image without a sidecar
+    res = CliRunner().invoke(cli, ["batch", str(tmp_path / "sq"), "-o", str(tmp_path / "out"), "--jobs", "1",
+                                   "--outputs", "centre", "--white", str(paths["white"])])
+    assert res.exit_code == 0, res.output
+    assert "note: 1 image(s) (notes.png) were not taken" in res.output and "lfm_white" not in res.output
+    assert (tmp_path / "out" / "lfm" / "centre.png").is_file()
+
+
+def test_cli_light_field_folders_are_named_as_light_fields_not_as_images_to_name(tmp_path):
+    """'batch ../shared/data' listed the 81 views of the HCI scene among the images 'not taken: ... name the raw
+    image itself', and 'batch hci-antinous' said to run 'plenodecode batch hci-antinous/RAW_IMAGE'; a folder of
+    views (HCI scene, saved 'views' light field) is now named as a light field, to give to refocus, views or
+    depth."""
+    from plenodecode.io.lightfield import save_lightfield
+    from plenodecode.types import LightField
+    from tests.conftest import shared_path
+
+    hci = shared_path("hci-antinous")
+    res = CliRunner().invoke(cli, ["batch", str(hci), "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2 and "no raws found" in res.output, res.output
+    assert f"{hci} is a light field (views), not a raw" in res.output and "RAW_IMAGE" not in res.output
+    assert not (tmp_path / "o").exists()
+    saved = save_lightfield(LightField(np.zeros((3, 3, 8, 8, 1), np.float32), None, "srgb", {}), tmp_path / "lf",
+                            format="views")
+    scope = tmp_path / "scope"
+    scope.mkdir()
+    import cv2
+
+    cv2.imwrite(str(scope / "light_field.png"), np.full((64, 80), 1000, np.uint16))
+    res = CliRunner().invoke(cli, ["batch", str(saved), str(scope), "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2, res.output
+    assert "1 image(s) (light_field.png) were not taken" in res.output
+    assert f"{saved} is a light field (views), not a raw" in res.output

@@ -42,6 +42,13 @@ def _echo_table(summary) -> None:
         click.echo(f"{name:{width}s}  {r.status:8s} {r.seconds:8.1f}  {detail}")
 
 
+def _is_lightfield_folder(folder: Path) -> bool:
+    """An HCI scene folder or a light field saved as a folder of views (its ``lightfield.json``)."""
+    from ..pipeline import input_kind
+
+    return input_kind(folder) == "hci" or (folder / "lightfield.json").is_file()
+
+
 def _microscope_fields() -> dict:
     """``dark`` and ``optics`` of :class:`~plenodecode.batch.BatchOptions` from ``--dark`` and the optics options."""
     found = current_microscope_inputs()
@@ -115,15 +122,24 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
     files = find_raws(inputs, exclude=[out_dir])
     # e.g. a microscope's raw beside its white and dark frames: only the user knows which image is the raw
     images = images_not_taken(inputs, exclude=[out_dir], stop_marker=DONE_MARKER, taken=files)
+    # the views of an HCI scene or a saved light field are no raws to name: the folder is a light field
+    lf_dirs = sorted({p.parent for p in images if _is_lightfield_folder(p.parent)})
+    images = [p for p in images if p.parent not in lf_dirs]
     names = ", ".join(p.name for p in images[:3]) + (f" and {len(images) - 3} more" if len(images) > 3 else "")
     not_taken = (f"{len(images)} image(s) ({names}) were not taken: a folder yields an image only with a sidecar"
                  f" or at a known lenslet sensor's size: name the raw image itself") if images else ""
+    one = len(lf_dirs) == 1
+    lf_note = (f"{', '.join(map(str, lf_dirs))} {'is a light field' if one else 'are light fields'} (views), not "
+               f"{'a raw' if one else 'raws'}: batch decodes raws; give {'it' if one else 'them'} to 'plenodecode "
+               f"refocus', 'views' or 'depth' instead") if lf_dirs else ""
     if not files:
         hint = (f"; {not_taken}, 'plenodecode batch {images[0].parent}/RAW_IMAGE -o OUT' (a microscope's with "
                 f"-w WHITE_IMAGE)") if images else ""
-        raise click.UsageError(f"no raws found under {', '.join(map(str, inputs))}{hint}")
-    if images and not (ctx.obj or {}).get("quiet"):
-        click.echo(f"note: {not_taken}", err=True)
+        raise click.UsageError(f"no raws found under {', '.join(map(str, inputs))}{hint}"
+                               + (f"; {lf_note}" if lf_note else ""))
+    for note in (not_taken, lf_note):
+        if note and not (ctx.obj or {}).get("quiet"):
+            click.echo(f"note: {note}", err=True)
     # a --database typed that is no folder is refused; the default one missing only when no raw can do without it
     # (the others are decoded; those that need it fail with the reason, as a batch goes past any bad raw)
     if white is None and not db_dir.is_dir() and (

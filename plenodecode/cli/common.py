@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterator, Mapping
 
 import click
+from click.core import ParameterSource
 
 from ..pipeline import BIT_DEPTHS
 
@@ -309,17 +310,42 @@ jobs_option = click.option("--jobs", "-j", type=click.IntRange(min=1), default=N
                            help="Worker processes (default: all cores).")
 
 
+def image_bit_depth(ctx: click.Context, bit_depth: str, suffix: str, *, param_hint: str = "-o / --output") -> int:
+    """The bit depth of image files of type ``suffix`` ('.jpg'), checked before any work: ``--bit-depth`` as
+    typed, else its default (16) or, for a type that cannot hold it, the deepest the type holds (8 for JPEG, 32 for
+    PFM).  Usage errors (exit 2): a type that is no image file (naming ``param_hint``, the option that gave it) and
+    a typed ``--bit-depth`` the type cannot hold."""
+    from ..io.images import IMAGE_FORMATS
+
+    ext = suffix.lower() if suffix.startswith(".") else f".{suffix.lower()}"
+    if ext not in IMAGE_FORMATS:
+        raise click.BadParameter(f"an image file ends in {', '.join(sorted(IMAGE_FORMATS))}; got "
+                                 f"{suffix or 'no extension'!r}", param_hint=param_hint)
+    holds = IMAGE_FORMATS[ext]
+    if ctx.get_parameter_source("bit_depth") is not ParameterSource.COMMANDLINE and int(bit_depth) not in holds:
+        return max(holds)
+    if int(bit_depth) not in holds:
+        raise click.BadParameter(f"{ext} files hold {' or '.join(map(str, holds))} bits per sample, not {bit_depth}",
+                                 param_hint="--bit-depth")
+    return int(bit_depth)
+
+
 def check_output(path: Path, overwrite: bool) -> None:
     """Refuse to replace an existing output unless ``--overwrite`` was given (usage error, exit 2)."""
     if path.exists() and not overwrite:
         raise click.UsageError(f"{path} exists; pass --overwrite to replace it")
 
 
-def check_folder_output(folder: Path, names: list[str], overwrite: bool) -> None:
-    """Refuse a folder output that is a file, or where one of ``names`` exists without ``--overwrite``
-    (usage error, exit 2).  Creates nothing: the folder appears only when its files are written."""
+def check_folder_output(folder: Path, names: list[str], overwrite: bool, *, what: str = "the output") -> None:
+    """Refuse a folder output that is a file, that is named like an image file (``-o stack.png`` would make a
+    folder called stack.png), or where one of ``names`` exists without ``--overwrite`` (usage error, exit 2).
+    Creates nothing: the folder appears only when its files are written."""
+    from ..io.images import ANIMATION_FORMATS, IMAGE_FORMATS
     from ..pipeline import refuse_folder_clash
 
+    if not folder.is_dir() and folder.suffix.lower() in (*IMAGE_FORMATS, *ANIMATION_FORMATS):
+        raise click.BadParameter(f"{what} goes into a folder, and {folder.name} names an image file; give a "
+                                 f"folder, e.g. {folder.with_suffix('')}/", param_hint="-o / --output")
     with usage_errors():
         refuse_folder_clash(folder, names, overwrite)
 
@@ -447,6 +473,14 @@ def focus_point(at: tuple[float, float, bool] | None, shape: tuple[int, ...]) ->
     point = (y * (shape[2] - 1), x * (shape[3] - 1)) if fractional else (y, x)
     with usage_errors(param_hint="--focus-at"):
         return check_point(point, shape[2:4])
+
+
+def focus_hint(*, alpha: Any = None, distance_m: Any = None, focus_at: Any = None, stack: Any = None) -> str:
+    """The option a photograph's focus came from, as a usage error about it names it (``--slope`` when none of
+    the others, which covers the default, slope 0)."""
+    given = [(alpha, "--refocus / --alpha"), (distance_m, "--focus-distance"), (focus_at, "--focus-at"),
+             (stack, "--focal-stack")]
+    return next((hint for value, hint in given if value is not None), "--slope")
 
 
 def focus_options(fn: Callable[..., Any]) -> Callable[..., Any]:

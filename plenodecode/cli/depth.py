@@ -100,9 +100,10 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       check={"depth": {"metric": metric, "points": ply is not None, "focus_distance": focus_distance}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
-    if src.focused:
+    if src.focused:     # --metric / --ply are refused by render_product (virtual depth has no metric scale)
         check_focused_options(ctx)
-        rendered = render_product(src, "depth", progress=progress_bar("depth (focused: virtual depth)", ctx))
+        rendered = render_product(src, "depth", metric=metric, points=ply is not None,
+                                  progress=progress_bar("depth (focused: virtual depth)", ctx))
         method = rendered.data["method"]
     else:
         rendered = render_product(src, "depth", method=method, disparity_range=rng, metric=metric,

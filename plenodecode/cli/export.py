@@ -49,6 +49,25 @@ def _page_options_unused(ctx: click.Context, name: str, image_type: str | None, 
                                "8-bit sRGB)")
 
 
+def _load(lf_in: Path):
+    """The light field saved at ``lf_in``; a file that is none (a raw, most often) is a usage error naming LF_IN
+    that says to decode it first, rather than the reader's words about light-field formats."""
+    from ..errors import PlenodecodeError
+    from ..io.discovery import MOSAIC_SUFFIXES, PAIR_SUFFIXES, RAW_SUFFIXES
+    from ..io.lightfield import load_lightfield
+    from ..pipeline import input_kind
+
+    if input_kind(lf_in) != "raw" or lf_in.suffix.lower() not in (*RAW_SUFFIXES, *PAIR_SUFFIXES, *MOSAIC_SUFFIXES):
+        return load_lightfield(lf_in)       # e.g. an HTML page: the reader says what it is
+    try:
+        return load_lightfield(lf_in)
+    except (PlenodecodeError, ValueError) as exc:
+        eslf = f" (read as an ESLF image: {exc})" if lf_in.suffix.lower() in (".png", ".tif", ".tiff") else ""
+        raise click.BadParameter(f"{lf_in.name} is not a saved light field (zarr, views folder, .mat, .npy, ESLF "
+                                 f"image){eslf}; export converts light fields: decode a raw first, 'plenodecode "
+                                 f"decode {lf_in} -o lf.zarr', and export lf.zarr", param_hint="LF_IN") from None
+
+
 @click.command("export")
 @click.argument("lf_in", type=click.Path(exists=True, path_type=Path))
 @output_option
@@ -80,7 +99,7 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
       plenodecode export photo.zarr -o views/ --format views --bit-depth 8 --srgb
       plenodecode export photo.zarr -o photo.html --format html
     """
-    from ..io.lightfield import load_lightfield, save_lightfield
+    from ..io.lightfield import save_lightfield
 
     page = _page_format(output, fmt, overwrite)
     if page is not None:
@@ -88,7 +107,7 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
         name = page
     else:
         name = lightfield_output_format(output, fmt, overwrite)
-    lf = load_lightfield(lf_in)
+    lf = _load(lf_in)
     try:
         if page is not None:
             out = PAGE_FORMATS[page](lf, output, overwrite=overwrite, progress=progress_bar(f"writing {page}", ctx))

@@ -52,7 +52,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, overwrite: bool)
     files = [content_file_name(it) for it in items]
     manifest = manifest_name([TOC_FILE, *files])
     names = [TOC_FILE, *files, manifest]
-    check_folder_output(output, names, overwrite)
+    check_folder_output(output, names, overwrite, what="every item")
     document = {"source": str(input_path), "toc": TOC_FILE,
                 "items": [{"file": f, "name": it.name, "type": it.type, "size": it.size,
                            "shape": list(it.shape) if it.shape else None, "dtype": it.dtype, "key": it.key,

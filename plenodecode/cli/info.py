@@ -153,7 +153,13 @@ def _describe_sidecar(path: Path) -> list[str]:
     from ..errors import MetadataError
     from ..io import lytro
 
-    doc = lytro.read_sidecar(path)
+    try:
+        doc = lytro.read_sidecar(path)
+    except FormatError:         # a .txt that is no JSON: not the damaged sidecar of a raw, just another file
+        if not any(path.with_suffix(ext).is_file() for ext in (".RAW", ".raw")):
+            raise FormatError(f"{path}: not JSON, so not the metadata of a Lytro raw (MOD_NNNN.TXT, *__frame.json); "
+                              "info describes raws, containers, their metadata and light fields") from None
+        raise
     try:
         if not isinstance(doc, Mapping):
             raise MetadataError(f"expected a JSON object, found {type(doc).__name__}")
@@ -180,8 +186,14 @@ def _describe_other(path: Path) -> list[str]:
     lines = [f"{path}: raw image"]
     lines += _camera_lines(m.model, m.make, m.serial)
     lines.append(f"  kind     {'raw, white image' if m.is_white_image else 'raw'}")
-    lines.append(f"  raw      {w} x {h}, {raw.cfa or 'monochrome'}, black {_levels(raw.black)}, "
-                 f"white {_levels(raw.white)}, values {int(raw.mosaic.min())}..{int(raw.mosaic.max())}")
+    from ..io.raytrix import is_rgb_export
+
+    if is_rgb_export(raw):      # its RawCapture holds the luminance, scaled to 16 bits: not what the file is
+        lines.append(f"  raw      {w} x {h}, RGB export ({m.extra['stored_channels']} channels, already demosaiced): "
+                     "rendered in colour; its luminance locates the lenses")
+    else:
+        lines.append(f"  raw      {w} x {h}, {raw.cfa or 'monochrome'}, black {_levels(raw.black)}, "
+                     f"white {_levels(raw.white)}, values {int(raw.mosaic.min())}..{int(raw.mosaic.max())}")
     lines += _lens_lines(m)
     return lines
 

@@ -9,9 +9,11 @@ Exit codes: 0 success, 1 data error (one line on stderr; traceback with ``-v``),
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import logging
 import sys
+from pathlib import Path
 
 import click
 
@@ -84,6 +86,10 @@ class LazyGroup(click.Group):
 
     def resolve_command(self, ctx: click.Context, args: list[str]):
         if args and args[0] not in COMMANDS and not args[0].startswith("-"):
+            # 'plenodecode RAW ...' is the one-liner; a mistyped command is no file either: say which it meant
+            close = difflib.get_close_matches(args[0], self.list_commands(ctx), n=1, cutoff=0.75)
+            if close and not Path(args[0]).exists():
+                ctx.fail(f"no command or file {args[0]!r}: did you mean 'plenodecode {close[0]}'?")
             args = ["render", *args]
         return super().resolve_command(ctx, args)
 

@@ -11,8 +11,9 @@ import math
 
 from ..pipeline import IMAGE_EXTENSIONS, MAX_STACK_SLICES, STACK_UNITS, focal_stack_names
 from .common import (FINITE, POSITIVE, FiniteFloat, RegistryChoice, bit_depth_option, calibration_kwargs,
-                     check_focus_options, check_folder_output, check_output, describe_focus, focus_options,
-                     focus_point, input_options, output_option, overwrite_option, progress_bar, quiet, usage_errors)
+                     check_focus_options, check_folder_output, check_output, describe_focus, focus_hint, focus_options,
+                     focus_point, image_bit_depth, input_options, output_option, overwrite_option, progress_bar, quiet,
+                     usage_errors)
 
 #: The refocus methods of the library, for ``--method`` (imported when the command needs them).
 REFOCUS_METHOD_CHOICE = RegistryChoice("plenodecode.render", "REFOCUS_METHODS")
@@ -61,6 +62,7 @@ def refocus_at_virtual_depth(ctx: click.Context, input_path: Path, output: Path,
         raise click.UsageError(f"--virtual-depth renders a focused-plenoptic raw (Raytrix image + RayCalibData XML); "
                                f"{input_path} is a {input_kind(input_path)} input")
     check_output(output, overwrite)
+    bits = image_bit_depth(ctx, str(bit_depth), output.suffix)
     src = open_source(input_path, **inputs)
     if not src.focused:
         raise click.UsageError(f"--virtual-depth renders a focused-plenoptic raw (a grid with lens types, Raytrix); "
@@ -69,7 +71,7 @@ def refocus_at_virtual_depth(ctx: click.Context, input_path: Path, output: Path,
         check_virtual_depth(src.calibration.grid, virtual_depth)
     photo = render_product(src, "focused-refocus", virtual_depth=virtual_depth)
     with usage_errors():
-        write_product(photo, output, bit_depth=bit_depth, overwrite=overwrite)
+        write_product(photo, output, bit_depth=bits, overwrite=overwrite)
     if not quiet(ctx):
         render = photo.data["render"]
         click.echo(f"wrote {output} (virtual depth {virtual_depth:g}, patch {float(render.patch.flat[0]):.2f} px)")
@@ -138,21 +140,24 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
                                                                                        self_calibrate))
     if stack is None:
         check_output(output, overwrite)
+        bits = image_bit_depth(ctx, bit_depth, output.suffix)
     else:
         start, stop, n = parse_stack(stack, stack_units)
         names = focal_stack_names(n, ext)
-        check_folder_output(output, names, overwrite)
+        check_folder_output(output, names, overwrite, what="a focal stack")
+        bits = image_bit_depth(ctx, bit_depth, ext, param_hint="--ext")
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       check={"refocus": {"alpha": alpha, "distance_m": distance_m}} if stack is None
                       else {"focal-stack": {"units": stack_units}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     if stack is None:
-        photo = render_product(src, "refocus", slope=slope, alpha=alpha, distance_m=distance_m,
-                               at=focus_point(focus_at, src.lightfield.shape),
-                               at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture,
-                               upsample=upsample)
+        at = focus_point(focus_at, src.lightfield.shape)
+        with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
+            photo = render_product(src, "refocus", slope=slope, alpha=alpha, distance_m=distance_m, at=at,
+                                   at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture,
+                                   upsample=upsample)
         with usage_errors():
-            write_product(photo, output, bit_depth=int(bit_depth), overwrite=overwrite)
+            write_product(photo, output, bit_depth=bits, overwrite=overwrite)
         if not quiet(ctx):
             how = describe_focus(photo.data)
             if as_captured:
@@ -160,9 +165,10 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
                        f"--focus-distance")
             click.echo(f"wrote {output} ({how}; {method}, aperture {aperture:g})")
         return
-    rendered = render_product(src, "focal-stack", start=start, stop=stop, n=n, units=stack_units, method=method,
-                              aperture=aperture, upsample=upsample, progress=progress_bar("focal stack", ctx))
+    with usage_errors(param_hint="--focal-stack"):
+        rendered = render_product(src, "focal-stack", start=start, stop=stop, n=n, units=stack_units, method=method,
+                                  aperture=aperture, upsample=upsample, progress=progress_bar("focal stack", ctx))
     with usage_errors():
-        write_product(rendered, output, bit_depth=int(bit_depth), ext=ext, overwrite=overwrite)
+        write_product(rendered, output, bit_depth=bits, ext=ext, overwrite=overwrite)
     if not quiet(ctx):
         click.echo(f"wrote {n} slices, {names[n]} and {names[n + 1]} to {output}")

@@ -13,9 +13,9 @@ from pathlib import Path
 import click
 from click.core import ParameterSource
 
-from .common import (FINITE, POSITIVE, FiniteFloat, bit_depth_option, calibration_kwargs, check_focus_options, check_output,
-                     describe_focus, focus_options, focus_point, input_options, output_option, overwrite_option,
-                     progress_bar, quiet, usage_errors)
+from .common import (FINITE, POSITIVE, FiniteFloat, bit_depth_option, calibration_kwargs, check_focus_options,
+                     check_output, describe_focus, focus_hint, focus_options, focus_point, image_bit_depth,
+                     input_options, output_option, overwrite_option, progress_bar, quiet, usage_errors)
 from .refocus import REFOCUS_METHOD_CHOICE
 
 #: The refocusing options that mean nothing to --total-focus (parameter name -> option).
@@ -32,8 +32,8 @@ def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float |
                          distance_m: float | None = None, no_depth: bool = False) -> None:
     """Usage errors (exit 2, one line naming the option) for option combinations that make no sense, before
     any work: at most one of ``--refocus`` / ``--slope`` / ``--focus-at`` / ``--focus-distance`` /
-    ``--total-focus`` (none: :func:`default_focus`); ``--patch`` only with ``--total-focus``, ``--method`` /
-    ``--aperture`` only without it; ``--total-focus`` needs a raw."""
+    ``--total-focus`` (none: :func:`plenodecode.pipeline.products.photo_focus`); ``--patch`` only with
+    ``--total-focus``, ``--method`` / ``--aperture`` only without it; ``--total-focus`` needs a raw."""
     from ..pipeline import input_kind
 
     check_focus_options({"--refocus ALPHA": alpha, "--slope S": slope, "--focus-at X,Y": focus_at,
@@ -48,15 +48,6 @@ def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float |
         if input_kind(input_path) != "raw":
             raise click.UsageError(f"--total-focus renders a focused-plenoptic raw (Raytrix image + RayCalibData "
                                    f"XML); {input_path} is a {input_kind(input_path)} input")
-
-
-def default_focus(ctx: click.Context, focused: bool) -> dict[str, object]:
-    """The focus of a photograph asked for without a focus option: ``{'total_focus': True}`` for a
-    focused-plenoptic raw (unless ``--method`` or ``--aperture`` asks for a refocus), else ``{'slope': 0.0}``:
-    the focus as captured, the default of ``plenodecode batch``'s 'refocus' product."""
-    if focused and not any(_given(ctx, name) for name in REFOCUS_ONLY):
-        return {"total_focus": True}
-    return {"slope": 0.0}
 
 
 @click.command("render")
@@ -100,27 +91,31 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
       plenodecode raytrix.png --total-focus -o photo.png --white raytrix_white.png
     """
     from ..pipeline import check_total_focus_patch, open_source, render_product, write_product
+    from ..pipeline.products import photo_focus
 
     check_render_options(ctx, input_path, alpha=alpha, slope=slope, total_focus=total_focus, patch=patch,
                          focus_at=focus_at, distance_m=distance_m, no_depth=no_depth)
     check_output(output, overwrite)
+    bits = image_bit_depth(ctx, bit_depth, output.suffix)
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       check=None if total_focus else {"refocus": {"alpha": alpha, "distance_m": distance_m}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     chosen = None
     if not (total_focus or focus_at) and alpha is None and slope is None and distance_m is None:
-        chosen = default_focus(ctx, src.focused)
+        # --method / --aperture ask for a refocus of the decoded light field, even of a Raytrix raw
+        chosen = photo_focus(src.focused, refocus=any(_given(ctx, name) for name in REFOCUS_ONLY))
         total_focus, slope = chosen.get("total_focus", False), chosen.get("slope")
     if total_focus:
         with usage_errors(param_hint="--patch"):
             check_total_focus_patch(src.calibration.grid, patch)       # its upper bound is the camera's
         photo = render_product(src, "total-focus", patch=patch, progress=progress_bar("rendering", ctx))
     else:
-        photo = render_product(src, "refocus", alpha=alpha, slope=slope, distance_m=distance_m,
-                               at=focus_point(focus_at, src.lightfield.shape),
-                               at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture)
+        at = focus_point(focus_at, src.lightfield.shape)
+        with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
+            photo = render_product(src, "refocus", alpha=alpha, slope=slope, distance_m=distance_m, at=at,
+                                   at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture)
     with usage_errors():
-        write_product(photo, output, bit_depth=int(bit_depth), overwrite=overwrite)
+        write_product(photo, output, bit_depth=bits, overwrite=overwrite)
     if not quiet(ctx):
         how = "total focus" if total_focus else describe_focus(photo.data)
         if chosen is not None:

@@ -8,8 +8,9 @@ import click
 
 from ..imaging import MIN_VIEW_DATA
 from ..pipeline import IMAGE_EXTENSIONS
-from .common import (NON_NEGATIVE, RegistryChoice, bit_depth_option, calibration_kwargs, check_output, input_options,
-                     output_option, overwrite_option, progress_bar, quiet, usage_errors)
+from .common import (NON_NEGATIVE, RegistryChoice, bit_depth_option, calibration_kwargs, check_folder_output,
+                     check_output, image_bit_depth, input_options, output_option, overwrite_option, progress_bar, quiet,
+                     usage_errors)
 
 #: Angular interpolation kernels of perspective views, for ``--interp``.
 INTERP_CHOICE = RegistryChoice("plenodecode.render.viewpoints", "PERSPECTIVE_INTERPOLATIONS")
@@ -43,13 +44,17 @@ def command(ctx: click.Context, input_path: Path, output: Path, view: tuple[floa
 
     if view is not None:
         check_output(output, overwrite)
+    else:       # the names depend on the light field's shape: their clash is checked when they are written
+        check_folder_output(output, [], overwrite, what="every view (without --view)")
+    bits = (image_bit_depth(ctx, bit_depth, output.suffix) if view is not None
+            else image_bit_depth(ctx, bit_depth, ext, param_hint="--ext"))
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     lf = src.lightfield
     with usage_errors(param_hint="--view"):
         rendered = render_product(src, "views", view=view, interp=interp)
     with usage_errors():
-        written = write_product(rendered, output, bit_depth=int(bit_depth), ext=ext, overwrite=overwrite,
+        written = write_product(rendered, output, bit_depth=bits, ext=ext, overwrite=overwrite,
                                 progress=progress_bar("writing views", ctx))
     if not quiet(ctx):
         if view is not None:

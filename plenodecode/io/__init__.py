@@ -66,7 +66,14 @@ def read_raw(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None) ->
 
     if raytrix.find_calibration_xml(p) is not None:
         return raytrix.read_raytrix(p)
-    return generic.read_generic(p, mosaic=mosaic)
+    if p.suffix.lower() not in LYTRO_PAIR_EXTENSIONS:
+        return generic.read_generic(p, mosaic=mosaic)
+    try:        # some camera raws are named .RAW too
+        return generic.read_generic(p, mosaic=mosaic)
+    except FormatError:
+        raise FormatError(f"{p}: a headerless Lytro raw (a white image MOD_NNNN.RAW or a frame) is read with its "
+                          f"metadata beside it, {p.stem}.TXT or {p.stem}.json, which is missing (nor is it a camera "
+                          "raw LibRaw reads); copy the metadata file next to it") from None
 
 
 __all__ = ["read_raw", "LYTRO_MAGIC"]

@@ -19,19 +19,32 @@ PAIR_SUFFIXES = (".raw",)
 MOSAIC_SUFFIXES = (".png", ".tif", ".tiff", ".exr", ".pgm", ".jpg", ".jpeg")
 
 
-def _is_mosaic_with_sidecar(p: Path) -> bool:
-    """An image with a plenodecode mosaic sidecar (not flagged as a white image) or a Raytrix XML."""
-    from . import generic, raytrix
+def _mosaic_sidecar(p: Path) -> dict | None:
+    """The plenodecode mosaic sidecar of image ``p`` (parsed), or None."""
+    from . import generic
 
     side = generic.find_sidecar(p)
-    if side is not None:
-        try:
-            doc = json.loads(side.read_text(encoding="utf-8", errors="replace"))
-        except (OSError, ValueError):
-            doc = None
-        if isinstance(doc, dict) and doc.get("format") == generic.SIDECAR_FORMAT:
-            meta = doc.get("metadata")
-            return not (isinstance(meta, dict) and meta.get("is_white_image"))
+    if side is None:
+        return None
+    try:
+        doc = json.loads(side.read_text(encoding="utf-8", errors="replace"))
+    except (OSError, ValueError):
+        return None
+    return doc if isinstance(doc, dict) and doc.get("format") == generic.SIDECAR_FORMAT else None
+
+
+def _is_white_mosaic(doc: dict | None) -> bool:
+    meta = None if doc is None else doc.get("metadata")
+    return isinstance(meta, dict) and bool(meta.get("is_white_image"))
+
+
+def _is_mosaic_with_sidecar(p: Path) -> bool:
+    """An image with a plenodecode mosaic sidecar (not flagged as a white image) or a Raytrix XML."""
+    from . import raytrix
+
+    doc = _mosaic_sidecar(p)
+    if doc is not None:
+        return not _is_white_mosaic(doc)
     return raytrix.find_calibration_xml(p) is not None
 
 
@@ -137,7 +150,8 @@ def images_not_taken(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[s
                      stop_marker: str | None = None, taken: Iterable[str | os.PathLike] | None = None) -> list[Path]:
     """Images (:data:`MOSAIC_SUFFIXES`) in the folders among ``inputs`` that :func:`find_raws` with the same
     ``exclude`` and ``stop_marker`` does not take (no sidecar, not a known sensor's size): what to name when a
-    folder yields no raw.  Each folder's files sorted.  ``taken``: what that :func:`find_raws` returned, so that
+    folder yields no raw; white images that their sidecar flags as such are skipped on purpose, not listed.
+    Each folder's files sorted.  ``taken``: what that :func:`find_raws` returned, so that
     no image's header, sidecar or Raytrix XML is looked up a second time."""
     skip = {Path(e).resolve() for e in exclude}
     found = None if taken is None else {Path(f).resolve() for f in taken}
@@ -145,7 +159,8 @@ def images_not_taken(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[s
     def not_taken(p: Path) -> bool:
         if p.name.startswith(".") or p.suffix.lower() not in MOSAIC_SUFFIXES:
             return False
-        return not _is_raw_candidate(p) if found is None else p.resolve() not in found
+        missed = not _is_raw_candidate(p) if found is None else p.resolve() not in found
+        return missed and not _is_white_mosaic(_mosaic_sidecar(p))
 
     return [f for item in inputs if Path(item).is_dir() and Path(item).resolve() not in skip
             for f in _walk(Path(item), skip, stop_marker, take=not_taken)]

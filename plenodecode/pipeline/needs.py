@@ -139,7 +139,8 @@ def is_focused_raw(item: LightField | RawCapture) -> bool:
     return isinstance(cal, Mapping) and bool(cal.get("lens_types"))
 
 
-def check_product(item: LightField | RawCapture, name: str, *, rectified: bool = False, **options: Any) -> None:
+def check_product(item: LightField | RawCapture, name: str, *, rectified: bool = False, focused: bool | None = None,
+                  **options: Any) -> None:
     """Refuse a product request that the input's metadata cannot serve, without calibrating or decoding.
 
     Parameters
@@ -152,6 +153,9 @@ def check_product(item: LightField | RawCapture, name: str, *, rectified: bool =
     rectified : bool
         The light field will be rectified by a geometric calibration, which gives the metric geometry (a focus
         distance and metric depth are then not checked against the camera's metadata).
+    focused : bool, optional
+        The input is a focused-plenoptic raw: its grid has lens types (:attr:`~plenodecode.pipeline.Source.focused`,
+        also with a grid given by hand); None: as its metadata says (:func:`is_focused_raw`).
     **options
         The product's options, as :func:`~plenodecode.pipeline.render_product` takes them.
 
@@ -167,7 +171,7 @@ def check_product(item: LightField | RawCapture, name: str, *, rectified: bool =
     if asked is None:
         return
     keyword, need = asked
-    if need == "metric" and is_focused_raw(item):
+    if need == "metric" and (is_focused_raw(item) if focused is None else focused):
         failure: tuple[str, tuple[str, ...]] | None = (FOCUSED_NOT_METRIC, ())
     else:
         failure = None if (rectified and need != "alpha") else _missing(item, need, options)

@@ -243,9 +243,8 @@ def render_depth(src: Source, *, method: str | None = None, disparity_range: tup
     from ..depth import DEFAULT_METHOD, disparity_to_depth, estimate_depth
     from ..depth.metric import depth_constants, depth_to_points, depth_unit
 
-    if src.focused:
-        return render_focused_depth(src, disparity_range=disparity_range, metric=metric, points=points,
-                                    progress=progress)
+    if src.focused:     # metric and points were refused by check_product (render_product)
+        return render_focused_depth(src, disparity_range=disparity_range, progress=progress)
     lf = src.lightfield
     method = method or DEFAULT_METHOD
     overrides = {} if focus_distance is None else {"focus_distance_m": focus_distance}
@@ -266,8 +265,8 @@ def render_depth(src: Source, *, method: str | None = None, disparity_range: tup
     return Rendered("depth", (), lf.colour, data=data)
 
 
-def render_focused_depth(src: Source, *, disparity_range: tuple[float, float] | None = None, metric: bool = False,
-                         points: bool = False, progress: Progress = None) -> Rendered:
+def render_focused_depth(src: Source, *, disparity_range: tuple[float, float] | None = None,
+                         progress: Progress = None) -> Rendered:
     """Virtual depth of a focused-plenoptic (Raytrix) raw on its total-focus image's grid
     (:func:`plenodecode.depth.focused.estimate_focused_depth`: per raw pixel against the neighbouring
     micro-images, carried to the total focus by its own mapping, so depth and :func:`render_total_focus`'s
@@ -277,34 +276,28 @@ def render_focused_depth(src: Source, *, disparity_range: tuple[float, float] | 
     'focused' (the FocusedDepth) and 'depthmap', a DepthMap whose 'disparity' is the micro-image disparity
     ``D / v`` (px per lens step) with the confidence.
 
+    Metric depth has no scale here: 'depth' with ``metric`` or ``points`` is refused for a focused raw by
+    :func:`~plenodecode.pipeline.needs.check_product` (:func:`render_product`), before any work.
+
     Raises
     ------
     ValueError
         A light-field input; ``disparity_range`` (px per view step: a light field's).
-    MissingConstantsError
-        ``metric`` or ``points``: virtual depth has no metric scale here
-        (:data:`plenodecode.pipeline.needs.FOCUSED_NOT_METRIC`).
     """
     import numpy as np
 
     from ..depth import DepthMap
     from ..depth.focused import VIRTUAL_DEPTH_LABEL, VIRTUAL_DEPTH_UNIT, estimate_focused_depth
-    from ..errors import MissingConstantsError
-    from .needs import FOCUSED_NOT_METRIC, NEEDS
 
     if src.raw is None:
         raise ValueError("a focused-plenoptic depth map is estimated on a raw; the input is a light field")
-    for keyword, asked in (("metric", metric), ("points", points)):
-        if asked:
-            name = Path(src.raw.path).name if src.raw.path else "the raw"
-            raise MissingConstantsError(f"{name}: {FOCUSED_NOT_METRIC}", keyword=keyword, missing=(), source=name,
-                                        need=NEEDS["metric"])
     if disparity_range is not None:
         raise ValueError("disparity_range (px per view step) is a light field's; a focused-plenoptic raw is searched "
                          "over its lens types' virtual depth range")
     image, white, _ = _focused_input(src, "depth")
     grid = src.calibration.grid
-    fd = estimate_focused_depth(image, grid, white=white, progress=progress)
+    # aligned with the total focus the photograph shows, rendered once when a batch asks for both
+    fd = estimate_focused_depth(image, grid, white=white, render=_total_focus(src), progress=progress)
     with np.errstate(invalid="ignore", divide="ignore"):
         disparity = (np.float32(grid.pitch) / fd.virtual_depth).astype(np.float32)
     dm = DepthMap(disparity=disparity, confidence=fd.confidence, method="focused", params=dict(fd.params))
@@ -333,8 +326,13 @@ def _focused_input(src: Source, what: str) -> tuple[Any, Any, str]:
     is read again in colour, linear sRGB (:func:`~plenodecode.io.raytrix.read_raytrix_linear_rgb`), and so is
     its white image when that is an export too (else the white's normalised mosaic divides every channel);
     any other raw is rendered from its mosaic (demosaiced within the micro-images), in camera RGB.
-    ``src`` holds a raw; ``what`` names the product in the warning for a grid without lens types.
+    ``src`` holds a raw; ``what`` names the product in the warning for a grid without lens types.  Read (and
+    warned about) once per source (:meth:`~plenodecode.pipeline.Source.shared`).
     """
+    return src.shared("focused-input", lambda: _read_focused_input(src, what))
+
+
+def _read_focused_input(src: Source, what: str) -> tuple[Any, Any, str]:
     if not src.focused:
         log.warning("the lenslet grid of %s has no lens types: %s expects a focused-plenoptic raw",
                     src.raw.path or "the raw", what)
@@ -349,6 +347,22 @@ def _focused_input(src: Source, what: str) -> tuple[Any, Any, str]:
         white = read_raytrix_linear_rgb(white.path) if is_rgb_export(white) else \
             normalise(white.mosaic, white.black, white.white)
     return read_raytrix_linear_rgb(src.raw.path), white, "linear-srgb"
+
+
+def _total_focus(src: Source, *, patch: float | Any | None = None, sharpness: float = 2.0,
+                 progress: Progress = None) -> Any:
+    """The FocusedRender of :func:`plenodecode.decoding.focused.render_total_focus` on the source's focused input;
+    with the per-lens patch sizes (``patch`` None) rendered once per source and ``sharpness``, as the photograph,
+    the 'total-focus' product and the depth map (aligned with it) all ask for it."""
+    from ..decoding.focused import render_total_focus as total_focus
+
+    image, white, _ = _focused_input(src, "total focus")
+
+    def render() -> Any:
+        return total_focus(image, src.calibration.grid, patch=patch, white=white, sharpness=sharpness,
+                           progress=progress)
+
+    return render() if patch is not None else src.shared(("total-focus", float(sharpness)), render)
 
 
 def _camera_to_srgb(image: Any, state: str, raw: RawCapture, colour: str) -> tuple[Any, str]:
@@ -409,10 +423,8 @@ def render_total_focus(src: Source, *, patch: float | Any | None = None, sharpne
         raise ValueError("total-focus renders a focused-plenoptic raw; the input is a light field")
     check_total_focus_patch(src.calibration.grid, patch)
     _check_colour(colour)
-    image, white, state = _focused_input(src, "total focus")
-    from ..decoding.focused import render_total_focus as total_focus
-
-    res = total_focus(image, src.calibration.grid, patch=patch, white=white, sharpness=sharpness, progress=progress)
+    state = _focused_input(src, "total focus")[2]
+    res = _total_focus(src, patch=patch, sharpness=sharpness, progress=progress)
     out, state = _camera_to_srgb(res.image, state, src.raw, colour)
     return Rendered("total-focus", (("total_focus", out),), state, data={"render": res})
 
@@ -451,17 +463,25 @@ def render_focused_refocus(src: Source, *, virtual_depth: float, colour: str = "
                     data={"render": res, "virtual_depth": virtual_depth})
 
 
+def photo_focus(focused: bool, *, refocus: bool = False) -> dict[str, Any]:
+    """How the camera's photograph is focused when no focus is asked for (the one rule of :func:`render_photo`
+    and ``plenodecode RAW -o photo.png``): ``{'total_focus': True}`` for a focused-plenoptic (Raytrix) raw, whose
+    decoded views have one pixel per lens (a thumbnail), unless ``refocus`` (a refocusing option was asked for:
+    the decoded light field is refocused); else ``{'slope': 0.0}``, the focus as captured."""
+    return {"total_focus": True} if focused and not refocus else {"slope": 0.0}
+
+
 def render_photo(src: Source, *, slope: float | None = None, alpha: float | None = None,
                  distance_m: float | None = None) -> Rendered:
-    """The camera's photograph, as ``plenodecode RAW -o photo.png`` writes it without a focus option: a
-    focused-plenoptic (Raytrix) raw's total focus (:func:`render_total_focus`; its decoded views have one pixel
-    per lens, a thumbnail), else the photograph refocused (:func:`render_refocus`) at ``slope``, ``alpha`` or
-    ``distance_m``, by default as captured (slope 0).  The rendered product says which ('total-focus' or
-    'refocus')."""
-    if src.focused:
+    """The camera's photograph, as ``plenodecode RAW -o photo.png`` writes it without a focus option
+    (:func:`photo_focus`): a focused-plenoptic (Raytrix) raw's total focus (:func:`render_total_focus`), else the
+    photograph refocused (:func:`render_refocus`) at ``slope``, ``alpha`` or ``distance_m``, by default as
+    captured.  The rendered product says which ('total-focus' or 'refocus')."""
+    chosen = photo_focus(src.focused)
+    if chosen.get("total_focus"):
         return render_total_focus(src)
     if slope is None and alpha is None and distance_m is None:
-        slope = 0.0
+        slope = chosen["slope"]
     return render_refocus(src, slope=slope, alpha=alpha, distance_m=distance_m)
 
 
@@ -485,5 +505,5 @@ def render_product(src: Source, name: str, **options: Any) -> Rendered:
     first checked against the input's metadata (:func:`~plenodecode.pipeline.needs.check_product`), before ``src``
     is decoded."""
     render = lookup(PRODUCTS, name, param="product")
-    check_product(src.input, name, rectified=src.geometry is not None, **options)
+    check_product(src.input, name, rectified=src.geometry is not None, focused=src.focused, **options)
     return render(src, **options)

@@ -10,7 +10,7 @@ import functools
 import logging
 import os
 from functools import cached_property
-from typing import TYPE_CHECKING, Any, Callable, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Hashable, Mapping
 
 from ..types import LightField, RawCapture
 from .inputs import Progress, open_input, quieted, read_dark_frame
@@ -29,7 +29,8 @@ class Source:
     """An opened input, ready for rendering: a light field, or a raw with its calibration.
 
     A raw is decoded on the first use of :attr:`lightfield` (once); products that render from the raw itself
-    (:func:`~plenodecode.pipeline.products.render_total_focus`) never decode it.
+    (:func:`~plenodecode.pipeline.products.render_total_focus`) never decode it, and share what they render
+    alike through :meth:`shared`.
 
     Parameters
     ----------
@@ -61,6 +62,7 @@ class Source:
         self.progress = progress
         self.geometry = geometry
         self._input = lightfield
+        self._shared: dict[Hashable, Any] = {}
         if geometry is not None:
             check_geometry(geometry, lightfield=lightfield, calibration=calibration,
                            n_views=self.decode_options.get("n_views"))
@@ -78,6 +80,13 @@ class Source:
         return decode_raw(self.raw, self.calibration, progress=self.progress, geometry=self.geometry,
                           **self.decode_options)
 
+    def shared(self, key: Hashable, make: Callable[[], Any]) -> Any:
+        """``make()``, computed once per source and ``key``: what several products of one input render alike (a
+        focused raw's colour image and total focus, which the photograph and the depth map both use)."""
+        if key not in self._shared:
+            self._shared[key] = make()
+        return self._shared[key]
+
     @property
     def input(self) -> LightField | RawCapture:
         """The input as read (the raw, or the light field before any rectification): what its metadata says
@@ -87,7 +96,8 @@ class Source:
     @property
     def focused(self) -> bool:
         """True for a focused-plenoptic (Raytrix) raw: a grid with lens types."""
-        return self.raw is not None and self.calibration.grid.lens_type is not None
+        grid = None if self.raw is None else self.calibration.grid
+        return grid is not None and grid.lens_type is not None
 
 
 def check_geometry(geometry: GeometricCalibration, *, lightfield: LightField | None = None,

@@ -99,6 +99,22 @@ def check_slopes(slopes: Any) -> np.ndarray:
     return s
 
 
+def check_slope_reach(lf: LightField, slopes: Any, *, name: str = "slope") -> None:
+    """Raise ValueError naming ``name`` when a slope moves the outermost views past the whole picture
+    (``|s| * max(vc, uc) > max(Y, X)`` samples): no view then overlaps the centre one, the photograph means
+    nothing, and the padded shifts would ask for memory in proportion to the slope (``--slope 2000`` on a
+    15 x 15 x 87 x 125 light field was killed for lack of memory)."""
+    s = np.atleast_1d(np.asarray(slopes, np.float64))
+    ny, nx = lf.shape[2:4]
+    steps = max(lf.shape[0] // 2, lf.shape[1] // 2)
+    worst = float(np.max(np.abs(s))) if s.size else 0.0
+    if steps > 0 and worst * steps > max(ny, nx):
+        lead = f"slope {worst:.4g} px/view" + ("" if name in ("slope", "slopes") else f" (from {name})")
+        raise ValueError(f"{lead} moves the outermost views {worst * steps:.3g} px, past the whole {ny} x {nx} "
+                         f"picture (|slope| <= {max(ny, nx) / steps:.3g} here): no view would overlap the centre one; "
+                         "refocus within the refocusable range")
+
+
 def check_upsample(upsample: Any) -> int:
     """The spatial upsampling factor as an int ``k >= 1``; ValueError otherwise."""
     k = int(upsample)

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..imaging import remap_view
 from ..types import LightField
-from ._common import aperture_mask, check_lightfield, check_slopes
+from ._common import aperture_mask, check_lightfield, check_slope_reach, check_slopes
 from ._common import get_method
 
 log = logging.getLogger(__name__)
@@ -64,6 +64,7 @@ def focal_stack(lf: LightField, slopes: np.ndarray | list[float], *, method: str
     """
     check_lightfield(lf)
     s = check_slopes(slopes)
+    check_slope_reach(lf, s, name="slopes")
     fn = get_method(method)
     if method == "shift-sum" and upsample != 1 and not kw:
         from .superres import fuse_views

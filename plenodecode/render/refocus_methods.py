@@ -18,7 +18,7 @@ import numpy as np
 
 from ..registry import lookup
 from ..types import LightField
-from ._common import REFOCUS_METHODS, check_lightfield, get_method
+from ._common import REFOCUS_METHODS, check_lightfield, check_slope_reach, get_method
 from .alpha import alpha_to_slope, distance_to_slope, refocus_range, split_constants
 
 #: Side of the window around a point ``at`` whose depth decides the slope (:func:`slope_at`), samples.
@@ -202,7 +202,10 @@ def refocus(lf: LightField, *, slope: float | None = None, alpha: float | None =
     check_lightfield(lf)
     const, opts = split_constants(kw)
     fn = get_method(method)
+    given = next((k for k, v in (("slope", slope), ("alpha", alpha), ("at", at), ("distance_m", distance_m))
+                  if v is not None), "slope")
     slope = focus_slope(lf, slope=slope, alpha=alpha, at=at, distance_m=distance_m, at_method=at_method, **const)
+    check_slope_reach(lf, slope, name=given)
     if method == "shift-sum" and upsample != 1:
         if opts:
             raise ValueError(f"options {sorted(opts)} do not apply to shift-sum with upsample > 1 (the views are "

@@ -100,3 +100,39 @@ def test_info_on_the_real_metadata_files():
     assert "camera   B01 (Lytro, Inc.)" in white and "serial   B5143909630" in white
     assert "metadata of a white image" in white and "7728 x 5368, 10 bit (little), GRBG, black 64, white 1023" in white
     assert "camera   F01" in frame and "metadata of a raw" in frame and "3280 x 3280, 12 bit (big), BGGR" in frame
+
+
+def test_a_white_image_without_its_txt_says_the_metadata_is_missing(tmp_path):
+    """The bundled MOD_0000.RAW copied without its MOD_0000.TXT: every command said 'not a raw LibRaw can read ...
+    expected a DNG or camera raw, or an image mosaic with a JSON sidecar'; now one line names the missing
+    MOD_0000.TXT, and with it beside the file it reads again."""
+    import shutil
+    from pathlib import Path
+
+    bundled = Path(__file__).resolve().parents[2] / "sample_raws" / "illum-mini"
+    white = tmp_path / "MOD_0000.RAW"
+    shutil.copy(bundled / "MOD_0000.RAW", white)
+    for args in (["info", white], [white, "-o", tmp_path / "p.png"], ["calibrate", white, "-o", tmp_path / "g.json"]):
+        res = CliRunner().invoke(cli, list(map(str, args)))
+        errors = [line for line in res.output.splitlines() if line.startswith("error:")]
+        assert res.exit_code == 1 and len(errors) == 1, res.output
+        assert "MOD_0000.TXT or MOD_0000.json, which is missing" in errors[0] and "LibRawFile" not in errors[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["MOD_0000.RAW"]
+    shutil.copy(bundled / "MOD_0000.TXT", tmp_path / "MOD_0000.TXT")
+    res = run(white)
+    assert res.exit_code == 0 and "white image" in res.output, res.output
+
+
+def test_info_on_a_text_file_that_is_no_metadata_says_so(tmp_path):
+    """'plenodecode info notes.txt' said 'the metadata sidecar is not valid JSON ... the file is damaged' of a
+    plain text file; it says the file is no Lytro metadata, and a MOD_0000.TXT beside its .RAW keeps the damage
+    message."""
+    notes = tmp_path / "notes.txt"
+    notes.write_text("shot list: the lilies at f/2\n")
+    res = CliRunner().invoke(cli, ["info", str(notes)])
+    assert res.exit_code == 1 and "not JSON, so not the metadata of a Lytro raw" in res.output, res.output
+    assert "damaged" not in res.output
+    (tmp_path / "MOD_0000.RAW").write_bytes(b"\0" * 64)
+    (tmp_path / "MOD_0000.TXT").write_text("{broken")
+    res = CliRunner().invoke(cli, ["info", str(tmp_path / "MOD_0000.TXT")])
+    assert res.exit_code == 1 and "the metadata file is damaged" in res.output, res.output

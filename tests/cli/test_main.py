@@ -77,3 +77,17 @@ def test_python_dash_m_runs_the_same_command_line():
 
     out = subprocess.run([sys.executable, "-m", "plenodecode", "--version"], capture_output=True, text=True, check=True)
     assert out.stdout.startswith("plenodecode") and out.stdout.strip().split()[-1][0].isdigit()
+
+
+def test_a_mistyped_command_is_named_with_the_command_it_meant(tmp_path, monkeypatch):
+    """'plenodecode refocs lf.zarr ...' answered \"Path 'refocs' does not exist\" (the one-liner took the typo for
+    its input); a first word close to a command that is no file now gets the command it meant, and a file of
+    that name is still the one-liner's input."""
+    res = CliRunner().invoke(cli, ["refocs", "lf.zarr", "--slope", "0.5", "-o", str(tmp_path / "x.png")])
+    assert res.exit_code == 2
+    assert "Error: no command or file 'refocs': did you mean 'plenodecode refocus'?" in res.output
+    assert not (tmp_path / "x.png").exists()
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "dept").write_bytes(b"not a raw")
+    res = CliRunner().invoke(cli, ["dept", "-o", "x.png"])
+    assert res.exit_code == 1 and "did you mean" not in res.output and "dept" in res.output, res.output

@@ -305,3 +305,80 @@ def test_r42_depth_at_total_focus_resolution_agrees_with_the_per_lens_patch_size
     lo, hi = np.percentile(v[sure], [1, 99])
     assert theirs.min() <= lo < hi <= 1.05 * theirs.max()
     assert np.mean(sure) > 0.7
+
+
+# ------------------------------------------------------------------------------------------ one rule, one rendering
+def test_the_photographs_focus_rule_is_the_pipelines_for_the_one_liner_and_batch(shoot, tmp_path, monkeypatch):
+    """'focused raw -> total focus, else slope 0' was written twice (cli.render.default_focus and
+    pipeline.products.render_photo); both now ask pipeline.products.photo_focus: changing it changes what the
+    one-liner and batch's 'photo' write (the decoded views' one-pixel-per-lens thumbnail instead of the total focus)."""
+    from plenodecode.pipeline import products
+
+    assert products.photo_focus(True) == {"total_focus": True}
+    assert products.photo_focus(True, refocus=True) == products.photo_focus(False) == {"slope": 0.0}
+    lenses = pipeline.open_source(shoot["raw"]).calibration.grid.shape
+    monkeypatch.setattr(products, "photo_focus", lambda focused, refocus=False: {"slope": 0.0})
+    res = run(shoot["raw"], "-o", tmp_path / "photo.png")
+    assert res.exit_code == 0 and "focused as captured" in res.output, res.output
+    res = run("batch", shoot["raw"], "-o", tmp_path / "out", "--jobs", 1, "--database", tmp_path)
+    assert res.exit_code == 0, res.output
+    written = tmp_path / "out" / "scene" / "refocus_s+0.00.png"
+    for image in (read_image(tmp_path / "photo.png"), read_image(written)):
+        assert abs(image.shape[0] - lenses[0]) <= 2 and abs(image.shape[1] - lenses[1]) <= 2, (image.shape, lenses)
+
+
+def test_batch_photo_total_focus_and_depth_of_a_focused_raw_render_the_total_focus_once(shoot, tmp_path,
+                                                                                         monkeypatch):
+    """'batch --outputs photo,total-focus,depth' on a Raytrix raw rendered the total focus once per product (and
+    failed: 'photo' and 'total-focus' both wrote total_focus.png); now once per raw, written once, and the depth
+    map is the one 'plenodecode depth' writes, aligned with it."""
+    from plenodecode.decoding import focused
+    from plenodecode.io.pfm import read_pfm
+
+    single = tmp_path / "d.pfm"
+    assert run("-q", "depth", shoot["raw"], "-o", single).exit_code == 0
+    calls = []
+    real = focused.render_total_focus
+    monkeypatch.setattr(focused, "render_total_focus", lambda *a, **k: calls.append(1) or real(*a, **k))
+    res = run("batch", shoot["raw"], "-o", tmp_path / "out", "--jobs", 1, "--database", tmp_path,
+              "--outputs", "photo,total-focus,depth")
+    assert res.exit_code == 0, res.output
+    assert len(calls) == 1
+    folder = tmp_path / "out" / "scene"
+    assert sorted(p.name for p in folder.iterdir() if p.is_file()) == [".done.json", "total_focus.png",
+                                                                       "virtual_depth.pfm"]
+    depth = read_pfm(folder / "virtual_depth.pfm")
+    depth = depth[0] if isinstance(depth, tuple) else depth
+    reference = read_pfm(single)
+    np.testing.assert_array_equal(depth, reference[0] if isinstance(reference, tuple) else reference)
+    assert depth.shape == read_image(folder / "total_focus.png").shape[:2]
+
+
+def test_metric_depth_of_a_focused_raw_calibrated_by_hand_is_refused(shoot, tmp_path):
+    """Without its XML beside it a Raytrix raw reads as a plain mosaic, and with a grid that has lens types
+    (--calibration) it is focused: 'depth --metric --focus-distance 1' wrote virtual depth and said nothing of
+    --metric; now the one check (check_product, given the grid's lens types by render_product) refuses it, from
+    the command line and from Python, with nothing written."""
+    from plenodecode.errors import MissingConstantsError
+
+    grid = tmp_path / "grid.json"
+    assert run("calibrate", shoot["white"], "-o", grid).exit_code == 0
+    raw = copy_raw(shoot, tmp_path / "noxml")
+    for option in (["--metric"], ["--ply", tmp_path / "c.ply"]):
+        res = run("depth", raw, "--calibration", grid, "--focus-distance", 1, "-o", tmp_path / "z.pfm", *option)
+        err = error_lines(res)
+        assert res.exit_code == 2 and len(err) == 1 and option[0] in err[0] and "virtual depth" in err[0], res.output
+        assert not list(tmp_path.glob("z*")) and not (tmp_path / "c.ply").exists()
+    src = pipeline.open_source(raw, grid=grid)
+    assert src.focused
+    with pytest.raises(MissingConstantsError, match="virtual depth"):
+        pipeline.render_product(src, "depth", metric=True, focus_distance=1.0)
+
+
+def test_info_on_the_r42_says_it_is_an_rgb_export_not_a_monochrome_raw(r42):
+    """'plenodecode info' called the R42's 8-bit RGB export 'monochrome, black 0, white 65535' (the luminance
+    its reader makes to locate the lenses), though every rendering of it is in colour."""
+    res = run("info", r42)
+    assert res.exit_code == 0, res.output
+    line = next(line for line in res.output.splitlines() if line.strip().startswith("raw "))
+    assert "964 x 670, RGB export (3 channels" in line and "monochrome" not in line and "65535" not in line

@@ -195,8 +195,8 @@ def test_raw_is_decoded_then_refocused(tmp_path):
 def test_alpha_outside_the_refocusable_range_writes_and_warns_in_one_line(tmp_path, caplog):
     src = save_npy(tmp_path, small_lf())
     out = tmp_path / "flat.png"
-    with caplog.at_level("WARNING"):
-        res = run(src, "--refocus", 1.2, "-o", out)
+    with caplog.at_level("WARNING"):        # slope 5.5: outside the range, and the views still overlap (up to 9)
+        res = run(src, "--refocus", 1.1, "-o", out)
     assert res.exit_code == 0, res.output
     assert out.is_file()
     warnings = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
@@ -229,3 +229,29 @@ def test_info_on_a_light_field_shows_the_refocusable_range(tmp_path):
     res = run("info", src)
     assert res.exit_code == 0, res.output
     assert "5 x 5 x 14 x 18 x 3" in res.output and "refocus  alpha 0.98" in res.output
+
+
+def test_a_slope_that_moves_the_views_past_the_picture_is_refused_naming_its_option(tmp_path):
+    """'refocus --slope 2000' (a typo for 0.2000) padded every view by 14,000 px on the bundled Illum's light field
+    and was killed for lack of memory after a minute; '--slope 1e9' raised a 17.7 TiB MemoryError with a
+    traceback.  A slope whose outermost views move past the whole picture (no view overlaps the centre one) is now
+    a usage error naming the option it came from, with nothing written; the slopes up to there still render."""
+    from pathlib import Path
+
+    lf_path = save_npy(tmp_path, small_lf())              # 5 x 5 views of 14 x 18: |slope| <= 18 / 2 = 9
+    cases = [(["refocus", lf_path, "--slope", 2000], "--slope", "slope 2000 px/view moves the outermost views"),
+             (["refocus", lf_path, "--slope", -9.5], "--slope", "(|slope| <= 9 here)"),
+             (["refocus", lf_path, "--focal-stack", "-1e9:1e9:3"], "--focal-stack", "slope 1e+09 px/view"),
+             ([lf_path, "--refocus", 0.2], "--refocus / --alpha", "slope 243.3 px/view moves the outermost views")]
+    for i, (args, option, words) in enumerate(cases):
+        out = tmp_path / (f"out{i}" if "--focal-stack" in args else f"out{i}.png")
+        res = run(*args, "-o", out)
+        errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+        assert res.exit_code == 2 and len(errors) == 1, res.output
+        assert f"Invalid value for {option}:" in errors[0] and words in errors[0], res.output
+        assert not out.exists()
+    assert run("refocus", lf_path, "--slope", 9, "-o", tmp_path / "edge.png").exit_code == 0
+    illum = Path(__file__).resolve().parents[2] / "sample_raws" / "illum-mini" / "scene.lfr"
+    res = run(illum, "--refocus", 1.5, "-o", tmp_path / "far.png")      # slope 20.3 on 87 x 125: the limit is 17.9
+    assert res.exit_code == 2 and "Invalid value for --refocus / --alpha" in res.output, res.output
+    assert not (tmp_path / "far.png").exists()

@@ -150,3 +150,17 @@ def test_without_a_focus_option_a_focused_raw_gets_its_total_focus(shoot, tmp_pa
     explicit = run(shoot["raw"], "--white", shoot["white"], "--total-focus", "-o", tmp_path / "tf.png")
     assert explicit.exit_code == 0, explicit.output
     np.testing.assert_array_equal(read_image(tmp_path / "photo.png"), read_image(tmp_path / "tf.png"))
+
+
+def test_total_focus_of_a_raw_without_lens_types_warns_once(tmp_path, caplog):
+    """The warning that a grid without lens types is no focused-plenoptic raw was logged twice per photograph
+    once the colour image and the total focus were shared between products; it is said once."""
+    from pathlib import Path
+
+    illum = Path(__file__).resolve().parents[2] / "sample_raws" / "illum-mini" / "scene.lfr"
+    with caplog.at_level("WARNING"):
+        res = CliRunner().invoke(cli, [str(illum), "--total-focus", "-o", str(tmp_path / "tf.png")])
+    assert res.exit_code == 0, res.output
+    said = [r.getMessage() for r in caplog.records if "has no lens types" in r.getMessage()]
+    assert len(said) == 1 and "total focus expects a focused-plenoptic raw" in said[0]
+    assert read_image(tmp_path / "tf.png").ndim == 3

@@ -1,0 +1,103 @@
+"""What a photographer types as the output: the image type of -o (or --ext) decides what --bit-depth may be,
+and both are checked before any decoding, naming the option."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from plenodecode import pipeline
+from plenodecode.cli.main import cli
+from plenodecode.io.images import read_image
+
+ROOT = Path(__file__).resolve().parents[2]
+ILLUM = ROOT / "sample_raws" / "illum-mini" / "scene.lfr"
+
+
+def run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+@pytest.fixture
+def no_work(monkeypatch):
+    """Records every input opened: a refused command must open none."""
+    opened = []
+    real = pipeline.open_source
+    monkeypatch.setattr(pipeline, "open_source", lambda *a, **k: opened.append(a) or real(*a, **k))
+    return opened
+
+
+def test_photo_as_jpeg_is_written_in_8_bits(tmp_path):
+    """'plenodecode RAW -o photo.jpg' decoded the raw and then failed ('bit_depth 16 cannot be stored in .jpg
+    files'): --bit-depth's default 16 now gives way to what the type holds, and the JPEG is the 8-bit PNG's
+    picture."""
+    res = run(ILLUM, "--database", ROOT / "calib", "-o", tmp_path / "photo.jpg")
+    assert res.exit_code == 0, res.output
+    jpeg = read_image(tmp_path / "photo.jpg")
+    assert run(ILLUM, "--database", ROOT / "calib", "--bit-depth", 8, "-o", tmp_path / "photo.png").exit_code == 0
+    png = read_image(tmp_path / "photo.png")
+    assert jpeg.dtype == png.dtype == np.uint8 and jpeg.shape == png.shape == (87, 125, 3)
+    assert np.mean(np.abs(jpeg.astype(float) - png)) < 3.0        # JPEG's loss only
+    assert 60 < png.mean() < 200                                    # a photograph, not a black or white field
+
+
+@pytest.mark.parametrize("args, option, words", [
+    (["-o", "p.jpg", "--bit-depth", "16"], "--bit-depth", ".jpg files hold 8 bits per sample, not 16"),
+    (["-o", "p.xyz"], "-o / --output", "an image file ends in .exr, .jpeg, .jpg, .pfm, .png, .tif, .tiff"),
+    (["-o", "photo"], "-o / --output", "got 'no extension'"),
+    (["refocus", "-o", "p.exr", "--bit-depth", "8"], "--bit-depth", ".exr files hold 16 or 32 bits"),
+    (["refocus", "--focal-stack", "-1:1:3", "--ext", "exr", "--bit-depth", "8", "-o", "stack"], "--bit-depth",
+     ".exr files hold 16 or 32 bits"),
+    (["views", "--ext", "exr", "--bit-depth", "8", "-o", "views"], "--bit-depth", ".exr files hold 16 or 32"),
+    (["views", "--view", "2", "2", "-o", "v.bmp"], "-o / --output", "got '.bmp'"),
+], ids=["jpeg-16", "unknown-type", "no-type", "refocus-exr-8", "stack-exr-8", "views-exr-8", "view-bmp"])
+def test_an_image_type_or_bit_depth_that_cannot_be_written_is_refused_before_decoding(tmp_path, no_work, args,
+                                                                                       option, words):
+    """These failed after decoding with the library's words ('bit_depth', 'path must end in ...')."""
+    command = [args[0]] if args[0] in ("refocus", "views") else []
+    rest = args[len(command):]
+    rest = [str(tmp_path / a) if prev == "-o" else a for prev, a in zip([None, *rest], rest)]
+    res = run(*command, ILLUM, "--database", ROOT / "calib", *rest)
+    assert res.exit_code == 2, res.output
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert len(errors) == 1 and f"Invalid value for {option}:" in errors[0] and words in errors[0], res.output
+    assert no_work == [] and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("args, words", [
+    (["refocus", "--focal-stack", "-1:1:3", "-o", "stack.png"], "a focal stack goes into a folder"),
+    (["views", "-o", "views.png"], "every view (without --view) goes into a folder"),
+    (["extract", "-o", "items.jpg"], "every item goes into a folder"),
+], ids=["focal-stack", "views", "extract"])
+def test_a_folder_output_named_like_an_image_is_refused(tmp_path, args, words):
+    """'refocus --focal-stack ... -o stack.png' wrote a folder called stack.png holding slice_000.png ...; an
+    output that is a folder of files but is named like an image is now refused, naming -o, with nothing made."""
+    out = tmp_path / args[-1]
+    res = run(args[0], ILLUM, "--database", ROOT / "calib", *args[1:-1], out) if args[0] != "extract" else \
+        run("extract", ILLUM, "-o", out)
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert res.exit_code == 2 and len(errors) == 1, res.output
+    assert "Invalid value for -o / --output:" in errors[0] and words in errors[0], res.output
+    assert f"give a folder, e.g. {out.with_suffix('')}/" in errors[0]
+    assert not out.exists()
+
+
+def test_export_of_a_raw_says_to_decode_it_first(tmp_path):
+    """'plenodecode export scene.lfr -o page.html' said \"cannot tell the light-field format; pass format= one of
+    [...]\" (a Python keyword; export has no input format option) and the real R42 PNG 'is not a whole number of
+    14x14 view tiles'; a raw given to export is now a usage error naming LF_IN that says to decode it first."""
+    from tests.conftest import shared_path
+
+    for raw in (ILLUM, shared_path("raytrix-r42", "sc2_klein.png")):
+        res = run("export", raw, "-o", tmp_path / "page.html")
+        errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+        assert res.exit_code == 2 and len(errors) == 1, res.output
+        assert f"Invalid value for LF_IN: {raw.name} is not a saved light field" in errors[0]
+        assert f"'plenodecode decode {raw} -o lf.zarr'" in errors[0] and "format=" not in errors[0]
+    assert list(tmp_path.iterdir()) == []
+    assert run("decode", ILLUM, "--database", ROOT / "calib", "-o", tmp_path / "lf.zarr").exit_code == 0
+    res = run("export", tmp_path / "lf.zarr", "-o", tmp_path / "page.html")
+    assert res.exit_code == 0 and (tmp_path / "page.html").stat().st_size > 10000, res.output
