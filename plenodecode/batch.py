@@ -94,6 +94,9 @@ class BatchOptions:
         Format of the 'lightfield' output, a key of :data:`LIGHTFIELD_NAMES`.
     bit_depth : {8, 16, 32}
         Image outputs: 8/16-bit sRGB-encoded PNG, or 32 = linear float EXR.
+    exposure : float or 'auto'
+        Stops the image outputs and their thumbnails are brightened by, or 'auto' (``--exposure``;
+        :func:`plenodecode.pipeline.exposure_gain`).
     slope : float
         Refocus slope of the 'refocus' and 'photo' outputs (px per view step, design.md), unless ``alpha`` or
         ``distance_m``.
@@ -128,6 +131,7 @@ class BatchOptions:
     db_dir: str | None = None
     lightfield_format: str = "zarr"
     bit_depth: int = 16
+    exposure: float | str = 0.0
     slope: float = 0.0
     depth_method: str | None = None
     cfa: str | None = None
@@ -151,6 +155,9 @@ class BatchOptions:
         lookup(LIGHTFIELD_NAMES, self.lightfield_format, param="lightfield_format")
         if self.bit_depth not in (8, 16, 32):
             raise ValueError(f"bit_depth must be 8, 16 or 32, got {self.bit_depth!r}")
+        from .pipeline.output import check_exposure
+
+        object.__setattr__(self, "exposure", check_exposure(self.exposure))
         if self.depth_method is not None:
             from .depth import DEPTH_METHODS
 
@@ -609,8 +616,9 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
                 # 'photo' is the 'refocus' at the same focus, or a focused raw's 'total-focus': one file
                 log.info("%s: %s is the same image as an earlier output", product, name)
                 continue
-            dest, = pipeline.write_product(rendered, folder / name, bit_depth=bits)
-            written.append((dest, _thumbnail(image, thumbs / f"{stem}.png", colour=rendered.colour)))
+            dest, = pipeline.write_product(rendered, folder / name, bit_depth=bits, exposure=options.exposure)
+            shown = pipeline.expose(image, rendered.colour, pipeline.exposure_gain(rendered, options.exposure))
+            written.append((dest, _thumbnail(shown, thumbs / f"{stem}.png", colour=rendered.colour)))
     return written
 
 

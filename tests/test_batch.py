@@ -501,6 +501,32 @@ def test_cli_real_desktop_exports_fail_for_their_reason_and_passed_over_images_a
     assert "note: 3 image(s) (dark_frame.tif, light_field.png, radiometry_frame.png) were not taken" in res.output
 
 
+def test_cli_exposure_brightens_the_photo_and_its_thumbnail(tmp_path):
+    """``batch --exposure auto`` on the real ant-leg capture (a dim specimen over a bright radiometry frame): the
+    photo's brightest 0.5 % reach full scale and so does the thumbnail's, where the default leaves both dark;
+    BatchOptions refuses a bad exposure (and the CLI, naming --exposure, before any work)."""
+    from tests.conftest import shared_path
+    from plenodecode.io.images import read_image, srgb_decode, to_unit_float
+
+    scope = shared_path("lf-microscopy-antleg")
+    base = ["batch", str(scope / "light_field.png"), "-w", str(scope / "radiometry_frame.png"), "--dark",
+            str(scope / "dark_frame.tif"), "--outputs", "photo"]
+    level = {}
+    for exposure in ("0", "auto"):
+        out = tmp_path / exposure
+        res = CliRunner().invoke(cli, base + ["-o", str(out), "--exposure", exposure])
+        assert res.exit_code == 0, res.output
+        photo, = (out / "light_field").glob("*.png")
+        thumb, = (out / "light_field" / "thumbs").glob("*.png")
+        level[exposure] = [float(np.percentile(srgb_decode(to_unit_float(read_image(p))), 99.5))
+                           for p in (photo, thumb)]
+    assert max(level["0"]) < 0.25 and min(level["auto"]) > 0.9, level          # measured 0.14 / 1.0
+    with pytest.raises(ValueError, match="exposure"):
+        BatchOptions(exposure="bright")
+    res = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "bad"), "--exposure", "99"])
+    assert res.exit_code == 2 and "--exposure" in res.output and not (tmp_path / "bad").exists()
+
+
 # -------------------------------------------------------------------- processes and Dask
 def test_latency_separates_each_workers_first_task():
     def res(worker, started, seconds, status="done"):

@@ -241,3 +241,25 @@ def test_views_partly_outside_the_micro_images_are_black():
     assert len(images) == 9 and not images[0][1].any() and images[0][0] == "view_00_00"
     for k in range(1, 9):
         np.testing.assert_array_equal(images[k][1], perspective(lf, k // 3, k % 3))
+
+
+def test_exposure_scales_linear_light_of_every_colour_state():
+    """``exposure`` multiplies the linear light by 2^EV: directly for linear states, through the sRGB curve for
+    display-encoded ('srgb') images; 'auto' puts the middle image's brightest 0.5 % at full scale; a bad value
+    is a ValueError naming exposure."""
+    from plenodecode.io.images import srgb_decode, srgb_encode
+    from plenodecode.pipeline import AUTO_EXPOSURE, Rendered, expose, exposure_gain
+
+    rng = np.random.default_rng(0)
+    linear = rng.uniform(0.0, 0.2, (16, 16, 3)).astype(np.float32)
+    lin = Rendered("refocus", (("photo", linear),), "linear-srgb")
+    enc = Rendered("refocus", (("photo", srgb_encode(linear)),), "srgb")
+    assert exposure_gain(lin, 1.5) == pytest.approx(2 ** 1.5)
+    np.testing.assert_allclose(expose(linear, "camera", 4.0), 4.0 * linear, rtol=1e-6)
+    np.testing.assert_allclose(srgb_decode(expose(srgb_encode(linear), "srgb", 4.0)), 4.0 * linear, atol=2e-4)
+    for r in (lin, enc):
+        gain = exposure_gain(r, AUTO_EXPOSURE)
+        assert gain == pytest.approx(1.0 / np.percentile(linear.max(axis=-1), 99.5), rel=1e-3)
+    for bad in ("bright", 11.0, float("nan")):
+        with pytest.raises(ValueError, match="exposure"):
+            exposure_gain(lin, bad)

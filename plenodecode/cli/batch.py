@@ -10,8 +10,8 @@ from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES
 from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
 from ..io.depthio import DEFAULT_MIN_CONFIDENCE
 from .common import (FINITE, POSITIVE, UNIT_INTERVAL, RegistryChoice, bit_depth_option, current_geometry,
-                     current_microscope_inputs, current_mosaic_options, database_option, geometry_option, jobs_option,
-                     microscope_options, mosaic_options, progress_bar)
+                     current_microscope_inputs, current_mosaic_options, database_option, exposure_option,
+                     geometry_option, jobs_option, microscope_options, mosaic_options, progress_bar)
 
 
 def _parse_outputs(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
@@ -78,6 +78,7 @@ def _microscope_fields() -> dict:
               show_default=True,
               help="Format of the 'lightfield' product.")
 @bit_depth_option
+@exposure_option
 @click.option("--slope", type=FINITE, default=0.0, show_default=True,
               help="Refocus slope of the 'refocus' and 'photo' products.")
 @click.option("--alpha", "--refocus", "alpha", type=POSITIVE, default=None,
@@ -93,7 +94,7 @@ def _microscope_fields() -> dict:
 @click.option("--overwrite", is_flag=True, help="Redo raws a previous run finished and replace their outputs.")
 @click.pass_context
 def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, database, white, lf_format, bit_depth,
-            slope, alpha, distance_m, depth_method, min_confidence, overwrite) -> None:
+            exposure, slope, alpha, distance_m, depth_method, min_confidence, overwrite) -> None:
     """Decode every raw under INPUTS and write the chosen outputs per raw into OUTPUT/<name>/.
 
     Each raw is matched to its camera's calibration in the database (by serial, zoom and
@@ -149,7 +150,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
                                  "--database`", param_hint="--database")
     mosaic = current_mosaic_options()
     options = BatchOptions(outputs=outputs, db_dir=str(db_dir), lightfield_format=lf_format,
-                           bit_depth=int(bit_depth), slope=slope, alpha=alpha, distance_m=distance_m,
+                           bit_depth=int(bit_depth), exposure=exposure, slope=slope, alpha=alpha, distance_m=distance_m,
                            depth_method=depth_method, min_confidence=min_confidence, cfa=mosaic.cfa,
                            black_level=mosaic.black_level, white_level=mosaic.white_level,
                            input_encoding=mosaic.input_encoding, white=None if white is None else str(white),

@@ -416,6 +416,41 @@ NON_NEGATIVE = FiniteFloat(min=0)
 UNIT_INTERVAL = FiniteFloat(min=0, max=1)
 
 
+class Exposure(click.ParamType):
+    """``--exposure``: stops (EV) within +-MAX_EXPOSURE_EV, or 'auto'; a bad value is a usage error naming the
+    option."""
+
+    name = "EV|auto"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        from ..pipeline.output import check_exposure
+
+        try:
+            return check_exposure(value)
+        except ValueError as exc:
+            self.fail(str(exc).replace("exposure must be", "must be"), param, ctx)
+
+
+exposure_option = click.option(
+    "--exposure", type=Exposure(), default=0.0, show_default=True,
+    help="Brighten (+) or darken (-) image outputs by this many stops, or 'auto': the brightest 0.5 % of the "
+         "picture (a views folder's centre view, a stack's middle slice) at full scale.")
+
+
+def note_if_dark(ctx: click.Context, rendered: Any, exposure: float | str) -> None:
+    """After writing a photograph at the default exposure: say on stderr when it is dark (its brightest 0.5 %
+    below :data:`~plenodecode.pipeline.DARK_LEVEL` of full scale, e.g. a dim microscope sample over a bright
+    white frame) and name ``--exposure``."""
+    from ..pipeline import DARK_LEVEL, image_level
+
+    if quiet(ctx) or exposure != 0.0:
+        return
+    level = image_level(rendered)
+    if level < DARK_LEVEL:
+        click.echo(f"note: the picture is dark (its brightest 0.5 % reach {100 * level:.0f} % of full scale, in linear "
+                   f"light); --exposure auto brightens it to full scale, --exposure 2 by two stops", err=True)
+
+
 class BoardSpec(click.ParamType):
     """A checkerboard ``ROWSxCOLSxSQUARE``: inner corners per column and per row, square side in m
     (``8x6x0.0036``) -> :class:`plenodecode.raymodel.Board`; a malformed value is a usage error naming the option."""

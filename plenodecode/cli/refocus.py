@@ -11,9 +11,9 @@ import math
 
 from ..pipeline import IMAGE_EXTENSIONS, MAX_STACK_SLICES, STACK_UNITS, focal_stack_names
 from .common import (FINITE, POSITIVE, FiniteFloat, RegistryChoice, bit_depth_option, calibration_kwargs,
-                     check_focus_options, check_folder_output, check_output, describe_focus, focus_hint, focus_options,
-                     focus_point, image_bit_depth, input_options, output_option, overwrite_option, progress_bar, quiet,
-                     usage_errors)
+                     check_focus_options, check_folder_output, check_output, describe_focus, exposure_option,
+                     focus_hint, focus_options, focus_point, image_bit_depth, input_options, note_if_dark,
+                     output_option, overwrite_option, progress_bar, quiet, usage_errors)
 
 #: The refocus methods of the library, for ``--method`` (imported when the command needs them).
 REFOCUS_METHOD_CHOICE = RegistryChoice("plenodecode.render", "REFOCUS_METHODS")
@@ -45,7 +45,7 @@ LIGHT_FIELD_ONLY = {"slope": "--slope", "alpha": "--alpha", "stack": "--focal-st
 
 
 def refocus_at_virtual_depth(ctx: click.Context, input_path: Path, output: Path, virtual_depth: float, *,
-                             inputs: dict, bit_depth: int, overwrite: bool) -> None:
+                             inputs: dict, bit_depth: int, overwrite: bool, exposure: float | str = 0.0) -> None:
     """``--virtual-depth V``: a focused-plenoptic (Raytrix) raw refocused at virtual depth V (the pipeline's
     'focused-refocus' product), with every check before any work: no light-field refocus option typed, a raw
     input, the output free, V within the camera's range (from its RayCalibData lens types)."""
@@ -71,7 +71,8 @@ def refocus_at_virtual_depth(ctx: click.Context, input_path: Path, output: Path,
         check_virtual_depth(src.calibration.grid, virtual_depth)
     photo = render_product(src, "focused-refocus", virtual_depth=virtual_depth)
     with usage_errors():
-        write_product(photo, output, bit_depth=bits, overwrite=overwrite)
+        write_product(photo, output, bit_depth=bits, overwrite=overwrite, exposure=exposure)
+    note_if_dark(ctx, photo, exposure)
     if not quiet(ctx):
         render = photo.data["render"]
         click.echo(f"wrote {output} (virtual depth {virtual_depth:g}, patch {float(render.patch.flat[0]):.2f} px)")
@@ -103,14 +104,15 @@ def refocus_at_virtual_depth(ctx: click.Context, input_path: Path, output: Path,
 @click.option("--ext", type=click.Choice(IMAGE_EXTENSIONS), default="png", show_default=True,
               help="Image type of the focal-stack files.")
 @bit_depth_option
+@exposure_option
 @input_options
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, output: Path, slope: float | None, alpha: float | None,
             focus_at: tuple[float, float, bool] | None, no_depth: bool, distance_m: float | None,
             stack: str | None, stack_units: str, method: str, aperture: float, upsample: int, ext: str,
-            bit_depth: str, calibration: Path | None, white: Path | None, database: Path | None,
-            self_calibrate: bool, overwrite: bool, virtual_depth: float | None = None) -> None:
+            bit_depth: str, exposure: float | str, calibration: Path | None, white: Path | None,
+            database: Path | None, self_calibrate: bool, overwrite: bool, virtual_depth: float | None = None) -> None:
     """Refocus RAW_OR_LF (a raw, a saved light field or an HCI scene folder).
 
     One photograph: --slope S, --alpha A, --focus-at X,Y or --focus-distance M (none: focused as
@@ -135,9 +137,9 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
     if as_captured:             # no focus option: the photograph focused as captured, as batch's 'refocus' product
         slope = 0.0
     if virtual_depth is not None:
+        inputs = calibration_kwargs(calibration, white, database, self_calibrate)
         return refocus_at_virtual_depth(ctx, input_path, output, virtual_depth, bit_depth=int(bit_depth),
-                                        overwrite=overwrite, inputs=calibration_kwargs(calibration, white, database,
-                                                                                       self_calibrate))
+                                        overwrite=overwrite, exposure=exposure, inputs=inputs)
     if stack is None:
         check_output(output, overwrite)
         bits = image_bit_depth(ctx, bit_depth, output.suffix)
@@ -157,7 +159,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
                                    at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture,
                                    upsample=upsample)
         with usage_errors():
-            write_product(photo, output, bit_depth=bits, overwrite=overwrite)
+            write_product(photo, output, bit_depth=bits, overwrite=overwrite, exposure=exposure)
+        note_if_dark(ctx, photo, exposure)
         if not quiet(ctx):
             how = describe_focus(photo.data)
             if as_captured:
@@ -169,6 +172,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
         rendered = render_product(src, "focal-stack", start=start, stop=stop, n=n, units=stack_units, method=method,
                                   aperture=aperture, upsample=upsample, progress=progress_bar("focal stack", ctx))
     with usage_errors():
-        write_product(rendered, output, bit_depth=bits, ext=ext, overwrite=overwrite)
+        write_product(rendered, output, bit_depth=bits, ext=ext, overwrite=overwrite, exposure=exposure)
+    note_if_dark(ctx, rendered, exposure)
     if not quiet(ctx):
         click.echo(f"wrote {n} slices, {names[n]} and {names[n + 1]} to {output}")

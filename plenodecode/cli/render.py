@@ -14,8 +14,9 @@ import click
 from click.core import ParameterSource
 
 from .common import (FINITE, POSITIVE, FiniteFloat, bit_depth_option, calibration_kwargs, check_focus_options,
-                     check_output, describe_focus, focus_hint, focus_options, focus_point, image_bit_depth,
-                     input_options, output_option, overwrite_option, progress_bar, quiet, usage_errors)
+                     check_output, describe_focus, exposure_option, focus_hint, focus_options, focus_point,
+                     image_bit_depth, input_options, note_if_dark, output_option, overwrite_option, progress_bar, quiet,
+                     usage_errors)
 from .refocus import REFOCUS_METHOD_CHOICE
 
 #: The refocusing options that mean nothing to --total-focus (parameter name -> option).
@@ -68,12 +69,13 @@ def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float |
 @click.option("--aperture", type=FiniteFloat(0, 1, min_open=True), default=1.0, show_default=True,
               help="Synthetic aperture radius (1 = all views).")
 @bit_depth_option
+@exposure_option
 @input_options
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: float | None,
             focus_at: tuple[float, float, bool] | None, no_depth: bool, distance_m: float | None, total_focus: bool,
-            patch: float | None, output: Path, method: str, aperture: float, bit_depth: str,
+            patch: float | None, output: Path, method: str, aperture: float, bit_depth: str, exposure: float | str,
             calibration: Path | None, white: Path | None, database: Path | None, self_calibrate: bool,
             overwrite: bool) -> None:
     """Decode RAW_OR_LF (using the calibration database for raws) and write the photograph refocused at ALPHA
@@ -115,7 +117,8 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
             photo = render_product(src, "refocus", alpha=alpha, slope=slope, distance_m=distance_m, at=at,
                                    at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture)
     with usage_errors():
-        write_product(photo, output, bit_depth=bits, overwrite=overwrite)
+        write_product(photo, output, bit_depth=bits, overwrite=overwrite, exposure=exposure)
+    note_if_dark(ctx, photo, exposure)
     if not quiet(ctx):
         how = "total focus" if total_focus else describe_focus(photo.data)
         if chosen is not None:

@@ -9,8 +9,8 @@ import click
 from ..imaging import MIN_VIEW_DATA
 from ..pipeline import IMAGE_EXTENSIONS
 from .common import (NON_NEGATIVE, RegistryChoice, bit_depth_option, calibration_kwargs, check_folder_output,
-                     check_output, image_bit_depth, input_options, output_option, overwrite_option, progress_bar, quiet,
-                     usage_errors)
+                     check_output, exposure_option, image_bit_depth, input_options, output_option, overwrite_option,
+                     progress_bar, quiet, usage_errors)
 
 #: Angular interpolation kernels of perspective views, for ``--interp``.
 INTERP_CHOICE = RegistryChoice("plenodecode.render.viewpoints", "PERSPECTIVE_INTERPOLATIONS")
@@ -26,12 +26,13 @@ INTERP_CHOICE = RegistryChoice("plenodecode.render.viewpoints", "PERSPECTIVE_INT
 @click.option("--ext", type=click.Choice(IMAGE_EXTENSIONS), default="png", show_default=True,
               help="Image type of the views written into the OUTPUT folder.")
 @bit_depth_option
+@exposure_option
 @input_options
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, output: Path, view: tuple[float, float] | None, interp: str,
-            ext: str, bit_depth: str, calibration: Path | None, white: Path | None, database: Path | None,
-            self_calibrate: bool, overwrite: bool) -> None:
+            ext: str, bit_depth: str, exposure: float | str, calibration: Path | None, white: Path | None,
+            database: Path | None, self_calibrate: bool, overwrite: bool) -> None:
     """Write the sub-aperture views of RAW_OR_LF into the folder OUTPUT (view_VV_UU.png),
     or with --view V U the perspective view at that position into the file OUTPUT.
 
@@ -54,7 +55,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, view: tuple[floa
     with usage_errors(param_hint="--view"):
         rendered = render_product(src, "views", view=view, interp=interp)
     with usage_errors():
-        written = write_product(rendered, output, bit_depth=bits, ext=ext, overwrite=overwrite,
+        written = write_product(rendered, output, bit_depth=bits, ext=ext, overwrite=overwrite, exposure=exposure,
                                 progress=progress_bar("writing views", ctx))
     if not quiet(ctx):
         if view is not None:

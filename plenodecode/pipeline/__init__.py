@@ -36,7 +36,9 @@ from .calibration import Calibration, choose_calibration
 from .source import Source, check_geometry, decode_raw, load_lightfield_input, open_source
 from .products import (MAX_STACK_SLICES, PRODUCTS, STACK_UNITS, Rendered, virtual_depth_stem, render_product,
                        check_total_focus_patch, view_names, refocus_stem, focal_stack_names, parallax_frame_names)
-from .output import (display_encoding, default_extension, write_image_file, refuse_folder_clash, staged_folder,
+from .output import (AUTO_EXPOSURE, DARK_LEVEL, check_exposure, display_encoding, default_extension, expose,
+                     exposure_gain, image_level,
+                     write_image_file, refuse_folder_clash, staged_folder,
                      write_product, write_parallax, write_depth, write_lightfield)
 
 __all__ = [
@@ -44,7 +46,8 @@ __all__ = [
     "STACK_UNITS", "REQUESTS", "Calibration", "Source", "Rendered", "input_kind", "is_hci_folder", "is_lightfield_path",
     "open_input", "check_product", "choose_calibration", "check_geometry", "decode_raw", "open_raw", "open_source", "with_optics",
     "read_dark_frame", "virtual_depth_stem", "load_lightfield_input", "render_product",
-    "check_total_focus_patch", "display_encoding", "default_extension", "write_image_file",
+    "check_total_focus_patch", "display_encoding", "default_extension", "write_image_file", "AUTO_EXPOSURE",
+    "DARK_LEVEL", "check_exposure", "expose", "exposure_gain", "image_level",
     "refuse_folder_clash", "staged_folder", "write_product", "write_parallax", "write_depth",
     "write_lightfield", "view_names", "refocus_stem", "focal_stack_names", "parallax_frame_names",
 ]

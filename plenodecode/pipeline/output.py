@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
+import math
 import os
 from pathlib import Path
 from typing import Any, Iterator, Sequence
@@ -30,9 +31,86 @@ def default_extension(bit_depth: int) -> str:
     return "exr" if int(bit_depth) == 32 else "png"
 
 
+#: ``exposure`` of :func:`write_product` that scales an image product so that the 99.5th percentile of its
+#: brightest channel (:func:`image_level`) reaches full scale.
+AUTO_EXPOSURE = "auto"
+#: Limits of ``exposure`` in stops (EV), typed or found by :data:`AUTO_EXPOSURE`: 2^-10 .. 2^10.
+MAX_EXPOSURE_EV = 10.0
+#: A photograph whose :func:`image_level` is below this is dark: the CLI says so and names ``--exposure``.
+DARK_LEVEL = 0.25
+
+
+def _linear(image: Any, colour: str) -> Any:
+    """``image`` in light proportional to the scene's: as it is for linear colour states, else sRGB-decoded."""
+    from ..io.images import srgb_decode
+
+    return image if colour in LINEAR_COLOURS else srgb_decode(image)
+
+
+def image_level(rendered: Rendered) -> float:
+    """The 99.5th percentile of the brightest channel of a product's middle image (the centre view of a views
+    folder, the middle slice of a focal stack), in linear light of full scale 1: how bright it will look."""
+    import numpy as np
+
+    if not rendered.images:
+        return 0.0
+    _, image = rendered.images[len(rendered.images) // 2]
+    lin = np.asarray(_linear(np.nan_to_num(np.asarray(image, np.float32)), rendered.colour))
+    brightest = lin.max(axis=-1) if lin.ndim == 3 else lin
+    return float(np.percentile(brightest, 99.5))
+
+
+def check_exposure(exposure: float | str) -> float | str:
+    """``exposure`` as :func:`exposure_gain` takes it: 'auto', or a float of stops within +-MAX_EXPOSURE_EV.
+
+    Raises
+    ------
+    ValueError
+        Anything else.
+    """
+    if isinstance(exposure, str) and exposure.strip().lower() == AUTO_EXPOSURE:
+        return AUTO_EXPOSURE
+    try:
+        ev = float(exposure)
+    except (TypeError, ValueError):
+        ev = math.nan
+    if not abs(ev) <= MAX_EXPOSURE_EV:
+        raise ValueError(f"exposure must be {AUTO_EXPOSURE!r} or stops within +-{MAX_EXPOSURE_EV:g}, got {exposure!r}")
+    return ev
+
+
+def exposure_gain(rendered: Rendered, exposure: float | str = 0.0) -> float:
+    """The factor on the linear light of a product's images: ``2 ** exposure`` (stops), or for
+    :data:`AUTO_EXPOSURE` ``1 / image_level`` (within +-:data:`MAX_EXPOSURE_EV` stops; 1 for a black image).
+
+    Raises
+    ------
+    ValueError
+        ``exposure`` is neither 'auto' nor a number of stops within +-MAX_EXPOSURE_EV (:func:`check_exposure`).
+    """
+    exposure = check_exposure(exposure)
+    if exposure == AUTO_EXPOSURE:
+        level = image_level(rendered)
+        if not level > 0:
+            return 1.0
+        exposure = min(MAX_EXPOSURE_EV, max(-MAX_EXPOSURE_EV, -math.log2(level)))
+    return float(2.0 ** exposure)
+
+
+def expose(image: Any, colour: str, gain: float) -> Any:
+    """``image`` with its linear light times ``gain`` (sRGB-decoded and re-encoded for the 'srgb' state)."""
+    if gain == 1.0:
+        return image
+    from ..io.images import srgb_encode
+
+    scaled = _linear(image, colour) * image.dtype.type(gain)
+    return scaled if colour in LINEAR_COLOURS else srgb_encode(scaled)
+
+
 def write_image_file(path: str | os.PathLike, image: Any, *, colour: str, bit_depth: int,
-                     overwrite: bool = False) -> Path:
-    """Write one rendered image (:func:`plenodecode.io.images.write_image`, atomic) with :func:`display_encoding`.
+                     overwrite: bool = False, gain: float = 1.0) -> Path:
+    """Write one rendered image (:func:`plenodecode.io.images.write_image`, atomic) with :func:`display_encoding`,
+    its linear light times ``gain`` first (:func:`expose`).
 
     Raises
     ------
@@ -43,7 +121,7 @@ def write_image_file(path: str | os.PathLike, image: Any, *, colour: str, bit_de
     """
     from ..io import images
 
-    return images.write_image(path, image, bit_depth=int(bit_depth), overwrite=overwrite,
+    return images.write_image(path, expose(image, colour, gain), bit_depth=int(bit_depth), overwrite=overwrite,
                               encode_srgb=display_encoding(colour, bit_depth))
 
 
@@ -105,7 +183,7 @@ def staged_folder(folder: str | os.PathLike, names: Sequence[str], *, overwrite:
 
 
 def write_product(rendered: Rendered, output: str | os.PathLike, *, bit_depth: int = 16, ext: str | None = None,
-                  overwrite: bool = False, progress: Progress = None) -> list[Path]:
+                  overwrite: bool = False, exposure: float | str = 0.0, progress: Progress = None) -> list[Path]:
     """Write the images and documents of a product: one image file ``output``, or the folder ``output``.
 
     Parameters
@@ -118,6 +196,9 @@ def write_product(rendered: Rendered, output: str | os.PathLike, *, bit_depth: i
     ext : str, optional
         Image type of a folder product's files (default :func:`default_extension`).
     overwrite : bool
+    exposure : float or 'auto'
+        Stops (EV) the images' linear light is scaled by, the same for every image of a folder; 'auto': so that
+        the middle image's brightest 0.5 % reach full scale (:func:`exposure_gain`).  0 = as rendered.
     progress : callable(done, total), optional
         After every image of a folder product.
 
@@ -127,16 +208,18 @@ def write_product(rendered: Rendered, output: str | os.PathLike, *, bit_depth: i
         The written file, or the folder's files.
     """
     out = Path(output)
+    gain = exposure_gain(rendered, exposure)
     if not rendered.folder:
         (_, image), = rendered.images
-        return [write_image_file(out, image, colour=rendered.colour, bit_depth=bit_depth, overwrite=overwrite)]
+        return [write_image_file(out, image, colour=rendered.colour, bit_depth=bit_depth, overwrite=overwrite,
+                                 gain=gain)]
     from ..io.atomic import write_text_atomic
 
     ext = ext or default_extension(bit_depth)
     names = rendered.file_names(ext)
     with staged_folder(out, names, overwrite=overwrite) as stage:
         for i, (name, (_, image)) in enumerate(zip(names, rendered.images)):
-            write_image_file(stage / name, image, colour=rendered.colour, bit_depth=bit_depth)
+            write_image_file(stage / name, image, colour=rendered.colour, bit_depth=bit_depth, gain=gain)
             if progress is not None:
                 progress(i + 1, len(rendered.images))
         for name, document in rendered.documents:
