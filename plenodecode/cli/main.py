@@ -67,6 +67,10 @@ def constants_usage_error(command: click.Command | None, exc: MissingConstantsEr
                               f"needs; use {instead} instead", param_hint=hint)
 
 
+#: The group's own flags, also taken where they follow the command (:meth:`LazyGroup.parse_args`).
+GROUP_FLAGS = ("-q", "--quiet", "-v", "-vv", "-vvv", "--verbose")
+
+
 class LazyGroup(click.Group):
     """A click group whose commands are imported on first use."""
 
@@ -83,6 +87,14 @@ class LazyGroup(click.Group):
         rows = [(name, COMMANDS[name][1]) for name in self.list_commands(ctx)]
         with formatter.section("Commands"):
             formatter.write_dl(rows)
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        # -q / -v typed after the command ('plenodecode RAW -o x.png -q') mean what they mean before it: no
+        # command has options of those names, and a path or value never is one of these exact tokens
+        if "--" not in args:
+            hoisted = [a for a in args if a in GROUP_FLAGS]
+            args = hoisted + [a for a in args if a not in GROUP_FLAGS]
+        return super().parse_args(ctx, args)
 
     def resolve_command(self, ctx: click.Context, args: list[str]):
         if args and args[0] not in COMMANDS and not args[0].startswith("-"):

@@ -91,3 +91,18 @@ def test_a_mistyped_command_is_named_with_the_command_it_meant(tmp_path, monkeyp
     (tmp_path / "dept").write_bytes(b"not a raw")
     res = CliRunner().invoke(cli, ["dept", "-o", "x.png"])
     assert res.exit_code == 1 and "did you mean" not in res.output and "dept" in res.output, res.output
+
+
+def test_quiet_and_verbose_after_the_command_mean_the_same(tmp_path):
+    """'plenodecode RAW -o x.png -q' was refused ("No such option '-q'"): the group's flags had to come first.
+    After the command they now do what they do before it: -q silences the one-liner's summary line."""
+    from pathlib import Path
+
+    raw = Path(__file__).resolve().parents[2] / "sample_raws" / "illum-mini" / "scene.lfr"
+    loud = CliRunner().invoke(cli, [str(raw), "-o", str(tmp_path / "a.png")], obj={})
+    quiet = CliRunner().invoke(cli, [str(raw), "-o", str(tmp_path / "b.png"), "-q"], obj={})
+    assert loud.exit_code == 0 and "wrote" in loud.output, loud.output
+    assert quiet.exit_code == 0 and quiet.output == "", quiet.output
+    assert (tmp_path / "a.png").read_bytes() == (tmp_path / "b.png").read_bytes()
+    r = CliRunner().invoke(cli, ["info", str(raw), "--quiet"], obj={})
+    assert r.exit_code == 0 and "ILLUM" in r.output
