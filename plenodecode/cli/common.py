@@ -357,9 +357,9 @@ def lightfield_output_format(output: Path, fmt: str | None, overwrite: bool) -> 
 
     check_output(output, overwrite)
     try:
-        return fmt or detect_format(output)
+        return fmt or detect_format(output, option="--format")
     except ValueError as exc:
-        raise click.UsageError(f"{exc} (use --format)") from exc
+        raise click.UsageError(str(exc)) from None
 
 
 def progress_bar(label: str, ctx: click.Context | None = None) -> Callable[[int, int], None]:
