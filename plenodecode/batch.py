@@ -565,9 +565,10 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     from .io.depthio import DEFAULT_MIN_CONFIDENCE, colour_map_image
 
     mosaic = options.mosaic_options()
+    dark = pipeline.read_dark_frame(options.dark, mosaic, raw=raw)     # its size checked before the calibration
     calibration = pipeline.choose_calibration(raw, database=options.db_dir, white=options.white, mosaic=mosaic)
     src = pipeline.Source(raw=raw, calibration=calibration, decode_options={
-        "workers": threads, "dark": pipeline.read_dark_frame(options.dark, mosaic)},
+        "workers": threads, "dark": dark},
         geometry=options.geometric_calibration())
     bits = options.bit_depth
     thumbs = folder / THUMB_DIR

@@ -69,6 +69,7 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
     inputs = calibration_kwargs(calibration, white, database, self_calibrate)
     dark, optics, geometry = inputs.pop("dark"), inputs.pop("optics"), inputs.pop("geometry")
     raw = open_raw(raw_path, mosaic=inputs["mosaic"], raytrix_xml=inputs.pop("raytrix_xml"), optics=optics)
+    dark = read_dark_frame(dark, inputs["mosaic"], raw=raw)       # its size checked before the calibration
     cal = choose_calibration(raw, **inputs)
     if cal.grid.lens_type is not None and not views_anyway:
         raise click.UsageError(f"{raw_path.name} is a focused-plenoptic (Raytrix) raw: its micro-images are small "
@@ -76,7 +77,7 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
                                "--total-focus -o photo.png' (or pass --views-anyway)")
     if geometry is not None:
         check_geometry(geometry, calibration=cal, n_views=n_views)
-    lf = decode_raw(raw, cal, dark=read_dark_frame(dark, inputs["mosaic"]), demosaic=demosaic, resample=resample,
+    lf = decode_raw(raw, cal, dark=dark, demosaic=demosaic, resample=resample,
                     colour=colour, n_views=n_views, hot_pixels=not no_hot_pixels,
                     progress=progress_bar("decoding", ctx), geometry=geometry)
     with usage_errors():
