@@ -48,7 +48,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
-from .errors import PlenodecodeError, one_line
+from .errors import DecodeError, PlenodecodeError, one_line
 from .io.atomic import (OLD_MARK, TEMP_MARK, atomic_output, discard, is_temporary, remove_stale_temporaries,
                         write_text_atomic)
 from .registry import lookup
@@ -545,6 +545,38 @@ def _image_product_options(product: str, options: BatchOptions) -> dict[str, Any
     return {"distance_m": options.distance_m} if options.distance_m is not None else {"slope": options.slope}
 
 
+#: A refocus keyword of :func:`_image_product_options` -> the ``plenodecode batch`` option that set it.
+FOCUS_OPTIONS = {"slope": "--slope", "alpha": "--alpha", "distance_m": "--focus-distance"}
+
+
+def _focus_option_error(product: str, options: BatchOptions, raw: Any, exc: ValueError) -> DecodeError:
+    """The failure of one raw whose refocus option value it cannot serve (a slope past its picture): a plain
+    one-line error naming the option and its value, not a bug's traceback."""
+    keyword, value = next(iter(_image_product_options(product, options).items()))
+    name = Path(raw.path).name if raw.path else "this raw"
+    return DecodeError(f"{FOCUS_OPTIONS[keyword]} {value:g} does not suit {name}: {exc}")
+
+
+def _check_focus_reach(raw: Any, calibration: Any, options: BatchOptions) -> None:
+    """Refuse, before decoding, a ``slope`` that moves the outermost views of ``raw``'s light field past its
+    whole picture (:func:`plenodecode.render._common.check_slope_reach` on the decoded shape the calibration
+    gives); alpha and a distance become slopes only with the decoded geometry and are checked when rendered."""
+    from .decoding.rectify import decoded_shape
+    from .pipeline.products import photo_focus
+    from .render._common import check_slope_reach
+
+    focused = calibration.grid.lens_type is not None
+    for product in options.outputs:
+        if product not in ("refocus", "photo") or options.alpha is not None or options.distance_m is not None:
+            continue
+        if product == "photo" and photo_focus(focused).get("total_focus"):
+            continue
+        try:
+            check_slope_reach(decoded_shape(calibration.grid), options.slope)
+        except ValueError as exc:
+            raise _focus_option_error(product, options, raw, exc) from None
+
+
 def depth_stem(rendered: Any) -> str:
     """File stem of a 'depth' output: 'virtual_depth' for a focused-plenoptic (Raytrix) raw's virtual depth,
     else 'disparity'."""
@@ -572,9 +604,11 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     from .io.depthio import DEFAULT_MIN_CONFIDENCE, colour_map_image
 
     mosaic = options.mosaic_options()
+    dark = pipeline.read_dark_frame(options.dark, mosaic, raw=raw)     # its size checked before the calibration
     calibration = pipeline.choose_calibration(raw, database=options.db_dir, white=options.white, mosaic=mosaic)
+    _check_focus_reach(raw, calibration, options)
     src = pipeline.Source(raw=raw, calibration=calibration, decode_options={
-        "workers": threads, "dark": pipeline.read_dark_frame(options.dark, mosaic)},
+        "workers": threads, "dark": dark},
         geometry=options.geometric_calibration())
     bits = options.bit_depth
     thumbs = folder / THUMB_DIR
@@ -609,7 +643,12 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
                                        **THUMB_FIGURE)
             written.append((dest, _thumbnail(colours, thumbs / f"{stem}.png", colour="srgb")))
         else:
-            rendered = pipeline.render_product(src, product, **_image_product_options(product, options))
+            try:
+                rendered = pipeline.render_product(src, product, **_image_product_options(product, options))
+            except ValueError as exc:
+                if product not in ("refocus", "photo"):
+                    raise
+                raise _focus_option_error(product, options, raw, exc) from None
             (stem, image), = rendered.images
             name = f"{stem}.{pipeline.default_extension(bits)}"
             if any(dest.name == name for dest, _ in written):

@@ -55,6 +55,10 @@ class DecodeError(PlenodecodeError):
     """A raw cannot be decoded with the given grid or options."""
 
 
+class DarkFrameMismatchError(DecodeError):
+    """A dark frame (``--dark``) of another size than the raw, found before any work."""
+
+
 def one_line(exc: BaseException) -> str:
     """``'TypeName: first line of the message'`` of ``exc``, for tables and logs that give a failure one line."""
     text = f"{type(exc).__name__}: {exc}".strip()
@@ -62,4 +66,4 @@ def one_line(exc: BaseException) -> str:
 
 
 __all__ = ["PlenodecodeError", "FormatError", "MetadataError", "CalibrationError", "GeometryMismatchError",
-           "MissingConstantsError", "DecodeError", "one_line"]
+           "MissingConstantsError", "DecodeError", "DarkFrameMismatchError", "one_line"]

@@ -887,3 +887,50 @@ def test_cli_light_field_folders_are_named_as_light_fields_not_as_images_to_name
     assert res.exit_code == 2, res.output
     assert "1 image(s) (light_field.png) were not taken" in res.output
     assert f"{saved} is a light field (views), not a raw" in res.output
+
+
+def test_a_slope_past_a_raws_picture_fails_that_raw_in_one_line_naming_the_option(tmp_path, caplog):
+    """'batch ... --slope 2000' reported 'internal error: ValueError: slope ...' per raw with a logged traceback.
+    A bad option value is the user's error: each raw it does not suit fails in one line naming --slope and its
+    bound, before decoding; the batch goes on (the real R42's photograph is its total focus, which has no slope)."""
+    from tests.conftest import shared_path
+
+    root = Path(__file__).resolve().parents[1]
+    jpeg, r42 = shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg"), shared_path("raytrix-r42", "sc2_klein.png")
+    illum = root / "sample_raws" / "illum-mini" / "scene.lfr"
+    res = CliRunner().invoke(cli, ["batch", str(jpeg), str(illum), str(r42), "-o", str(tmp_path / "out"),
+                                   "--slope", "2000", "--database", str(root / "calib"), "--jobs", "1"])
+    assert res.exit_code == 1, res.output
+    rows = {line.split()[0]: line for line in res.output.splitlines() if line.split()[:1] in
+            (["IMG_1.jpg"], ["scene.lfr"], ["sc2_klein.png"])}
+    for name, bound in (("IMG_1.jpg", "383 x 382 picture (|slope| <= 95.8 here)"),
+                        ("scene.lfr", "87 x 125 picture (|slope| <= 17.9 here)")):
+        assert " failed " in rows[name] and f"--slope 2000 does not suit {name}: slope 2000 px/view" in rows[name]
+        assert bound in rows[name] and "internal error" not in rows[name], rows[name]
+    assert " done " in rows["sc2_klein.png"], res.output
+    assert "Traceback" not in res.output + caplog.text and "unexpected error" not in caplog.text
+
+
+def test_a_slope_past_the_picture_fails_before_decoding(tmp_path, monkeypatch):
+    """The slope is checked against the decoded shape the calibration gives, before the raw is decoded; an alpha
+    (a slope only once decoded) fails when rendered, in the same one line naming --alpha."""
+    from plenodecode import pipeline
+    from plenodecode.batch import process_raw
+
+    root = Path(__file__).resolve().parents[1]
+    illum = root / "sample_raws" / "illum-mini" / "scene.lfr"
+    decoded = []
+    real = pipeline.source.decode_raw
+    monkeypatch.setattr(pipeline.source, "decode_raw", lambda *a, **k: decoded.append(a) or real(*a, **k))
+    (tmp_path / "a").mkdir()
+    result = process_raw(illum, tmp_path / "a", BatchOptions(outputs=("refocus",), slope=18.0,
+                                                             db_dir=str(root / "calib")))
+    assert result.status == "failed" and decoded == [] and list((tmp_path / "a").iterdir()) == []
+    assert result.error.startswith("DecodeError: --slope 18 does not suit scene.lfr: slope 18 px/view"), result.error
+    (tmp_path / "b").mkdir()
+    result = process_raw(illum, tmp_path / "b", BatchOptions(outputs=("refocus",), alpha=1.5,
+                                                             db_dir=str(root / "calib")))
+    assert result.status == "failed" and len(decoded) == 1, result
+    assert result.error.startswith("DecodeError: --alpha 1.5 does not suit scene.lfr: slope 20.27 px/view"), result
+    ok = process_raw(illum, tmp_path / "b", BatchOptions(outputs=("refocus",), slope=17.5, db_dir=str(root / "calib")))
+    assert ok.status == "done", ok

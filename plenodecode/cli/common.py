@@ -250,6 +250,31 @@ def input_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     return fn
 
 
+def views_anyway_option(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """``--views-anyway``: the products of a focused-plenoptic raw's decoded views all the same
+    (:func:`refuse_focused_views`)."""
+    return click.option("--views-anyway", is_flag=True,
+                        help="Focused-plenoptic (Raytrix) raws: cut views from the micro-images even so (the camera "
+                             "gives pictures per lens, not views: one pixel per lens; 'plenodecode RAW -o photo.png' "
+                             "renders its total focus).")(fn)
+
+
+def refuse_focused_views(focused: bool, raw_path: Path, views_anyway: bool, *, instead: str) -> None:
+    """The usage error (exit 2, one line, before any decoding) of a command that would render a focused-plenoptic
+    (Raytrix) raw's decoded views (decode, views, parallax, a refocus by slope), unless ``--views-anyway``: such
+    views have one pixel per lens (the real R42 crop: 35 x 35 views of 22 x 31 px).  ``instead``: what to type."""
+    if focused and not views_anyway:
+        raise click.UsageError(f"{raw_path.name} is a focused-plenoptic (Raytrix) raw: its micro-images are small "
+                               f"pictures, not a light field of views (one pixel per lens); {instead} (or pass "
+                               "--views-anyway)")
+
+
+#: What to type instead of the decoded views of a focused-plenoptic raw (:func:`refuse_focused_views`).
+FOCUSED_PHOTO = "render it with 'plenodecode render {raw} --total-focus -o photo.png'"
+FOCUSED_REFOCUS = ("refocus it at a virtual depth with 'plenodecode refocus {raw} --virtual-depth V -o photo.png', "
+                   "or render its total focus with 'plenodecode render {raw} --total-focus -o photo.png'")
+
+
 def refuse_database_with_grid(calibration: Path | None, white: Path | None, database: Path | None) -> None:
     """Usage error when ``--database`` is given with ``--calibration`` or ``--white`` (``decode``,
     ``calibrate-geometry``): :func:`~plenodecode.pipeline.choose_calibration` would take the grid and white
@@ -357,9 +382,9 @@ def lightfield_output_format(output: Path, fmt: str | None, overwrite: bool) -> 
 
     check_output(output, overwrite)
     try:
-        return fmt or detect_format(output)
+        return fmt or detect_format(output, option="--format")
     except ValueError as exc:
-        raise click.UsageError(f"{exc} (use --format)") from exc
+        raise click.UsageError(str(exc)) from None
 
 
 def progress_bar(label: str, ctx: click.Context | None = None) -> Callable[[int, int], None]:

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import click
 
-from .common import (RegistryChoice, bit_depth_option, calibration_kwargs, input_options, lightfield_output_format,
-                     lightfield_summary, output_option, overwrite_option, progress_bar, quiet,
-                     refuse_database_with_grid, usage_errors)
+from .common import (FOCUSED_PHOTO, RegistryChoice, bit_depth_option, calibration_kwargs, input_options,
+                     lightfield_output_format, lightfield_summary, output_option, overwrite_option, progress_bar, quiet,
+                     refuse_database_with_grid, refuse_focused_views, usage_errors, views_anyway_option)
 
 log = logging.getLogger(__name__)
 
@@ -34,9 +34,7 @@ log = logging.getLogger(__name__)
 @click.option("--colour", type=RegistryChoice("plenodecode.decoding.colour", "DECODE_COLOURS"), default="linear-srgb",
               show_default=True, help="Colour of the output: white balance + colour matrix, or camera RGB.")
 @click.option("--no-hot-pixels", is_flag=True, help="Do not repair hot pixels.")
-@click.option("--views-anyway", is_flag=True,
-              help="Focused-plenoptic (Raytrix) raws: cut views from the micro-images even so (the camera gives "
-                   "pictures per lens, not views; 'plenodecode render RAW --total-focus' renders it).")
+@views_anyway_option
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path | None, white: Path | None,
@@ -69,14 +67,13 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
     inputs = calibration_kwargs(calibration, white, database, self_calibrate)
     dark, optics, geometry = inputs.pop("dark"), inputs.pop("optics"), inputs.pop("geometry")
     raw = open_raw(raw_path, mosaic=inputs["mosaic"], raytrix_xml=inputs.pop("raytrix_xml"), optics=optics)
+    dark = read_dark_frame(dark, inputs["mosaic"], raw=raw)       # its size checked before the calibration
     cal = choose_calibration(raw, **inputs)
-    if cal.grid.lens_type is not None and not views_anyway:
-        raise click.UsageError(f"{raw_path.name} is a focused-plenoptic (Raytrix) raw: its micro-images are small "
-                               f"pictures, not a light field of views; render it with 'plenodecode render {raw_path} "
-                               "--total-focus -o photo.png' (or pass --views-anyway)")
+    refuse_focused_views(cal.grid.lens_type is not None, raw_path, views_anyway,
+                         instead=FOCUSED_PHOTO.format(raw=raw_path))
     if geometry is not None:
         check_geometry(geometry, calibration=cal, n_views=n_views)
-    lf = decode_raw(raw, cal, dark=read_dark_frame(dark, inputs["mosaic"]), demosaic=demosaic, resample=resample,
+    lf = decode_raw(raw, cal, dark=dark, demosaic=demosaic, resample=resample,
                     colour=colour, n_views=n_views, hot_pixels=not no_hot_pixels,
                     progress=progress_bar("decoding", ctx), geometry=geometry)
     with usage_errors():

@@ -23,6 +23,18 @@ def _camera_lines(model, make, serial, extra: str = "") -> list[str]:
     return [f"  camera   {cam}{extra}", f"  serial   {serial or '-'}"]
 
 
+def _sensor_by_size(raw) -> str | None:
+    """'Lytro F01 (by its 3280 x 3280 sensor; the file has no camera metadata)' for a mosaic without a sidecar at
+    the size of a known lenslet sensor (as the reader recognised it to choose its CFA and levels), else None."""
+    from ..io.generic import is_bare_mosaic
+    from ..io.mosaic_levels import KNOWN_SENSORS
+
+    sensor = KNOWN_SENSORS.get(tuple(raw.shape)) if is_bare_mosaic(raw) else None
+    if sensor is None:
+        return None
+    return f"{sensor.name} (by its {raw.shape[1]} x {raw.shape[0]} sensor; the file has no camera metadata)"
+
+
 def _describe_container(path: Path) -> list[str]:
     from ..io import lytro
 
@@ -184,7 +196,7 @@ def _describe_other(path: Path) -> list[str]:
     m = raw.metadata
     h, w = raw.shape
     lines = [f"{path}: raw image"]
-    lines += _camera_lines(m.model, m.make, m.serial)
+    lines += _camera_lines(m.model or _sensor_by_size(raw), m.make, m.serial)
     lines.append(f"  kind     {'raw, white image' if m.is_white_image else 'raw'}")
     from ..io.raytrix import is_rgb_export
 

@@ -7,8 +7,9 @@ from pathlib import Path
 import click
 
 from ..pipeline import parallax_frame_names
-from .common import (NON_NEGATIVE, POSITIVE, bit_depth_option, calibration_kwargs, check_folder_output, check_output, input_options,
-                     output_option, overwrite_option, progress_bar, quiet, usage_errors)
+from .common import (FOCUSED_PHOTO, NON_NEGATIVE, POSITIVE, bit_depth_option, calibration_kwargs, check_folder_output,
+                     check_output, input_options, output_option, overwrite_option, progress_bar, quiet,
+                     refuse_focused_views, usage_errors, views_anyway_option)
 from .views import INTERP_CHOICE
 
 
@@ -28,13 +29,16 @@ from .views import INTERP_CHOICE
               help="Interpolation between neighbouring views.")
 @bit_depth_option
 @input_options
+@views_anyway_option
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, output: Path, n_frames: int, radius: float | None, fps: float,
             frames_dir: Path | None, no_frames: bool, interp: str, bit_depth: str, calibration: Path | None,
-            white: Path | None, database: Path | None, self_calibrate: bool, overwrite: bool) -> None:
+            white: Path | None, database: Path | None, self_calibrate: bool, views_anyway: bool,
+            overwrite: bool) -> None:
     """Write a parallax animation of RAW_OR_LF to OUTPUT (.gif or .webp) and its frames as numbered images
-    (frame_000.png ...).
+    (frame_000.png ...).  A focused-plenoptic (Raytrix) raw is refused (exit 2) unless --views-anyway: its views
+    have one pixel per lens.
 
     \b
     Examples:
@@ -51,6 +55,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, n_frames: int, r
         check_folder_output(folder, parallax_frame_names(n_frames), overwrite)
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       **calibration_kwargs(calibration, white, database, self_calibrate))
+    refuse_focused_views(src.focused, input_path, views_anyway, instead=FOCUSED_PHOTO.format(raw=input_path))
     src.lightfield         # decoded before the rendering, whose ValueError names --radius
     with usage_errors(param_hint="--radius"):
         rendered = render_product(src, "parallax", frames=n_frames, radius=radius, interp=interp,

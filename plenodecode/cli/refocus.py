@@ -10,10 +10,11 @@ import click
 import math
 
 from ..pipeline import IMAGE_EXTENSIONS, MAX_STACK_SLICES, STACK_UNITS, focal_stack_names
-from .common import (FINITE, POSITIVE, FiniteFloat, RegistryChoice, bit_depth_option, calibration_kwargs,
-                     check_focus_options, check_folder_output, check_output, describe_focus, exposure_option,
-                     focus_hint, focus_options, focus_point, image_bit_depth, input_options, note_if_dark,
-                     output_option, overwrite_option, progress_bar, quiet, usage_errors)
+from .common import (FINITE, FOCUSED_REFOCUS, POSITIVE, FiniteFloat, RegistryChoice, bit_depth_option,
+                     calibration_kwargs, check_focus_options, check_folder_output, check_output, describe_focus,
+                     exposure_option, focus_hint, focus_options, focus_point, image_bit_depth, input_options,
+                     note_if_dark, output_option, overwrite_option, progress_bar, quiet, refuse_focused_views,
+                     usage_errors, views_anyway_option)
 
 #: The refocus methods of the library, for ``--method`` (imported when the command needs them).
 REFOCUS_METHOD_CHOICE = RegistryChoice("plenodecode.render", "REFOCUS_METHODS")
@@ -41,7 +42,7 @@ def parse_stack(text: str, units: str = "slope") -> tuple[float, float, int]:
 
 #: Options of a light-field refocus that mean nothing to --virtual-depth (parameter name -> option).
 LIGHT_FIELD_ONLY = {"slope": "--slope", "alpha": "--alpha", "stack": "--focal-stack", "method": "--method",
-                    "aperture": "--aperture", "upsample": "--upsample"}
+                    "aperture": "--aperture", "upsample": "--upsample", "views_anyway": "--views-anyway"}
 
 
 def refocus_at_virtual_depth(ctx: click.Context, input_path: Path, output: Path, virtual_depth: float, *,
@@ -106,18 +107,21 @@ def refocus_at_virtual_depth(ctx: click.Context, input_path: Path, output: Path,
 @bit_depth_option
 @exposure_option
 @input_options
+@views_anyway_option
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, output: Path, slope: float | None, alpha: float | None,
             focus_at: tuple[float, float, bool] | None, no_depth: bool, distance_m: float | None,
             stack: str | None, stack_units: str, method: str, aperture: float, upsample: int, ext: str,
             bit_depth: str, exposure: float | str, calibration: Path | None, white: Path | None,
-            database: Path | None, self_calibrate: bool, overwrite: bool, virtual_depth: float | None = None) -> None:
+            database: Path | None, self_calibrate: bool, overwrite: bool, virtual_depth: float | None = None,
+            views_anyway: bool = False) -> None:
     """Refocus RAW_OR_LF (a raw, a saved light field or an HCI scene folder).
 
     One photograph: --slope S, --alpha A, --focus-at X,Y or --focus-distance M (none: focused as
     captured, slope 0), written to OUTPUT (.png, .tif, .exr); outside the refocusable range it is written
-    with a warning.  Of a focused-plenoptic (Raytrix) raw: --virtual-depth V.
+    with a warning.  Of a focused-plenoptic (Raytrix) raw: --virtual-depth V (its decoded views, one pixel per
+    lens, are refused unless --views-anyway).
     A focal stack: --focal-stack START:STOP:N writes OUTPUT/slice_000.png ...,
     OUTPUT/all_in_focus.png and OUTPUT/focal_stack.json (the slopes and alphas).
 
@@ -152,6 +156,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
                       check={"refocus": {"alpha": alpha, "distance_m": distance_m}} if stack is None
                       else {"focal-stack": {"units": stack_units}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
+    refuse_focused_views(src.focused, input_path, views_anyway, instead=FOCUSED_REFOCUS.format(raw=input_path))
     if stack is None:
         at = focus_point(focus_at, src.lightfield.shape)
         with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):

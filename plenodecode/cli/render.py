@@ -13,14 +13,15 @@ from pathlib import Path
 import click
 from click.core import ParameterSource
 
-from .common import (FINITE, POSITIVE, FiniteFloat, bit_depth_option, calibration_kwargs, check_focus_options,
-                     check_output, describe_focus, exposure_option, focus_hint, focus_options, focus_point,
-                     image_bit_depth, input_options, note_if_dark, output_option, overwrite_option, progress_bar, quiet,
-                     usage_errors)
+from .common import (FINITE, FOCUSED_REFOCUS, POSITIVE, FiniteFloat, bit_depth_option, calibration_kwargs,
+                     check_focus_options, check_output, describe_focus, exposure_option, focus_hint, focus_options,
+                     focus_point, image_bit_depth, input_options, note_if_dark, output_option, overwrite_option,
+                     progress_bar, quiet, refuse_focused_views, usage_errors, views_anyway_option)
 from .refocus import REFOCUS_METHOD_CHOICE
 
-#: The refocusing options that mean nothing to --total-focus (parameter name -> option).
-REFOCUS_ONLY = {"method": "--method", "aperture": "--aperture"}
+#: The refocusing options that mean nothing to --total-focus (parameter name -> option); each asks for a refocus of
+#: the decoded light field, which a focused-plenoptic raw gives only with --views-anyway.
+REFOCUS_ONLY = {"method": "--method", "aperture": "--aperture", "views_anyway": "--views-anyway"}
 
 
 def _given(ctx: click.Context, name: str) -> bool:
@@ -71,17 +72,19 @@ def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float |
 @bit_depth_option
 @exposure_option
 @input_options
+@views_anyway_option
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: float | None,
             focus_at: tuple[float, float, bool] | None, no_depth: bool, distance_m: float | None, total_focus: bool,
             patch: float | None, output: Path, method: str, aperture: float, bit_depth: str, exposure: float | str,
             calibration: Path | None, white: Path | None, database: Path | None, self_calibrate: bool,
-            overwrite: bool) -> None:
+            views_anyway: bool, overwrite: bool) -> None:
     """Decode RAW_OR_LF (using the calibration database for raws) and write the photograph refocused at ALPHA
     (or --slope, --focus-at, --focus-distance), or with --total-focus the all-in-focus image of a
     focused-plenoptic (Raytrix) raw.  Outside the refocusable range the photograph is written with a warning.
-    Without a focus option: focused as captured (slope 0), or a Raytrix raw's total focus.
+    Without a focus option: focused as captured (slope 0), or a Raytrix raw's total focus; a Raytrix raw's decoded
+    light field (one pixel per lens: --refocus, --slope, --method ...) is refused unless --views-anyway.
 
     \b
     Examples:
@@ -103,10 +106,13 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
                       check=None if total_focus else {"refocus": {"alpha": alpha, "distance_m": distance_m}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     chosen = None
+    # --method / --aperture / --views-anyway ask for a refocus of the decoded light field, even of a Raytrix raw
+    asks_refocus = any(_given(ctx, name) for name in REFOCUS_ONLY)
     if not (total_focus or focus_at) and alpha is None and slope is None and distance_m is None:
-        # --method / --aperture ask for a refocus of the decoded light field, even of a Raytrix raw
-        chosen = photo_focus(src.focused, refocus=any(_given(ctx, name) for name in REFOCUS_ONLY))
+        chosen = photo_focus(src.focused, refocus=asks_refocus)
         total_focus, slope = chosen.get("total_focus", False), chosen.get("slope")
+    if not total_focus and (chosen is None or asks_refocus):     # what was typed; photo_focus's own choice stands
+        refuse_focused_views(src.focused, input_path, views_anyway, instead=FOCUSED_REFOCUS.format(raw=input_path))
     if total_focus:
         with usage_errors(param_hint="--patch"):
             check_total_focus_patch(src.calibration.grid, patch)       # its upper bound is the camera's

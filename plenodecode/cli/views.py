@@ -8,9 +8,10 @@ import click
 
 from ..imaging import MIN_VIEW_DATA
 from ..pipeline import IMAGE_EXTENSIONS
-from .common import (NON_NEGATIVE, RegistryChoice, bit_depth_option, calibration_kwargs, check_folder_output,
-                     check_output, exposure_option, image_bit_depth, input_options, output_option, overwrite_option,
-                     progress_bar, quiet, usage_errors)
+from .common import (FOCUSED_PHOTO, NON_NEGATIVE, RegistryChoice, bit_depth_option, calibration_kwargs,
+                     check_folder_output, check_output, exposure_option, image_bit_depth, input_options,
+                     output_option, overwrite_option, progress_bar, quiet, refuse_focused_views, usage_errors,
+                     views_anyway_option)
 
 #: Angular interpolation kernels of perspective views, for ``--interp``.
 INTERP_CHOICE = RegistryChoice("plenodecode.render.viewpoints", "PERSPECTIVE_INTERPOLATIONS")
@@ -28,13 +29,16 @@ INTERP_CHOICE = RegistryChoice("plenodecode.render.viewpoints", "PERSPECTIVE_INT
 @bit_depth_option
 @exposure_option
 @input_options
+@views_anyway_option
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, output: Path, view: tuple[float, float] | None, interp: str,
             ext: str, bit_depth: str, exposure: float | str, calibration: Path | None, white: Path | None,
-            database: Path | None, self_calibrate: bool, overwrite: bool) -> None:
+            database: Path | None, self_calibrate: bool, views_anyway: bool, overwrite: bool) -> None:
     """Write the sub-aperture views of RAW_OR_LF into the folder OUTPUT (view_VV_UU.png),
     or with --view V U the perspective view at that position into the file OUTPUT.
+
+    A focused-plenoptic (Raytrix) raw is refused (exit 2) unless --views-anyway: its views have one pixel per lens.
 
     \b
     Examples:
@@ -51,6 +55,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, view: tuple[floa
             else image_bit_depth(ctx, bit_depth, ext, param_hint="--ext"))
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       **calibration_kwargs(calibration, white, database, self_calibrate))
+    refuse_focused_views(src.focused, input_path, views_anyway, instead=FOCUSED_PHOTO.format(raw=input_path))
     lf = src.lightfield
     with usage_errors(param_hint="--view"):
         rendered = render_product(src, "views", view=view, interp=interp)

@@ -462,8 +462,9 @@ def _check_format(name: str) -> LightFieldFormat:
     return LIGHTFIELD_FORMATS[name]
 
 
-def detect_format(path: str | os.PathLike) -> str:
-    """Format name of an existing light field, or of one to write at ``path``.
+def detect_format(path: str | os.PathLike, *, option: str = "format=") -> str:
+    """Format name of an existing light field, or of one to write at ``path``; ``option`` is how the error names
+    the way to choose the format (the keyword ``format=``, or the CLI's ``--format``).
 
     Existing folders: ``zarr.json`` inside -> zarr, ``lightfield.json`` or ``input_Cam*`` -> views.
     Otherwise by extension: ``.zarr`` zarr, ``.mat`` mat, ``.npy`` npy, ``.png``/``.tif`` eslf;
@@ -488,7 +489,8 @@ def detect_format(path: str | os.PathLike) -> str:
         raise ValueError(_page_error(p))
     if ext == "" and not p.is_file():
         return "views"
-    raise ValueError(f"path {p.name!r}: cannot tell the light-field format; pass format= one of "
+    raise ValueError(f"path {p.name!r}: cannot tell the light-field format from its extension "
+                     f"({', '.join(sorted(_FILE_FORMATS))} or none for a views folder); pass {option} one of "
                      f"{sorted(LIGHTFIELD_FORMATS)}")
 
 

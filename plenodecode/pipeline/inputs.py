@@ -146,19 +146,30 @@ def quieted(logger: str) -> Iterator[None]:
 
 
 def read_dark_frame(dark: str | os.PathLike | RawCapture | None,
-                    mosaic: MosaicOptions | None = None) -> RawCapture | None:
+                    mosaic: MosaicOptions | None = None, *, raw: RawCapture | None = None) -> RawCapture | None:
     """The dark frame (``--dark``), read like a raw; None for None.  :func:`plenodecode.decoding.decode`
-    subtracts it pixel by pixel from the raw and the white image instead of the black level.
+    subtracts it pixel by pixel from the raw and the white image instead of the black level.  With ``raw``, a
+    frame of another size is refused now (:class:`~plenodecode.errors.DarkFrameMismatchError`), before the
+    calibration and the decoding.
 
     Its own black and white levels are not used, so the reader's warnings about them (a mosaic without a
     sidecar: levels estimated 'from the gaps between micro-images', which a dark frame has none of) are not
     shown; an unreadable file still raises.
     """
-    if dark is None or isinstance(dark, RawCapture):
-        return dark
-    log.info("dark frame %s", dark)
-    with quieted("plenodecode.io.generic"):
-        return _read_raw(Path(dark), mosaic)
+    if dark is None:
+        return None
+    if not isinstance(dark, RawCapture):
+        log.info("dark frame %s", dark)
+        with quieted("plenodecode.io.generic"):
+            dark = _read_raw(Path(dark), mosaic)
+    if raw is not None and dark.shape != raw.shape:
+        from ..errors import DarkFrameMismatchError
+
+        name = Path(dark.path).name if dark.path else "the dark frame"
+        raise DarkFrameMismatchError(f"{name} is {dark.shape[1]} x {dark.shape[0]} px but the raw "
+                                     f"{Path(raw.path).name if raw.path else ''} is {raw.shape[1]} x {raw.shape[0]}; "
+                                     "pass the dark frame of this camera")
+    return dark
 
 
 #: Input kind -> reader ``fn(path) -> LightField | RawCapture``.

@@ -123,12 +123,15 @@ def render_refocus(src: Source, *, slope: float | None = None, alpha: float | No
                    method: str = "shift-sum", aperture: float = 1.0, upsample: int = 1) -> Rendered:
     """One photograph focused by one of ``slope``, ``alpha``, ``at = (y, x)``, ``distance_m`` (:func:`~plenodecode.
     render.refocus_methods.focus_slope`); outside :func:`~plenodecode.render.alpha.refocus_range_units` it is
-    still rendered, with a one-line warning.  ``data``: 'slope' (chosen), 'alpha', 'method', 'aperture', 'range'."""
+    still rendered, with a one-line warning (ValueError, without it, beyond :func:`~plenodecode.render._common.
+    check_slope_reach`).  ``data``: 'slope' (chosen), 'alpha', 'method', 'aperture', 'range'."""
     from ..render import refocus, refocus_range_units
+    from ..render._common import check_slope_reach
     from ..render.refocus_methods import focus_slope
 
     lf = src.lightfield
     chosen = focus_slope(lf, slope=slope, alpha=alpha, at=at, distance_m=distance_m, at_method=at_method)
+    check_slope_reach(lf, chosen)       # a slope refused is refused without the out-of-range warning first
     span = refocus_range_units(lf)
     if not span.contains(chosen):
         log.warning("slope %.3g px/view%s is outside the refocusable range (%s): nothing in it can be sharp",

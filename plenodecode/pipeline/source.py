@@ -185,11 +185,11 @@ def open_source(path: str | os.PathLike, *, grid: str | os.PathLike | None = Non
         check_product(item, name, rectified=geometry is not None, **options)
     if isinstance(item, LightField):
         return Source(lightfield=item, geometry=geometry)
+    options = dict(decode_options or {})
+    if dark is not None:        # its size is checked before the calibration
+        options["dark"] = read_dark_frame(dark, mosaic, raw=item)
     cal = choose_calibration(item, grid=grid, white=white, database=database, self_calibrate=self_calibrate,
                              mosaic=mosaic)
-    options = dict(decode_options or {})
-    if dark is not None:
-        options["dark"] = read_dark_frame(dark, mosaic)
     return Source(raw=item, calibration=cal, decode_options=options, progress=progress, geometry=geometry)
 
 

@@ -99,14 +99,16 @@ def check_slopes(slopes: Any) -> np.ndarray:
     return s
 
 
-def check_slope_reach(lf: LightField, slopes: Any, *, name: str = "slope") -> None:
+def check_slope_reach(lf: LightField | tuple[int, ...], slopes: Any, *, name: str = "slope") -> None:
     """Raise ValueError naming ``name`` when a slope moves the outermost views past the whole picture
     (``|s| * max(vc, uc) > max(Y, X)`` samples): no view then overlaps the centre one, the photograph means
     nothing, and the padded shifts would ask for memory in proportion to the slope (``--slope 2000`` on a
-    15 x 15 x 87 x 125 light field was killed for lack of memory)."""
+    15 x 15 x 87 x 125 light field was killed for lack of memory).  ``lf`` may be the light field's shape
+    ``(V, U, Y, X[, C])`` alone (a raw's, before decoding it: :func:`plenodecode.decoding.rectify.decoded_shape`)."""
     s = np.atleast_1d(np.asarray(slopes, np.float64))
-    ny, nx = lf.shape[2:4]
-    steps = max(lf.shape[0] // 2, lf.shape[1] // 2)
+    shape = tuple(lf) if isinstance(lf, tuple) else lf.shape
+    ny, nx = shape[2:4]
+    steps = max(shape[0] // 2, shape[1] // 2)
     worst = float(np.max(np.abs(s))) if s.size else 0.0
     if steps > 0 and worst * steps > max(ny, nx):
         lead = f"slope {worst:.4g} px/view" + ("" if name in ("slope", "slopes") else f" (from {name})")

@@ -47,12 +47,17 @@ def test_real_raytrix_without_a_focus_option_is_its_total_focus(tmp_path):
 
 
 def test_a_refocus_option_without_a_focus_asks_for_the_refocus_and_two_focus_options_are_refused(tmp_path):
-    """On a Raytrix raw ``--method`` means a refocus of the decoded light field (slope 0), not the total focus;
+    """On a Raytrix raw ``--method`` means a refocus of the decoded light field (slope 0), not the total focus:
+    a light field of one pixel per lens, which is refused in one line as decode refuses it, unless --views-anyway;
     two focus options stay a usage error naming them, with nothing written."""
     r42 = shared_path("raytrix-r42", "sc2_klein.png")
     res = run(r42, "--method", "shift-sum", "-o", tmp_path / "refocus.png")
+    assert res.exit_code == 2 and "focused-plenoptic" in res.output and "--views-anyway" in res.output, res.output
+    assert "total focus" not in res.output.split("Error:")[0] and not (tmp_path / "refocus.png").exists()
+    res = run(r42, "--method", "shift-sum", "--views-anyway", "-o", tmp_path / "refocus.png")
     assert res.exit_code == 0, res.output
     assert "focused as captured: slope +0.000 px/view" in res.output
+    assert read_image(tmp_path / "refocus.png").shape[:2] == (22, 31)
     two = run(r42, "--slope", "0", "--total-focus", "-o", tmp_path / "two.png")
     assert two.exit_code == 2
     assert "pass at most one of" in two.output and "--slope S and --total-focus" in two.output

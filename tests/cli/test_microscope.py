@@ -246,3 +246,32 @@ def test_antleg_dark_photo_is_named_and_auto_exposure_brightens_it(antleg, tmp_p
     assert r.exit_code == 0, r.output
     png = srgb_decode(to_unit_float(read_image(out)))
     assert float(np.percentile(png.max(axis=-1) if png.ndim == 3 else png, 99.5)) > 0.97
+
+
+def test_dark_frame_of_another_size_is_refused_before_any_work(tmp_path, monkeypatch):
+    """'--dark' with a frame of another camera was reported as 'dark image must have the raw's size ...' (no
+    option named) after the white image had been calibrated (~1.4 s); it is now a usage error naming --dark,
+    before the calibration (decode, views and batch on the real ant-leg capture with the F01 JPEG as dark)."""
+    from plenodecode import pipeline
+    from plenodecode.pipeline import source as source_module
+
+    folder = shared_path(*ANTLEG)
+    wrong = shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg")
+    calibrated = []
+    for module in (pipeline, source_module):
+        monkeypatch.setattr(module, "choose_calibration",
+                            lambda *a, _real=module.choose_calibration, **k: calibrated.append(a) or _real(*a, **k))
+    common = [str(folder / "light_field.png"), "-w", str(folder / "radiometry_frame.png"), "--dark", str(wrong)]
+    for command, out in (("decode", tmp_path / "lf.zarr"), ("views", tmp_path / "views")):
+        res = CliRunner().invoke(cli, [command, *common, "-o", str(out)])
+        errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+        assert res.exit_code == 2 and len(errors) == 1, res.output
+        assert errors[0] == ("Error: Invalid value for --dark: IMG_1.jpg is 3280 x 3280 px but the raw "
+                             "light_field.png is 2592 x 2160; pass the dark frame of this camera"), errors
+        assert not out.exists()
+    assert calibrated == []
+    res = CliRunner().invoke(cli, ["batch", *common, "-o", str(tmp_path / "batch")])
+    assert res.exit_code == 1, res.output
+    row = [line for line in res.output.splitlines() if line.startswith("light_field.png")]
+    assert len(row) == 1 and "failed" in row[0] and "IMG_1.jpg is 3280 x 3280 px" in row[0], res.output
+    assert "Traceback" not in res.output

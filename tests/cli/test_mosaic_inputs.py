@@ -184,3 +184,16 @@ def test_readme_real_data_commands_run_as_written(tmp_path, monkeypatch):
         res = CliRunner().invoke(cli, args, catch_exceptions=False)
         assert res.exit_code == 0, (line, res.output)
     assert len(list((tmp_path / "IMG_1_views").glob("*.png"))) == 81
+
+
+def test_info_names_the_sensor_a_real_f01_jpeg_was_recognised_by(tmp_path):
+    """'plenodecode info IMG_1.jpg' said 'camera unknown model' although the reader takes the F01's CFA and levels
+    from its 3280 x 3280 size; it now says what it was recognised as.  An image of an unknown size stays unknown."""
+    res = CliRunner().invoke(cli, ["info", str(shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg"))])
+    assert res.exit_code == 0, res.output
+    camera = [line for line in res.output.splitlines() if line.strip().startswith("camera")]
+    assert camera == ["  camera   Lytro F01 (by its 3280 x 3280 sensor; the file has no camera metadata)"], res.output
+    other = tmp_path / "other.png"
+    write_image(other, np.full((60, 80), 1000, np.uint16), bit_depth=16)
+    res = CliRunner().invoke(cli, ["info", str(other)])
+    assert res.exit_code == 0 and "camera   unknown model" in res.output, res.output

@@ -101,3 +101,15 @@ def test_export_of_a_raw_says_to_decode_it_first(tmp_path):
     assert run("decode", ILLUM, "--database", ROOT / "calib", "-o", tmp_path / "lf.zarr").exit_code == 0
     res = run("export", tmp_path / "lf.zarr", "-o", tmp_path / "page.html")
     assert res.exit_code == 0 and (tmp_path / "page.html").stat().st_size > 10000, res.output
+
+
+def test_decode_to_an_unknown_extension_names_the_format_option(tmp_path, no_work):
+    """'plenodecode decode RAW -o x.xyz' said 'pass format= one of [...] (use --format)', naming the Python keyword;
+    it now names --format and the extensions that choose a format, in one line, before the raw is opened."""
+    for command in (["decode", ILLUM, "--database", ROOT / "calib"], ["export", ILLUM]):
+        res = run(*command, "-o", tmp_path / "x.xyz")
+        errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+        assert res.exit_code == 2 and len(errors) == 1, res.output
+        assert "pass --format one of ['eslf', 'mat', 'npy', 'views', 'zarr']" in errors[0], errors
+        assert ".zarr" in errors[0] and "format=" not in res.output, res.output
+    assert no_work == [] and list(tmp_path.iterdir()) == []

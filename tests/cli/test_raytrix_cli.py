@@ -215,9 +215,11 @@ def test_real_r42_rgb_export_decodes_with_one_progress_and_one_warning(tmp_path,
     done = [d for d, _ in seen]
     assert len({t for _, t in seen}) == 1 and done == sorted(done) and done[-1] == seen[0][1], seen
     assert sum("no white image" in r.getMessage() for r in caplog.records) == 1
-    res = run("views", shared_path("raytrix-r42", "sc2_klein.png"), "-o", tmp_path / "views")
+    res = run("views", shared_path("raytrix-r42", "sc2_klein.png"), "--views-anyway", "-o", tmp_path / "views")
     assert res.exit_code == 0, res.output
     assert res.output.count("decoding") == 1, res.output
+    assert "wrote 1225 views (35x35)" in res.output      # asked for with --views-anyway: one pixel per lens
+    assert read_image(tmp_path / "views" / "view_17_17.png").shape == (22, 31, 3)
 
 
 def test_batch_default_is_the_cameras_photograph_as_the_one_liner_writes_it(tmp_path):
@@ -382,3 +384,37 @@ def test_info_on_the_r42_says_it_is_an_rgb_export_not_a_monochrome_raw(r42):
     assert res.exit_code == 0, res.output
     line = next(line for line in res.output.splitlines() if line.strip().startswith("raw "))
     assert "964 x 670, RGB export (3 channels" in line and "monochrome" not in line and "65535" not in line
+
+
+def test_views_parallax_and_refocus_by_slope_of_a_focused_raw_are_refused_as_decode_refuses_it(tmp_path, monkeypatch):
+    """views, parallax and a refocus by slope of the real R42 crop silently wrote 22 x 31 px outputs (35 x 35
+    views, one pixel per lens); like decode they now stop in one usage line before decoding anything, saying what
+    to type instead, unless --views-anyway (which parallax and refocus then honour: a 22 x 31 px photograph)."""
+    from plenodecode.pipeline import source
+
+    r42 = shared_path("raytrix-r42", "sc2_klein.png")
+    decoded = []
+    real = source.decode_raw
+    monkeypatch.setattr(source, "decode_raw", lambda *a, **k: decoded.append(a) or real(*a, **k))
+    photo = f"'plenodecode render {r42} --total-focus -o photo.png'"
+    cases = {("views", r42, "-o", tmp_path / "views"): photo,
+             ("parallax", r42, "-o", tmp_path / "p.gif"): photo,
+             ("refocus", r42, "--slope", 0.5, "-o", tmp_path / "r.png"): f"'plenodecode refocus {r42} --virtual-depth V",
+             ("refocus", r42, "-o", tmp_path / "r.png"): "--virtual-depth V",
+             (r42, "--slope", 0.5, "-o", tmp_path / "s.png"): "--virtual-depth V",
+             ("decode", r42, "-o", tmp_path / "lf.zarr"): photo}
+    for args, instead in cases.items():
+        res = run(*args)
+        err = error_lines(res)
+        assert res.exit_code == 2 and len(err) == 1, (args, res.output)
+        assert err[0].startswith("Error: sc2_klein.png is a focused-plenoptic (Raytrix) raw"), err
+        assert "one pixel per lens" in err[0] and instead in err[0] and "(or pass --views-anyway)" in err[0], err
+    assert decoded == [] and list(tmp_path.iterdir()) == []
+    res = run("refocus", r42, "--slope", 0.5, "--views-anyway", "-o", tmp_path / "r.png")
+    assert res.exit_code == 0, res.output
+    assert read_image(tmp_path / "r.png").shape[:2] == (22, 31)
+    res = run("parallax", r42, "--views-anyway", "--frames", 3, "--no-frames", "-o", tmp_path / "p.gif")
+    assert res.exit_code == 0 and (tmp_path / "p.gif").stat().st_size > 0, res.output
+    # a refocus at a virtual depth is the focused raw's own: --views-anyway means nothing there
+    res = run("refocus", r42, "--virtual-depth", 3.5, "--views-anyway", "-o", tmp_path / "v.png")
+    assert res.exit_code == 2 and "--views-anyway refocuses a light field" in res.output, res.output

@@ -255,3 +255,20 @@ def test_a_slope_that_moves_the_views_past_the_picture_is_refused_naming_its_opt
     res = run(illum, "--refocus", 1.5, "-o", tmp_path / "far.png")      # slope 20.3 on 87 x 125: the limit is 17.9
     assert res.exit_code == 2 and "Invalid value for --refocus / --alpha" in res.output, res.output
     assert not (tmp_path / "far.png").exists()
+
+
+def test_alpha_beyond_the_picture_is_refused_without_the_out_of_range_warning(tmp_path, caplog):
+    """'plenodecode sample_raws/illum-mini/scene.lfr --refocus 1.5' logged 'slope 20.3 px/view is outside the
+    refocusable range' and then refused the slope (|slope| <= 17.9 on its 87 x 125 picture): only the refusal."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    out = tmp_path / "x.png"
+    with caplog.at_level("WARNING"):
+        res = run(root / "sample_raws" / "illum-mini" / "scene.lfr", "--database", root / "calib", "--refocus", 1.5,
+                  "-o", out)
+    assert res.exit_code == 2, res.output
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert len(errors) == 1 and "--refocus / --alpha" in errors[0] and "past the whole 87 x 125 picture" in errors[0]
+    assert not [r.getMessage() for r in caplog.records if "refocusable range" in r.getMessage()], caplog.records
+    assert not out.exists()
