@@ -8,8 +8,8 @@ import click
 
 from ..pipeline import parallax_frame_names
 from .common import (FOCUSED_PHOTO, NON_NEGATIVE, POSITIVE, bit_depth_option, calibration_kwargs, check_folder_output,
-                     check_output, input_options, output_option, overwrite_option, progress_bar, quiet,
-                     refuse_focused_views, usage_errors, views_anyway_option)
+                     check_output, exposure_option, input_options, output_option, overwrite_option, progress_bar,
+                     quiet, refuse_focused_views, usage_errors, views_anyway_option)
 from .views import INTERP_CHOICE
 
 
@@ -28,14 +28,15 @@ from .views import INTERP_CHOICE
 @click.option("--interp", type=INTERP_CHOICE, default="linear", show_default=True,
               help="Interpolation between neighbouring views.")
 @bit_depth_option
+@exposure_option
 @input_options
 @views_anyway_option
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, output: Path, n_frames: int, radius: float | None, fps: float,
-            frames_dir: Path | None, no_frames: bool, interp: str, bit_depth: str, calibration: Path | None,
-            white: Path | None, database: Path | None, self_calibrate: bool, views_anyway: bool,
-            overwrite: bool) -> None:
+            frames_dir: Path | None, no_frames: bool, interp: str, bit_depth: str, exposure: float | str,
+            calibration: Path | None, white: Path | None, database: Path | None, self_calibrate: bool,
+            views_anyway: bool, overwrite: bool) -> None:
     """Write a parallax animation of RAW_OR_LF to OUTPUT (.gif or .webp) and its frames as numbered images
     (frame_000.png ...).  A focused-plenoptic (Raytrix) raw is refused (exit 2) unless --views-anyway: its views
     have one pixel per lens.
@@ -61,6 +62,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, n_frames: int, r
         rendered = render_product(src, "parallax", frames=n_frames, radius=radius, interp=interp,
                                   progress=progress_bar("rendering", ctx))
     with usage_errors():
-        write_parallax(rendered, output, fps=fps, frames_dir=folder, bit_depth=int(bit_depth), overwrite=overwrite)
+        write_parallax(rendered, output, fps=fps, frames_dir=folder, bit_depth=int(bit_depth), overwrite=overwrite,
+                       exposure=exposure)
     if not quiet(ctx):
         click.echo(f"wrote {output} ({n_frames} frames)" + ("" if folder is None else f" and frames in {folder}"))

@@ -229,13 +229,17 @@ def write_product(rendered: Rendered, output: str | os.PathLike, *, bit_depth: i
 
 def write_parallax(rendered: Rendered, animation: str | os.PathLike, *, fps: float,
                    frames_dir: str | os.PathLike | None = None, bit_depth: int = 16,
-                   overwrite: bool = False) -> list[Path]:
+                   overwrite: bool = False, exposure: float | str = 0.0) -> list[Path]:
     """Write a parallax product: the animation (.gif / .webp) and, with ``frames_dir``, its numbered frames
-    (``frame_000.png`` ...).  Both or neither: the frames folder is committed after the animation is written."""
+    (``frame_000.png`` ...).  Both or neither: the frames folder is committed after the animation is written.
+    ``exposure``: as :func:`write_product`, one gain for the animation and the frames."""
     from ..io import images
 
+    gain = exposure_gain(rendered, exposure)
+
     def write_animation() -> Path:
-        return images.write_animation(animation, rendered.data["animation"], fps=fps, overwrite=overwrite,
+        frames = expose(rendered.data["animation"], rendered.colour, gain)
+        return images.write_animation(animation, frames, fps=fps, overwrite=overwrite,
                                       encode_srgb=rendered.colour in LINEAR_COLOURS)
 
     if frames_dir is None:
@@ -243,7 +247,7 @@ def write_parallax(rendered: Rendered, animation: str | os.PathLike, *, fps: flo
     names = rendered.file_names("png")
     with staged_folder(frames_dir, names, overwrite=overwrite) as stage:
         for name, (_, frame) in zip(names, rendered.images):
-            write_image_file(stage / name, frame, colour=rendered.colour, bit_depth=bit_depth)
+            write_image_file(stage / name, frame, colour=rendered.colour, bit_depth=bit_depth, gain=gain)
         written = [write_animation()]
     return written + [Path(frames_dir) / n for n in names]
 

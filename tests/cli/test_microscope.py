@@ -246,6 +246,15 @@ def test_antleg_dark_photo_is_named_and_auto_exposure_brightens_it(antleg, tmp_p
     assert r.exit_code == 0, r.output
     png = srgb_decode(to_unit_float(read_image(out)))
     assert float(np.percentile(png.max(axis=-1) if png.ndim == 3 else png, 99.5)) > 0.97
+    # the parallax animation and its frames take the same option (one gain for all frames)
+    anim = tmp_path / "wobble.gif"
+    r = CliRunner().invoke(cli, ["parallax"] + base[:-2] + ["-o", str(anim), "--frames", "4", "--exposure", "auto"],
+                           obj={})
+    assert r.exit_code == 0, r.output
+    for written in (anim, tmp_path / "wobble_frames" / "frame_000.png"):
+        img = to_unit_float(read_image(written))
+        img = img[..., :3] if img.ndim == 3 else img                         # the GIF has alpha; the PNG is grey
+        assert float(np.percentile(img, 99.5)) > 0.95, written              # 0.47 at the default exposure
 
 
 def test_dark_frame_of_another_size_is_refused_before_any_work(tmp_path, monkeypatch):
