@@ -86,10 +86,10 @@ COSTVOLUME: dict[str, Any] = {
     "refine_radius_noisy": 5, # refinement box radius at least this on views noisier than contrast_smooth_noise
                               # (decoded thin means 32.24 -> 31.04 % at shift_noise 0; illum-mini dec 2.42 -> 2.21 %)
     "contrast_weight_noisy": 0.03,  # contrast_weight on noisy views (ramped in from contrast_smooth_noise to twice it)
-    "p1_noisy_low": 0.5,      # SGM's p1 and the refinement's box radius where even the pixels that match are
-    "refine_radius_noisy_low": 9,  # noisy (pipeline.NOISY_LOW: decoded raws): the thin decoded scenes' mean
-                              # 16.61 -> 13.56 %, 12 others decoded 27.91 -> 24.70 %, illum-mini dec 0.69 -> 0.58 %;
-                              # on the ideal light fields (5.76 -> 5.93 % if applied there) they do not apply
+    "p1_noisy_low": 0.5,      # SGM's p1 where even the pixels that match are noisy (pipeline.NOISY_LOW: decoded
+                              # raws): the 36 thin decoded scenes' mean 24.76 -> 22.48 %, illum-mini dec 0.69 ->
+                              # 0.59 %; not on the ideal light fields.  A refinement box of 9 px there as well gave
+                              # 21.99 %, but the f01-mini sample raw 6.1 -> 9.0 %, so it was not kept
     "radius_noisy": 3,        # the cost volume's box radius on views noisier than twice contrast_smooth_noise
                               # (decoded thin means 27.76 -> 26.79 %, illum-mini dec 2.34 -> 2.09 %)
 }
@@ -130,7 +130,6 @@ FAST: dict[str, Any] = {
     "refine_radius_noisy": 0,
     "radius_noisy": 0,
     "p1_noisy_low": 0.2,
-    "refine_radius_noisy_low": 0,
     "contrast_weight_noisy": None,
 }
 

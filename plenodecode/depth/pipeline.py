@@ -79,8 +79,7 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    ``+-refine_range`` labels around the estimate, every view warped per pixel by ``d(y, x) + offset``
    (bicubic), so slanted surfaces match exactly (SGM's label penalties favour fronto-parallel steps); its
    parabolic minimum is added to the estimate.  Its strips aggregate along lines as long as its box; on
-   noisy views (above ``contrast_smooth_noise``) the box radius is at least ``refine_radius_noisy``, where
-   the matching pixels are noisy (as for ``p1_noisy_low``) at least ``refine_radius_noisy_low``.
+   noisy views (above ``contrast_smooth_noise``) the box radius is at least ``refine_radius_noisy``.
 6. **Occlusion edges** (:mod:`~plenodecode.depth.occlusion`, parameters ``edge_*``): within ``edge_radius``
    px of a disparity jump, a pixel on the near side whose cost over *all* views (an occluder is seen by
    every view) exceeds ``edge_ratio`` x the far disparity's cost over the best wedge of views moves to the
@@ -223,7 +222,7 @@ PIPELINE_KEYS = ("label_step", "radius", "p1", "p2", "edge_sigma", "paths", "med
                  "strip_radius", "strip_penalty", "refine_strip_penalty", "strip_penalty_noise", "refine_penalty_noise",
                  "strip_floor", "gate_ratio", "gate_floor", "gate_noise", "sgm_gate_ratio", "sgm_gate_floor",
                  "confidence_radius", "shift_noise", "refine_shift_noise", "shift_noise_rho", "radius_noisy",
-                 "refine_radius_noisy", "refine_radius_noisy_low", "p1_noisy_low",
+                 "refine_radius_noisy", "p1_noisy_low",
                  "contrast_weight_noisy", *EDGE_DEFAULTS)
 
 
@@ -261,7 +260,7 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
         raise ValueError(f"edge_jump and edge_ratio must be positive, got edge_jump={p['edge_jump']!r}, "
                          f"edge_ratio={p['edge_ratio']!r}")
     for name in ("radius", "median_radius", "refine_radius", "edge_radius", "edge_median_radius", "confidence_radius",
-                 "radius_noisy", "refine_radius_noisy", "refine_radius_noisy_low"):
+                 "radius_noisy", "refine_radius_noisy"):
         if name == "refine_radius" and p[name] == "auto":
             continue
         if int(p[name]) < 0:
@@ -286,9 +285,8 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
     return p
 
 
-#: Views count as noisy for ``p1_noisy_low`` and ``refine_radius_noisy_low`` where the noise of the pixels that
-#: match (``sigma_low`` of :func:`~plenodecode.depth.views.noise_sigmas`) is above this x ``contrast_smooth_noise``
-#: (0.0045: between the noise-free thin scenes' 0.0004-0.0032 and the decoded thin raws' 0.0057-0.0114).
+#: Views count as noisy for ``p1_noisy_low`` where the noise of the pixels that match (``sigma_low`` of
+#: :func:`~plenodecode.depth.views.noise_sigmas`) is above this x ``contrast_smooth_noise`` (0.0045: between the noise-free thin scenes' 0.0004-0.0032 and the decoded thin raws' 0.0057-0.0114).
 NOISY_LOW = 1.5
 
 
@@ -476,9 +474,6 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     if refine_radius > 0 and noise > float(p["contrast_smooth_noise"]) > 0:
         # noisy views: a longer refinement box averages the noise (never shorter than the size's own)
         refine_radius = max(refine_radius, int(p["refine_radius_noisy"]))
-    if refine_radius > 0 and noise_low > NOISY_LOW * float(p["contrast_smooth_noise"]) > 0:
-        # ... longer still where even the pixels that match are noisy (decoded raws)
-        refine_radius = max(refine_radius, int(p["refine_radius_noisy_low"]))
     n_refine = int(p["refine_samples"]) if refine_radius > 0 else 0
     total = n_labels + n_paths + n_refine
 
