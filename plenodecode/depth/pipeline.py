@@ -286,7 +286,8 @@ def check_params(method: str, defaults: Mapping[str, Any], kw: Mapping[str, Any]
 
 
 #: Views count as noisy for ``p1_noisy_low`` where the noise of the pixels that match (``sigma_low`` of
-#: :func:`~plenodecode.depth.views.noise_sigmas`) is above this x ``contrast_smooth_noise`` (0.0045: between the noise-free thin scenes' 0.0004-0.0032 and the decoded thin raws' 0.0057-0.0114).
+#: :func:`~plenodecode.depth.views.noise_sigmas`) is above this x ``contrast_smooth_noise`` (0.0045: between the
+#: noise-free thin scenes' 0.0004-0.0032 and the decoded thin raws' 0.0057-0.0114).
 NOISY_LOW = 1.5
 
 
