@@ -121,6 +121,9 @@ class BatchOptions:
     optics : dict or None
         Light-field microscope optics given for every raw (``MicroscopeOptics.to_dict()``, metres); they win
         over a napari-LF ``metadata.txt`` beside a raw.
+    views_anyway : bool
+        Write the outputs cut from the decoded views (:data:`VIEW_OUTPUTS`) of a focused-plenoptic (Raytrix) raw
+        too (``--views-anyway``); without it such a raw asking for them fails in one line, before decoding.
     geometry : dict or None
         Geometric calibration that rectifies every light field (``--geometry``;
         ``GeometricCalibration.to_dict()``, so its values, not its path, are hashed); a raw whose decoded
@@ -145,6 +148,7 @@ class BatchOptions:
     optics: Mapping[str, float | None] | None = None
     geometry: Mapping[str, Any] | None = None
     min_confidence: float | None = None
+    views_anyway: bool = False
 
     def __post_init__(self) -> None:
         outs = tuple(self.outputs) if not isinstance(self.outputs, str) else (self.outputs,)
@@ -545,6 +549,23 @@ def _image_product_options(product: str, options: BatchOptions) -> dict[str, Any
     return {"distance_m": options.distance_m} if options.distance_m is not None else {"slope": options.slope}
 
 
+#: Outputs cut from the decoded views; a focused-plenoptic raw's have one pixel per lens (:func:`_check_focused_views`).
+VIEW_OUTPUTS = ("lightfield", "views", "centre", "refocus", "all-in-focus")
+
+
+def _check_focused_views(raw: Any, calibration: Any, options: BatchOptions) -> None:
+    """Refuse, before decoding, the :data:`VIEW_OUTPUTS` of a focused-plenoptic (Raytrix) raw unless
+    ``options.views_anyway``: its decoded views have one pixel per lens (the real R42 crop: 22 x 31 px), as the
+    commands refuse them (:func:`plenodecode.cli.common.refuse_focused_views`)."""
+    cut = [o for o in options.outputs if o in VIEW_OUTPUTS]
+    if calibration.grid.lens_type is None or not cut or options.views_anyway:
+        return
+    name = Path(raw.path).name if raw.path else "this raw"
+    raise DecodeError(f"{name} is a focused-plenoptic (Raytrix) raw: --outputs {','.join(cut)} would cut its views, "
+                      "one pixel per lens; ask for photo (its total focus), total-focus or depth (virtual depth), "
+                      "or pass --views-anyway")
+
+
 #: A refocus keyword of :func:`_image_product_options` -> the ``plenodecode batch`` option that set it.
 FOCUS_OPTIONS = {"slope": "--slope", "alpha": "--alpha", "distance_m": "--focus-distance"}
 
@@ -607,6 +628,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     dark = pipeline.read_dark_frame(options.dark, mosaic, raw=raw)     # its size checked before the calibration
     calibration = pipeline.choose_calibration(raw, database=options.db_dir, white=options.white, mosaic=mosaic)
     _check_focus_reach(raw, calibration, options)
+    _check_focused_views(raw, calibration, options)
     src = pipeline.Source(raw=raw, calibration=calibration, decode_options={
         "workers": threads, "dark": dark},
         geometry=options.geometric_calibration())

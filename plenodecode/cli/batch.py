@@ -11,7 +11,8 @@ from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
 from ..io.depthio import DEFAULT_MIN_CONFIDENCE
 from .common import (FINITE, POSITIVE, UNIT_INTERVAL, RegistryChoice, bit_depth_option, current_geometry,
                      current_microscope_inputs, current_mosaic_options, database_option, exposure_option,
-                     geometry_option, jobs_option, microscope_options, mosaic_options, progress_bar)
+                     geometry_option, jobs_option, microscope_options, mosaic_options, progress_bar,
+                     views_anyway_option)
 
 
 def _parse_outputs(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
@@ -91,10 +92,11 @@ def _microscope_fields() -> dict:
               default=DEFAULT_DEPTH_METHOD, show_default=True, help="Method of the 'depth' product.")
 @click.option("--min-confidence", "min_confidence", type=UNIT_INTERVAL, default=DEFAULT_MIN_CONFIDENCE,
               show_default=True, help="Grey out the pixels of the 'depth' thumbnails below this confidence (0 = none).")
+@views_anyway_option
 @click.option("--overwrite", is_flag=True, help="Redo raws a previous run finished and replace their outputs.")
 @click.pass_context
 def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, database, white, lf_format, bit_depth,
-            exposure, slope, alpha, distance_m, depth_method, min_confidence, overwrite) -> None:
+            exposure, slope, alpha, distance_m, depth_method, min_confidence, views_anyway, overwrite) -> None:
     """Decode every raw under INPUTS and write the chosen outputs per raw into OUTPUT/<name>/.
 
     Each raw is matched to its camera's calibration in the database (by serial, zoom and
@@ -155,7 +157,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
                            black_level=mosaic.black_level, white_level=mosaic.white_level,
                            input_encoding=mosaic.input_encoding, white=None if white is None else str(white),
                            geometry=None if current_geometry() is None else current_geometry().to_dict(),
-                           **_microscope_fields())
+                           views_anyway=views_anyway, **_microscope_fields())
     try:
         summary = run_batch(files, out_dir, options, jobs=jobs, scheduler=scheduler, overwrite=overwrite,
                             progress=progress_bar(f"decoding {len(files)} raws", ctx))

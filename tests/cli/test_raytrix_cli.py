@@ -418,3 +418,24 @@ def test_views_parallax_and_refocus_by_slope_of_a_focused_raw_are_refused_as_dec
     # a refocus at a virtual depth is the focused raw's own: --views-anyway means nothing there
     res = run("refocus", r42, "--virtual-depth", 3.5, "--views-anyway", "-o", tmp_path / "v.png")
     assert res.exit_code == 2 and "--views-anyway refocuses a light field" in res.output, res.output
+
+
+def test_batch_refuses_a_focused_raws_view_outputs_unless_asked(tmp_path):
+    """'batch --outputs centre,photo,depth' over the real R42 wrote its centre view as a 31 x 22 px thumbnail
+    (the commands refuse such views). The R42 now fails in one line, before decoding, naming the outputs and
+    what to ask for instead, while the Illum sample beside it is done; with --views-anyway the old outputs."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    r42, illum = shared_path("raytrix-r42", "sc2_klein.png"), root / "sample_raws" / "illum-mini" / "scene.lfr"
+    base = ["batch", r42, illum, "--outputs", "centre,photo,depth", "--database", root / "calib", "--jobs", 1]
+    res = run(*base, "-o", tmp_path / "out")
+    assert res.exit_code == 1, res.output
+    row = [line for line in res.output.splitlines() if line.startswith("sc2_klein.png")]
+    assert len(row) == 1 and " failed " in row[0] and "--outputs centre would cut its views" in row[0], res.output
+    assert "--views-anyway" in row[0] and "Traceback" not in res.output
+    assert not (tmp_path / "out" / "sc2_klein").exists()
+    assert sorted(p.name for p in (tmp_path / "out" / "scene").glob("*.png")) == ["centre.png", "refocus_s+0.00.png"]
+    res = run(*base, "-o", tmp_path / "anyway", "--views-anyway")
+    assert res.exit_code == 0, res.output
+    assert read_image(tmp_path / "anyway" / "sc2_klein" / "centre.png").shape[:2] == (22, 31)
