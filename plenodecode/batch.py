@@ -553,17 +553,21 @@ def _image_product_options(product: str, options: BatchOptions) -> dict[str, Any
 VIEW_OUTPUTS = ("lightfield", "views", "centre", "refocus", "all-in-focus")
 
 
-def _check_focused_views(raw: Any, calibration: Any, options: BatchOptions) -> None:
+def _raw_name(raw: Any) -> str:
+    """The raw's file name, as a batch's one-line failures name it."""
+    return Path(raw.path).name if raw.path else "this raw"
+
+
+def _check_focused_views(src: Any, options: BatchOptions) -> None:
     """Refuse, before decoding, the :data:`VIEW_OUTPUTS` of a focused-plenoptic (Raytrix) raw unless
     ``options.views_anyway``: its decoded views have one pixel per lens (the real R42 crop: 22 x 31 px), as the
     commands refuse them (:func:`plenodecode.cli.common.refuse_focused_views`)."""
     cut = [o for o in options.outputs if o in VIEW_OUTPUTS]
-    if calibration.grid.lens_type is None or not cut or options.views_anyway:
+    if not src.focused or not cut or options.views_anyway:
         return
-    name = Path(raw.path).name if raw.path else "this raw"
-    raise DecodeError(f"{name} is a focused-plenoptic (Raytrix) raw: --outputs {','.join(cut)} would cut its views, "
-                      "one pixel per lens; ask for photo (its total focus), total-focus or depth (virtual depth), "
-                      "or pass --views-anyway")
+    raise DecodeError(f"{_raw_name(src.raw)} is a focused-plenoptic (Raytrix) raw: --outputs {','.join(cut)} would "
+                      "cut its views, one pixel per lens; ask for photo (its total focus), total-focus or depth "
+                      "(virtual depth), or pass --views-anyway")
 
 
 #: A refocus keyword of :func:`_image_product_options` -> the ``plenodecode batch`` option that set it.
@@ -574,28 +578,26 @@ def _focus_option_error(product: str, options: BatchOptions, raw: Any, exc: Valu
     """The failure of one raw whose refocus option value it cannot serve (a slope past its picture): a plain
     one-line error naming the option and its value, not a bug's traceback."""
     keyword, value = next(iter(_image_product_options(product, options).items()))
-    name = Path(raw.path).name if raw.path else "this raw"
-    return DecodeError(f"{FOCUS_OPTIONS[keyword]} {value:g} does not suit {name}: {exc}")
+    return DecodeError(f"{FOCUS_OPTIONS[keyword]} {value:g} does not suit {_raw_name(raw)}: {exc}")
 
 
-def _check_focus_reach(raw: Any, calibration: Any, options: BatchOptions) -> None:
-    """Refuse, before decoding, a ``slope`` that moves the outermost views of ``raw``'s light field past its
+def _check_focus_reach(src: Any, options: BatchOptions) -> None:
+    """Refuse, before decoding, a ``slope`` that moves the outermost views of the raw's light field past its
     whole picture (:func:`plenodecode.render._common.check_slope_reach` on the decoded shape the calibration
     gives); alpha and a distance become slopes only with the decoded geometry and are checked when rendered."""
     from .decoding.rectify import decoded_shape
     from .pipeline.products import photo_focus
     from .render._common import check_slope_reach
 
-    focused = calibration.grid.lens_type is not None
     for product in options.outputs:
         if product not in ("refocus", "photo") or options.alpha is not None or options.distance_m is not None:
             continue
-        if product == "photo" and photo_focus(focused).get("total_focus"):
+        if product == "photo" and photo_focus(src.focused).get("total_focus"):
             continue
         try:
-            check_slope_reach(decoded_shape(calibration.grid), options.slope)
+            check_slope_reach(decoded_shape(src.calibration.grid), options.slope)
         except ValueError as exc:
-            raise _focus_option_error(product, options, raw, exc) from None
+            raise _focus_option_error(product, options, src.raw, exc) from None
 
 
 def depth_stem(rendered: Any) -> str:
@@ -627,11 +629,11 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     mosaic = options.mosaic_options()
     dark = pipeline.read_dark_frame(options.dark, mosaic, raw=raw)     # its size checked before the calibration
     calibration = pipeline.choose_calibration(raw, database=options.db_dir, white=options.white, mosaic=mosaic)
-    _check_focus_reach(raw, calibration, options)
-    _check_focused_views(raw, calibration, options)
     src = pipeline.Source(raw=raw, calibration=calibration, decode_options={
         "workers": threads, "dark": dark},
         geometry=options.geometric_calibration())
+    _check_focus_reach(src, options)        # both before the (lazy) decoding
+    _check_focused_views(src, options)
     bits = options.bit_depth
     thumbs = folder / THUMB_DIR
     thumbs.mkdir()
