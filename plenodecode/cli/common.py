@@ -355,6 +355,36 @@ def image_bit_depth(ctx: click.Context, bit_depth: str, suffix: str, *, param_hi
     return int(bit_depth)
 
 
+def lightfield_bit_depth(ctx: click.Context, name: str, output: Path, bit_depth: str,
+                         image_type: str | None = None) -> int:
+    """The bit depth a light field in format ``name`` is written with at ``output``, checked before any work
+    (usage errors naming the option): zarr and npy store float32, so a typed ``--bit-depth`` other than 32 is
+    refused; mat stores 16 bits; an ESLF mosaic is a .png/.tif (:data:`~plenodecode.io.lightfield.ESLF_EXTENSIONS`)
+    at a depth it holds; views at a depth their ``--image-type`` holds (:func:`image_bit_depth`)."""
+    from ..io.lightfield import ESLF_EXTENSIONS
+
+    typed = ctx.get_parameter_source("bit_depth") is ParameterSource.COMMANDLINE
+    if name in ("zarr", "npy"):
+        if typed and bit_depth != "32":
+            raise click.BadParameter(f"{name} stores float32 samples (lossless), not {bit_depth}-bit ones; leave it "
+                                     "out, or write --format views, eslf or mat", param_hint="--bit-depth")
+        return int(bit_depth)
+    if name == "mat":
+        if bit_depth != "16" and typed:
+            raise click.BadParameter(f"the LFToolbox .mat format stores 16-bit samples, not {bit_depth}",
+                                     param_hint="--bit-depth")
+        return 16
+    if name == "eslf":
+        if output.suffix.lower() not in ESLF_EXTENSIONS:
+            raise click.BadParameter(f"an ESLF mosaic is written as {', '.join(ESLF_EXTENSIONS[:-1])} or {ESLF_EXTENSIONS[-1]} (its 4th channel "
+                                     f"is the weight, and it loads back by that extension), not "
+                                     f"{output.suffix or 'a name without extension'}", param_hint="-o / --output")
+        return image_bit_depth(ctx, bit_depth, output.suffix)
+    if name == "views" and image_type is not None:
+        return image_bit_depth(ctx, bit_depth, f".{image_type}", param_hint="--image-type")
+    return int(bit_depth)
+
+
 def check_output(path: Path, overwrite: bool) -> None:
     """Refuse to replace an existing output unless ``--overwrite`` was given (usage error, exit 2)."""
     if path.exists() and not overwrite:

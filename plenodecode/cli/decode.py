@@ -8,8 +8,8 @@ from pathlib import Path
 import click
 
 from .common import (FOCUSED_PHOTO, RegistryChoice, bit_depth_option, calibration_kwargs, input_options,
-                     lightfield_output_format, lightfield_summary, output_option, overwrite_option, progress_bar, quiet,
-                     refuse_database_with_grid, refuse_focused_views, usage_errors, views_anyway_option)
+                     lightfield_bit_depth, lightfield_output_format, lightfield_summary, output_option,
+                     overwrite_option, progress_bar, quiet, refuse_database_with_grid, refuse_focused_views, usage_errors, views_anyway_option)
 
 log = logging.getLogger(__name__)
 
@@ -64,6 +64,7 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
     if n_views is not None and (n_views < 1 or n_views % 2 == 0):
         raise click.BadParameter("must be a positive odd number", param_hint="--views")
     name = lightfield_output_format(output, fmt, overwrite)
+    depth = lightfield_bit_depth(ctx, name, output, bit_depth)
     inputs = calibration_kwargs(calibration, white, database, self_calibrate)
     dark, optics, geometry = inputs.pop("dark"), inputs.pop("optics"), inputs.pop("geometry")
     raw = open_raw(raw_path, mosaic=inputs["mosaic"], raytrix_xml=inputs.pop("raytrix_xml"), optics=optics)
@@ -77,7 +78,7 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
                     colour=colour, n_views=n_views, hot_pixels=not no_hot_pixels,
                     progress=progress_bar("decoding", ctx), geometry=geometry)
     with usage_errors():
-        out = write_lightfield(lf, output, format=name, bit_depth=int(bit_depth), overwrite=overwrite,
+        out = write_lightfield(lf, output, format=name, bit_depth=depth, overwrite=overwrite,
                                progress=progress_bar(f"writing {name}", ctx))
     if not quiet(ctx):
         rectified = ", rectified" if lf.geometry.ray_model else ""

@@ -8,8 +8,8 @@ import click
 
 from ..pipeline import IMAGE_EXTENSIONS
 from ..registry import lazy
-from .common import (RegistryChoice, bit_depth_option, check_output, lightfield_output_format, lightfield_summary,
-                     output_option, overwrite_option, progress_bar)
+from .common import (RegistryChoice, bit_depth_option, check_output, lightfield_bit_depth, lightfield_output_format,
+                     lightfield_summary, output_option, overwrite_option, progress_bar)
 
 #: Exports that are pages for people, not light fields (they never load back; their extensions are
 #: :data:`plenodecode.io.lightfield.PAGE_EXTENSIONS`): name -> ``write(lf, path, *, overwrite, progress)``.
@@ -107,6 +107,7 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
         name = page
     else:
         name = lightfield_output_format(output, fmt, overwrite)
+        bit_depth = str(lightfield_bit_depth(ctx, name, output, bit_depth, image_type))
     lf = _load(lf_in)
     try:
         if page is not None:

@@ -113,3 +113,59 @@ def test_decode_to_an_unknown_extension_names_the_format_option(tmp_path, no_wor
         assert "pass --format one of ['eslf', 'mat', 'npy', 'views', 'zarr']" in errors[0], errors
         assert ".zarr" in errors[0] and "format=" not in res.output, res.output
     assert no_work == [] and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("command, args, option, words", [
+    ("decode", ["-o", "lf.jpg", "--format", "eslf"], "-o / --output", "an ESLF mosaic is written as .png, .tif or "
+                                                                      ".tiff"),
+    ("decode", ["-o", "lf.mat", "--bit-depth", "8"], "--bit-depth", "the LFToolbox .mat format stores 16-bit"),
+    ("decode", ["-o", "lf.zarr", "--bit-depth", "8"], "--bit-depth", "zarr stores float32 samples (lossless), not 8"),
+    ("decode", ["-o", "lf.npy", "--bit-depth", "16"], "--bit-depth", "npy stores float32 samples"),
+    ("export", ["-o", "lf.exr", "--format", "eslf"], "-o / --output", "not .exr"),
+    ("export", ["-o", "v", "--format", "views", "--image-type", "exr", "--bit-depth", "8"], "--bit-depth",
+     ".exr files hold 16 or 32 bits per sample, not 8"),
+    ("export", ["-o", "v", "--format", "views", "--image-type", "png", "--bit-depth", "32"], "--bit-depth",
+     ".png files hold 8 or 16 bits per sample, not 32"),
+], ids=["decode-eslf-jpg", "decode-mat-8", "decode-zarr-8", "decode-npy-16", "export-eslf-exr", "export-exr-8",
+        "export-png-32"])
+def test_a_lightfield_format_its_bit_depth_cannot_hold_is_refused_before_any_work(tmp_path, monkeypatch, command,
+                                                                                  args, option, words):
+    """'decode RAW -o lf.mat --bit-depth 8' and '-o lf.jpg --format eslf' decoded the raw (export: loaded the light
+    field) and then failed naming the keyword 'bit_depth' (or wrote an ESLF .exr that does not load back); '--bit-depth
+    8' with zarr was ignored in silence.  Now one line naming the option, before the raw or light field is read."""
+    from plenodecode.io import lightfield
+    from plenodecode.types import LightField
+
+    opened = []
+    monkeypatch.setattr(pipeline, "open_raw", lambda *a, **k: opened.append(a))
+    monkeypatch.setattr(lightfield, "load_lightfield", lambda *a, **k: opened.append(a))
+    src = ILLUM
+    if command == "export":
+        src = tmp_path / "in" / "lf.zarr"
+        lightfield.save_lightfield(LightField(np.zeros((3, 3, 4, 5, 3), np.float32)), src)
+    out = tmp_path / "out"
+    rest = [str(out / a) if prev == "-o" else a for prev, a in zip([None, *args], args)]
+    res = run(command, src, *(["--database", ROOT / "calib"] if command == "decode" else []), *rest)
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert res.exit_code == 2 and len(errors) == 1, res.output
+    assert f"Invalid value for {option}:" in errors[0] and words in errors[0] and "bit_depth" not in errors[0], errors
+    assert opened == [] and not out.exists()
+
+
+def test_lightfield_bit_depths_that_fit_are_written(tmp_path):
+    """The depths the formats hold still write: zarr with --bit-depth 32, an ESLF .tif of floats that loads back as
+    the light field, views as 32-bit TIFFs."""
+    from plenodecode.io.lightfield import load_lightfield, save_lightfield
+
+    assert run("decode", ILLUM, "--database", ROOT / "calib", "-o", tmp_path / "lf.zarr",
+               "--bit-depth", 32).exit_code == 0
+    lf = load_lightfield(tmp_path / "lf.zarr")
+    res = run("export", tmp_path / "lf.zarr", "-o", tmp_path / "lf.tif", "--bit-depth", 32)
+    assert res.exit_code == 0, res.output
+    assert np.abs(load_lightfield(tmp_path / "lf.tif").data - lf.data).max() < 1e-6
+    res = run("export", tmp_path / "lf.zarr", "-o", tmp_path / "v", "--format", "views", "--image-type", "tif",
+              "--bit-depth", 32)
+    assert res.exit_code == 0 and read_image(tmp_path / "v" / "input_Cam112.tif").dtype == np.float32, res.output
+    with pytest.raises(ValueError, match="an ESLF mosaic is written as"):
+        save_lightfield(lf, tmp_path / "lf.exr", format="eslf")
+    assert not (tmp_path / "lf.exr").exists()
