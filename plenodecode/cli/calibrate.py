@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from ..errors import CalibrationError
 from ..io.atomic import write_text_atomic
 from .common import POSITIVE, RegistryChoice, check_output, overwrite_option, progress_bar
 
@@ -58,6 +59,10 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
     from ..calib import store
     from ..io.lytro.archive import archive_kind
 
+    if for_raw is not None and database is None:
+        raise click.UsageError("--for RAW picks a white image from a calibration database: add --database DIR")
+    if database is not None:
+        _refuse_unused_with_database(ctx, for_raw, inputs, output, report, scene, refine)
     if output is not None:
         check_output(output, overwrite)
     if report is not None:
@@ -71,11 +76,12 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
             raise click.UsageError("--database needs the folder(s) of MOD_NNNN.RAW/.TXT white images or the "
                                    "calibration archives to index")
         entries = []
+        fit = {"lattice": lattice, "pitch_hint": pitch_hint}
         for folder in inputs:  # index the folder's whites, fit and cache their grids (store.cache_grids)
-            entries = store.build_database(folder, database, overwrite=overwrite, lattice=lattice,
+            entries = store.build_database(folder, database, overwrite=overwrite, **fit,
                                            progress=progress_bar(f"fitting whites in {folder}", ctx))
         if not inputs:  # the database alone: fit and cache the grids its index lacks
-            entries = store.cache_grids(database, overwrite=overwrite, lattice=lattice,
+            entries = store.cache_grids(database, overwrite=overwrite, **fit,
                                         progress=progress_bar(f"fitting the white images of {database}", ctx))
         serials = sorted({str(e.serial) for e in entries})
         click.echo(f"{database}: {len(entries)} white image(s) of camera(s) {', '.join(serials)}")
@@ -86,10 +92,14 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
     if database is not None:
         from ..io import read_raw
         raw = read_raw(for_raw)
-        entry = store.select_white(database, raw)
-        grid = store.grid_for(raw, database, lattice=lattice)
+        try:
+            entry, grid = store.lookup_grid(raw, database, lattice=lattice, pitch_hint=pitch_hint)
+        except CalibrationError as exc:
+            raise CalibrationError(f"{exc}; or 'plenodecode calibrate WHITE -o {output}' fits a white image, "
+                                   f"'plenodecode calibrate --scene {for_raw} -o {output}' finds the grid in the "
+                                   "scene") from exc
         white = store.white_path(entry, database)
-        click.echo(f"white image {entry.file} (serial {entry.serial}, zoom {entry.zoom_step}, focus {entry.focus_step})",
+        click.echo(f"white image {white} (serial {entry.serial}, zoom {entry.zoom_step}, focus {entry.focus_step})",
                    err=True)
     else:
         if not inputs:
@@ -108,6 +118,24 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
         from ..report.calibration import write_calibration_report
         write_calibration_report(grid, white, report, overwrite=overwrite)
         click.echo(f"report {report}")
+
+
+def _refuse_unused_with_database(ctx: click.Context, for_raw: Path | None, inputs: tuple[Path, ...],
+                                 output: Path | None, report: Path | None, scene: bool, refine: bool) -> None:
+    """Usage errors, before any work, for options that would be ignored with --database: -o and --report
+    without --for (indexing writes no grid file), WHITE with --for, --scene and --refine (a database holds
+    white images)."""
+    unused = [opt for opt, given in (("-o/--output", output is not None and for_raw is None),
+                                     ("--report", report is not None and for_raw is None),
+                                     ("--scene", scene), ("--refine", refine)) if given]
+    if unused:
+        raise click.UsageError(f"{' and '.join(unused)} {'does' if len(unused) == 1 else 'do'} nothing with "
+                               "--database DIR, which indexes white images and caches their grids inside DIR; "
+                               "--database DIR --for RAW -o grid.json writes the grid of RAW's white image")
+    if for_raw is not None and inputs:
+        raise click.UsageError(f"--for {for_raw.name} picks the white image from the database, so WHITE "
+                               f"({inputs[0].name}) is not used: index it first ('plenodecode calibrate --database "
+                               "DIR FOLDER'), or calibrate it alone without --database")
 
 
 def _calibrate_inputs(ctx: click.Context, inputs: tuple[Path, ...], *, lattice: str, pitch_hint: float | None,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 from dataclasses import replace
 
 import numpy as np
@@ -131,3 +132,53 @@ def test_real_antleg_radiometry_frame_is_judged_about_its_relay_lens_distortion(
     rms, rest, field = map(float, line.groups())
     assert rms > 0.4 and rest < 0.1 and field > 1.0
     assert "verdict: good" in (tmp_path / "grid.html").read_text()
+
+
+def test_database_for_a_raw_without_serial_takes_only_a_white_of_its_sensor_size(white_pair, tmp_path):
+    """'calibrate --database DB --for IMG_1.jpg' (a 3280 x 3280 JPEG mosaic, no serial) took the database's only
+    camera (a 260 x 320 sensor here), warned twice, and failed 'the database entry belongs to another sensor' after
+    loading its grid, advising '-g' / '--white', which calibrate does not have.  Now the database's white images of
+    another sensor size are not candidates, and the one line says so, naming calibrate's own ways."""
+    path, _ = white_pair
+    db = tmp_path / "calib"
+    assert run("calibrate", "--database", db, path.parent).exit_code == 0
+    raw, _ = simulate_white("f01-mini", seed=9, shape=(300, 300))
+    write_raw_pair(tmp_path / "pic" / "frame.RAW", replace(raw, metadata=replace(raw.metadata, serial=None,
+                                                                                is_white_image=False)))
+    r = CliRunner().invoke(cli, ["calibrate", "--database", str(db), "--for", str(tmp_path / "pic" / "frame.RAW"),
+                                 "-o", str(tmp_path / "g.json")], obj={})
+    lines = r.output.strip().splitlines()
+    assert r.exit_code == 1 and len(lines) == 1, r.output
+    assert "no white image of its sensor size 300 x 300" in lines[0] and "(320 x 260)" in lines[0], lines
+    assert "calibrate --scene" in lines[0] and "-g" not in lines[0] and not (tmp_path / "g.json").exists()
+    # a serial-less raw of the database's sensor size: that camera's white, one warning, a path the user can open
+    write_raw_pair(tmp_path / "pic2" / "frame.RAW", replace(raw, mosaic=np.zeros(SHAPE, np.uint16), metadata=replace(
+        raw.metadata, serial=None, is_white_image=False)))
+    r = CliRunner().invoke(cli, ["calibrate", "--database", str(db), "--for", str(tmp_path / "pic2" / "frame.RAW"),
+                                 "-o", str(tmp_path / "g.json")], obj={})
+    assert r.exit_code == 0, r.output
+    said = r.stderr.splitlines()
+    assert sum("no camera serial" in line for line in said) <= 1, said
+    white = [line for line in said if line.startswith("white image ")][0].split()[2]
+    assert Path(white).resolve() == path.resolve()
+    assert LensletGrid.from_json((tmp_path / "g.json").read_text()).sensor_shape == SHAPE
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--database", "DB", "FOLDER", "-o", "g.json"], "-o/--output does nothing with --database DIR"),
+    (["--database", "DB", "FOLDER", "--report", "r.html"], "--report does nothing with --database DIR"),
+    (["--database", "DB", "FOLDER", "--scene"], "--scene does nothing with --database DIR"),
+    (["--database", "DB", "--for", "WHITE", "WHITE", "-o", "g.json"], "so WHITE (MOD_0000.RAW) is not used"),
+    (["--for", "WHITE", "-o", "g.json"], "--for RAW picks a white image from a calibration database: add --database"),
+], ids=["output", "report", "scene", "white-and-for", "for-alone"])
+def test_database_options_that_would_be_ignored_are_refused(white_pair, tmp_path, args, words):
+    """'calibrate --database DB FOLDER -o grid.json' indexed the folder and wrote no grid.json, in silence (so did
+    --report and --scene); '--for RAW' without --database said 'give at least one WHITE image'.  Each is now a
+    usage error naming the option, before anything is written."""
+    path, _ = white_pair
+    names = {"DB": tmp_path / "db", "FOLDER": path.parent, "WHITE": path}
+    full = [str(names.get(a, tmp_path / a if a.endswith((".json", ".html")) else a)) for a in args]
+    r = CliRunner().invoke(cli, ["calibrate", *full], obj={})
+    errors = [line for line in r.output.splitlines() if line.startswith("Error:")]
+    assert r.exit_code == 2 and len(errors) == 1 and words in errors[0], r.output
+    assert list(tmp_path.iterdir()) == []
