@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -106,10 +107,11 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
             raise click.UsageError("give at least one WHITE image (or --database with a folder)")
         if any(p.is_dir() for p in inputs):
             raise click.UsageError("a folder was given: use --database DIR to index a folder of white images")
-        grid = _calibrate_inputs(ctx, inputs, lattice=lattice, pitch_hint=pitch_hint, scene=scene, refine=refine)
-        white = list(inputs)
-    for msg in grid.info.get("warnings", []):
-        click.echo(f"warning: {msg}", err=True)
+        grid, white = _calibrate_inputs(ctx, inputs, lattice=lattice, pitch_hint=pitch_hint, scene=scene,
+                                        refine=refine)
+    if database is not None:  # a cached grid's warnings were logged when it was fitted, not now
+        for msg in grid.info.get("warnings", []):
+            click.echo(f"warning: {msg}", err=True)
     from ..report.calibration import rms_text
     _write_text(output, grid.to_json())
     click.echo(f"grid  {output}  ({grid.lattice}, pitch {grid.pitch:.4f} px, rotation {grid.rotation:.6f} rad, "
@@ -139,17 +141,24 @@ def _refuse_unused_with_database(ctx: click.Context, for_raw: Path | None, input
 
 
 def _calibrate_inputs(ctx: click.Context, inputs: tuple[Path, ...], *, lattice: str, pitch_hint: float | None,
-                      scene: bool, refine: bool):
+                      scene: bool, refine: bool) -> tuple[Any, list[Any]]:
+    """The grid of ``inputs`` and what it came from, read once (RawCaptures; the path of a scene image no raw
+    reader takes), for the report: reading them again would repeat the readers' warnings."""
     from ..calib import calibrate
     from ..calib.selfcal import calibrate_from_scene, calibrate_raytrix
+    from ..errors import FormatError
     from ..io import read_raw
 
     if scene:
         if len(inputs) != 1:
             raise click.UsageError("--scene takes exactly one raw or image")
-        return calibrate_from_scene(inputs[0], lattice=lattice, pitch_hint=pitch_hint,
-                                    progress=progress_bar("self-calibrating", ctx))
+        try:
+            source = read_raw(inputs[0])
+        except FormatError:     # an image no raw reader takes (self-calibration reads it as an image)
+            source = inputs[0]
+        return calibrate_from_scene(source, lattice=lattice, pitch_hint=pitch_hint,
+                                    progress=progress_bar("self-calibrating", ctx)), [source]
     raws = [read_raw(p) for p in inputs]
     if "raytrix" in raws[0].metadata.extra:
-        return calibrate_raytrix(raws[0], refine=refine)
-    return calibrate(raws, lattice=lattice, pitch_hint=pitch_hint, progress=progress_bar("calibrating", ctx))
+        return calibrate_raytrix(raws[0], refine=refine), raws
+    return calibrate(raws, lattice=lattice, pitch_hint=pitch_hint, progress=progress_bar("calibrating", ctx)), raws

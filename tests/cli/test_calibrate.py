@@ -67,7 +67,8 @@ def test_bad_inputs_exit_1_with_one_line(white_pair, tmp_path):
     sim = simulate("f01-mini", seed=1, shape=(300, 300))
     write_raw_pair(tmp_path / "scene.RAW", replace(sim.raw, metadata=replace(sim.raw.metadata, is_white_image=False)))
     r = CliRunner().invoke(cli, ["calibrate", str(tmp_path / "scene.RAW"), "-o", str(tmp_path / "s.json")], obj={})
-    assert r.exit_code == 0 and "warning: this looks like a scene" in r.output
+    assert r.exit_code == 0 and LensletGrid.from_json((tmp_path / "s.json").read_text()).info["warnings"][0].startswith(
+        "this looks like a scene")       # logged once (test_each_warning_once_with_a_report)
     r = run("calibrate", path)
     assert r.exit_code == 2 and "-o" in r.output
 
@@ -182,3 +183,29 @@ def test_database_options_that_would_be_ignored_are_refused(white_pair, tmp_path
     errors = [line for line in r.output.splitlines() if line.startswith("Error:")]
     assert r.exit_code == 2 and len(errors) == 1 and words in errors[0], r.output
     assert list(tmp_path.iterdir()) == []
+
+
+def test_each_warning_once_with_a_report(tmp_path):
+    """'calibrate radiometry_frame.png --report r.html' printed the reader's two warnings (no sidecar, estimated
+    black) twice: the report read the white image again; a scene given as a white printed 'this looks like a
+    scene' twice (logged, then echoed as 'warning:').  Each now once, and the report still judges the grid."""
+    import shutil
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[2]
+    shutil.copy(root / "sample_raws" / "square" / "scene_white.png", tmp_path / "white.png")   # no sidecar
+    env = {**__import__("os").environ, "PYTHONPATH": str(root)}
+    proc = subprocess.run([sys.executable, "-m", "plenodecode", "calibrate", str(tmp_path / "white.png"),
+                           "-o", str(tmp_path / "g.json"), "--report", str(tmp_path / "r.html")],
+                          capture_output=True, text=True, env=env, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.count("no JSON sidecar") == 1 and proc.stderr.count("black estimated") == 1, proc.stderr
+    assert "RMS 0.0" in (tmp_path / "r.html").read_text()           # judged: the white's grid fits
+    sim = simulate("f01-mini", seed=1, shape=(300, 300))
+    write_raw_pair(tmp_path / "scene.RAW", replace(sim.raw, metadata=replace(sim.raw.metadata, is_white_image=False)))
+    proc = subprocess.run([sys.executable, "-m", "plenodecode", "calibrate", str(tmp_path / "scene.RAW"),
+                           "-o", str(tmp_path / "s.json"), "--report", str(tmp_path / "s.html")],
+                          capture_output=True, text=True, env=env, cwd=tmp_path)
+    assert proc.returncode == 0 and proc.stderr.count("this looks like a scene") == 1, proc.stderr
+    assert "verdict: bad" in (tmp_path / "s.html").read_text()
