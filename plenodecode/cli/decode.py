@@ -72,6 +72,10 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
     cal = choose_calibration(raw, **inputs)
     refuse_focused_views(cal.grid.lens_type is not None, raw_path, views_anyway,
                          instead=FOCUSED_PHOTO.format(raw=raw_path))
+    if n_views is not None and n_views > cal.grid.max_views():
+        raise click.BadParameter(f"{n_views} is more than the {cal.grid.max_views()} views per axis that see a "
+                                 f"micro-image (the lenses are {cal.grid.pitch:.2f} px apart and a view step is one "
+                                 f"sensor pixel; the default is {cal.grid.n_views()})", param_hint="--views")
     if geometry is not None:
         check_geometry(geometry, calibration=cal, n_views=n_views)
     lf = decode_raw(raw, cal, dark=dark, demosaic=demosaic, resample=resample,

@@ -114,6 +114,9 @@ def _check_views(n_views: int | None, grid: LensletGrid) -> int:
         return grid.n_views()
     if not isinstance(n_views, (int, np.integer)) or n_views < 1 or n_views % 2 == 0:
         raise ValueError(f"n_views must be a positive odd integer, got {n_views!r}")
+    if n_views > grid.max_views():
+        raise ValueError(f"n_views {n_views} is more than the {grid.max_views()} views per axis that see a "
+                         f"micro-image: the lenses are {grid.pitch:.2f} px apart and a view step is one sensor pixel")
     return int(n_views)
 
 

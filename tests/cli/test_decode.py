@@ -152,3 +152,32 @@ def test_decode_resample_hex_is_the_2d_kernel_and_closer_to_the_truth(files, tmp
     assert psnr["hex"] > psnr["cubic"] + 0.05
     bad = run(["decode", str(raw), "-g", str(grid), "-o", str(tmp_path / "x.npy"), "--resample", "lanczos"])
     assert bad.exit_code == 2 and "--resample" in bad.output
+
+
+def test_more_views_than_a_micro_image_holds_is_refused_before_decoding(files, tmp_path, monkeypatch):
+    """'decode --views 101' on a 14.3 px Illum grid decoded 101 x 101 views (22 s, 8 GB of views of nothing but the
+    neighbouring lenses' disks or zeros); more views than 2 ceil(pitch / 2) + 1 is now a usage error naming --views
+    before the decoder runs; that many still decodes, with data in its middle ring."""
+    from plenodecode import pipeline
+    from plenodecode.io.lightfield import load_lightfield
+
+    sim, raw, white, grid = files
+    most = sim.grid.max_views()
+    assert most == 2 * int(np.ceil(sim.grid.pitch / 2)) + 1 == 11           # F01: 9.93 px
+    decoded = []
+    real = pipeline.decode_raw
+    monkeypatch.setattr(pipeline, "decode_raw", lambda *a, **k: decoded.append(1) or real(*a, **k))
+    res = CliRunner().invoke(cli, ["decode", str(raw), "-g", str(grid), "-w", str(white), "-o",
+                                   str(tmp_path / "lf.zarr"), "--views", str(most + 2)])
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert res.exit_code == 2 and len(errors) == 1, res.output
+    assert f"Invalid value for --views: {most + 2} is more than the {most} views per axis" in errors[0]
+    assert decoded == [] and not (tmp_path / "lf.zarr").exists()
+    with pytest.raises(ValueError, match="n_views 13 is more than the 11"):
+        from plenodecode import decode
+        decode(sim.raw, sim.grid, n_views=13)
+    res = run(["decode", str(raw), "-g", str(grid), "-w", str(white), "-o", str(tmp_path / "lf.zarr"),
+               "--views", str(most)])
+    assert res.exit_code == 0, res.output
+    lf = load_lightfield(tmp_path / "lf.zarr")
+    assert lf.shape[:2] == (most, most) and lf.weight[most // 2, most // 2].mean() > 0.5
