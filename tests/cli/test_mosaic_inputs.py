@@ -197,3 +197,17 @@ def test_info_names_the_sensor_a_real_f01_jpeg_was_recognised_by(tmp_path):
     write_image(other, np.full((60, 80), 1000, np.uint16), bit_depth=16)
     res = CliRunner().invoke(cli, ["info", str(other)])
     assert res.exit_code == 0 and "camera   unknown model" in res.output, res.output
+
+
+def test_info_of_a_sidecarless_mosaic_gives_its_size_one_way(tmp_path, caplog):
+    """'info light_field.png' (the ant leg, 2592 wide, 2160 high) warned 'unknown sensor size 2160 x 2592' and then
+    printed 'raw 2592 x 2160': height first in one line, width first in the next.  Both say width x height now, as
+    every other message does."""
+    import logging
+
+    write_image(tmp_path / "mosaic.png", np.full((120, 200), 3000, np.uint16), bit_depth=16)
+    with caplog.at_level(logging.WARNING):
+        res = CliRunner().invoke(cli, ["info", str(tmp_path / "mosaic.png")])
+    assert res.exit_code == 0, res.output
+    assert "raw      200 x 120" in res.output, res.output
+    assert "unknown sensor size 200 x 120" in caplog.text and "120 x 200" not in caplog.text, caplog.text
