@@ -1,0 +1,67 @@
+"""``plenodecode info`` on the other files a user finds beside raws: grids, sidecars, ground truth, the database's
+index, geometric calibrations and Raytrix XML.  Each used to be refused as 'JSON, but not Lytro frame metadata'
+(or, for the XML, 'not a raw LibRaw can read')."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from click.testing import CliRunner
+
+from plenodecode.cli.main import cli
+from plenodecode.types import LensletGrid
+from tests.conftest import shared_path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def info(path):
+    res = CliRunner().invoke(cli, ["info", str(path)])
+    assert res.exit_code == 0, res.output
+    return res.output
+
+
+def test_info_describes_a_grid_a_sidecar_a_truth_and_the_index():
+    grid_file = ROOT / "calib" / "B5143909630" / "MOD_0000.grid.json"
+    grid = LensletGrid.from_json(grid_file.read_text())
+    out = info(grid_file)
+    assert "lenslet grid (from MOD_0000.RAW)" in out
+    assert f"pitch {grid.pitch:.4f} px" in out and f"{grid.shape[0]} x {grid.shape[1]} lenses" in out
+    assert f"sensor   {grid.sensor_shape[1]} x {grid.sensor_shape[0]}; 15 x 15 views" in out
+    out = info(ROOT / "sample_raws" / "square" / "scene.json")
+    assert "JSON sidecar of scene.png" in out and "raw      1100 x 1100, monochrome, black 100, white 4095" in out
+    out = info(ROOT / "sample_raws" / "illum-mini" / "scene.truth.json")
+    assert "ground truth of a raw 'plenodecode synth' generated" in out and "illum-mini" in out
+    assert "sensor 1544 x 1072" in out
+    out = info(ROOT / "calib" / "index.json")
+    assert "3 white image(s) of camera(s) A000424242, B5143909630, LFM-0001; 3 grid(s) cached" in out
+
+
+def test_info_describes_the_real_calinfo_and_raytrix_xml():
+    from plenodecode.io.calinfo import load_geometric_calibration
+
+    path = shared_path("lytro-f01-gridmodel", "CalInfo.json")
+    cal = load_geometric_calibration(path)
+    out = info(path)
+    assert "geometric calibration (the Light Field Toolbox's CalInfo.json)" in out
+    assert "light fields of 11 x 11 views of 379 x 379" in out and cal.lf_shape == (11, 11, 379, 379)
+    assert f"[k1 k2 k3 b1 b2] = [{cal.distortion[0]:.4g}, {cal.distortion[1]:.4g}" in out
+    out = info(shared_path("raytrix-r42", "sc2_klein.xml"))
+    assert "Raytrix RayCalibData" in out and "its image is sc2_klein.png" in out
+    assert "diameter 34.865 px" in out and "3 lens type(s)" in out
+
+
+def test_other_json_is_still_refused_in_one_line(tmp_path):
+    (tmp_path / "x.json").write_text('{"a": 1}')
+    res = CliRunner().invoke(cli, ["info", str(tmp_path / "x.json")])
+    assert res.exit_code == 1 and "JSON, but not Lytro frame metadata" in res.output
+
+
+def test_info_on_a_grid_calibrate_just_wrote(tmp_path):
+    name = "grid.json"
+    res = CliRunner().invoke(cli, ["calibrate", str(ROOT / "sample_raws" / "f01-mini" / "MOD_0000.RAW"),
+                                   "-o", str(tmp_path / name)])
+    assert res.exit_code == 0, res.output
+    grid = LensletGrid.from_json((tmp_path / name).read_text())
+    assert "lenslet grid (fitted to white image(s): MOD_0000.RAW)" in info(tmp_path / name)
+    assert f"pitch {grid.pitch:.4f} px, rotation {grid.rotation:.6f} rad" in info(tmp_path / name)
