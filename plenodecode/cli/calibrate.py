@@ -161,4 +161,12 @@ def _calibrate_inputs(ctx: click.Context, inputs: tuple[Path, ...], *, lattice: 
     raws = [read_raw(p) for p in inputs]
     if "raytrix" in raws[0].metadata.extra:
         return calibrate_raytrix(raws[0], refine=refine), raws
-    return calibrate(raws, lattice=lattice, pitch_hint=pitch_hint, progress=progress_bar("calibrating", ctx)), raws
+    try:
+        return calibrate(raws, lattice=lattice, pitch_hint=pitch_hint, progress=progress_bar("calibrating", ctx)), raws
+    except CalibrationError as exc:
+        if pitch_hint is None:
+            raise
+        known = raws[0].metadata.lenslet_pitch_px()
+        said = f"its metadata says {known:.3f} px" if known else "without it the pitch is estimated from the image"
+        raise CalibrationError(f"{exc} (with --pitch {pitch_hint:g} px as the hint; {said}: check the value or "
+                               "leave --pitch out)") from exc

@@ -237,3 +237,16 @@ def test_each_warning_once_with_a_report(tmp_path):
                           capture_output=True, text=True, env=env, cwd=tmp_path)
     assert proc.returncode == 0 and proc.stderr.count("this looks like a scene") == 1, proc.stderr
     assert "verdict: bad" in (tmp_path / "s.html").read_text()
+
+
+def test_a_mistyped_pitch_hint_is_named_in_the_error(white_pair, tmp_path):
+    """'calibrate MOD_0000.RAW --pitch 99' (for 9.9) said only 'only N lenslet centres detected ... is this a white
+    image of a plenoptic camera?'; the one line now names the --pitch hint and the metadata's pitch."""
+    path, truth = white_pair
+    r = CliRunner().invoke(cli, ["calibrate", str(path), "-o", str(tmp_path / "g.json"), "--pitch", "99"], obj={})
+    lines = r.output.strip().splitlines()
+    assert r.exit_code == 1 and lines[-1].startswith("error:"), r.output
+    assert "with --pitch 99 px as the hint; its metadata says 9.928 px" in lines[-1], lines
+    assert not (tmp_path / "g.json").exists()
+    r = run("calibrate", path, "-o", tmp_path / "g.json", "--pitch", "9.9")
+    assert r.exit_code == 0 and abs(LensletGrid.from_json((tmp_path / "g.json").read_text()).pitch - truth.pitch) < 0.01
