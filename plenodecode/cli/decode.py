@@ -14,8 +14,34 @@ from .common import (FOCUSED_PHOTO, RegistryChoice, bit_depth_option, calibratio
 log = logging.getLogger(__name__)
 
 
+def refuse_decoded_input(raw_path: Path) -> None:
+    """A usage error naming RAW, before any work, for what is no raw: a saved light field or an HCI scene (decoded
+    already: it says which command takes it) or another folder."""
+    from ..pipeline import input_kind
+
+    kind = input_kind(raw_path)
+    if kind == "raw" and not raw_path.is_dir():
+        return
+    if kind != "hci" and raw_path.is_dir() and not _holds_lightfield(raw_path):
+        raise click.BadParameter(f"{raw_path.name} is a folder; decode reads one raw file ('plenodecode batch "
+                                 f"{raw_path} -o OUT/' decodes the raws of a folder)", param_hint="RAW")
+    what = "an HCI scene" if kind == "hci" else "a saved light field"
+    other = "lf.zarr" if raw_path.suffix.lower() == ".mat" else "lf.mat"
+    raise click.BadParameter(f"{raw_path.name} is {what}, decoded already: 'plenodecode export {raw_path} -o "
+                             f"{other}' converts it, 'plenodecode {raw_path} -o photo.png' renders it",
+                             param_hint="RAW")
+
+
+def _holds_lightfield(folder: Path) -> bool:
+    """A zarr store or a views folder, by the files that make them one."""
+    from ..io.lightfield import VIEWS_JSON
+
+    return (folder / "zarr.json").is_file() or (folder / VIEWS_JSON).is_file() or \
+        next(folder.glob("input_Cam*"), None) is not None
+
+
 @click.command("decode")
-@click.argument("raw_path", metavar="RAW", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument("raw_path", metavar="RAW", type=click.Path(exists=True, path_type=Path))
 @output_option
 @input_options
 @click.option("--format", "fmt", type=RegistryChoice("plenodecode.io.lightfield", "LIGHTFIELD_FORMATS", sort=True),
@@ -60,6 +86,7 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
     """
     from ..pipeline import check_geometry, choose_calibration, decode_raw, open_raw, read_dark_frame, write_lightfield
 
+    refuse_decoded_input(raw_path)
     refuse_database_with_grid(calibration, white, database)
     if n_views is not None and (n_views < 1 or n_views % 2 == 0):
         raise click.BadParameter("must be a positive odd number", param_hint="--views")

@@ -181,3 +181,24 @@ def test_more_views_than_a_micro_image_holds_is_refused_before_decoding(files, t
     assert res.exit_code == 0, res.output
     lf = load_lightfield(tmp_path / "lf.zarr")
     assert lf.shape[:2] == (most, most) and lf.weight[most // 2, most // 2].mean() > 0.5
+
+
+def test_a_light_field_or_a_folder_given_to_decode_says_which_command_takes_it(files, tmp_path):
+    """'decode lf.mat' said 'not a raw LibRaw can read', 'decode lf.zarr' or an HCI scene folder 'File ... is a
+    directory'; a decoded input now gets one usage error naming RAW and the commands that take it (and they do),
+    a folder of raws the batch command, before anything is written."""
+    sim, raw, white, grid = files
+    assert run(["-q", "decode", str(raw), "-g", str(grid), "-o", str(tmp_path / "lf.mat")]).exit_code == 0
+    assert run(["-q", "decode", str(raw), "-g", str(grid), "-o", str(tmp_path / "lf.zarr")]).exit_code == 0
+    for given, words in ((tmp_path / "lf.mat", "lf.mat is a saved light field, decoded already: 'plenodecode "
+                          f"export {tmp_path / 'lf.mat'} -o lf.zarr' converts it"),
+                         (tmp_path / "lf.zarr", "lf.zarr is a saved light field"),
+                         (raw.parent, f"{raw.parent.name} is a folder; decode reads one raw file ('plenodecode "
+                                      f"batch {raw.parent} -o OUT/'")):
+        res = CliRunner().invoke(cli, ["decode", str(given), "-o", str(tmp_path / "out.zarr")])
+        errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+        assert res.exit_code == 2 and len(errors) == 1, res.output
+        assert "Invalid value for RAW:" in errors[0] and words in errors[0], errors
+    assert not (tmp_path / "out.zarr").exists()
+    res = run([str(tmp_path / "lf.mat"), "-o", str(tmp_path / "photo.png")])    # what the message says works
+    assert res.exit_code == 0 and (tmp_path / "photo.png").is_file(), res.output
