@@ -56,7 +56,8 @@ class DecodeError(PlenodecodeError):
 
 
 class DarkFrameMismatchError(DecodeError):
-    """A dark frame (``--dark``) of another size than the raw, found before any work."""
+    """A dark frame (``--dark``) of another size than the raw, or one that would leave it black (a white or scene
+    frame), found before any work."""
 
 
 def one_line(exc: BaseException) -> str:
