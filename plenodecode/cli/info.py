@@ -124,7 +124,10 @@ def _describe_lightfield(path: Path) -> list[str]:
 
     lf = open_input(path)
     g = lf.geometry
-    lines = [f"{path}: light field {' x '.join(map(str, lf.shape))} (V, U, Y, X, C), colour {lf.colour}"]
+    from .common import COLOUR_WORDS
+
+    colour = "monochrome" if lf.shape[-1] == 1 else COLOUR_WORDS.get(lf.colour, lf.colour)   # as decode says it
+    lines = [f"{path}: light field {' x '.join(map(str, lf.shape))} (V, U, Y, X, C), {colour}"]
     if g.hci is not None:
         lines.append("  camera   HCI scene (pinhole views, parameters.cfg)")
     elif g.camera is not None:

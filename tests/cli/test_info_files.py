@@ -65,3 +65,16 @@ def test_info_on_a_grid_calibrate_just_wrote(tmp_path):
     grid = LensletGrid.from_json((tmp_path / name).read_text())
     assert "lenslet grid (fitted to white image(s): MOD_0000.RAW)" in info(tmp_path / name)
     assert f"pitch {grid.pitch:.4f} px, rotation {grid.rotation:.6f} rad" in info(tmp_path / name)
+
+
+def test_info_of_a_decoded_light_field_names_its_colour_as_decode_did(tmp_path):
+    """'decode' said 'monochrome' for the square microscope sample and 'info' on what it wrote said 'colour camera';
+    both say 'monochrome' (and 'linear sRGB' for a colour light field)."""
+    res = CliRunner().invoke(cli, ["decode", str(ROOT / "sample_raws" / "square" / "scene.png"), "--database",
+                                   str(ROOT / "calib"), "-o", str(tmp_path / "lf.zarr")])
+    assert res.exit_code == 0 and "monochrome" in res.output, res.output
+    assert "(V, U, Y, X, C), monochrome" in info(tmp_path / "lf.zarr")
+    res = CliRunner().invoke(cli, ["decode", str(ROOT / "sample_raws" / "f01-mini" / "scene.lfp"), "--database",
+                                   str(ROOT / "calib"), "-o", str(tmp_path / "c.zarr")])
+    assert res.exit_code == 0 and "linear sRGB" in res.output, res.output
+    assert "(V, U, Y, X, C), linear sRGB" in info(tmp_path / "c.zarr")
