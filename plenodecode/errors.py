@@ -60,6 +60,15 @@ class DarkFrameMismatchError(DecodeError):
     frame), found before any work."""
 
 
+class LevelOptionError(MetadataError):
+    """A typed ``--black-level`` / ``--white-level`` (``option``) the mosaic's samples cannot have, found as soon as
+    the file is read: the CLI makes it a usage error naming the option."""
+
+    def __init__(self, message: str, option: str) -> None:
+        super().__init__(message)
+        self.option = option
+
+
 def one_line(exc: BaseException) -> str:
     """``'TypeName: first line of the message'`` of ``exc``, for tables and logs that give a failure one line."""
     text = f"{type(exc).__name__}: {exc}".strip()
@@ -67,4 +76,4 @@ def one_line(exc: BaseException) -> str:
 
 
 __all__ = ["PlenodecodeError", "FormatError", "MetadataError", "CalibrationError", "GeometryMismatchError",
-           "MissingConstantsError", "DecodeError", "DarkFrameMismatchError", "one_line"]
+           "MissingConstantsError", "DecodeError", "DarkFrameMismatchError", "LevelOptionError", "one_line"]

@@ -18,7 +18,8 @@ from pathlib import Path
 import click
 
 from .. import __version__, _numba
-from ..errors import DarkFrameMismatchError, GeometryMismatchError, MissingConstantsError, PlenodecodeError
+from ..errors import (DarkFrameMismatchError, GeometryMismatchError, LevelOptionError, MissingConstantsError,
+                      PlenodecodeError)
 
 #: command name -> (module, one-line description shown by --help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -112,6 +113,8 @@ class LazyGroup(click.Group):
             raise click.BadParameter(str(exc), param_hint="--geometry") from None
         except DarkFrameMismatchError as exc:     # checked as soon as the raw is read, before the calibration
             raise click.BadParameter(str(exc), param_hint="--dark") from None
+        except LevelOptionError as exc:           # a typed level the file's samples cannot have: found on reading it
+            raise click.BadParameter(str(exc), param_hint=exc.option) from None
         except MissingConstantsError as exc:      # checked once the input is read, before calibration and decoding
             name = ctx.invoked_subcommand
             raise constants_usage_error(self.get_command(ctx, name) if name else None, exc) from None
