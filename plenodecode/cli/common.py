@@ -408,8 +408,12 @@ def check_folder_output(folder: Path, names: list[str], overwrite: bool, *, what
 def lightfield_output_format(output: Path, fmt: str | None, overwrite: bool) -> str:
     """The light-field format to write ``output`` in: ``fmt``, else detected from its name (usage errors for an
     existing output without ``--overwrite`` and for a name that says no format)."""
-    from ..io.lightfield import detect_format
+    from ..io.lightfield import detect_format, refuse_foreign_folder
 
+    try:
+        refuse_foreign_folder(output)       # before 'pass --overwrite', which would delete the folder's files
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="-o / --output") from None
     check_output(output, overwrite)
     try:
         return fmt or detect_format(output, option="--format")

@@ -496,6 +496,20 @@ def detect_format(path: str | os.PathLike, *, option: str = "format=") -> str:
                      f"{sorted(LIGHTFIELD_FORMATS)}")
 
 
+def refuse_foreign_folder(path: str | os.PathLike) -> None:
+    """ValueError when ``path`` is a folder that holds files but no light field (zarr store, views folder): writing
+    a light field there, with overwrite, would replace the folder and delete them."""
+    p = Path(path)
+    if not p.is_dir() or p.is_symlink():
+        return
+    entries = sorted(e.name for e in p.iterdir())
+    if not entries or (p / "zarr.json").is_file() or (p / VIEWS_JSON).is_file() or _view_files(p):
+        return
+    shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
+    raise ValueError(f"{p} is a folder of other files ({shown}), not a light field: writing the light field there "
+                     "would replace the folder and delete them; choose a new output path")
+
+
 def _check_depth(name: str, path: Path, bit_depth: int, image_ext: str | None) -> None:
     """ValueError, before any work, for a bit depth or image type the format ``name`` cannot write at ``path``."""
     from .images import IMAGE_FORMATS
@@ -551,6 +565,7 @@ def save_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | No
     if image_ext is not None and image_ext.lower() not in (".png", ".tif", ".tiff", ".exr"):
         raise ValueError(f"image_ext must be '.png', '.tif' or '.exr', got {image_ext!r}")
     _check_depth(name, p, bit_depth, image_ext)
+    refuse_foreign_folder(p)
     lf = _encoded(lf, encode_srgb)
     outputs = [p]
     if name == "npy":
@@ -611,4 +626,4 @@ def load_lightfield(path: str | os.PathLike, *, view: tuple[int, int] | None = N
 
 __all__ = ["LIGHTFIELD_FORMATS", "PAGE_EXTENSIONS", "LightFieldFormat", "save_lightfield", "load_lightfield",
            "detect_format", "eslf_from_lightfield", "lightfield_from_eslf", "ESLF_DEFAULT_VIEWS", "ESLF_EXTENSIONS",
-           "VIEW_EXT"]
+           "VIEW_EXT", "refuse_foreign_folder"]

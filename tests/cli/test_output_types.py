@@ -169,3 +169,32 @@ def test_lightfield_bit_depths_that_fit_are_written(tmp_path):
     with pytest.raises(ValueError, match="an ESLF mosaic is written as"):
         save_lightfield(lf, tmp_path / "lf.exr", format="eslf")
     assert not (tmp_path / "lf.exr").exists()
+
+
+def test_a_light_field_never_replaces_a_folder_of_other_files(tmp_path):
+    """'decode RAW -o important --overwrite', with 'important' a folder of the user's files, replaced the folder by
+    the views and deleted them (and without --overwrite the advice was 'pass --overwrite to replace it').  A folder
+    that holds files but no light field is now refused naming -o, with or without --overwrite, by decode, export
+    and save_lightfield; a light-field folder is still replaced with --overwrite."""
+    from plenodecode.io.lightfield import load_lightfield, save_lightfield
+
+    mine = tmp_path / "important"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("precious")
+    assert run("decode", ILLUM, "--database", ROOT / "calib", "-o", tmp_path / "lf.zarr").exit_code == 0
+    for args in (["decode", ILLUM, "--database", ROOT / "calib", "-o", mine],
+                 ["decode", ILLUM, "--database", ROOT / "calib", "-o", mine, "--overwrite"],
+                 ["export", tmp_path / "lf.zarr", "-o", mine, "--format", "zarr", "--overwrite"]):
+        res = run(*args)
+        errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+        assert res.exit_code == 2 and len(errors) == 1, res.output
+        assert "Invalid value for -o / --output:" in errors[0] and "folder of other files (notes.txt)" in errors[0]
+        assert "--overwrite" not in errors[0]
+    lf = load_lightfield(tmp_path / "lf.zarr")
+    with pytest.raises(ValueError, match="would replace the folder and delete them"):
+        save_lightfield(lf, mine, format="views", overwrite=True)
+    assert sorted(p.name for p in mine.iterdir()) == ["notes.txt"] and (mine / "notes.txt").read_text() == "precious"
+    res = run("export", tmp_path / "lf.zarr", "-o", tmp_path / "v", "--format", "views")
+    assert res.exit_code == 0 and run("export", tmp_path / "lf.zarr", "-o", tmp_path / "v", "--format", "views",
+                                      "--bit-depth", 8, "--overwrite").exit_code == 0
+    assert read_image(tmp_path / "v" / "input_Cam112.png").dtype == np.uint8
