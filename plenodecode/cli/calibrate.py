@@ -116,10 +116,26 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
     _write_text(output, grid.to_json())
     click.echo(f"grid  {output}  ({grid.lattice}, pitch {grid.pitch:.4f} px, rotation {grid.rotation:.6f} rad, "
                f"{grid.shape[0]}x{grid.shape[1]} lenses, RMS {rms_text(grid)})")
+    _warn_high_rms(grid, report)
     if report is not None:
         from ..report.calibration import write_calibration_report
         write_calibration_report(grid, white, report, overwrite=overwrite)
         click.echo(f"report {report}")
+
+
+def _warn_high_rms(grid: Any, report: Path | None) -> None:
+    """One line on stderr when a white image's grid fits worse than the report's 'check' limit (the report would
+    say 'bad'; without --report nothing else would)."""
+    from ..report.calibration import WHITE_RMS_PX, smooth_part, source_kind
+
+    if source_kind(grid) != "white-image" or grid.residual_rms is None:
+        return
+    smooth = smooth_part(grid, grid.residual_rms)
+    rest = grid.residual_rms if smooth is None else smooth["rest_rms_px"]
+    if rest > WHITE_RMS_PX[1]:
+        where = f"{report} shows where" if report is not None else "--report shows where"
+        click.echo(f"warning: RMS {rest:.3f} px is high for a white image (good <= {WHITE_RMS_PX[0]} px, check <= "
+                   f"{WHITE_RMS_PX[1]} px): a scene, another camera's image, or a wrong --lattice? {where}", err=True)
 
 
 def _refuse_unused_with_database(ctx: click.Context, for_raw: Path | None, inputs: tuple[Path, ...],

@@ -237,6 +237,12 @@ def test_each_warning_once_with_a_report(tmp_path):
                           capture_output=True, text=True, env=env, cwd=tmp_path)
     assert proc.returncode == 0 and proc.stderr.count("this looks like a scene") == 1, proc.stderr
     assert "verdict: bad" in (tmp_path / "s.html").read_text()
+    # what the report calls bad, the command says too (it printed the RMS alone, e.g. 'RMS 1.274 px')
+    high = [line for line in proc.stderr.splitlines() if "is high for a white image (good <= 0.1 px" in line]
+    assert len(high) == 1 and f"{tmp_path / 's.html'} shows where" in high[0], proc.stderr
+    assert "is high for a white image" not in subprocess.run(
+        [sys.executable, "-m", "plenodecode", "calibrate", str(tmp_path / "white.png"), "-o", str(tmp_path / "w.json")],
+        capture_output=True, text=True, env=env, cwd=tmp_path).stderr
 
 
 def test_a_mistyped_pitch_hint_is_named_in_the_error(white_pair, tmp_path):
