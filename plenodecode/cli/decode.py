@@ -56,7 +56,8 @@ def _holds_lightfield(folder: Path) -> bool:
                    "row-alternating zipper at vertical edges and up to 2 dB sharper, 50 % slower, softer on "
                    "fine oblique detail.")
 @click.option("--views", "n_views", type=int, default=None,
-              help="Views per angular axis (odd) [default: 2*floor(pitch/2)+1].")
+              help="Views per angular axis (odd; a view step is one sensor pixel), at most 2*ceil(pitch/2)+1 "
+                   "[default: 2*floor(pitch/2)+1, pitch in px].")
 @click.option("--colour", type=RegistryChoice("plenodecode.decoding.colour", "DECODE_COLOURS"), default="linear-srgb",
               show_default=True, help="Colour of the output: white balance + colour matrix, or camera RGB.")
 @click.option("--no-hot-pixels", is_flag=True, help="Do not repair hot pixels.")
