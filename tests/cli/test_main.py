@@ -106,3 +106,16 @@ def test_quiet_and_verbose_after_the_command_mean_the_same(tmp_path):
     assert (tmp_path / "a.png").read_bytes() == (tmp_path / "b.png").read_bytes()
     r = CliRunner().invoke(cli, ["info", str(raw), "--quiet"], obj={})
     assert r.exit_code == 0 and "ILLUM" in r.output
+
+
+def test_help_says_what_extract_writes_and_how_many_views_decode_takes():
+    """'extract --help' called -o an 'Output file or folder' (it is always a folder); 'decode --help' gave no
+    bound or unit for --views."""
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+
+    text = CliRunner().invoke(cli, ["extract", "--help"]).output
+    assert "Folder the items are written into (created if missing)." in " ".join(text.split())
+    text = " ".join(CliRunner().invoke(cli, ["decode", "--help"]).output.split())
+    assert "at most 2*ceil(pitch/2)+1 [default: 2*floor(pitch/2)+1, pitch in px]" in text
