@@ -85,7 +85,8 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
             entries = store.cache_grids(database, overwrite=overwrite, **fit,
                                         progress=progress_bar(f"fitting the white images of {database}", ctx))
         serials = sorted({str(e.serial) for e in entries})
-        click.echo(f"{database}: {len(entries)} white image(s) of camera(s) {', '.join(serials)}")
+        click.echo(f"{database}: {len(entries)} white image(s) of camera(s) {', '.join(serials)} ('plenodecode info "
+                   f"{database}' lists them)")
         return
     if output is None:
         raise click.UsageError("missing -o/--output (the grid JSON to write)")

@@ -17,12 +17,13 @@ log = logging.getLogger(__name__)
 def refuse_decoded_input(raw_path: Path) -> None:
     """A usage error naming RAW, before any work, for what is no raw: a saved light field or an HCI scene (decoded
     already: it says which command takes it) or another folder."""
+    from ..io.lightfield import holds_lightfield
     from ..pipeline import input_kind
 
     kind = input_kind(raw_path)
     if kind == "raw" and not raw_path.is_dir():
         return
-    if kind != "hci" and raw_path.is_dir() and not _holds_lightfield(raw_path):
+    if kind != "hci" and raw_path.is_dir() and not holds_lightfield(raw_path):
         raise click.BadParameter(f"{raw_path.name} is a folder; decode reads one raw file ('plenodecode batch "
                                  f"{raw_path} -o OUT/' decodes the raws of a folder)", param_hint="RAW")
     what = "an HCI scene" if kind == "hci" else "a saved light field"
@@ -30,14 +31,6 @@ def refuse_decoded_input(raw_path: Path) -> None:
     raise click.BadParameter(f"{raw_path.name} is {what}, decoded already: 'plenodecode export {raw_path} -o "
                              f"{other}' converts it, 'plenodecode {raw_path} -o photo.png' renders it",
                              param_hint="RAW")
-
-
-def _holds_lightfield(folder: Path) -> bool:
-    """A zarr store or a views folder, by the files that make them one."""
-    from ..io.lightfield import VIEWS_JSON
-
-    return (folder / "zarr.json").is_file() or (folder / VIEWS_JSON).is_file() or \
-        next(folder.glob("input_Cam*"), None) is not None
 
 
 @click.command("decode")

@@ -224,11 +224,7 @@ def _describe_project_json(path: Path, doc: Mapping) -> list[str] | None:
         return [f"{path}: ground truth of a raw 'plenodecode synth' generated (grid, lens centres, disparity)",
                 f"  preset   {doc.get('preset', '?')}, seed {doc.get('seed', '?')}, sensor {shape[1]} x {shape[0]}"]
     if kind == "plenodecode.calibration-db":
-        entries = doc.get("entries", [])
-        cams = sorted({str(e.get("serial")) for e in entries})
-        return [f"{path}: calibration database index ('plenodecode calibrate --database')",
-                f"  whites   {len(entries)} white image(s) of camera(s) {', '.join(cams) or '-'}; "
-                f"{sum(1 for e in entries if e.get('grid'))} grid(s) cached"]
+        return _describe_database(path.parent, title=f"{path}: calibration database index")
     if kind == "plenodecode-geometric-calibration" or all(k in doc for k in TOOLBOX_KEYS):
         import numpy as np
 
@@ -245,6 +241,42 @@ def _describe_project_json(path: Path, doc: Mapping) -> list[str] | None:
                 .replace("\n", "\n           "),
                 f"  distortion [k1 k2 k3 b1 b2] = [{k}]"]
     return None
+
+
+def _describe_database(folder: Path, *, title: str | None = None) -> list[str]:
+    """A calibration database: one line per white image (camera, zoom, focus, size, grid cached, file), read only."""
+    from ..calib import store
+
+    entries = store.load_index(folder)
+    cams = sorted({str(e.serial) for e in entries})
+    lines = [title or f"{folder}: calibration database ('plenodecode calibrate --database')",
+             f"  whites   {len(entries)} white image(s) of camera(s) {', '.join(cams) or '-'}; "
+             f"{sum(1 for e in entries if e.grid and (folder / e.grid).is_file())} grid(s) cached",
+             "    serial        zoom    focus  W x H         grid    file"]
+    for e in entries:
+        size = f"{e.shape[1]} x {e.shape[0]}" if e.shape else "?"
+        step = (lambda v: "-" if v is None else f"{v:g}")
+        cached = "cached" if e.grid and (folder / e.grid).is_file() else "to fit"
+        lines.append(f"    {str(e.serial):12s} {step(e.zoom_step):>6s} {step(e.focus_step):>8s}  {size:12s}  "
+                     f"{cached:6s}  {store.white_path(e, folder)}")
+    return lines
+
+
+def _describe_npz(path: Path) -> list[str]:
+    """A NumPy archive (a synthetic raw's ground-truth arrays): its arrays' names, shapes and types."""
+    import zipfile
+
+    import numpy as np
+
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = [(k, z[k].shape, z[k].dtype) for k in z.files]
+    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        raise FormatError(f"{path}: not a readable NumPy .npz archive ({exc})") from None
+    truth = path.with_name(path.name[:-len(".npz")] + ".json")
+    what = f"the arrays of {truth.name}" if truth.is_file() else "NumPy arrays"
+    return [f"{path}: {what}",
+            *(f"  {k:20s} {' x '.join(map(str, s)) or 'scalar'} {d}" for k, s, d in arrays)]
 
 
 def _describe_raycalib(path: Path) -> list[str]:
@@ -290,8 +322,16 @@ def describe(path: Path) -> list[str]:
     """Lines that ``plenodecode info`` prints for one file."""
     from ..io import LYTRO_MAGIC
     from ..io import lytro
-    from ..pipeline import is_lightfield_path
+    from ..pipeline import input_kind, is_lightfield_path
 
+    from ..calib.store import INDEX_NAME
+    from ..io.lightfield import holds_lightfield
+
+    if path.is_dir() and (path / INDEX_NAME).is_file():
+        return _describe_database(path)
+    if path.is_dir() and input_kind(path) == "lightfield" and not holds_lightfield(path):
+        raise FormatError(f"{path}: a folder holding no light field; info describes files (e.g. "
+                          f"'plenodecode info {path}/*'), light-field folders and calibration databases")
     if path.exists() and is_lightfield_path(path):
         return _describe_lightfield(path)
     if not path.is_file():
@@ -304,6 +344,8 @@ def describe(path: Path) -> list[str]:
         return _describe_raw_pair(path)
     if path.suffix.lower() in (".txt", ".json"):
         return _describe_sidecar(path)
+    if path.suffix.lower() == ".npz":
+        return _describe_npz(path)
     if path.suffix.lower() == ".xml":
         from ..io.raytrix import is_raycalib_xml
 
@@ -329,11 +371,22 @@ def info(files: tuple[Path, ...]) -> None:
       plenodecode info IMG_0001.lfr MOD_0000.RAW demo.LFP
       plenodecode info lf.zarr
     """
+    failed = 0
     for i, path in enumerate(files):
         if i:
             click.echo("")
-        for line in describe(path):
+        try:
+            lines = describe(path)
+        except PlenodecodeError as exc:        # one file's problem: say it, and describe the others
+            if len(files) == 1:
+                raise
+            click.echo(f"error: {exc}", err=True)
+            failed += 1
+            continue
+        for line in lines:
             click.echo(line)
+    if failed:
+        raise click.exceptions.Exit(1)
 
 
 command = info

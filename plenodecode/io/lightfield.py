@@ -496,6 +496,12 @@ def detect_format(path: str | os.PathLike, *, option: str = "format=") -> str:
                      f"{sorted(LIGHTFIELD_FORMATS)}")
 
 
+def holds_lightfield(folder: str | os.PathLike) -> bool:
+    """True for a folder that is a saved light field: a zarr store or a views folder, by the files that make it one."""
+    p = Path(folder)
+    return p.is_dir() and ((p / "zarr.json").is_file() or (p / VIEWS_JSON).is_file() or bool(_view_files(p)))
+
+
 def refuse_foreign_folder(path: str | os.PathLike) -> None:
     """ValueError when ``path`` is a folder that holds files but no light field (zarr store, views folder): writing
     a light field there, with overwrite, would replace the folder and delete them."""
@@ -503,7 +509,7 @@ def refuse_foreign_folder(path: str | os.PathLike) -> None:
     if not p.is_dir() or p.is_symlink():
         return
     entries = sorted(e.name for e in p.iterdir())
-    if not entries or (p / "zarr.json").is_file() or (p / VIEWS_JSON).is_file() or _view_files(p):
+    if not entries or holds_lightfield(p):
         return
     shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
     raise ValueError(f"{p} is a folder of other files ({shown}), not a light field: writing the light field there "
@@ -626,4 +632,4 @@ def load_lightfield(path: str | os.PathLike, *, view: tuple[int, int] | None = N
 
 __all__ = ["LIGHTFIELD_FORMATS", "PAGE_EXTENSIONS", "LightFieldFormat", "save_lightfield", "load_lightfield",
            "detect_format", "eslf_from_lightfield", "lightfield_from_eslf", "ESLF_DEFAULT_VIEWS", "ESLF_EXTENSIONS",
-           "VIEW_EXT", "refuse_foreign_folder"]
+           "VIEW_EXT", "holds_lightfield", "refuse_foreign_folder"]

@@ -78,3 +78,25 @@ def test_info_of_a_decoded_light_field_names_its_colour_as_decode_did(tmp_path):
                                    str(ROOT / "calib"), "-o", str(tmp_path / "c.zarr")])
     assert res.exit_code == 0 and "linear sRGB" in res.output, res.output
     assert "(V, U, Y, X, C), linear sRGB" in info(tmp_path / "c.zarr")
+
+
+def test_info_lists_a_calibration_database_and_goes_on_past_a_bad_file(tmp_path):
+    """Listing the database's white images had no command ('calibrate --database' printed a count); 'info calib'
+    said 'no input_Cam*.png views; expected a folder of views'.  It now lists each white image (camera, zoom,
+    focus, size, grid cached, file); and 'info A B C' stopped at the first file it could not describe, while it
+    now describes the others and exits 1."""
+    out = info(ROOT / "calib")
+    rows = [line.split() for line in out.splitlines() if line.startswith("    B5143909630")]
+    assert len(rows) == 1 and rows[0][:7] == ["B5143909630", "-312", "417", "1544", "x", "1072", "cached"], out
+    assert rows[0][-1].endswith("sample_raws/illum-mini/MOD_0000.RAW") and Path(rows[0][-1]).is_file(), out
+    res = CliRunner().invoke(cli, ["calibrate", "--database", str(tmp_path / "db"),
+                                   str(ROOT / "sample_raws" / "f01-mini")])
+    assert res.exit_code == 0 and f"'plenodecode info {tmp_path / 'db'}' lists them" in res.output, res.output
+    assert "A000424242" in info(tmp_path / "db") and "1 grid(s) cached" in info(tmp_path / "db")
+    folder = ROOT / "sample_raws" / "illum-mini"
+    res = CliRunner().invoke(cli, ["info", str(ROOT / "sample_raws"), *(str(p) for p in sorted(folder.iterdir()))])
+    assert res.exit_code == 1, res.output
+    assert "sample_raws: a folder holding no light field" in res.output
+    for name in ("MOD_0000.RAW", "scene.lfr", "scene.truth.json", "scene.truth.npz"):
+        assert f"{folder / name}: " in res.output, name
+    assert "the arrays of scene.truth.json" in res.output
