@@ -68,8 +68,9 @@ def constants_usage_error(command: click.Command | None, exc: MissingConstantsEr
                               f"needs; use {instead} instead", param_hint=hint)
 
 
-#: The group's own flags, also taken where they follow the command (:meth:`LazyGroup.parse_args`).
-GROUP_FLAGS = ("-q", "--quiet", "-v", "-vv", "-vvv", "--verbose")
+#: The group's own flags, also taken where they follow the command (:meth:`LazyGroup.parse_args`): 'plenodecode
+#: decode --version' prints the version as 'plenodecode --version' does.
+GROUP_FLAGS = ("-q", "--quiet", "-v", "-vv", "-vvv", "--verbose", "--version")
 
 
 class LazyGroup(click.Group):
@@ -90,7 +91,7 @@ class LazyGroup(click.Group):
             formatter.write_dl(rows)
 
     def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
-        # -q / -v typed after the command ('plenodecode RAW -o x.png -q') mean what they mean before it: no
+        # -q / -v / --version typed after the command ('plenodecode RAW -o x.png -q') mean what they mean before it: no
         # command has options of those names, and a path or value never is one of these exact tokens
         if "--" not in args:
             hoisted = [a for a in args if a in GROUP_FLAGS]
