@@ -639,4 +639,5 @@ def read_white(entry: WhiteEntry, db_dir: str | os.PathLike, raw: RawCapture) ->
 
 
 __all__ = ["DEFAULT_DB", "WhiteEntry", "build_database", "cache_grids", "select_white", "other_whites", "white_path",
-           "grid_for", "calibration_for", "lookup_grid", "read_white", "load_index", "save_index", "update_index", "index_lock"]
+           "grid_for", "calibration_for", "lookup_grid", "read_white", "load_index", "save_index", "update_index",
+           "index_lock"]

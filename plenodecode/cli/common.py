@@ -361,7 +361,7 @@ def lightfield_bit_depth(ctx: click.Context, name: str, output: Path, bit_depth:
     (usage errors naming the option): zarr and npy store float32, so a typed ``--bit-depth`` other than 32 is
     refused; mat stores 16 bits; an ESLF mosaic is a .png/.tif (:data:`~plenodecode.io.lightfield.ESLF_EXTENSIONS`)
     at a depth it holds; views at a depth their ``--image-type`` holds (:func:`image_bit_depth`)."""
-    from ..io.lightfield import ESLF_EXTENSIONS
+    from ..io.lightfield import ESLF_EXTENSIONS, ESLF_NAMES
 
     typed = ctx.get_parameter_source("bit_depth") is ParameterSource.COMMANDLINE
     if name in ("zarr", "npy"):
@@ -376,9 +376,9 @@ def lightfield_bit_depth(ctx: click.Context, name: str, output: Path, bit_depth:
         return 16
     if name == "eslf":
         if output.suffix.lower() not in ESLF_EXTENSIONS:
-            raise click.BadParameter(f"an ESLF mosaic is written as {', '.join(ESLF_EXTENSIONS[:-1])} or {ESLF_EXTENSIONS[-1]} (its 4th channel "
-                                     f"is the weight, and it loads back by that extension), not "
-                                     f"{output.suffix or 'a name without extension'}", param_hint="-o / --output")
+            given = output.suffix or "a name without extension"
+            raise click.BadParameter(f"an ESLF mosaic is written as {ESLF_NAMES} (its 4th channel is the weight, and "
+                                     f"it loads back by that extension), not {given}", param_hint="-o / --output")
         return image_bit_depth(ctx, bit_depth, output.suffix)
     if name == "views" and image_type is not None:
         return image_bit_depth(ctx, bit_depth, f".{image_type}", param_hint="--image-type")

@@ -9,7 +9,8 @@ import click
 
 from .common import (FOCUSED_PHOTO, RegistryChoice, bit_depth_option, calibration_kwargs, input_options,
                      lightfield_bit_depth, lightfield_output_format, lightfield_summary, output_option,
-                     overwrite_option, progress_bar, quiet, refuse_database_with_grid, refuse_focused_views, usage_errors, views_anyway_option)
+                     overwrite_option, progress_bar, quiet, refuse_database_with_grid, refuse_focused_views,
+                     usage_errors, views_anyway_option)
 
 log = logging.getLogger(__name__)
 

@@ -447,6 +447,8 @@ _FILE_FORMATS = {".mat": "mat", ".npy": "npy", ".png": "eslf", ".tif": "eslf", "
 #: Image types an ESLF mosaic is written as: those :func:`detect_format` reads back as one, and that hold the
 #: weight as a 4th channel (a JPEG holds 3).
 ESLF_EXTENSIONS = tuple(ext for ext, name in _FILE_FORMATS.items() if name == "eslf")
+#: The same, for messages: '.png, .tif or .tiff'.
+ESLF_NAMES = f"{', '.join(ESLF_EXTENSIONS[:-1])} or {ESLF_EXTENSIONS[-1]}"
 #: Exports that are pages for people, not light fields: extension -> the ``plenodecode export --format`` name
 #: (writers: ``plenodecode.cli.export.PAGE_FORMATS``).  They never load back and are not in
 #: :data:`LIGHTFIELD_FORMATS`, so no command that writes a light field picks them from a name.
@@ -523,7 +525,7 @@ def _check_depth(name: str, path: Path, bit_depth: int, image_ext: str | None) -
     if name == "mat" and bit_depth != 16:
         raise ValueError(f"bit_depth must be 16 for the LFToolbox .mat format (uint16 LF), got {bit_depth}")
     if name == "eslf" and path.suffix.lower() not in ESLF_EXTENSIONS:
-        raise ValueError(f"path {path.name!r}: an ESLF mosaic is written as {', '.join(ESLF_EXTENSIONS[:-1])} or {ESLF_EXTENSIONS[-1]} (its 4th "
+        raise ValueError(f"path {path.name!r}: an ESLF mosaic is written as {ESLF_NAMES} (its 4th "
                          "channel is the weight, and it loads back by that extension)")
     ext = path.suffix.lower() if name == "eslf" else (image_ext or VIEW_EXT[bit_depth]).lower() \
         if name == "views" else None
@@ -632,4 +634,4 @@ def load_lightfield(path: str | os.PathLike, *, view: tuple[int, int] | None = N
 
 __all__ = ["LIGHTFIELD_FORMATS", "PAGE_EXTENSIONS", "LightFieldFormat", "save_lightfield", "load_lightfield",
            "detect_format", "eslf_from_lightfield", "lightfield_from_eslf", "ESLF_DEFAULT_VIEWS", "ESLF_EXTENSIONS",
-           "VIEW_EXT", "holds_lightfield", "refuse_foreign_folder"]
+           "ESLF_NAMES", "VIEW_EXT", "holds_lightfield", "refuse_foreign_folder"]

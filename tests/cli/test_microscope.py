@@ -306,8 +306,9 @@ def test_a_bright_frame_given_as_the_dark_is_refused_before_any_work(tmp_path, m
         assert f"Invalid value for --dark: {bright} is no dark frame for light_field.png" in errors[0], errors
         assert "keep 0.0% of the range" in errors[0] and not (tmp_path / "lf.zarr").exists()
     assert calibrated == []
-    res = CliRunner().invoke(cli, ["decode", str(folder / "light_field.png"), "-w", str(folder / "radiometry_frame.png"),
-                                   "--dark", str(folder / "dark_frame.tif"), "-o", str(tmp_path / "lf.zarr")])
+    res = CliRunner().invoke(cli, ["decode", str(folder / "light_field.png"), "-w",
+                                   str(folder / "radiometry_frame.png"), "--dark", str(folder / "dark_frame.tif"),
+                                   "-o", str(tmp_path / "lf.zarr")])
     assert res.exit_code == 0, res.output
     centre = load_lightfield(tmp_path / "lf.zarr").centre_view()
     assert float(np.percentile(centre, 99.5)) > 0.1 and calibrated        # the specimen, not black
