@@ -319,6 +319,21 @@ def quiet(ctx: click.Context) -> bool:
 COLOUR_WORDS = {"camera": "camera RGB", "linear-srgb": "linear sRGB", "srgb": "sRGB"}
 
 
+def empty_views_note(lf: Any, name: str) -> str:
+    """``'; 24 corner views ... hold no data ...'`` for a light field written as images (views, eslf) whose views
+    past the round micro-images have no sample with data (black in the files, or the rims' stripes), else ''."""
+    if name not in ("views", "eslf") or lf.weight is None:
+        return ""
+    from ..imaging import MIN_DATA_WEIGHT, view_data_share
+
+    empty = int((view_data_share(lf.weight) == 0).sum())
+    if not empty:
+        return ""
+    where = "weight.npy" if name == "views" else "the image's last channel"
+    return (f"; {empty} corner views past the round micro-images hold no data (weight under {MIN_DATA_WEIGHT:g}: "
+            f"black, or the rims' stripes; {where} holds every sample's weight)")
+
+
 def lightfield_summary(shape: tuple[int, ...], colour: str) -> str:
     """``'9x9 views of 381x381, camera RGB'`` for a (V, U, Y, X, C) light field; one channel reads 'monochrome'."""
     V, U, Y, X, C = shape

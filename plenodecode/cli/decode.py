@@ -7,8 +7,8 @@ from pathlib import Path
 
 import click
 
-from .common import (FOCUSED_PHOTO, RegistryChoice, bit_depth_option, calibration_kwargs, input_options,
-                     lightfield_bit_depth, lightfield_output_format, lightfield_summary, output_option,
+from .common import (FOCUSED_PHOTO, RegistryChoice, bit_depth_option, calibration_kwargs, empty_views_note,
+                     input_options, lightfield_bit_depth, lightfield_output_format, lightfield_summary, output_option,
                      overwrite_option, progress_bar, quiet, refuse_database_with_grid, refuse_focused_views,
                      usage_errors, views_anyway_option)
 
@@ -108,4 +108,5 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
                                progress=progress_bar(f"writing {name}", ctx))
     if not quiet(ctx):
         rectified = ", rectified" if lf.geometry.ray_model else ""
-        click.echo(f"wrote {out} ({name}: {lightfield_summary(lf.shape, lf.colour)}{rectified})")
+        click.echo(f"wrote {out} ({name}: {lightfield_summary(lf.shape, lf.colour)}{rectified})"
+                   + empty_views_note(lf, name))

@@ -198,3 +198,25 @@ def test_a_light_field_never_replaces_a_folder_of_other_files(tmp_path):
     assert res.exit_code == 0 and run("export", tmp_path / "lf.zarr", "-o", tmp_path / "v", "--format", "views",
                                       "--bit-depth", 8, "--overwrite").exit_code == 0
     assert read_image(tmp_path / "v" / "input_Cam112.png").dtype == np.uint8
+
+
+def test_views_of_a_light_field_name_the_corner_views_without_data(tmp_path):
+    """'decode RAW -o views/ --format views' wrote the Illum sample's corner views as black PNGs without a word
+    ('plenodecode views' names them); decode and export now say how many hold no data and where the weight is."""
+    from plenodecode.imaging import view_data_share
+    from plenodecode.io.lightfield import load_lightfield
+
+    res = run("decode", ILLUM, "--database", ROOT / "calib", "-o", tmp_path / "v", "--format", "views")
+    assert res.exit_code == 0, res.output
+    lf = load_lightfield(tmp_path / "v")
+    empty = view_data_share(lf.weight) == 0
+    assert f"; {int(empty.sum())} corner views past the round micro-images hold no data" in res.output
+    assert empty.sum() == (lf.weight.max(axis=(2, 3)) < 0.01).sum() == 24          # the 15 x 15 Illum's corners
+    U = empty.shape[1]
+    black = [read_image(tmp_path / "v" / f"input_Cam{v * U + u:03d}.png").max() == 0 for v, u in zip(*np.nonzero(empty))]
+    assert sum(black) == 16                                       # the other 8: samples of weight < 0.01 (stripes)
+    res = run("export", tmp_path / "v", "-o", tmp_path / "e.png")
+    assert res.exit_code == 0 and "hold no data (weight under 0.01: black, or the rims' stripes; the image's last " \
+        "channel holds" in res.output
+    res = run("export", tmp_path / "v", "-o", tmp_path / "z.zarr")
+    assert res.exit_code == 0 and "hold no data" not in res.output
