@@ -213,7 +213,8 @@ def test_views_of_a_light_field_name_the_corner_views_without_data(tmp_path):
     assert f"; {int(empty.sum())} corner views past the round micro-images hold no data" in res.output
     assert empty.sum() == (lf.weight.max(axis=(2, 3)) < 0.01).sum() == 24          # the 15 x 15 Illum's corners
     U = empty.shape[1]
-    black = [read_image(tmp_path / "v" / f"input_Cam{v * U + u:03d}.png").max() == 0 for v, u in zip(*np.nonzero(empty))]
+    black = [read_image(tmp_path / "v" / f"input_Cam{v * U + u:03d}.png").max() == 0
+             for v, u in zip(*np.nonzero(empty))]
     assert sum(black) == 16                                       # the other 8: samples of weight < 0.01 (stripes)
     res = run("export", tmp_path / "v", "-o", tmp_path / "e.png")
     assert res.exit_code == 0 and "hold no data (weight under 0.01: black, or the rims' stripes; the image's last " \
