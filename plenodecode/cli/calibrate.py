@@ -169,6 +169,8 @@ def _calibrate_inputs(ctx: click.Context, inputs: tuple[Path, ...], *, lattice: 
     if scene:
         if len(inputs) != 1:
             raise click.UsageError("--scene takes exactly one raw or image")
+        if refine:
+            raise click.UsageError("--refine is for a Raytrix image's RayCalibData grid, not with --scene")
         try:
             source = read_raw(inputs[0])
         except FormatError:     # an image no raw reader takes (self-calibration reads it as an image)
@@ -178,6 +180,9 @@ def _calibrate_inputs(ctx: click.Context, inputs: tuple[Path, ...], *, lattice: 
     raws = [read_raw(p) for p in inputs]
     if "raytrix" in raws[0].metadata.extra:
         return calibrate_raytrix(raws[0], refine=refine), raws
+    if refine:
+        raise click.BadParameter(f"refines a Raytrix image's RayCalibData grid; {inputs[0].name} has none (a white "
+                                 "image's grid is fitted to it anyway)", param_hint="--refine")
     try:
         return calibrate(raws, lattice=lattice, pitch_hint=pitch_hint, progress=progress_bar("calibrating", ctx)), raws
     except CalibrationError as exc:

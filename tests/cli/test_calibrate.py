@@ -256,3 +256,12 @@ def test_a_mistyped_pitch_hint_is_named_in_the_error(white_pair, tmp_path):
     assert not (tmp_path / "g.json").exists()
     r = run("calibrate", path, "-o", tmp_path / "g.json", "--pitch", "9.9")
     assert r.exit_code == 0 and abs(LensletGrid.from_json((tmp_path / "g.json").read_text()).pitch - truth.pitch) < 0.01
+
+
+def test_refine_of_a_white_image_is_refused(white_pair, tmp_path):
+    """'calibrate MOD_0000.RAW --refine' ignored --refine (it refines a Raytrix RayCalibData grid) in silence."""
+    path, _ = white_pair
+    r = CliRunner().invoke(cli, ["calibrate", str(path), "-o", str(tmp_path / "g.json"), "--refine"], obj={})
+    errors = [line for line in r.output.splitlines() if line.startswith("Error:")]
+    assert r.exit_code == 2 and len(errors) == 1 and "Invalid value for --refine:" in errors[0], r.output
+    assert "MOD_0000.RAW has none" in errors[0] and not (tmp_path / "g.json").exists()
