@@ -302,7 +302,10 @@ def index_points(points: np.ndarray, v1: np.ndarray, v2: np.ndarray, *, seed: np
     span = float(dist.max())
     radius = 6.0 * pitch
     while True:
-        inv = np.linalg.inv(np.stack([b2, b1], axis=1))  # columns: v2 (n), v1 (m)
+        basis = np.stack([b2, b1], axis=1)                 # columns: v2 (n), v1 (m)
+        if not abs(np.linalg.det(basis)) > 0.1 * pitch ** 2:   # the vectors collapsed: these are not its points
+            raise np.linalg.LinAlgError("the lattice vectors became parallel while indexing the centres")
+        inv = np.linalg.inv(basis)
         ata, atp, n_good = _affine_normal_equations(pts, dist, radius, o, inv, tolerance)
         if n_good >= 6:
             sol = np.linalg.lstsq(ata, atp, rcond=None)[0]  # least squares P = o + n v2 + m v1 (good points)
@@ -385,7 +388,11 @@ def fit_lattice(points: np.ndarray, v1: np.ndarray, v2: np.ndarray, lattice: str
     if lattice not in ("hex", "square"):
         raise ValueError(f"lattice must be 'hex' or 'square', got {lattice!r}")
     pts = np.asarray(points, np.float64)
-    nm, ok, basis = index_points(pts, v1, v2)
+    try:
+        nm, ok, basis = index_points(pts, v1, v2)
+    except np.linalg.LinAlgError:
+        raise CalibrationError(f"the detected centres do not form a {lattice} lattice; check the lattice type "
+                               "(--lattice; auto detects it)") from None
     o, b1, b2 = basis
     pred = o + nm[:, 1:2] * b1 + nm[:, 0:1] * b2
     dist = np.hypot(*(pts - pred).T)
