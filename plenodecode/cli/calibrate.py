@@ -180,8 +180,13 @@ def _calibrate_inputs(ctx: click.Context, inputs: tuple[Path, ...], *, lattice: 
             source = read_raw(inputs[0])
         except FormatError:     # an image no raw reader takes (self-calibration reads it as an image)
             source = inputs[0]
-        return calibrate_from_scene(source, lattice=lattice, pitch_hint=pitch_hint,
-                                    progress=progress_bar("self-calibrating", ctx)), [source]
+        try:
+            return calibrate_from_scene(source, lattice=lattice, pitch_hint=pitch_hint,
+                                        progress=progress_bar("self-calibrating", ctx)), [source]
+        except CalibrationError as exc:
+            if lattice == "auto":
+                raise
+            raise CalibrationError(f"{exc} (with --lattice {lattice}: leave it out to detect the lattice)") from exc
     raws = [read_raw(p) for p in inputs]
     if "raytrix" in raws[0].metadata.extra:
         return calibrate_raytrix(raws[0], refine=refine), raws

@@ -283,3 +283,7 @@ def test_a_wrong_lattice_type_is_one_line_not_a_traceback(white_pair, tmp_path):
         assert r.exit_code == 1 and lines[-1].startswith("error:") and words in lines[-1], r.output
         assert "--lattice" in lines[-1] and "Traceback" not in r.output and not (tmp_path / "g.json").exists()
     assert run("calibrate", white_pair[0], "-o", tmp_path / "g.json", "--lattice", "hex").exit_code == 0
+    scene = square.with_name("scene.png")                  # self-calibration with the wrong type names it too
+    r = CliRunner().invoke(cli, ["calibrate", "--scene", str(scene), "-o", str(tmp_path / "s.json"), "--lattice",
+                                 "hex"], obj={})
+    assert r.exit_code == 1 and "(with --lattice hex: leave it out to detect the lattice)" in r.output, r.output
