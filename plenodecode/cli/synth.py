@@ -11,7 +11,8 @@ import click
 if TYPE_CHECKING:
     from ..raymodel import Board
 
-from .common import BOARD, FINITE, POSITIVE, FiniteFloat, RegistryChoice, check_output, overwrite_option, progress_bar
+from .common import (BOARD, FINITE, POSITIVE, FiniteFloat, RegistryChoice, check_folder_output, overwrite_option,
+                     progress_bar)
 
 #: The largest sensor --shape simulates: rows or columns, and pixels (1.5 x the Illum's 7728 x 5368; a 12 Mpx
 #: sensor takes about 0.4 GB and 9 s).
@@ -133,9 +134,7 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
     if archive is not None:
         archive_path = out / archive_name(archive, get_preset(preset).serial)
         names = {**names, "archive": archive_path.name}
-    if not overwrite:
-        for fname in names.values():
-            check_output(out / fname, overwrite)
+    check_folder_output(out, list(names.values()), overwrite, what="the synthetic raw")
     try:
         sim = simulate(preset, seed=seed, pitch=pitch, rotation=rotation, offset=offset, noise=not no_noise,
                        shape=shape, scene=scene, progress=progress_bar(f"simulating {preset}", ctx))
@@ -190,9 +189,7 @@ def _checkerboard_set(ctx: click.Context, preset: str, out: Path, *, board: Boar
         names.append(simulation_files(preset, name)["white"])
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="--name") from exc
-    if not overwrite:
-        for fname in (*names, SET_TRUTH_NAME):
-            check_output(out / fname, overwrite)
+    check_folder_output(out, [*names, SET_TRUTH_NAME], overwrite, what="the calibration set")
     try:
         extra = {} if distances is None else {"distances": distances}
         cset = simulate_checkerboard_set(preset, board, captures, intrinsics=intrinsics, distortion=distortion,

@@ -193,3 +193,20 @@ def test_cli_synth_geometry_out_of_bounds_names_the_option(tmp_path, extra, opti
     assert res.exit_code == 2 and len(errors) == 1, res.output
     assert f"Invalid value for {option}:" in errors[0] and words in errors[0], errors
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("extra, words", [
+    ([], "the synthetic raw goes into a folder, and out.png names an image file; give a folder, e.g."),
+    (["--checkerboard", "8x6x0.0036", "--captures", "3"], "the calibration set goes into a folder, and out.png"),
+], ids=["scene", "checkerboard"])
+def test_cli_synth_output_named_like_an_image_is_refused(tmp_path, extra, words):
+    """'synth f01-mini -o out.png' made a folder called out.png holding scene.lfp ..., as other commands' folder
+    outputs did before they were refused; it is a usage error naming -o now, with nothing made."""
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+
+    res = CliRunner().invoke(cli, ["synth", "f01-mini", "-o", str(tmp_path / "out.png"), *extra])
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert res.exit_code == 2 and len(errors) == 1 and "Invalid value for -o / --output:" in errors[0], res.output
+    assert words in errors[0] and not (tmp_path / "out.png").exists()
