@@ -109,6 +109,9 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
         name = lightfield_output_format(output, fmt, overwrite)
         bit_depth = str(lightfield_bit_depth(ctx, name, output, bit_depth, image_type))
     lf = _load(lf_in)
+    if srgb and lf.colour == "srgb":
+        raise click.BadParameter(f"{lf_in.name} is sRGB-encoded already (colour 'srgb'); leave --srgb out",
+                                 param_hint="--srgb")
     try:
         if page is not None:
             out = PAGE_FORMATS[page](lf, output, overwrite=overwrite, progress=progress_bar(f"writing {page}", ctx))

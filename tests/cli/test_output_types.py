@@ -221,3 +221,16 @@ def test_views_of_a_light_field_name_the_corner_views_without_data(tmp_path):
         "channel holds" in res.output
     res = run("export", tmp_path / "v", "-o", tmp_path / "z.zarr")
     assert res.exit_code == 0 and "hold no data" not in res.output
+
+
+def test_srgb_of_an_srgb_light_field_names_the_option(tmp_path):
+    """'export antinous -o v --format views --srgb' said 'encode_srgb: the light field is already sRGB-encoded'
+    (the Python keyword); it names --srgb and writes nothing."""
+    from tests.conftest import shared_path
+
+    res = run("export", shared_path("hci-antinous"), "-o", tmp_path / "v", "--format", "views", "--srgb")
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert res.exit_code == 2 and len(errors) == 1, res.output
+    assert "Invalid value for --srgb: hci-antinous is sRGB-encoded already" in errors[0] and "encode_srgb" not in \
+        res.output
+    assert not (tmp_path / "v").exists()
