@@ -193,7 +193,8 @@ def _database_or_scene(raw: RawCapture, db: Path, *, self_calibrate: bool, progr
     elif not self_calibrate:
         raise CalibrationError(
             f"no calibration for {name} (camera {raw.metadata.model or '?'} {raw.metadata.serial or '?'}): "
-            f"no calibration database in {db}; pass --database DIR, --calibration grid.json, "
+            f"no calibration database in {db} (no {store.INDEX_NAME}; 'plenodecode calibrate --database {db} "
+            "FOLDER' makes one of the white images in FOLDER); pass --database DIR, --calibration grid.json, "
             "--white WHITE_IMAGE or --self-calibrate")
     return _self_calibration(raw, progress)
 

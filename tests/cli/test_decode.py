@@ -202,3 +202,18 @@ def test_a_light_field_or_a_folder_given_to_decode_says_which_command_takes_it(f
     assert not (tmp_path / "out.zarr").exists()
     res = run([str(tmp_path / "lf.mat"), "-o", str(tmp_path / "photo.png")])    # what the message says works
     assert res.exit_code == 0 and (tmp_path / "photo.png").is_file(), res.output
+
+
+def test_database_option_on_a_folder_of_white_images_says_how_to_index_it(tmp_path):
+    """'decode scene.lfr --database sample_raws/illum-mini' (white images, no index) said 'no calibration database
+    in sample_raws/illum-mini; pass --database DIR, ...': the option the user had just passed.  It now says the
+    index is missing and the command that makes one of that folder."""
+    from pathlib import Path
+
+    folder = Path(__file__).resolve().parents[2] / "sample_raws" / "illum-mini"
+    res = CliRunner().invoke(cli, ["decode", str(folder / "scene.lfr"), "--database", str(folder),
+                                   "-o", str(tmp_path / "lf.zarr")])
+    lines = res.output.strip().splitlines()
+    assert res.exit_code == 1 and len(lines) == 1, res.output
+    assert f"no calibration database in {folder} (no index.json; 'plenodecode calibrate --database {folder} " \
+           "FOLDER' makes one" in lines[0] and not (tmp_path / "lf.zarr").exists()
