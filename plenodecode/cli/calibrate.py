@@ -64,6 +64,7 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
         raise click.UsageError("--for RAW picks a white image from a calibration database: add --database DIR")
     if database is not None:
         _refuse_unused_with_database(ctx, for_raw, inputs, output, report, scene, refine)
+    _check_names(output, report)
     if output is not None:
         check_output(output, overwrite)
     if report is not None:
@@ -127,6 +128,21 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
 #: A white image's grid of a forced --lattice that fits fewer of the detected disks is refused (a hex white forced
 #: square fits every other row: 18 % of the f01-mini's disks; right lattices fit 99-100 %).
 MIN_FIT_SHARE = 0.5
+
+
+def _check_names(output: Path | None, report: Path | None) -> None:
+    """Usage errors before any work: the report written over the grid, or the two swapped (a grid JSON named .html,
+    a report page not named .html)."""
+    if output is not None and output.suffix.lower() in (".html", ".htm"):
+        raise click.BadParameter(f"{output.name} names an HTML page; the grid is JSON (e.g. grid.json), the page is "
+                                 "--report", param_hint="-o / --output")
+    if report is None:
+        return
+    if output is not None and report.resolve() == output.resolve():
+        raise click.BadParameter("must differ from -o/--output (the grid JSON)", param_hint="--report")
+    if report.suffix.lower() not in (".html", ".htm"):
+        raise click.BadParameter(f"the report is an HTML page: name it .html, not {report.name}",
+                                 param_hint="--report")
 
 
 def _warn_high_rms(grid: Any, report: Path | None) -> None:

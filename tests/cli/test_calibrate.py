@@ -287,3 +287,19 @@ def test_a_wrong_lattice_type_is_one_line_not_a_traceback(white_pair, tmp_path):
     r = CliRunner().invoke(cli, ["calibrate", "--scene", str(scene), "-o", str(tmp_path / "s.json"), "--lattice",
                                  "hex"], obj={})
     assert r.exit_code == 1 and "(with --lattice hex: leave it out to detect the lattice)" in r.output, r.output
+
+
+@pytest.mark.parametrize("out, report, option, words", [
+    ("g.json", "g.json", "--report", "must differ from -o/--output"),
+    ("g.html", "r.json", "-o / --output", "g.html names an HTML page; the grid is JSON"),
+    ("g.json", "r.txt", "--report", "the report is an HTML page: name it .html, not r.txt"),
+], ids=["same", "swapped", "not-html"])
+def test_report_and_grid_names_are_checked_before_any_work(white_pair, tmp_path, out, report, option, words):
+    """'-o g.json --report g.json' wrote the grid, then failed with "FileExistsError: ... pass overwrite=True" (a
+    traceback, naming a keyword); '-o g.html --report r.json' wrote a JSON named .html and a page named .json."""
+    path, _ = white_pair
+    r = CliRunner().invoke(cli, ["calibrate", str(path), "-o", str(tmp_path / out), "--report", str(tmp_path / report)],
+                           obj={})
+    errors = [line for line in r.output.splitlines() if line.startswith("Error:")]
+    assert r.exit_code == 2 and len(errors) == 1 and f"Invalid value for {option}:" in errors[0], r.output
+    assert words in errors[0] and list(tmp_path.iterdir()) == []
