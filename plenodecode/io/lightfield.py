@@ -498,6 +498,13 @@ def detect_format(path: str | os.PathLike, *, option: str = "format=") -> str:
                      f"{sorted(LIGHTFIELD_FORMATS)}")
 
 
+def written_files(path: str | os.PathLike, format: str) -> list[Path]:
+    """Every file or folder :func:`save_lightfield` writes for ``path`` in ``format`` (ESLF: the image and its JSON;
+    npy: the array, its weight and its JSON)."""
+    p = Path(path)
+    return [p, p.with_suffix(".json")] if format == "eslf" else [p, *_npy_side(p)] if format == "npy" else [p]
+
+
 def holds_lightfield(folder: str | os.PathLike) -> bool:
     """True for a folder that is a saved light field: a zarr store or a views folder, by the files that make it one."""
     p = Path(folder)
@@ -634,4 +641,5 @@ def load_lightfield(path: str | os.PathLike, *, view: tuple[int, int] | None = N
 
 __all__ = ["LIGHTFIELD_FORMATS", "PAGE_EXTENSIONS", "LightFieldFormat", "save_lightfield", "load_lightfield",
            "detect_format", "eslf_from_lightfield", "lightfield_from_eslf", "ESLF_DEFAULT_VIEWS", "ESLF_EXTENSIONS",
-           "ESLF_NAMES", "VIEW_EXT", "holds_lightfield", "refuse_foreign_folder"]
+           "ESLF_NAMES", "VIEW_EXT", "holds_lightfield", "refuse_foreign_folder",
+           "written_files"]

@@ -217,3 +217,27 @@ def test_database_option_on_a_folder_of_white_images_says_how_to_index_it(tmp_pa
     assert res.exit_code == 1 and len(lines) == 1, res.output
     assert f"no calibration database in {folder} (no index.json; 'plenodecode calibrate --database {folder} " \
            "FOLDER' makes one" in lines[0] and not (tmp_path / "lf.zarr").exists()
+
+
+def test_an_output_over_the_raw_or_its_sidecar_is_refused(files, tmp_path):
+    """'decode scene.png -w white.png -o scene.png --overwrite' wrote an ESLF mosaic over the raw and its JSON over
+    the raw's sidecar (both inputs lost); '-o scene.tif' replaced only the sidecar.  An output whose files would
+    replace an input or its sidecar is refused naming -o, before any work, and the inputs are unchanged."""
+    import shutil
+
+    sim, raw, white, grid = files
+    for p in (raw, raw.with_suffix(".json"), white, white.with_suffix(".json")):
+        shutil.copy(p, tmp_path / p.name)
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    for out, words in (("scene.png", "would replace the input scene.png"),
+                       ("scene.tif", "would replace the input scene.json, the sidecar of scene.png"),
+                       ("white.npy", "would replace the input white.json, the sidecar of white.png")):
+        res = CliRunner().invoke(cli, ["decode", str(tmp_path / "scene.png"), "-w", str(tmp_path / "white.png"),
+                                       "-o", str(tmp_path / out), "--overwrite"])
+        errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+        assert res.exit_code == 2 and len(errors) == 1 and "Invalid value for -o / --output:" in errors[0], res.output
+        assert words in errors[0], errors
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+    res = CliRunner().invoke(cli, ["decode", str(tmp_path / "scene.png"), "-w", str(tmp_path / "white.png"),
+                                   "-o", str(tmp_path / "lf.png")])
+    assert res.exit_code == 0 and (tmp_path / "lf.json").is_file(), res.output
