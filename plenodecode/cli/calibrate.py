@@ -9,7 +9,8 @@ import click
 
 from ..errors import CalibrationError
 from ..io.atomic import write_text_atomic
-from .common import POSITIVE, RegistryChoice, check_output, overwrite_option, progress_bar
+from .common import (POSITIVE, RegistryChoice, check_output, overwrite_option, progress_bar,
+                     refuse_writing_over_inputs)
 
 
 def _write_text(path: Path, text: str) -> None:
@@ -65,6 +66,13 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
     if database is not None:
         _refuse_unused_with_database(ctx, for_raw, inputs, output, report, scene, refine)
     _check_names(output, report)
+    for path, option in ((output, "-o / --output"), (report, "--report")):
+        if path is None:
+            continue
+        refuse_writing_over_inputs([path], [*inputs, for_raw], param_hint=option)
+        if database is not None and path.resolve().is_relative_to(database.resolve()):
+            raise click.BadParameter(f"{path} is inside the calibration database {database}, which only "
+                                     "'calibrate --database' writes; choose a path outside it", param_hint=option)
     if output is not None:
         check_output(output, overwrite)
     if report is not None:

@@ -400,6 +400,23 @@ def lightfield_bit_depth(ctx: click.Context, name: str, output: Path, bit_depth:
     return int(bit_depth)
 
 
+def refuse_writing_over_inputs(written: list[Path], inputs: list[Any], *,
+                               param_hint: str = "-o / --output") -> None:
+    """A usage error naming the output option, before any work, when a file to be written would replace an input
+    or its sidecar (``X.json``, ``X.TXT``): '-o scene.png' for the mosaic scene.png, '-o MOD_0000.TXT'."""
+    read = {}
+    for p in (Path(i) for i in inputs if isinstance(i, (str, Path))):
+        for q in (p, *(p.with_suffix(ext) for ext in (".json", ".JSON", ".TXT", ".txt"))):
+            if q.exists():
+                read.setdefault(q.resolve(), p)
+    for out in written:
+        hit = read.get(Path(out).resolve())
+        if hit is not None:
+            what = hit.name if Path(out).resolve() == hit.resolve() else f"{Path(out).name}, the sidecar of {hit.name}"
+            raise click.BadParameter(f"writing {Path(out).name} would replace the input {what}; choose another name",
+                                     param_hint=param_hint)
+
+
 def check_output(path: Path, overwrite: bool) -> None:
     """Refuse to replace an existing output unless ``--overwrite`` was given (usage error, exit 2)."""
     if path.exists() and not overwrite:

@@ -10,27 +10,9 @@ import click
 from .common import (FOCUSED_PHOTO, RegistryChoice, bit_depth_option, calibration_kwargs, empty_views_note,
                      input_options, lightfield_bit_depth, lightfield_output_format, lightfield_summary, output_option,
                      overwrite_option, progress_bar, quiet, refuse_database_with_grid, refuse_focused_views,
-                     usage_errors, views_anyway_option)
+                     refuse_writing_over_inputs, usage_errors, views_anyway_option)
 
 log = logging.getLogger(__name__)
-
-
-def refuse_writing_over_inputs(output: Path, name: str, inputs: list[Path | None]) -> None:
-    """A usage error naming -o, before any work, when the light field's files would replace an input or its
-    sidecar ('-o scene.png' for the mosaic scene.png writes an ESLF over it, and scene.json over its sidecar)."""
-    from ..io.lightfield import written_files
-
-    read = {}
-    for p in (Path(i) for i in inputs if isinstance(i, (str, Path))):
-        for q in (p, *(p.with_suffix(ext) for ext in (".json", ".JSON", ".TXT", ".txt"))):
-            if q.exists():
-                read.setdefault(q.resolve(), p)
-    for out in written_files(output, name):
-        hit = read.get(out.resolve())
-        if hit is not None:
-            what = hit.name if out.resolve() == hit.resolve() else f"{out.name}, the sidecar of {hit.name}"
-            raise click.BadParameter(f"writing {output.name} would replace the input {what}; choose another name",
-                                     param_hint="-o / --output")
 
 
 def refuse_decoded_input(raw_path: Path) -> None:
@@ -106,7 +88,10 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
     name = lightfield_output_format(output, fmt, overwrite)
     depth = lightfield_bit_depth(ctx, name, output, bit_depth)
     inputs = calibration_kwargs(calibration, white, database, self_calibrate)
-    refuse_writing_over_inputs(output, name, [raw_path, calibration, white, inputs["dark"], inputs["raytrix_xml"]])
+    from ..io.lightfield import written_files
+
+    refuse_writing_over_inputs(written_files(output, name),
+                               [raw_path, calibration, white, inputs["dark"], inputs["raytrix_xml"]])
     dark, optics, geometry = inputs.pop("dark"), inputs.pop("optics"), inputs.pop("geometry")
     raw = open_raw(raw_path, mosaic=inputs["mosaic"], raytrix_xml=inputs.pop("raytrix_xml"), optics=optics)
     dark = read_dark_frame(dark, inputs["mosaic"], raw=raw)       # its size checked before the calibration

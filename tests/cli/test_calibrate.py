@@ -303,3 +303,30 @@ def test_report_and_grid_names_are_checked_before_any_work(white_pair, tmp_path,
     errors = [line for line in r.output.splitlines() if line.startswith("Error:")]
     assert r.exit_code == 2 and len(errors) == 1 and f"Invalid value for {option}:" in errors[0], r.output
     assert words in errors[0] and list(tmp_path.iterdir()) == []
+
+
+def test_the_grid_never_replaces_an_input_or_the_database(white_pair, tmp_path):
+    """'calibrate MOD_0000.RAW -o MOD_0000.TXT --overwrite' replaced the white image's metadata with the grid, and
+    'calibrate --database DB --for RAW -o DB/index.json --overwrite' the database's index: both are refused naming
+    -o before any work, and the files are unchanged."""
+    import shutil
+
+    path, _ = white_pair
+    for p in (path, path.with_suffix(".TXT")):
+        shutil.copy(p, tmp_path / p.name)
+    white = tmp_path / path.name
+    txt = white.with_suffix(".TXT").read_bytes()
+    r = CliRunner().invoke(cli, ["calibrate", str(white), "-o", str(white.with_suffix(".TXT")), "--overwrite"], obj={})
+    errors = [line for line in r.output.splitlines() if line.startswith("Error:")]
+    assert r.exit_code == 2 and len(errors) == 1, r.output
+    assert "would replace the input MOD_0000.TXT, the sidecar of MOD_0000.RAW" in errors[0]
+    assert white.with_suffix(".TXT").read_bytes() == txt
+    db = tmp_path / "db"
+    assert run("calibrate", "--database", db, path.parent).exit_code == 0
+    index = (db / "index.json").read_bytes()
+    raw, _ = simulate_white("f01-mini", seed=9, shape=SHAPE)
+    write_raw_pair(tmp_path / "pic" / "frame.RAW", replace(raw, metadata=replace(raw.metadata, is_white_image=False)))
+    r = CliRunner().invoke(cli, ["calibrate", "--database", str(db), "--for", str(tmp_path / "pic" / "frame.RAW"),
+                                 "-o", str(db / "index.json"), "--overwrite"], obj={})
+    assert r.exit_code == 2 and "is inside the calibration database" in r.output, r.output
+    assert (db / "index.json").read_bytes() == index
