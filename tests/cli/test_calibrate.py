@@ -179,7 +179,7 @@ def test_database_for_a_raw_without_serial_takes_only_a_white_of_its_sensor_size
     lines = r.output.strip().splitlines()
     assert r.exit_code == 1 and len(lines) == 1, r.output
     assert "no white image of its sensor size 300 x 300" in lines[0] and "(320 x 260)" in lines[0], lines
-    assert "calibrate --scene" in lines[0] and "-g" not in lines[0] and not (tmp_path / "g.json").exists()
+    assert "calibrate --scene" in lines[0] and "(-g)" not in lines[0] and not (tmp_path / "g.json").exists()
     # a serial-less raw of the database's sensor size: that camera's white, one warning, a path the user can open
     write_raw_pair(tmp_path / "pic2" / "frame.RAW", replace(raw, mosaic=np.zeros(SHAPE, np.uint16), metadata=replace(
         raw.metadata, serial=None, is_white_image=False)))
