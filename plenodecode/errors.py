@@ -56,7 +56,17 @@ class DecodeError(PlenodecodeError):
 
 
 class DarkFrameMismatchError(DecodeError):
-    """A dark frame (``--dark``) of another size than the raw, found before any work."""
+    """A dark frame (``--dark``) of another size than the raw, or one that would leave it black (a white or scene
+    frame), found before any work."""
+
+
+class LevelOptionError(MetadataError):
+    """A typed ``--black-level`` / ``--white-level`` (``option``) the mosaic's samples cannot have, found as soon as
+    the file is read: the CLI makes it a usage error naming the option."""
+
+    def __init__(self, message: str, option: str) -> None:
+        super().__init__(message)
+        self.option = option
 
 
 def one_line(exc: BaseException) -> str:
@@ -66,4 +76,4 @@ def one_line(exc: BaseException) -> str:
 
 
 __all__ = ["PlenodecodeError", "FormatError", "MetadataError", "CalibrationError", "GeometryMismatchError",
-           "MissingConstantsError", "DecodeError", "DarkFrameMismatchError", "one_line"]
+           "MissingConstantsError", "DecodeError", "DarkFrameMismatchError", "LevelOptionError", "one_line"]

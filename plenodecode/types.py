@@ -250,6 +250,11 @@ class LensletGrid:
         """Default number of views per angular axis: ``2 * floor(pitch / 2) + 1``."""
         return 2 * int(math.floor(self.pitch / 2)) + 1
 
+    def max_views(self) -> int:
+        """Most views per angular axis that still see a micro-image: ``2 * ceil(pitch / 2) + 1`` (a view step is one
+        sensor pixel; views farther out sample the neighbouring lenses' disks, or nothing)."""
+        return 2 * int(math.ceil(self.pitch / 2)) + 1
+
     def decoded_sampling(self) -> dict[str, float | int]:
         """Spatial sampling of the decoded light field (see the module docstring).
 

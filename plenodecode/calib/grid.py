@@ -302,7 +302,10 @@ def index_points(points: np.ndarray, v1: np.ndarray, v2: np.ndarray, *, seed: np
     span = float(dist.max())
     radius = 6.0 * pitch
     while True:
-        inv = np.linalg.inv(np.stack([b2, b1], axis=1))  # columns: v2 (n), v1 (m)
+        basis = np.stack([b2, b1], axis=1)                 # columns: v2 (n), v1 (m)
+        if not abs(np.linalg.det(basis)) > 0.1 * pitch ** 2:   # the vectors collapsed: these are not its points
+            raise np.linalg.LinAlgError("the lattice vectors became parallel while indexing the centres")
+        inv = np.linalg.inv(basis)
         ata, atp, n_good = _affine_normal_equations(pts, dist, radius, o, inv, tolerance)
         if n_good >= 6:
             sol = np.linalg.lstsq(ata, atp, rcond=None)[0]  # least squares P = o + n v2 + m v1 (good points)
@@ -385,7 +388,11 @@ def fit_lattice(points: np.ndarray, v1: np.ndarray, v2: np.ndarray, lattice: str
     if lattice not in ("hex", "square"):
         raise ValueError(f"lattice must be 'hex' or 'square', got {lattice!r}")
     pts = np.asarray(points, np.float64)
-    nm, ok, basis = index_points(pts, v1, v2)
+    try:
+        nm, ok, basis = index_points(pts, v1, v2)
+    except np.linalg.LinAlgError:
+        raise CalibrationError(f"the detected centres do not form a {lattice} lattice; check the lattice type "
+                               "(--lattice; auto detects it)") from None
     o, b1, b2 = basis
     pred = o + nm[:, 1:2] * b1 + nm[:, 0:1] * b2
     dist = np.hypot(*(pts - pred).T)
@@ -586,6 +593,34 @@ def refit_grid(grid: LensletGrid, points: np.ndarray, *, max_shift: float = 0.3,
                         row_spacing=float(x[4]), refined=None, residual_rms=rms, info=info)
 
 
+def _explained_deviations(fit: "LatticeFit", ij: np.ndarray, inliers: np.ndarray, grid_shape: tuple[int, int],
+                          window: int, measured: np.ndarray, k_sigma: float = 4.0, rounds: int = 10) -> np.ndarray:
+    """:func:`smooth_deviations` of the inliers, then also of the lenses the rigid lattice's cut rejected but the
+    smooth deviations explain (within ``k_sigma`` of the fit's sigma), until no more join (at most ``rounds``).
+
+    A smooth distortion of the lens array's image (a microscope's relay lens) grows toward the corners past the
+    lattice fit's cut (the ant-leg radiometry frame: 60 of a corner's 108 lenses, 1.5-2.5 px off the lattice), so
+    those lenses would keep their lattice position; a corner's lenses are explained once their neighbours are in.
+
+    Returns
+    -------
+    ndarray (rows, cols, 2) float64, NaN where not significant.
+    """
+    rows, cols = grid_shape
+    inside = (ij[:, 0] >= 0) & (ij[:, 0] < rows) & (ij[:, 1] >= 0) & (ij[:, 1] < cols)
+    spare = np.flatnonzero(measured & inside & ~fit.inlier & (np.hypot(*fit.residuals.T) < 0.25 * fit.pitch))
+    use = inliers.copy()
+    for _ in range(rounds):
+        dev = smooth_deviations(grid_shape, ij[use], fit.residuals[use], fit.sigma, window=window)
+        at = dev[ij[spare, 0], ij[spare, 1]]
+        near = np.isfinite(at[:, 0]) & (np.hypot(*(fit.residuals[spare] - at).T) < k_sigma * fit.sigma)
+        if not near.any():
+            break
+        use[spare[near]] = True
+        spare = spare[~near]
+    return dev
+
+
 def grid_from_fit(fit: LatticeFit, points: np.ndarray, sensor_shape: tuple[int, int], *,
                   measured_mask: np.ndarray | None = None, radius: float | None = None,
                   refine: bool = True, refine_window: int = 5, info: dict[str, Any] | None = None) -> LensletGrid:
@@ -618,7 +653,8 @@ def grid_from_fit(fit: LatticeFit, points: np.ndarray, sensor_shape: tuple[int, 
     refined = None
     n_ref = 0
     if refine and mask.sum() >= 9:
-        dev = smooth_deviations((rows, cols), ij[mask], fit.residuals[mask], fit.sigma, window=refine_window)
+        dev = _explained_deviations(fit, ij, mask, (rows, cols), refine_window,
+                                    fit.indices[:, 0] == fit.indices[:, 0] if measured_mask is None else measured_mask)
         n_ref = int(np.isfinite(dev[..., 0]).sum())
         if n_ref:
             grid0 = LensletGrid(lattice=fit.lattice, pitch=fit.pitch, row_spacing=fit.row_spacing,

@@ -133,7 +133,7 @@ def _rim_points(img: np.ndarray, est: _c.LatticeEstimate, *, min_contrast: float
     k = int(np.argmin(sig))
     if not math.isfinite(sig[k]):
         raise CalibrationError("no rim radius gives disk centres on a lattice; expected lit lenslet disks "
-                               "separated by dark gaps (use method='dog' for other images)")
+                               "separated by dark gaps (other images: calibrate_from_scene(..., method='dog'))")
     # golden-section search between the neighbours of the best trial radius (the scatter is V-shaped
     # about its minimum, so a parabola through the coarse trials would miss it)
     step = fracs[1] - fracs[0]

@@ -450,8 +450,8 @@ def select_white(db_dir: str | os.PathLike, metadata: CameraMetadata | RawCaptur
     Raises
     ------
     CalibrationError
-        No white image of the raw's camera (the message lists the serials the database holds),
-        or the raw has no serial while the database holds several cameras.
+        No white image of the raw's camera (the message lists the serials the database holds), or the raw has
+        no serial while the database holds several cameras, or none of the raw's sensor size (a RawCapture's).
     """
     from ..io.lytro import frame_ref
 
@@ -468,12 +468,19 @@ def select_white(db_dir: str | os.PathLike, metadata: CameraMetadata | RawCaptur
         log.info("white image %s: named by the picture's geometryCorrectionRef through cal_file_manifest.json",
                  linked[0].file)
         return min(linked, key=lambda e: e.file)
-    if md.serial is None:
-        if len(serials) > 1:
-            raise CalibrationError(f"the raw has no camera serial and the database {db_dir} holds several cameras "
-                                   f"({', '.join(serials)}); pass a grid (-g) or a white image explicitly")
-        log.warning("raw has no camera serial; using the only camera in %s (%s)", db_dir, serials[0])
-        cands = entries
+    if md.serial is None:  # only a white image of the raw's sensor size can be its camera's
+        shape = tuple(metadata.shape) if isinstance(metadata, RawCapture) else None
+        cands = [e for e in entries if shape is None or e.shape is None or tuple(e.shape) == shape]
+        cameras = sorted({str(e.serial) for e in cands})
+        size = "" if shape is None else f" of its sensor size {shape[1]} x {shape[0]}"
+        if not cands:
+            held = ", ".join(sorted({f"{e.serial} ({e.shape[1]} x {e.shape[0]})" for e in entries}))
+            raise CalibrationError(f"the raw has no camera serial and the database {db_dir} holds no white image"
+                                   f"{size} (it holds {held}); give this camera's white image or grid")
+        if len(cameras) > 1:
+            raise CalibrationError(f"the raw has no camera serial and the database {db_dir} holds several cameras"
+                                   f"{size} ({', '.join(cameras)}); give this camera's white image or grid")
+        log.warning("raw has no camera serial; using the only camera%s in %s (%s)", size, db_dir, cameras[0])
     else:
         cands = [e for e in entries if str(e.serial) == str(md.serial)]
         if not cands:
@@ -534,12 +541,13 @@ def _existing_white(entry: WhiteEntry, db: Path) -> Path | str:
     return path
 
 
-def _lookup_grid(raw: RawCapture, db: Path, **calibrate_kw: Any) -> tuple[WhiteEntry, LensletGrid]:
+def lookup_grid(raw: RawCapture, db_dir: str | os.PathLike, **calibrate_kw: Any) -> tuple[WhiteEntry, LensletGrid]:
     """The entry :func:`select_white` picks for ``raw`` and its grid: read from the cache, else fitted in memory.
 
     Writes nothing; a missing cached grid costs a fit per call and is logged with the command that
     caches it.
     """
+    db = Path(db_dir)
     entry = select_white(db, raw)
     if entry.grid is not None and (db / entry.grid).is_file():
         try:
@@ -580,7 +588,7 @@ def grid_for(raw: RawCapture, db_dir: str | os.PathLike = DEFAULT_DB, **calibrat
     CalibrationError
         No matching camera (see :func:`select_white`), or a cached grid for another sensor size.
     """
-    return _lookup_grid(raw, Path(db_dir), **calibrate_kw)[1]
+    return lookup_grid(raw, db_dir, **calibrate_kw)[1]
 
 
 def calibration_for(raw: RawCapture, db_dir: str | os.PathLike = DEFAULT_DB,
@@ -613,16 +621,23 @@ def calibration_for(raw: RawCapture, db_dir: str | os.PathLike = DEFAULT_DB,
     FormatError
         The white image file cannot be parsed.
     """
+    entry, grid = lookup_grid(raw, db_dir, **calibrate_kw)
+    return grid, read_white(entry, db_dir, raw)
+
+
+def read_white(entry: WhiteEntry, db_dir: str | os.PathLike, raw: RawCapture) -> RawCapture:
+    """The white image of a database entry, read back; a CalibrationError when it is missing or not of ``raw``'s
+    sensor size (mosaic (H, W) uint16)."""
     from ..io import read_raw
 
     db = Path(db_dir)
-    entry, grid = _lookup_grid(raw, db, **calibrate_kw)
     white = read_raw(_existing_white(entry, db))
     if white.shape != raw.shape:
         raise CalibrationError(f"the white image {entry.file} is {white.shape[1]}x{white.shape[0]} but the raw is "
                                f"{raw.shape[1]}x{raw.shape[0]}; rebuild the database {db}")
-    return grid, white
+    return white
 
 
 __all__ = ["DEFAULT_DB", "WhiteEntry", "build_database", "cache_grids", "select_white", "other_whites", "white_path",
-           "grid_for", "calibration_for", "load_index", "save_index", "update_index", "index_lock"]
+           "grid_for", "calibration_for", "lookup_grid", "read_white", "load_index", "save_index", "update_index",
+           "index_lock"]

@@ -196,6 +196,8 @@ def calibrate(white: WhiteInput, *, lattice: str = "auto", pitch_hint: float | N
         raise ValueError(f"lattice must be one of {LATTICES}, got {lattice!r}")
     if binning not in ("auto", 1, 2):
         raise ValueError(f"binning must be 'auto', 1 or 2, got {binning!r}")
+    if pitch_hint is not None and not (np.isfinite(pitch_hint) and pitch_hint > 2):
+        raise ValueError(f"pitch_hint must be a finite lens pitch > 2 px, got {pitch_hint!r}")
     raws = _as_raws(white)
     extra = raws[0].metadata.extra
     if len(raws) == 1 and isinstance(extra, Mapping) and "raytrix" in extra:

@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import click
 
+from ..errors import CalibrationError
 from ..io.atomic import write_text_atomic
-from .common import POSITIVE, RegistryChoice, check_output, overwrite_option, progress_bar
+from .common import (POSITIVE, RegistryChoice, check_output, overwrite_option, progress_bar,
+                     refuse_writing_over_inputs)
 
 
 def _write_text(path: Path, text: str) -> None:
@@ -58,6 +61,18 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
     from ..calib import store
     from ..io.lytro.archive import archive_kind
 
+    if for_raw is not None and database is None:
+        raise click.UsageError("--for RAW picks a white image from a calibration database: add --database DIR")
+    if database is not None:
+        _refuse_unused_with_database(ctx, for_raw, inputs, output, report, scene, refine)
+    _check_names(output, report)
+    for path, option in ((output, "-o / --output"), (report, "--report")):
+        if path is None:
+            continue
+        refuse_writing_over_inputs([path], [*inputs, for_raw], param_hint=option)
+        if database is not None and path.resolve().is_relative_to(database.resolve()):
+            raise click.BadParameter(f"{path} is inside the calibration database {database}, which only "
+                                     "'calibrate --database' writes; choose a path outside it", param_hint=option)
     if output is not None:
         check_output(output, overwrite)
     if report is not None:
@@ -71,14 +86,16 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
             raise click.UsageError("--database needs the folder(s) of MOD_NNNN.RAW/.TXT white images or the "
                                    "calibration archives to index")
         entries = []
+        fit = {"lattice": lattice, "pitch_hint": pitch_hint}
         for folder in inputs:  # index the folder's whites, fit and cache their grids (store.cache_grids)
-            entries = store.build_database(folder, database, overwrite=overwrite, lattice=lattice,
+            entries = store.build_database(folder, database, overwrite=overwrite, **fit,
                                            progress=progress_bar(f"fitting whites in {folder}", ctx))
         if not inputs:  # the database alone: fit and cache the grids its index lacks
-            entries = store.cache_grids(database, overwrite=overwrite, lattice=lattice,
+            entries = store.cache_grids(database, overwrite=overwrite, **fit,
                                         progress=progress_bar(f"fitting the white images of {database}", ctx))
         serials = sorted({str(e.serial) for e in entries})
-        click.echo(f"{database}: {len(entries)} white image(s) of camera(s) {', '.join(serials)}")
+        click.echo(f"{database}: {len(entries)} white image(s) of camera(s) {', '.join(serials)} ('plenodecode info "
+                   f"{database}' lists them)")
         return
     if output is None:
         raise click.UsageError("missing -o/--output (the grid JSON to write)")
@@ -86,42 +103,132 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
     if database is not None:
         from ..io import read_raw
         raw = read_raw(for_raw)
-        entry = store.select_white(database, raw)
-        grid = store.grid_for(raw, database, lattice=lattice)
+        try:
+            entry, grid = store.lookup_grid(raw, database, lattice=lattice, pitch_hint=pitch_hint)
+        except CalibrationError as exc:
+            raise CalibrationError(f"{exc}; or 'plenodecode calibrate WHITE -o {output}' fits a white image, "
+                                   f"'plenodecode calibrate --scene {for_raw} -o {output}' finds the grid in the "
+                                   "scene") from exc
         white = store.white_path(entry, database)
-        click.echo(f"white image {entry.file} (serial {entry.serial}, zoom {entry.zoom_step}, focus {entry.focus_step})",
+        click.echo(f"white image {white} (serial {entry.serial}, zoom {entry.zoom_step}, focus {entry.focus_step})",
                    err=True)
     else:
         if not inputs:
             raise click.UsageError("give at least one WHITE image (or --database with a folder)")
         if any(p.is_dir() for p in inputs):
             raise click.UsageError("a folder was given: use --database DIR to index a folder of white images")
-        grid = _calibrate_inputs(ctx, inputs, lattice=lattice, pitch_hint=pitch_hint, scene=scene, refine=refine)
-        white = list(inputs)
-    for msg in grid.info.get("warnings", []):
-        click.echo(f"warning: {msg}", err=True)
+        grid, white = _calibrate_inputs(ctx, inputs, lattice=lattice, pitch_hint=pitch_hint, scene=scene,
+                                        refine=refine)
+    if database is not None:  # a cached grid's warnings were logged when it was fitted, not now
+        for msg in grid.info.get("warnings", []):
+            click.echo(f"warning: {msg}", err=True)
     from ..report.calibration import rms_text
     _write_text(output, grid.to_json())
     click.echo(f"grid  {output}  ({grid.lattice}, pitch {grid.pitch:.4f} px, rotation {grid.rotation:.6f} rad, "
                f"{grid.shape[0]}x{grid.shape[1]} lenses, RMS {rms_text(grid)})")
+    _warn_high_rms(grid, report)
     if report is not None:
         from ..report.calibration import write_calibration_report
         write_calibration_report(grid, white, report, overwrite=overwrite)
         click.echo(f"report {report}")
 
 
+#: A white image's grid of a forced --lattice that fits fewer of the detected disks is refused (a hex white forced
+#: square fits every other row: 18 % of the f01-mini's disks; right lattices fit 99-100 %).
+MIN_FIT_SHARE = 0.5
+
+
+def _check_names(output: Path | None, report: Path | None) -> None:
+    """Usage errors before any work: the report written over the grid, or the two swapped (a grid JSON named .html,
+    a report page not named .html)."""
+    if output is not None and output.suffix.lower() in (".html", ".htm"):
+        raise click.BadParameter(f"{output.name} names an HTML page; the grid is JSON (e.g. grid.json), the page is "
+                                 "--report", param_hint="-o / --output")
+    if report is None:
+        return
+    if output is not None and report.resolve() == output.resolve():
+        raise click.BadParameter("must differ from -o/--output (the grid JSON)", param_hint="--report")
+    if report.suffix.lower() not in (".html", ".htm"):
+        raise click.BadParameter(f"the report is an HTML page: name it .html, not {report.name}",
+                                 param_hint="--report")
+
+
+def _warn_high_rms(grid: Any, report: Path | None) -> None:
+    """One line on stderr when a white image's grid fits worse than the report's 'check' limit (the report would
+    say 'bad'; without --report nothing else would)."""
+    from ..report.calibration import WHITE_RMS_PX, smooth_part, source_kind
+
+    if source_kind(grid) != "white-image" or grid.residual_rms is None:
+        return
+    smooth = smooth_part(grid, grid.residual_rms)
+    rest = grid.residual_rms if smooth is None else smooth["rest_rms_px"]
+    if rest > WHITE_RMS_PX[1]:
+        where = f"{report} shows where" if report is not None else "--report shows where"
+        click.echo(f"warning: RMS {rest:.3f} px is high for a white image (good <= {WHITE_RMS_PX[0]} px, check <= "
+                   f"{WHITE_RMS_PX[1]} px): a scene, another camera's image, or a wrong --lattice? {where}", err=True)
+
+
+def _refuse_unused_with_database(ctx: click.Context, for_raw: Path | None, inputs: tuple[Path, ...],
+                                 output: Path | None, report: Path | None, scene: bool, refine: bool) -> None:
+    """Usage errors, before any work, for options that would be ignored with --database: -o and --report
+    without --for (indexing writes no grid file), WHITE with --for, --scene and --refine (a database holds
+    white images)."""
+    unused = [opt for opt, given in (("-o/--output", output is not None and for_raw is None),
+                                     ("--report", report is not None and for_raw is None),
+                                     ("--scene", scene), ("--refine", refine)) if given]
+    if unused:
+        raise click.UsageError(f"{' and '.join(unused)} {'does' if len(unused) == 1 else 'do'} nothing with "
+                               "--database DIR, which indexes white images and caches their grids inside DIR; "
+                               "--database DIR --for RAW -o grid.json writes the grid of RAW's white image")
+    if for_raw is not None and inputs:
+        raise click.UsageError(f"--for {for_raw.name} picks the white image from the database, so WHITE "
+                               f"({inputs[0].name}) is not used: index it first ('plenodecode calibrate --database "
+                               "DIR FOLDER'), or calibrate it alone without --database")
+
+
 def _calibrate_inputs(ctx: click.Context, inputs: tuple[Path, ...], *, lattice: str, pitch_hint: float | None,
-                      scene: bool, refine: bool):
+                      scene: bool, refine: bool) -> tuple[Any, list[Any]]:
+    """The grid of ``inputs`` and what it came from, read once (RawCaptures; the path of a scene image no raw
+    reader takes), for the report: reading them again would repeat the readers' warnings."""
     from ..calib import calibrate
     from ..calib.selfcal import calibrate_from_scene, calibrate_raytrix
+    from ..errors import FormatError
     from ..io import read_raw
 
     if scene:
         if len(inputs) != 1:
             raise click.UsageError("--scene takes exactly one raw or image")
-        return calibrate_from_scene(inputs[0], lattice=lattice, pitch_hint=pitch_hint,
-                                    progress=progress_bar("self-calibrating", ctx))
+        if refine:
+            raise click.UsageError("--refine is for a Raytrix image's RayCalibData grid, not with --scene")
+        try:
+            source = read_raw(inputs[0])
+        except FormatError:     # an image no raw reader takes (self-calibration reads it as an image)
+            source = inputs[0]
+        try:
+            return calibrate_from_scene(source, lattice=lattice, pitch_hint=pitch_hint,
+                                        progress=progress_bar("self-calibrating", ctx)), [source]
+        except CalibrationError as exc:
+            if lattice == "auto":
+                raise
+            raise CalibrationError(f"{exc} (with --lattice {lattice}: leave it out to detect the lattice)") from exc
     raws = [read_raw(p) for p in inputs]
     if "raytrix" in raws[0].metadata.extra:
-        return calibrate_raytrix(raws[0], refine=refine)
-    return calibrate(raws, lattice=lattice, pitch_hint=pitch_hint, progress=progress_bar("calibrating", ctx))
+        return calibrate_raytrix(raws[0], refine=refine), raws
+    if refine:
+        raise click.BadParameter(f"refines a Raytrix image's RayCalibData grid; {inputs[0].name} has none (a white "
+                                 "image's grid is fitted to it anyway)", param_hint="--refine")
+    try:
+        grid = calibrate(raws, lattice=lattice, pitch_hint=pitch_hint, progress=progress_bar("calibrating", ctx))
+    except CalibrationError as exc:
+        if pitch_hint is None:
+            raise
+        known = raws[0].metadata.lenslet_pitch_px()
+        said = f"its metadata says {known:.3f} px" if known else "without it the pitch is estimated from the image"
+        raise CalibrationError(f"{exc} (with --pitch {pitch_hint:g} px as the hint; {said}: check the value or "
+                               "leave --pitch out)") from exc
+    found, fit = grid.info.get("n_detected"), grid.info.get("n_fit")
+    if lattice != "auto" and found and fit is not None and fit < MIN_FIT_SHARE * found:
+        raise CalibrationError(f"only {fit} of the {found} disks detected fit a {lattice} lattice (the others lie "
+                               f"between its lenses): {inputs[0].name} has another lattice; leave --lattice out "
+                               "(auto) or give the other type")
+    return grid, raws

@@ -52,9 +52,16 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], board, output: Path, r
         if report.resolve() == output.resolve():
             raise click.BadParameter("must differ from -o/--output", param_hint="--report")
     options = calibration_kwargs(calibration, white, database, False)
+    bar = progress_bar("captures", ctx)
+
+    def captures(done: int, total: int) -> None:
+        bar(done, total)
+        if done == total and not quiet(ctx):     # the fit that follows takes as long as a few captures
+            click.echo("fitting the ray model (H, distortion, board poses) to the corners ...", err=True)
+
     run = calibrate_geometry_files(inputs, board, grid=options["grid"], white=options["white"],
                                    database=options["database"], mosaic=options["mosaic"],
-                                   distortion=not no_distortion, progress=progress_bar("captures", ctx))
+                                   distortion=not no_distortion, progress=captures)
     with usage_errors():
         written = write_geometry_outputs(run, output, report=report, toolbox=toolbox, overwrite=overwrite)
     for name, reason in run.skipped:

@@ -319,6 +319,21 @@ def quiet(ctx: click.Context) -> bool:
 COLOUR_WORDS = {"camera": "camera RGB", "linear-srgb": "linear sRGB", "srgb": "sRGB"}
 
 
+def empty_views_note(lf: Any, name: str) -> str:
+    """``'; 24 corner views ... hold no data ...'`` for a light field written as images (views, eslf) whose views
+    past the round micro-images have no sample with data (black in the files, or the rims' stripes), else ''."""
+    if name not in ("views", "eslf") or lf.weight is None:
+        return ""
+    from ..imaging import MIN_DATA_WEIGHT, view_data_share
+
+    empty = int((view_data_share(lf.weight) == 0).sum())
+    if not empty:
+        return ""
+    where = "weight.npy" if name == "views" else "the image's last channel"
+    return (f"; {empty} corner views past the round micro-images hold no data (weight under {MIN_DATA_WEIGHT:g}: "
+            f"black, or the rims' stripes; {where} holds every sample's weight)")
+
+
 def lightfield_summary(shape: tuple[int, ...], colour: str) -> str:
     """``'9x9 views of 381x381, camera RGB'`` for a (V, U, Y, X, C) light field; one channel reads 'monochrome'."""
     V, U, Y, X, C = shape
@@ -355,6 +370,53 @@ def image_bit_depth(ctx: click.Context, bit_depth: str, suffix: str, *, param_hi
     return int(bit_depth)
 
 
+def lightfield_bit_depth(ctx: click.Context, name: str, output: Path, bit_depth: str,
+                         image_type: str | None = None) -> int:
+    """The bit depth a light field in format ``name`` is written with at ``output``, checked before any work
+    (usage errors naming the option): zarr and npy store float32, so a typed ``--bit-depth`` other than 32 is
+    refused; mat stores 16 bits; an ESLF mosaic is a .png/.tif (:data:`~plenodecode.io.lightfield.ESLF_EXTENSIONS`)
+    at a depth it holds; views at a depth their ``--image-type`` holds (:func:`image_bit_depth`)."""
+    from ..io.lightfield import ESLF_EXTENSIONS, ESLF_NAMES
+
+    typed = ctx.get_parameter_source("bit_depth") is ParameterSource.COMMANDLINE
+    if name in ("zarr", "npy"):
+        if typed and bit_depth != "32":
+            raise click.BadParameter(f"{name} stores float32 samples (lossless), not {bit_depth}-bit ones; leave it "
+                                     "out, or write --format views, eslf or mat", param_hint="--bit-depth")
+        return int(bit_depth)
+    if name == "mat":
+        if bit_depth != "16" and typed:
+            raise click.BadParameter(f"the LFToolbox .mat format stores 16-bit samples, not {bit_depth}",
+                                     param_hint="--bit-depth")
+        return 16
+    if name == "eslf":
+        if output.suffix.lower() not in ESLF_EXTENSIONS:
+            given = output.suffix or "a name without extension"
+            raise click.BadParameter(f"an ESLF mosaic is written as {ESLF_NAMES} (its 4th channel is the weight, and "
+                                     f"it loads back by that extension), not {given}", param_hint="-o / --output")
+        return image_bit_depth(ctx, bit_depth, output.suffix)
+    if name == "views" and image_type is not None:
+        return image_bit_depth(ctx, bit_depth, f".{image_type}", param_hint="--image-type")
+    return int(bit_depth)
+
+
+def refuse_writing_over_inputs(written: list[Path], inputs: list[Any], *,
+                               param_hint: str = "-o / --output") -> None:
+    """A usage error naming the output option, before any work, when a file to be written would replace an input
+    or its sidecar (``X.json``, ``X.TXT``): '-o scene.png' for the mosaic scene.png, '-o MOD_0000.TXT'."""
+    read = {}
+    for p in (Path(i) for i in inputs if isinstance(i, (str, Path))):
+        for q in (p, *(p.with_suffix(ext) for ext in (".json", ".JSON", ".TXT", ".txt"))):
+            if q.exists():
+                read.setdefault(q.resolve(), p)
+    for out in written:
+        hit = read.get(Path(out).resolve())
+        if hit is not None:
+            what = hit.name if Path(out).resolve() == hit.resolve() else f"{Path(out).name}, the sidecar of {hit.name}"
+            raise click.BadParameter(f"writing {Path(out).name} would replace the input {what}; choose another name",
+                                     param_hint=param_hint)
+
+
 def check_output(path: Path, overwrite: bool) -> None:
     """Refuse to replace an existing output unless ``--overwrite`` was given (usage error, exit 2)."""
     if path.exists() and not overwrite:
@@ -378,8 +440,12 @@ def check_folder_output(folder: Path, names: list[str], overwrite: bool, *, what
 def lightfield_output_format(output: Path, fmt: str | None, overwrite: bool) -> str:
     """The light-field format to write ``output`` in: ``fmt``, else detected from its name (usage errors for an
     existing output without ``--overwrite`` and for a name that says no format)."""
-    from ..io.lightfield import detect_format
+    from ..io.lightfield import detect_format, refuse_foreign_folder
 
+    try:
+        refuse_foreign_folder(output)       # before 'pass --overwrite', which would delete the folder's files
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="-o / --output") from None
     check_output(output, overwrite)
     try:
         return fmt or detect_format(output, option="--format")

@@ -7,15 +7,35 @@ from pathlib import Path
 
 import click
 
-from .common import (FOCUSED_PHOTO, RegistryChoice, bit_depth_option, calibration_kwargs, input_options,
-                     lightfield_output_format, lightfield_summary, output_option, overwrite_option, progress_bar, quiet,
-                     refuse_database_with_grid, refuse_focused_views, usage_errors, views_anyway_option)
+from .common import (FOCUSED_PHOTO, RegistryChoice, bit_depth_option, calibration_kwargs, empty_views_note,
+                     input_options, lightfield_bit_depth, lightfield_output_format, lightfield_summary, output_option,
+                     overwrite_option, progress_bar, quiet, refuse_database_with_grid, refuse_focused_views,
+                     refuse_writing_over_inputs, usage_errors, views_anyway_option)
 
 log = logging.getLogger(__name__)
 
 
+def refuse_decoded_input(raw_path: Path) -> None:
+    """A usage error naming RAW, before any work, for what is no raw: a saved light field or an HCI scene (decoded
+    already: it says which command takes it) or another folder."""
+    from ..io.lightfield import holds_lightfield
+    from ..pipeline import input_kind
+
+    kind = input_kind(raw_path)
+    if kind == "raw" and not raw_path.is_dir():
+        return
+    if kind != "hci" and raw_path.is_dir() and not holds_lightfield(raw_path):
+        raise click.BadParameter(f"{raw_path.name} is a folder; decode reads one raw file ('plenodecode batch "
+                                 f"{raw_path} -o OUT/' decodes the raws of a folder)", param_hint="RAW")
+    what = "an HCI scene" if kind == "hci" else "a saved light field"
+    other = "lf.zarr" if raw_path.suffix.lower() == ".mat" else "lf.mat"
+    raise click.BadParameter(f"{raw_path.name} is {what}, decoded already: 'plenodecode export {raw_path} -o "
+                             f"{other}' converts it, 'plenodecode {raw_path} -o photo.png' renders it",
+                             param_hint="RAW")
+
+
 @click.command("decode")
-@click.argument("raw_path", metavar="RAW", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument("raw_path", metavar="RAW", type=click.Path(exists=True, path_type=Path))
 @output_option
 @input_options
 @click.option("--format", "fmt", type=RegistryChoice("plenodecode.io.lightfield", "LIGHTFIELD_FORMATS", sort=True),
@@ -30,7 +50,8 @@ log = logging.getLogger(__name__)
                    "row-alternating zipper at vertical edges and up to 2 dB sharper, 50 % slower, softer on "
                    "fine oblique detail.")
 @click.option("--views", "n_views", type=int, default=None,
-              help="Views per angular axis (odd) [default: 2*floor(pitch/2)+1].")
+              help="Views per angular axis (odd; a view step is one sensor pixel), at most 2*ceil(pitch/2)+1 "
+                   "[default: 2*floor(pitch/2)+1, pitch in px].")
 @click.option("--colour", type=RegistryChoice("plenodecode.decoding.colour", "DECODE_COLOURS"), default="linear-srgb",
               show_default=True, help="Colour of the output: white balance + colour matrix, or camera RGB.")
 @click.option("--no-hot-pixels", is_flag=True, help="Do not repair hot pixels.")
@@ -60,25 +81,36 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
     """
     from ..pipeline import check_geometry, choose_calibration, decode_raw, open_raw, read_dark_frame, write_lightfield
 
+    refuse_decoded_input(raw_path)
     refuse_database_with_grid(calibration, white, database)
     if n_views is not None and (n_views < 1 or n_views % 2 == 0):
         raise click.BadParameter("must be a positive odd number", param_hint="--views")
     name = lightfield_output_format(output, fmt, overwrite)
+    depth = lightfield_bit_depth(ctx, name, output, bit_depth)
     inputs = calibration_kwargs(calibration, white, database, self_calibrate)
+    from ..io.lightfield import written_files
+
+    refuse_writing_over_inputs(written_files(output, name),
+                               [raw_path, calibration, white, inputs["dark"], inputs["raytrix_xml"]])
     dark, optics, geometry = inputs.pop("dark"), inputs.pop("optics"), inputs.pop("geometry")
     raw = open_raw(raw_path, mosaic=inputs["mosaic"], raytrix_xml=inputs.pop("raytrix_xml"), optics=optics)
     dark = read_dark_frame(dark, inputs["mosaic"], raw=raw)       # its size checked before the calibration
     cal = choose_calibration(raw, **inputs)
     refuse_focused_views(cal.grid.lens_type is not None, raw_path, views_anyway,
                          instead=FOCUSED_PHOTO.format(raw=raw_path))
+    if n_views is not None and n_views > cal.grid.max_views():
+        raise click.BadParameter(f"{n_views} is more than the {cal.grid.max_views()} views per axis that see a "
+                                 f"micro-image (the lenses are {cal.grid.pitch:.2f} px apart and a view step is one "
+                                 f"sensor pixel; the default is {cal.grid.n_views()})", param_hint="--views")
     if geometry is not None:
         check_geometry(geometry, calibration=cal, n_views=n_views)
     lf = decode_raw(raw, cal, dark=dark, demosaic=demosaic, resample=resample,
                     colour=colour, n_views=n_views, hot_pixels=not no_hot_pixels,
                     progress=progress_bar("decoding", ctx), geometry=geometry)
     with usage_errors():
-        out = write_lightfield(lf, output, format=name, bit_depth=int(bit_depth), overwrite=overwrite,
+        out = write_lightfield(lf, output, format=name, bit_depth=depth, overwrite=overwrite,
                                progress=progress_bar(f"writing {name}", ctx))
     if not quiet(ctx):
         rectified = ", rectified" if lf.geometry.ray_model else ""
-        click.echo(f"wrote {out} ({name}: {lightfield_summary(lf.shape, lf.colour)}{rectified})")
+        click.echo(f"wrote {out} ({name}: {lightfield_summary(lf.shape, lf.colour)}{rectified})"
+                   + empty_views_note(lf, name))

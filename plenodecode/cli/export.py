@@ -8,8 +8,8 @@ import click
 
 from ..pipeline import IMAGE_EXTENSIONS
 from ..registry import lazy
-from .common import (RegistryChoice, bit_depth_option, check_output, lightfield_output_format, lightfield_summary,
-                     output_option, overwrite_option, progress_bar)
+from .common import (RegistryChoice, bit_depth_option, check_output, empty_views_note, lightfield_bit_depth,
+                     lightfield_output_format, lightfield_summary, output_option, overwrite_option, progress_bar)
 
 #: Exports that are pages for people, not light fields (they never load back; their extensions are
 #: :data:`plenodecode.io.lightfield.PAGE_EXTENSIONS`): name -> ``write(lf, path, *, overwrite, progress)``.
@@ -107,7 +107,11 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
         name = page
     else:
         name = lightfield_output_format(output, fmt, overwrite)
+        bit_depth = str(lightfield_bit_depth(ctx, name, output, bit_depth, image_type))
     lf = _load(lf_in)
+    if srgb and lf.colour == "srgb":
+        raise click.BadParameter(f"{lf_in.name} is sRGB-encoded already (colour 'srgb'); leave --srgb out",
+                                 param_hint="--srgb")
     try:
         if page is not None:
             out = PAGE_FORMATS[page](lf, output, overwrite=overwrite, progress=progress_bar(f"writing {page}", ctx))
@@ -121,4 +125,4 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
         raise click.UsageError(str(exc)) from exc
     if not (ctx.obj or {}).get("quiet"):
         colour = "srgb" if srgb or page is not None else lf.colour
-        click.echo(f"wrote {out} ({name}: {lightfield_summary(lf.shape, colour)})")
+        click.echo(f"wrote {out} ({name}: {lightfield_summary(lf.shape, colour)})" + empty_views_note(lf, name))

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import click
 
-from .common import check_folder_output, output_option, overwrite_option, quiet, usage_errors
+from .common import check_folder_output, overwrite_option, quiet, usage_errors
 
 #: The manifest written beside the extracted items.
 MANIFEST = "contents.json"
@@ -30,7 +30,8 @@ def manifest_name(taken: list[str]) -> str:
 
 @click.command("extract")
 @click.argument("input_path", metavar="FILE", type=click.Path(exists=True, dir_okay=False, path_type=Path))
-@output_option
+@click.option("-o", "--output", "output", type=click.Path(path_type=Path), required=True,
+              help="Folder the items are written into (created if missing).")
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, output: Path, overwrite: bool) -> None:

@@ -124,7 +124,10 @@ def _describe_lightfield(path: Path) -> list[str]:
 
     lf = open_input(path)
     g = lf.geometry
-    lines = [f"{path}: light field {' x '.join(map(str, lf.shape))} (V, U, Y, X, C), colour {lf.colour}"]
+    from .common import COLOUR_WORDS
+
+    colour = "monochrome" if lf.shape[-1] == 1 else COLOUR_WORDS.get(lf.colour, lf.colour)   # as decode says it
+    lines = [f"{path}: light field {' x '.join(map(str, lf.shape))} (V, U, Y, X, C), {colour}"]
     if g.hci is not None:
         lines.append("  camera   HCI scene (pinhole views, parameters.cfg)")
     elif g.camera is not None:
@@ -172,6 +175,9 @@ def _describe_sidecar(path: Path) -> list[str]:
             raise FormatError(f"{path}: not JSON, so not the metadata of a Lytro raw (MOD_NNNN.TXT, *__frame.json); "
                               "info describes raws, containers, their metadata and light fields") from None
         raise
+    other = _describe_project_json(path, doc) if isinstance(doc, Mapping) else None
+    if other is not None:
+        return other
     try:
         if not isinstance(doc, Mapping):
             raise MetadataError(f"expected a JSON object, found {type(doc).__name__}")
@@ -183,6 +189,108 @@ def _describe_sidecar(path: Path) -> list[str]:
     beside = f"{raw.name} is beside it" if raw else f"no {path.stem}.RAW beside it"
     return _raw_metadata_lines(f"{path}: Lytro metadata for a headerless raw ({beside})", metadata,
                                "metadata of a white image" if metadata[0].is_white_image else "metadata of a raw")
+
+
+def _describe_project_json(path: Path, doc: Mapping) -> list[str] | None:
+    """The JSON files a user meets beside raws that are not Lytro metadata: a lenslet grid, a mosaic's sidecar,
+    a synthetic raw's ground truth, a calibration database's index, a geometric calibration (this project's or
+    the toolbox's CalInfo.json); None for any other JSON."""
+    from ..io.calinfo import TOOLBOX_KEYS
+    from ..io.discovery import MOSAIC_SUFFIXES
+
+    kind = doc.get("format")
+    if kind == "plenodecode.LensletGrid":
+        from ..calib.grid import SOURCE_KINDS
+        from ..report.calibration import rms_text, source_kind
+        from ..types import LensletGrid
+
+        g = LensletGrid.from_dict(doc)
+        white = Path(str(g.info["source"])).name if g.info.get("source") else None
+        kind = source_kind(g)
+        source = (f"from {white}" if white else "origin not recorded") if kind == "grid-file" else \
+            SOURCE_KINDS[kind] + (f": {white}" if white else "")
+        return [f"{path}: lenslet grid ({source})",
+                f"  lattice  {g.lattice}, pitch {g.pitch:.4f} px, rotation {g.rotation:.6f} rad, "
+                f"{g.shape[0]} x {g.shape[1]} lenses (rows x cols), RMS {rms_text(g)}",
+                f"  sensor   {g.sensor_shape[1]} x {g.sensor_shape[0]}; {g.n_views()} x {g.n_views()} views "
+                "when decoded"]
+    if kind == "plenodecode.mosaic":
+        image = next((path.with_suffix(ext) for ext in MOSAIC_SUFFIXES if path.with_suffix(ext).is_file()), None)
+        if image is None:
+            return [f"{path}: JSON sidecar of a mosaic image, but no {path.stem}.png/.tif/... is beside it"]
+        return [f"{path}: JSON sidecar of {image.name}", *_describe_other(image)[1:]]
+    if kind == "plenodecode.SyntheticTruth":
+        shape = doc.get("preset_params", {}).get("sensor_shape") or ["?", "?"]
+        return [f"{path}: ground truth of a raw 'plenodecode synth' generated (grid, lens centres, disparity)",
+                f"  preset   {doc.get('preset', '?')}, seed {doc.get('seed', '?')}, sensor {shape[1]} x {shape[0]}"]
+    if kind == "plenodecode.calibration-db":
+        return _describe_database(path.parent, title=f"{path}: calibration database index")
+    if kind == "plenodecode-geometric-calibration" or all(k in doc for k in TOOLBOX_KEYS):
+        import numpy as np
+
+        from ..io.calinfo import load_geometric_calibration
+
+        cal = load_geometric_calibration(path)
+        V, U, Y, X = cal.lf_shape
+        what = "the Light Field Toolbox's CalInfo.json" if kind is None else "'plenodecode calibrate-geometry'"
+        k = ", ".join(f"{v:.4g}" for v in cal.distortion)
+        return [f"{path}: geometric calibration ({what}): the ray model H and the lens distortion",
+                f"  for      light fields of {V} x {U} views of {Y} x {X} (V x U x Y x X)" if V else
+                "  for      light fields of an unrecorded shape",
+                f"  H        {np.array2string(cal.intrinsics, precision=4, suppress_small=True, max_line_width=200)}"
+                .replace("\n", "\n           "),
+                f"  distortion [k1 k2 k3 b1 b2] = [{k}]"]
+    return None
+
+
+def _describe_database(folder: Path, *, title: str | None = None) -> list[str]:
+    """A calibration database: one line per white image (camera, zoom, focus, size, grid cached, file), read only."""
+    from ..calib import store
+
+    entries = store.load_index(folder)
+    cams = sorted({str(e.serial) for e in entries})
+    lines = [title or f"{folder}: calibration database ('plenodecode calibrate --database')",
+             f"  whites   {len(entries)} white image(s) of camera(s) {', '.join(cams) or '-'}; "
+             f"{sum(1 for e in entries if e.grid and (folder / e.grid).is_file())} grid(s) cached",
+             "    serial        zoom    focus  W x H         grid    file"]
+    for e in entries:
+        size = f"{e.shape[1]} x {e.shape[0]}" if e.shape else "?"
+        step = (lambda v: "-" if v is None else f"{v:g}")
+        cached = "cached" if e.grid and (folder / e.grid).is_file() else "to fit"
+        lines.append(f"    {str(e.serial):12s} {step(e.zoom_step):>6s} {step(e.focus_step):>8s}  {size:12s}  "
+                     f"{cached:6s}  {store.white_path(e, folder)}")
+    return lines
+
+
+def _describe_npz(path: Path) -> list[str]:
+    """A NumPy archive (a synthetic raw's ground-truth arrays): its arrays' names, shapes and types."""
+    import zipfile
+
+    import numpy as np
+
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = [(k, z[k].shape, z[k].dtype) for k in z.files]
+    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        raise FormatError(f"{path}: not a readable NumPy .npz archive ({exc})") from None
+    truth = path.with_name(path.name[:-len(".npz")] + ".json")
+    what = f"the arrays of {truth.name}" if truth.is_file() else "NumPy arrays"
+    return [f"{path}: {what}",
+            *(f"  {k:20s} {' x '.join(map(str, s)) or 'scalar'} {d}" for k, s, d in arrays)]
+
+
+def _describe_raycalib(path: Path) -> list[str]:
+    """A Raytrix RayCalibData XML: the micro-lens array it describes and the image it belongs to."""
+    from ..io.raytrix import parse_raycalib
+
+    cal = parse_raycalib(path)
+    images = [p for p in (path.with_suffix(ext) for ext in (".png", ".tif", ".tiff", ".bmp")) if p.is_file()]
+    types = ", ".join(f"{t.id} (virtual depth {t.depth_range[0]:g}-{t.depth_range[1]:g})" if t.depth_range
+                      else str(t.id) for t in cal.lens_types)
+    return [f"{path}: Raytrix RayCalibData (the micro-lens array of a focused-plenoptic camera)"
+            + (f"; its image is {images[0].name}" if images else ""),
+            f"  lenses   hex, diameter {cal.diameter:.3f} px, rotation {cal.rotation:.6f} rad, "
+            f"{len(cal.lens_types) or 'no'} lens type(s){': ' + types if types else ''}"]
 
 
 def _describe_other(path: Path) -> list[str]:
@@ -214,8 +322,16 @@ def describe(path: Path) -> list[str]:
     """Lines that ``plenodecode info`` prints for one file."""
     from ..io import LYTRO_MAGIC
     from ..io import lytro
-    from ..pipeline import is_lightfield_path
+    from ..pipeline import input_kind, is_lightfield_path
 
+    from ..calib.store import INDEX_NAME
+    from ..io.lightfield import holds_lightfield
+
+    if path.is_dir() and (path / INDEX_NAME).is_file():
+        return _describe_database(path)
+    if path.is_dir() and input_kind(path) == "lightfield" and not holds_lightfield(path):
+        raise FormatError(f"{path}: a folder holding no light field; info describes files (e.g. "
+                          f"'plenodecode info {path}/*'), light-field folders and calibration databases")
     if path.exists() and is_lightfield_path(path):
         return _describe_lightfield(path)
     if not path.is_file():
@@ -228,6 +344,13 @@ def describe(path: Path) -> list[str]:
         return _describe_raw_pair(path)
     if path.suffix.lower() in (".txt", ".json"):
         return _describe_sidecar(path)
+    if path.suffix.lower() == ".npz":
+        return _describe_npz(path)
+    if path.suffix.lower() == ".xml":
+        from ..io.raytrix import is_raycalib_xml
+
+        if is_raycalib_xml(path):
+            return _describe_raycalib(path)
     return _describe_other(path)
 
 
@@ -239,18 +362,31 @@ def info(files: tuple[Path, ...]) -> None:
 
     Works on Lytro .lfp/.LFP/.lfr containers (raw or processed), MOD_NNNN.RAW + .TXT
     white images (or their .TXT/.json metadata alone), any raw plenodecode reads, and
-    saved light fields and HCI scene folders.
+    saved light fields and HCI scene folders; also on lenslet grids, mosaic sidecars,
+    synthetic ground truth, the calibration database's index.json, geometric
+    calibrations (CalInfo.json) and Raytrix RayCalibData XML.
 
     \b
     Example:
       plenodecode info IMG_0001.lfr MOD_0000.RAW demo.LFP
       plenodecode info lf.zarr
     """
+    failed = 0
     for i, path in enumerate(files):
         if i:
             click.echo("")
-        for line in describe(path):
+        try:
+            lines = describe(path)
+        except PlenodecodeError as exc:        # one file's problem: say it, and describe the others
+            if len(files) == 1:
+                raise
+            click.echo(f"error: {exc}", err=True)
+            failed += 1
+            continue
+        for line in lines:
             click.echo(line)
+    if failed:
+        raise click.exceptions.Exit(1)
 
 
 command = info

@@ -18,7 +18,8 @@ from pathlib import Path
 import click
 
 from .. import __version__, _numba
-from ..errors import DarkFrameMismatchError, GeometryMismatchError, MissingConstantsError, PlenodecodeError
+from ..errors import (DarkFrameMismatchError, GeometryMismatchError, LevelOptionError, MissingConstantsError,
+                      PlenodecodeError)
 
 #: command name -> (module, one-line description shown by --help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -67,8 +68,9 @@ def constants_usage_error(command: click.Command | None, exc: MissingConstantsEr
                               f"needs; use {instead} instead", param_hint=hint)
 
 
-#: The group's own flags, also taken where they follow the command (:meth:`LazyGroup.parse_args`).
-GROUP_FLAGS = ("-q", "--quiet", "-v", "-vv", "-vvv", "--verbose")
+#: The group's own flags, also taken where they follow the command (:meth:`LazyGroup.parse_args`): 'plenodecode
+#: decode --version' prints the version as 'plenodecode --version' does.
+GROUP_FLAGS = ("-q", "--quiet", "-v", "-vv", "-vvv", "--verbose", "--version")
 
 
 class LazyGroup(click.Group):
@@ -89,7 +91,7 @@ class LazyGroup(click.Group):
             formatter.write_dl(rows)
 
     def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
-        # -q / -v typed after the command ('plenodecode RAW -o x.png -q') mean what they mean before it: no
+        # -q / -v / --version typed after the command ('plenodecode RAW -o x.png -q') mean what they mean before it: no
         # command has options of those names, and a path or value never is one of these exact tokens
         if "--" not in args:
             hoisted = [a for a in args if a in GROUP_FLAGS]
@@ -112,6 +114,8 @@ class LazyGroup(click.Group):
             raise click.BadParameter(str(exc), param_hint="--geometry") from None
         except DarkFrameMismatchError as exc:     # checked as soon as the raw is read, before the calibration
             raise click.BadParameter(str(exc), param_hint="--dark") from None
+        except LevelOptionError as exc:           # a typed level the file's samples cannot have: found on reading it
+            raise click.BadParameter(str(exc), param_hint=exc.option) from None
         except MissingConstantsError as exc:      # checked once the input is read, before calibration and decoding
             name = ctx.invoked_subcommand
             raise constants_usage_error(self.get_command(ctx, name) if name else None, exc) from None

@@ -11,7 +11,13 @@ import click
 if TYPE_CHECKING:
     from ..raymodel import Board
 
-from .common import BOARD, FINITE, POSITIVE, RegistryChoice, check_output, overwrite_option, progress_bar
+from .common import (BOARD, FINITE, POSITIVE, FiniteFloat, RegistryChoice, check_folder_output, overwrite_option,
+                     progress_bar)
+
+#: The largest sensor --shape simulates: rows or columns, and pixels (1.5 x the Illum's 7728 x 5368; a 12 Mpx
+#: sensor takes about 0.4 GB and 9 s).
+MAX_SIDE = 16384
+MAX_PIXELS = 64 * 10**6
 
 #: The simulated cameras, for the PRESET argument (:mod:`plenodecode.synthetic.presets` imports no numba).
 PRESET_CHOICE = RegistryChoice("plenodecode.synthetic.presets", "PRESETS")
@@ -25,11 +31,15 @@ SCENE_CHOICE = RegistryChoice("plenodecode.synthetic.thin", "THIN_SCENES")
               help="Output folder (created if missing).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="Seed of the scene textures and the noise.")
-@click.option("--pitch", type=POSITIVE, default=None, help="Lens pitch in px (default: the preset's).")
-@click.option("--rotation", type=FINITE, default=None, help="Grid rotation in rad (default: the preset's).")
+@click.option("--pitch", type=FiniteFloat(min=2, min_open=True), default=None,
+              help="Lens pitch in px (default: the preset's).")
+@click.option("--rotation", type=FiniteFloat(min=-0.5, max=0.5, min_open=True, max_open=True), default=None,
+              help="Grid rotation in rad (default: the preset's).")
 @click.option("--offset", type=(FINITE, FINITE), default=None, metavar="ROW COL",
-              help="Sub-pixel shift of the lattice from the sensor centre, px.")
-@click.option("--shape", type=(click.IntRange(min=1), click.IntRange(min=1)), default=None, metavar="H W", help="Sensor size override.")
+              help="Sub-pixel shift of the lattice from the sensor centre, px [default: the preset's].")
+@click.option("--shape", type=(click.IntRange(16, MAX_SIDE), click.IntRange(16, MAX_SIDE)), default=None,
+              metavar="H W", help=f"Sensor rows and columns, px, at most {MAX_PIXELS // 10**6} Mpx [default: the "
+                                  "preset's].")
 @click.option("--name", default=None, help="File stem of the raws and truth files [default: scene; board with "
                                             "--checkerboard].")
 @click.option("--no-noise", is_flag=True, help="No shot/read noise and no hot pixels.")
@@ -90,6 +100,10 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
     from ..synthetic import get_preset, simulate, simulation_files, write_simulation
     from ..synthetic.archives import archive_name, write_calibration_archive
 
+    if shape is not None and shape[0] * shape[1] > MAX_PIXELS:
+        raise click.BadParameter(f"{shape[0]} x {shape[1]} is {shape[0] * shape[1] / 1e6:.0f} Mpx; at most "
+                                 f"{MAX_PIXELS // 10**6} Mpx (1.5 x the Illum's 41 Mpx) are simulated",
+                                 param_hint="--shape")
     scene = None
     if scene_name is not None:
         if get_preset(preset).focused:
@@ -120,9 +134,7 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
     if archive is not None:
         archive_path = out / archive_name(archive, get_preset(preset).serial)
         names = {**names, "archive": archive_path.name}
-    if not overwrite:
-        for fname in names.values():
-            check_output(out / fname, overwrite)
+    check_folder_output(out, list(names.values()), overwrite, what="the synthetic raw")
     try:
         sim = simulate(preset, seed=seed, pitch=pitch, rotation=rotation, offset=offset, noise=not no_noise,
                        shape=shape, scene=scene, progress=progress_bar(f"simulating {preset}", ctx))
@@ -177,9 +189,7 @@ def _checkerboard_set(ctx: click.Context, preset: str, out: Path, *, board: Boar
         names.append(simulation_files(preset, name)["white"])
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="--name") from exc
-    if not overwrite:
-        for fname in (*names, SET_TRUTH_NAME):
-            check_output(out / fname, overwrite)
+    check_folder_output(out, [*names, SET_TRUTH_NAME], overwrite, what="the calibration set")
     try:
         extra = {} if distances is None else {"distances": distances}
         cset = simulate_checkerboard_set(preset, board, captures, intrinsics=intrinsics, distortion=distortion,

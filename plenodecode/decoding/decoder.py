@@ -39,15 +39,18 @@ def _as_plane(img, name: str, raw: RawCapture):
     """Validate a white or dark image; returns (array, black, white levels) or raises."""
     if img is None:
         return None
+    if isinstance(img, (str, os.PathLike)):        # a path, as calibrate() takes one
+        from ..io import read_raw
+        img = read_raw(img)
     if isinstance(img, RawCapture):
         arr, black, white = img.mosaic, img.black, img.white
     elif isinstance(img, np.ndarray):
         arr, black, white = img, raw.black, raw.white
     else:
-        raise ValueError(f"{name} must be a RawCapture or an ndarray, got {type(img).__name__}")
+        raise ValueError(f"{name} must be a RawCapture, an ndarray or a path, got {type(img).__name__}")
     if arr.ndim != 2 or arr.shape != raw.shape:
-        raise DecodeError(f"{name} image must have the raw's size {raw.shape[0]}x{raw.shape[1]}, "
-                          f"found {'x'.join(map(str, arr.shape))}; pass the {name} frame of this camera")
+        raise DecodeError(f"{name} image must have the raw's size {raw.shape[1]}x{raw.shape[0]}, "
+                          f"found {'x'.join(map(str, arr.shape[::-1]))}; pass the {name} frame of this camera")
     if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
         raise DecodeError(f"{name} image must be finite, found NaN or inf values; repair or replace the {name} frame")
     if arr.dtype.kind not in "uif":
@@ -114,6 +117,9 @@ def _check_views(n_views: int | None, grid: LensletGrid) -> int:
         return grid.n_views()
     if not isinstance(n_views, (int, np.integer)) or n_views < 1 or n_views % 2 == 0:
         raise ValueError(f"n_views must be a positive odd integer, got {n_views!r}")
+    if n_views > grid.max_views():
+        raise ValueError(f"n_views {n_views} is more than the {grid.max_views()} views per axis that see a "
+                         f"micro-image: the lenses are {grid.pitch:.2f} px apart and a view step is one sensor pixel")
     return int(n_views)
 
 
@@ -131,11 +137,11 @@ def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray
         The scene raw (uint16 mosaic with its levels and metadata).
     grid : LensletGrid
         Lenslet grid of this camera (same sensor size).
-    white : RawCapture or ndarray (H, W), optional
+    white : RawCapture, ndarray (H, W) or path, optional
         White image taken with the same zoom/focus: devignetting and the sample weights.  A bare
         uint16 array uses the raw's levels; a float array is taken as already normalised.  Without a
         white, nothing is devignetted and the weight is the lenslet disk of ``grid.radius``.
-    dark : RawCapture or ndarray (H, W), optional
+    dark : RawCapture, ndarray (H, W) or path, optional
         Dark frame in sensor units, subtracted from raw and white pixel by pixel instead of the black
         level (microscopes).
     demosaic : str
@@ -256,8 +262,8 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
         raise ValueError(f"grid must be a LensletGrid, got {type(grid).__name__}")
     if tuple(grid.sensor_shape) != tuple(raw.shape):
         raise CalibrationError(
-            f"the lenslet grid was fitted on a {grid.sensor_shape[0]}x{grid.sensor_shape[1]} sensor but the raw is "
-            f"{raw.shape[0]}x{raw.shape[1]}; pass the grid calibrated from this camera's white images")
+            f"the lenslet grid was fitted on a {grid.sensor_shape[1]}x{grid.sensor_shape[0]} sensor but the raw is "
+            f"{raw.shape[1]}x{raw.shape[0]} (width x height); pass the grid calibrated from this camera's white images")
     lookup(DEMOSAIC_METHODS, demosaic, param="demosaic")
     extrapolate = lookup(VIEW_EDGES, view_edges, param="view_edges")
     if isinstance(hot_pixels, str) and hot_pixels != "isolated":

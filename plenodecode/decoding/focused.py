@@ -98,8 +98,9 @@ def _prepare_image(raw, grid: LensletGrid, white, demosaic: str) -> np.ndarray:
 
     if isinstance(raw, RawCapture):
         if tuple(grid.sensor_shape) != tuple(raw.shape):
-            raise CalibrationError(f"the grid was fitted on a {grid.sensor_shape[0]}x{grid.sensor_shape[1]} sensor but "
-                                   f"the raw is {raw.shape[0]}x{raw.shape[1]}; pass the grid of this camera")
+            raise CalibrationError(f"the grid was fitted on a {grid.sensor_shape[1]}x{grid.sensor_shape[0]} sensor but "
+                                   f"the raw is {raw.shape[1]}x{raw.shape[0]} (width x height); pass the grid of "
+                                   "this camera")
         x = normalise(raw.mosaic, raw.black, raw.white)
         x, _ = repair_hot_pixels(x)
         cfa = raw.cfa

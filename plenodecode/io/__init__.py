@@ -49,7 +49,8 @@ def read_raw(path: str | os.PathLike, *, mosaic: MosaicOptions | None = None) ->
 
         if split_member_path(path) is not None:  # 'ARCHIVE::MEMBER', a white image inside a calibration archive
             return read_member_raw(path)
-        raise FormatError(f"{p}: no such file")
+        raise FormatError(f"{p}: is a folder; read_raw reads one raw file (the folder's raws: "
+                          "plenodecode.io.discovery.find_raws)" if p.is_dir() else f"{p}: no such file")
     with open(p, "rb") as fh:
         head = fh.read(8)
     from . import lytro

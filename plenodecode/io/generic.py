@@ -25,7 +25,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..errors import FormatError, MetadataError
+from ..errors import FormatError, LevelOptionError, MetadataError
 from ..types import CFA_PATTERNS, CameraMetadata, RawCapture
 from .atomic import atomic_outputs, refuse_existing
 from .images import read_image
@@ -299,8 +299,17 @@ def _bare_mosaic(p: Path, mosaic: np.ndarray, bits: int, full_scale: float, opti
     log.warning("%s: no JSON sidecar; CFA %s (%s)", p.name, cfa or "none, monochrome", cfa_from)
     log.warning("%s: black %.4g, white %.4g of %g (%s)", p.name, black, white, full_scale, levels_from)
     if white <= black:
+        typed = "--black-level" if options.black_level is not None else "--white-level" \
+            if options.white_level is not None else None
+        if typed is not None:
+            raise LevelOptionError(f"{p.name}: white level {white:g} must exceed black level {black:g} ({levels_from})",
+                                   typed)
         raise MetadataError(f"{p}: white level {white:g} must exceed black level {black:g}; "
                             "pass --black-level and --white-level")
+    for option, value in (("--black-level", options.black_level), ("--white-level", options.white_level)):
+        if value is not None and value > full_scale:
+            raise LevelOptionError(f"{value:g} is above the full scale of {p.name}, {full_scale:g} ({bits}-bit "
+                                   "samples): give the level in the file's units", option)
     black2, white2 = np.full((2, 2), black), np.full((2, 2), white)
     if options.input_encoding == "srgb":
         mosaic, black2, white2 = _linearise(mosaic, black2, white2, full_scale)

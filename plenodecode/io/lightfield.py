@@ -170,7 +170,8 @@ def _load_zarr(path: Path, *, view: tuple[int, int] | None = None) -> LightField
 
 # ----------------------------------------------------------------------------- views
 _VIEW_RE = re.compile(r"^input_Cam(\d+)\.(png|tif|tiff|exr)$", re.IGNORECASE)
-_VIEW_EXT = {8: ".png", 16: ".png", 32: ".exr"}
+#: Image type of the ``views`` format's files by bit depth, when no ``image_ext`` is given.
+VIEW_EXT = {8: ".png", 16: ".png", 32: ".exr"}
 
 
 def _view_name(index: int, n: int, ext: str) -> str:
@@ -180,7 +181,7 @@ def _view_name(index: int, n: int, ext: str) -> str:
 def _save_views(lf: LightField, path: Path, *, bit_depth: int, progress: Progress,
                 image_ext: str | None = None, **_: Any) -> None:
     V, U, Y, X, C = lf.shape
-    ext = (image_ext or _VIEW_EXT[bit_depth]).lower()
+    ext = (image_ext or VIEW_EXT[bit_depth]).lower()
     for k in range(V * U):
         v, u = divmod(k, U)
         img = lf.data[v, u] if C == 3 else lf.data[v, u, :, :, 0]
@@ -260,8 +261,6 @@ def _load_views(path: Path, *, view: tuple[int, int] | None = None) -> LightFiel
 def _save_mat(lf: LightField, path: Path, *, bit_depth: int, **_: Any) -> None:
     import scipy.io
 
-    if bit_depth != 16:
-        raise ValueError(f"bit_depth must be 16 for the LFToolbox .mat format (uint16 LF), got {bit_depth}")
     V, U, Y, X, C = lf.shape
     lf16 = np.empty((V, U, Y, X, C + 1), np.uint16)
     lf16[..., :C] = quantise(lf.data, 16)
@@ -445,6 +444,11 @@ LIGHTFIELD_FORMATS: dict[str, LightFieldFormat] = {
 }
 _FOLDER_FORMATS = ("zarr", "views")
 _FILE_FORMATS = {".mat": "mat", ".npy": "npy", ".png": "eslf", ".tif": "eslf", ".tiff": "eslf", ".zarr": "zarr"}
+#: Image types an ESLF mosaic is written as: those :func:`detect_format` reads back as one, and that hold the
+#: weight as a 4th channel (a JPEG holds 3).
+ESLF_EXTENSIONS = tuple(ext for ext, name in _FILE_FORMATS.items() if name == "eslf")
+#: The same, for messages: '.png, .tif or .tiff'.
+ESLF_NAMES = f"{', '.join(ESLF_EXTENSIONS[:-1])} or {ESLF_EXTENSIONS[-1]}"
 #: Exports that are pages for people, not light fields: extension -> the ``plenodecode export --format`` name
 #: (writers: ``plenodecode.cli.export.PAGE_FORMATS``).  They never load back and are not in
 #: :data:`LIGHTFIELD_FORMATS`, so no command that writes a light field picks them from a name.
@@ -494,6 +498,48 @@ def detect_format(path: str | os.PathLike, *, option: str = "format=") -> str:
                      f"{sorted(LIGHTFIELD_FORMATS)}")
 
 
+def written_files(path: str | os.PathLike, format: str) -> list[Path]:
+    """Every file or folder :func:`save_lightfield` writes for ``path`` in ``format`` (ESLF: the image and its JSON;
+    npy: the array, its weight and its JSON)."""
+    p = Path(path)
+    return [p, p.with_suffix(".json")] if format == "eslf" else [p, *_npy_side(p)] if format == "npy" else [p]
+
+
+def holds_lightfield(folder: str | os.PathLike) -> bool:
+    """True for a folder that is a saved light field: a zarr store or a views folder, by the files that make it one."""
+    p = Path(folder)
+    return p.is_dir() and ((p / "zarr.json").is_file() or (p / VIEWS_JSON).is_file() or bool(_view_files(p)))
+
+
+def refuse_foreign_folder(path: str | os.PathLike) -> None:
+    """ValueError when ``path`` is a folder that holds files but no light field (zarr store, views folder): writing
+    a light field there, with overwrite, would replace the folder and delete them."""
+    p = Path(path)
+    if not p.is_dir() or p.is_symlink():
+        return
+    entries = sorted(e.name for e in p.iterdir())
+    if not entries or holds_lightfield(p):
+        return
+    shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
+    raise ValueError(f"{p} is a folder of other files ({shown}), not a light field: writing the light field there "
+                     "would replace the folder and delete them; choose a new output path")
+
+
+def _check_depth(name: str, path: Path, bit_depth: int, image_ext: str | None) -> None:
+    """ValueError, before any work, for a bit depth or image type the format ``name`` cannot write at ``path``."""
+    from .images import IMAGE_FORMATS
+
+    if name == "mat" and bit_depth != 16:
+        raise ValueError(f"bit_depth must be 16 for the LFToolbox .mat format (uint16 LF), got {bit_depth}")
+    if name == "eslf" and path.suffix.lower() not in ESLF_EXTENSIONS:
+        raise ValueError(f"path {path.name!r}: an ESLF mosaic is written as {ESLF_NAMES} (its 4th "
+                         "channel is the weight, and it loads back by that extension)")
+    ext = path.suffix.lower() if name == "eslf" else (image_ext or VIEW_EXT[bit_depth]).lower() \
+        if name == "views" else None
+    if ext is not None and bit_depth not in IMAGE_FORMATS[ext]:
+        raise ValueError(f"bit_depth {bit_depth} cannot be stored in {ext} files; use one of {IMAGE_FORMATS[ext]}")
+
+
 def save_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | None = None, bit_depth: int = 16,
                     overwrite: bool = False, progress: Progress = None, encode_srgb: bool = False,
                     image_ext: str | None = None) -> Path:
@@ -533,6 +579,8 @@ def save_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | No
     fmt = _check_format(name)
     if image_ext is not None and image_ext.lower() not in (".png", ".tif", ".tiff", ".exr"):
         raise ValueError(f"image_ext must be '.png', '.tif' or '.exr', got {image_ext!r}")
+    _check_depth(name, p, bit_depth, image_ext)
+    refuse_foreign_folder(p)
     lf = _encoded(lf, encode_srgb)
     outputs = [p]
     if name == "npy":
@@ -592,4 +640,6 @@ def load_lightfield(path: str | os.PathLike, *, view: tuple[int, int] | None = N
 
 
 __all__ = ["LIGHTFIELD_FORMATS", "PAGE_EXTENSIONS", "LightFieldFormat", "save_lightfield", "load_lightfield",
-           "detect_format", "eslf_from_lightfield", "lightfield_from_eslf", "ESLF_DEFAULT_VIEWS"]
+           "detect_format", "eslf_from_lightfield", "lightfield_from_eslf", "ESLF_DEFAULT_VIEWS", "ESLF_EXTENSIONS",
+           "ESLF_NAMES", "VIEW_EXT", "holds_lightfield", "refuse_foreign_folder",
+           "written_files"]

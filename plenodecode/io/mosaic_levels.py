@@ -6,7 +6,7 @@ no levels.  :class:`MosaicOptions` holds what the user says about it (the CLI's 
 order (:func:`bare_mosaic_levels` and :func:`bare_mosaic_cfa`):
 
 * the CFA: ``--cfa``; else the sensor known by the image size (:data:`KNOWN_SENSORS`: 3280 x 3280
-  Lytro F01 BGGR, 5368 x 7728 Lytro Illum GRBG); else monochrome (an image of unknown size is read
+  Lytro F01 BGGR, 7728 x 5368 (W x H) Lytro Illum GRBG); else monochrome (an image of unknown size is read
   as monochrome unless ``--cfa`` is given);
 * the levels: ``--black-level`` / ``--white-level``; else the known sensor's levels carried through the
   known chain that wrote the file (:func:`known_levels`: the raw values as stored, or the F01 JPEGs of
@@ -223,8 +223,8 @@ def bare_mosaic_cfa(shape: tuple[int, int], options: MosaicOptions) -> tuple[str
         return (None if options.cfa == "mono" else options.cfa), "--cfa"
     sensor = KNOWN_SENSORS.get(tuple(shape))
     if sensor is not None:
-        return sensor.cfa, f"{shape[0]} x {shape[1]}: {sensor.name} sensor"
-    return None, f"unknown sensor size {shape[0]} x {shape[1]}, monochrome unless --cfa is given"
+        return sensor.cfa, f"{shape[1]} x {shape[0]}: {sensor.name} sensor"
+    return None, f"unknown sensor size {shape[1]} x {shape[0]}, monochrome unless --cfa is given"   # W x H, as info
 
 
 def bare_mosaic_levels(mosaic: np.ndarray, bits: int, full_scale: float,

@@ -61,9 +61,9 @@ def _from_database(raw: RawCapture, db: Path) -> Calibration:
     from ..calib import store
     from ..calib.check import check_white_fit
 
-    entry = store.select_white(db, raw)
-    cached = entry.grid is not None and (db / entry.grid).is_file()
-    grid, white = store.calibration_for(raw, db)
+    entry, grid = store.lookup_grid(raw, db)
+    cached = entry.grid is not None and (db / entry.grid).is_file()  # a lookup never writes: as it was
+    white = store.read_white(entry, db, raw)
     others = [f"{Path(e.file).name} at zoom {e.zoom_step:g} focus {e.focus_step:g}"
               if e.zoom_step is not None and e.focus_step is not None else Path(e.file).name
               for e in store.other_whites(db, raw, entry)]
@@ -193,7 +193,8 @@ def _database_or_scene(raw: RawCapture, db: Path, *, self_calibrate: bool, progr
     elif not self_calibrate:
         raise CalibrationError(
             f"no calibration for {name} (camera {raw.metadata.model or '?'} {raw.metadata.serial or '?'}): "
-            f"no calibration database in {db}; pass --database DIR, --calibration grid.json, "
+            f"no calibration database in {db} (no {store.INDEX_NAME}; 'plenodecode calibrate --database {db} "
+            "FOLDER' makes one of the white images in FOLDER); pass --database DIR, --calibration grid.json, "
             "--white WHITE_IMAGE or --self-calibrate")
     return _self_calibration(raw, progress)
 

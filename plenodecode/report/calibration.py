@@ -119,7 +119,8 @@ def rms_text(grid: LensletGrid) -> str:
 
 
 def _white_measure(grid: LensletGrid, raws: Sequence[RawCapture]) -> dict[str, Any]:
-    """Flattened white, disks detected as for a white image and their residuals against the grid."""
+    """Flattened white, disks detected as for a white image and their residuals against the grid's centres (the
+    measured ones where the grid has them, as the decoder uses)."""
     from scipy.spatial import cKDTree
 
     from ..calib import centroids as C
@@ -224,13 +225,13 @@ def _residual_figure(grid: LensletGrid, m: dict[str, Any], rms: float | None) ->
                         reduce_C_function=np.mean, cmap="viridis", vmin=0, vmax=top)
         fig.colorbar(hb, ax=ax0, label="mean |residual| (px)")
         ax1.hist(mag, bins=60, range=(0, max(top * 1.5, 0.05)), color="#4477aa")
-        if rms is not None:
-            ax1.axvline(rms, color="k", ls="--", lw=1, label="RMS")
-            ax1.legend(fontsize=8)
+        rms = float(np.sqrt(np.mean(mag ** 2))) if rms is None else rms
+        ax1.axvline(rms, color="k", ls="--", lw=1, label=f"RMS {rms:.3f} px")
+        ax1.legend(fontsize=8)
     ax0.set_xlim(0, w)
     ax0.set_ylim(h, 0)
     ax0.set_aspect("equal")
-    ax0.set_title("residual map: detected centre - grid centre", fontsize=10)
+    ax0.set_title("residual map: detected centre - grid centre (as decoded)", fontsize=10)
     ax0.set_xlabel("sensor column (px)")
     ax0.set_ylabel("sensor row (px)")
     ax1.set_title("residual histogram", fontsize=10)
@@ -559,8 +560,12 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
         if len(m["centres"]):
             what = ("disk rims fitted at every lens as self-calibration measures them, lenses the fit rejected "
                     "included; the RMS line is over the fit's inliers") \
-                if kind == "self-calibration" else "disks of the white image"
-            parts.append(H.section("Residuals", H.figure_html(_residual_figure(grid, m, j.rms),
+                if kind == "self-calibration" else ("disks of the white image; the grid centre is the lens centre the "
+                                                    "decoder uses")
+            # a white image's residuals are against the centres the decoder uses (measured where a smooth
+            # distortion moves them): their own RMS, not the lattice fit's
+            rms_line = j.rms if kind == "self-calibration" else None
+            parts.append(H.section("Residuals", H.figure_html(_residual_figure(grid, m, rms_line),
                                                                 f"detected minus grid centre ({what})")))
         if kind not in ("self-calibration", "camera-file"):
             parts.append(H.section("Vignetting", H.figure_html(_vignetting_figure(m),

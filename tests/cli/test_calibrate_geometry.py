@@ -55,6 +55,10 @@ def test_recovers_the_true_intrinsics(captures, tmp_path):
     assert cal.info["rms_px"] < 0.1
     assert cal.info["skipped"][0]["capture"] == "board_99.npy"
     assert "skipped board_99.npy" in result.output
+    # the fit after the captures' progress bar is announced, not a silent wait (6 s on 6 F01 captures)
+    said = result.output.splitlines()
+    fit = [i for i, line in enumerate(said) if line.startswith("fitting the ray model (H, distortion, board poses)")]
+    assert len(fit) == 1 and fit[0] < [i for i, line in enumerate(said) if " captures, " in line][0], said
     html = report.read_text()
     assert "board_99.npy" in html and "no distortion" in html and html.count("data:image/png;base64") == 1
 

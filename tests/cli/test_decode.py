@@ -152,3 +152,92 @@ def test_decode_resample_hex_is_the_2d_kernel_and_closer_to_the_truth(files, tmp
     assert psnr["hex"] > psnr["cubic"] + 0.05
     bad = run(["decode", str(raw), "-g", str(grid), "-o", str(tmp_path / "x.npy"), "--resample", "lanczos"])
     assert bad.exit_code == 2 and "--resample" in bad.output
+
+
+def test_more_views_than_a_micro_image_holds_is_refused_before_decoding(files, tmp_path, monkeypatch):
+    """'decode --views 101' on a 14.3 px Illum grid decoded 101 x 101 views (22 s, 8 GB of views of nothing but the
+    neighbouring lenses' disks or zeros); more views than 2 ceil(pitch / 2) + 1 is now a usage error naming --views
+    before the decoder runs; that many still decodes, with data in its middle ring."""
+    from plenodecode import pipeline
+    from plenodecode.io.lightfield import load_lightfield
+
+    sim, raw, white, grid = files
+    most = sim.grid.max_views()
+    assert most == 2 * int(np.ceil(sim.grid.pitch / 2)) + 1 == 11           # F01: 9.93 px
+    decoded = []
+    real = pipeline.decode_raw
+    monkeypatch.setattr(pipeline, "decode_raw", lambda *a, **k: decoded.append(1) or real(*a, **k))
+    res = CliRunner().invoke(cli, ["decode", str(raw), "-g", str(grid), "-w", str(white), "-o",
+                                   str(tmp_path / "lf.zarr"), "--views", str(most + 2)])
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert res.exit_code == 2 and len(errors) == 1, res.output
+    assert f"Invalid value for --views: {most + 2} is more than the {most} views per axis" in errors[0]
+    assert decoded == [] and not (tmp_path / "lf.zarr").exists()
+    with pytest.raises(ValueError, match="n_views 13 is more than the 11"):
+        from plenodecode import decode
+        decode(sim.raw, sim.grid, n_views=13)
+    res = run(["decode", str(raw), "-g", str(grid), "-w", str(white), "-o", str(tmp_path / "lf.zarr"),
+               "--views", str(most)])
+    assert res.exit_code == 0, res.output
+    lf = load_lightfield(tmp_path / "lf.zarr")
+    assert lf.shape[:2] == (most, most) and lf.weight[most // 2, most // 2].mean() > 0.5
+
+
+def test_a_light_field_or_a_folder_given_to_decode_says_which_command_takes_it(files, tmp_path):
+    """'decode lf.mat' said 'not a raw LibRaw can read', 'decode lf.zarr' or an HCI scene folder 'File ... is a
+    directory'; a decoded input now gets one usage error naming RAW and the commands that take it (and they do),
+    a folder of raws the batch command, before anything is written."""
+    sim, raw, white, grid = files
+    assert run(["-q", "decode", str(raw), "-g", str(grid), "-o", str(tmp_path / "lf.mat")]).exit_code == 0
+    assert run(["-q", "decode", str(raw), "-g", str(grid), "-o", str(tmp_path / "lf.zarr")]).exit_code == 0
+    for given, words in ((tmp_path / "lf.mat", "lf.mat is a saved light field, decoded already: 'plenodecode "
+                          f"export {tmp_path / 'lf.mat'} -o lf.zarr' converts it"),
+                         (tmp_path / "lf.zarr", "lf.zarr is a saved light field"),
+                         (raw.parent, f"{raw.parent.name} is a folder; decode reads one raw file ('plenodecode "
+                                      f"batch {raw.parent} -o OUT/'")):
+        res = CliRunner().invoke(cli, ["decode", str(given), "-o", str(tmp_path / "out.zarr")])
+        errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+        assert res.exit_code == 2 and len(errors) == 1, res.output
+        assert "Invalid value for RAW:" in errors[0] and words in errors[0], errors
+    assert not (tmp_path / "out.zarr").exists()
+    res = run([str(tmp_path / "lf.mat"), "-o", str(tmp_path / "photo.png")])    # what the message says works
+    assert res.exit_code == 0 and (tmp_path / "photo.png").is_file(), res.output
+
+
+def test_database_option_on_a_folder_of_white_images_says_how_to_index_it(tmp_path):
+    """'decode scene.lfr --database sample_raws/illum-mini' (white images, no index) said 'no calibration database
+    in sample_raws/illum-mini; pass --database DIR, ...': the option the user had just passed.  It now says the
+    index is missing and the command that makes one of that folder."""
+    from pathlib import Path
+
+    folder = Path(__file__).resolve().parents[2] / "sample_raws" / "illum-mini"
+    res = CliRunner().invoke(cli, ["decode", str(folder / "scene.lfr"), "--database", str(folder),
+                                   "-o", str(tmp_path / "lf.zarr")])
+    lines = res.output.strip().splitlines()
+    assert res.exit_code == 1 and len(lines) == 1, res.output
+    assert f"no calibration database in {folder} (no index.json; 'plenodecode calibrate --database {folder} " \
+           "FOLDER' makes one" in lines[0] and not (tmp_path / "lf.zarr").exists()
+
+
+def test_an_output_over_the_raw_or_its_sidecar_is_refused(files, tmp_path):
+    """'decode scene.png -w white.png -o scene.png --overwrite' wrote an ESLF mosaic over the raw and its JSON over
+    the raw's sidecar (both inputs lost); '-o scene.tif' replaced only the sidecar.  An output whose files would
+    replace an input or its sidecar is refused naming -o, before any work, and the inputs are unchanged."""
+    import shutil
+
+    sim, raw, white, grid = files
+    for p in (raw, raw.with_suffix(".json"), white, white.with_suffix(".json")):
+        shutil.copy(p, tmp_path / p.name)
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    for out, words in (("scene.png", "would replace the input scene.png"),
+                       ("scene.tif", "would replace the input scene.json, the sidecar of scene.png"),
+                       ("white.npy", "would replace the input white.json, the sidecar of white.png")):
+        res = CliRunner().invoke(cli, ["decode", str(tmp_path / "scene.png"), "-w", str(tmp_path / "white.png"),
+                                       "-o", str(tmp_path / out), "--overwrite"])
+        errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+        assert res.exit_code == 2 and len(errors) == 1 and "Invalid value for -o / --output:" in errors[0], res.output
+        assert words in errors[0], errors
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+    res = CliRunner().invoke(cli, ["decode", str(tmp_path / "scene.png"), "-w", str(tmp_path / "white.png"),
+                                   "-o", str(tmp_path / "lf.png")])
+    assert res.exit_code == 0 and (tmp_path / "lf.json").is_file(), res.output

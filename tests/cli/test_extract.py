@@ -105,3 +105,25 @@ def test_extract_every_real_container():
     # what each file holds (also listed by `plenodecode info`): 12 JPEG refocus slices + a depth LUT; a depth and
     # a confidence map; two H.264 streams + a depth LUT; a depth map + 10 focus-stack JPEGs
     assert counts == {"IMG_0001-stk.lfp": 13, "IMG_0002-dm.lfp": 2, "IMG_0002-stk.lfp": 3, "demo.LFP": 11}
+
+
+def test_an_extracted_raw_keeps_its_camera_serial(tmp_path):
+    """'extract scene.lfr' writes frame.raw, frame.json and frame_private.json (where the Illum keeps its serial);
+    the raw read back had no serial, so 'info' printed 'serial -' and the database could not pick its camera's
+    white image by serial.  The private metadata beside it is read now."""
+    from pathlib import Path
+
+    from plenodecode.io import read_raw
+
+    root = Path(__file__).resolve().parents[2]
+    res = CliRunner().invoke(cli, ["extract", str(root / "sample_raws" / "illum-mini" / "scene.lfr"),
+                                   "-o", str(tmp_path / "items")])
+    assert res.exit_code == 0 and (tmp_path / "items" / "frame_private.json").is_file(), res.output
+    raw = read_raw(tmp_path / "items" / "frame.raw")
+    assert raw.metadata.serial == read_raw(root / "sample_raws" / "illum-mini" / "scene.lfr").metadata.serial \
+        == "B5143909630"
+    out = CliRunner().invoke(cli, ["info", str(tmp_path / "items" / "frame.raw")]).output
+    assert "serial   B5143909630" in out
+    res = CliRunner().invoke(cli, ["decode", str(tmp_path / "items" / "frame.raw"), "--database", str(root / "calib"),
+                                   "-o", str(tmp_path / "lf.zarr")])
+    assert res.exit_code == 0, res.output

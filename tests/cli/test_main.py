@@ -106,3 +106,25 @@ def test_quiet_and_verbose_after_the_command_mean_the_same(tmp_path):
     assert (tmp_path / "a.png").read_bytes() == (tmp_path / "b.png").read_bytes()
     r = CliRunner().invoke(cli, ["info", str(raw), "--quiet"], obj={})
     assert r.exit_code == 0 and "ILLUM" in r.output
+
+
+def test_help_says_what_extract_writes_and_how_many_views_decode_takes():
+    """'extract --help' called -o an 'Output file or folder' (it is always a folder); 'decode --help' gave no
+    bound or unit for --views."""
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+
+    text = CliRunner().invoke(cli, ["extract", "--help"]).output
+    assert "Folder the items are written into (created if missing)." in " ".join(text.split())
+    text = " ".join(CliRunner().invoke(cli, ["decode", "--help"]).output.split())
+    assert "at most 2*ceil(pitch/2)+1 [default: 2*floor(pitch/2)+1, pitch in px]" in text
+
+
+@pytest.mark.parametrize("command", ["decode", "info", "calibrate", "synth", "extract", "export", "warmup",
+                                     "calibrate-geometry"])
+def test_version_after_a_command_prints_the_version(command):
+    """'plenodecode decode --version' said "No such option '--version'. Did you mean '--overwrite'?"; after any
+    command it now prints what 'plenodecode --version' prints, and does nothing else."""
+    res = CliRunner().invoke(cli, [command, "--version"])
+    assert res.exit_code == 0 and res.output.strip() == f"plenodecode, version {__version__}", res.output

@@ -284,3 +284,31 @@ def test_dark_frame_of_another_size_is_refused_before_any_work(tmp_path, monkeyp
     row = [line for line in res.output.splitlines() if line.startswith("light_field.png")]
     assert len(row) == 1 and "failed" in row[0] and "IMG_1.jpg is 3280 x 3280 px" in row[0], res.output
     assert "Traceback" not in res.output
+
+
+def test_a_bright_frame_given_as_the_dark_is_refused_before_any_work(tmp_path, monkeypatch):
+    """'--dark radiometry_frame.png' (the white and dark swapped) or '--dark light_field.png' decoded the ant leg
+    into an all-black light field (every sample 0.0) without a word; a frame that would leave the raw black is now a
+    usage error naming --dark before the calibration, while the real dark frame still decodes a picture."""
+    from plenodecode import pipeline
+    from plenodecode.io.lightfield import load_lightfield
+
+    folder = shared_path(*ANTLEG)
+    calibrated = []
+    monkeypatch.setattr(pipeline, "choose_calibration",
+                        lambda *a, _real=pipeline.choose_calibration, **k: calibrated.append(a) or _real(*a, **k))
+    for bright in ("radiometry_frame.png", "light_field.png"):
+        res = CliRunner().invoke(cli, ["decode", str(folder / "light_field.png"), "-w",
+                                       str(folder / "radiometry_frame.png"), "--dark", str(folder / bright),
+                                       "-o", str(tmp_path / "lf.zarr")])
+        errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+        assert res.exit_code == 2 and len(errors) == 1, res.output
+        assert f"Invalid value for --dark: {bright} is no dark frame for light_field.png" in errors[0], errors
+        assert "keep 0.0% of the range" in errors[0] and not (tmp_path / "lf.zarr").exists()
+    assert calibrated == []
+    res = CliRunner().invoke(cli, ["decode", str(folder / "light_field.png"), "-w",
+                                   str(folder / "radiometry_frame.png"), "--dark", str(folder / "dark_frame.tif"),
+                                   "-o", str(tmp_path / "lf.zarr")])
+    assert res.exit_code == 0, res.output
+    centre = load_lightfield(tmp_path / "lf.zarr").centre_view()
+    assert float(np.percentile(centre, 99.5)) > 0.1 and calibrated        # the specimen, not black

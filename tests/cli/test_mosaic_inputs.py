@@ -197,3 +197,38 @@ def test_info_names_the_sensor_a_real_f01_jpeg_was_recognised_by(tmp_path):
     write_image(other, np.full((60, 80), 1000, np.uint16), bit_depth=16)
     res = CliRunner().invoke(cli, ["info", str(other)])
     assert res.exit_code == 0 and "camera   unknown model" in res.output, res.output
+
+
+def test_info_of_a_sidecarless_mosaic_gives_its_size_one_way(tmp_path, caplog):
+    """'info light_field.png' (the ant leg, 2592 wide, 2160 high) warned 'unknown sensor size 2160 x 2592' and then
+    printed 'raw 2592 x 2160': height first in one line, width first in the next.  Both say width x height now, as
+    every other message does."""
+    import logging
+
+    write_image(tmp_path / "mosaic.png", np.full((120, 200), 3000, np.uint16), bit_depth=16)
+    with caplog.at_level(logging.WARNING):
+        res = CliRunner().invoke(cli, ["info", str(tmp_path / "mosaic.png")])
+    assert res.exit_code == 0, res.output
+    assert "raw      200 x 120" in res.output, res.output
+    assert "unknown sensor size 200 x 120" in caplog.text and "120 x 200" not in caplog.text, caplog.text
+
+
+@pytest.mark.parametrize("args, option, words", [
+    (["--black-level", "300"], "--black-level", "white level 255 must exceed black level 300 (--black-level 300"),
+    (["--white-level", "10"], "--white-level", "white level 10 must exceed black level"),
+    (["--white-level", "4095"], "--white-level", "4095 is above the full scale of mosaic.png, 255 (8-bit samples)"),
+    (["--black-level", "256", "--white-level", "4095"], "--black-level", "256 is above the full scale"),
+], ids=["black-above-white", "white-below-estimated-black", "white-12-bit", "black-12-bit"])
+def test_a_typed_level_the_file_cannot_have_is_a_usage_error_naming_it(tmp_path, args, option, words):
+    """'decode mosaic.png --black-level 300' on an 8-bit file said 'error: ...: white level 255 must exceed black level
+    300; pass --black-level and --white-level' (exit 1, as for a damaged file), and '--white-level 4095' (a 12-bit
+    level typed for an 8-bit file) decoded a light field 16 times too dark without a word.  Both are usage errors
+    naming the option now, before anything is written."""
+    mosaic = np.full((64, 80), 120, np.uint8)
+    mosaic[::8] = 30                                                  # gaps: an estimated black level near 30
+    write_image(tmp_path / "mosaic.png", mosaic, bit_depth=8)
+    res = CliRunner().invoke(cli, ["decode", str(tmp_path / "mosaic.png"), "-o", str(tmp_path / "lf.zarr"), *args])
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert res.exit_code == 2 and len(errors) == 1, res.output
+    assert f"Invalid value for {option}:" in errors[0] and words in errors[0], errors
+    assert not (tmp_path / "lf.zarr").exists()

@@ -113,3 +113,124 @@ def test_decode_to_an_unknown_extension_names_the_format_option(tmp_path, no_wor
         assert "pass --format one of ['eslf', 'mat', 'npy', 'views', 'zarr']" in errors[0], errors
         assert ".zarr" in errors[0] and "format=" not in res.output, res.output
     assert no_work == [] and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("command, args, option, words", [
+    ("decode", ["-o", "lf.jpg", "--format", "eslf"], "-o / --output", "an ESLF mosaic is written as .png, .tif or "
+                                                                      ".tiff"),
+    ("decode", ["-o", "lf.mat", "--bit-depth", "8"], "--bit-depth", "the LFToolbox .mat format stores 16-bit"),
+    ("decode", ["-o", "lf.zarr", "--bit-depth", "8"], "--bit-depth", "zarr stores float32 samples (lossless), not 8"),
+    ("decode", ["-o", "lf.npy", "--bit-depth", "16"], "--bit-depth", "npy stores float32 samples"),
+    ("export", ["-o", "lf.exr", "--format", "eslf"], "-o / --output", "not .exr"),
+    ("export", ["-o", "v", "--format", "views", "--image-type", "exr", "--bit-depth", "8"], "--bit-depth",
+     ".exr files hold 16 or 32 bits per sample, not 8"),
+    ("export", ["-o", "v", "--format", "views", "--image-type", "png", "--bit-depth", "32"], "--bit-depth",
+     ".png files hold 8 or 16 bits per sample, not 32"),
+], ids=["decode-eslf-jpg", "decode-mat-8", "decode-zarr-8", "decode-npy-16", "export-eslf-exr", "export-exr-8",
+        "export-png-32"])
+def test_a_lightfield_format_its_bit_depth_cannot_hold_is_refused_before_any_work(tmp_path, monkeypatch, command,
+                                                                                  args, option, words):
+    """'decode RAW -o lf.mat --bit-depth 8' and '-o lf.jpg --format eslf' decoded the raw (export: loaded the light
+    field) and then failed naming the keyword 'bit_depth' (or wrote an ESLF .exr that does not load back); '--bit-depth
+    8' with zarr was ignored in silence.  Now one line naming the option, before the raw or light field is read."""
+    from plenodecode.io import lightfield
+    from plenodecode.types import LightField
+
+    opened = []
+    monkeypatch.setattr(pipeline, "open_raw", lambda *a, **k: opened.append(a))
+    monkeypatch.setattr(lightfield, "load_lightfield", lambda *a, **k: opened.append(a))
+    src = ILLUM
+    if command == "export":
+        src = tmp_path / "in" / "lf.zarr"
+        lightfield.save_lightfield(LightField(np.zeros((3, 3, 4, 5, 3), np.float32)), src)
+    out = tmp_path / "out"
+    rest = [str(out / a) if prev == "-o" else a for prev, a in zip([None, *args], args)]
+    res = run(command, src, *(["--database", ROOT / "calib"] if command == "decode" else []), *rest)
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert res.exit_code == 2 and len(errors) == 1, res.output
+    assert f"Invalid value for {option}:" in errors[0] and words in errors[0] and "bit_depth" not in errors[0], errors
+    assert opened == [] and not out.exists()
+
+
+def test_lightfield_bit_depths_that_fit_are_written(tmp_path):
+    """The depths the formats hold still write: zarr with --bit-depth 32, an ESLF .tif of floats that loads back as
+    the light field, views as 32-bit TIFFs."""
+    from plenodecode.io.lightfield import load_lightfield, save_lightfield
+
+    assert run("decode", ILLUM, "--database", ROOT / "calib", "-o", tmp_path / "lf.zarr",
+               "--bit-depth", 32).exit_code == 0
+    lf = load_lightfield(tmp_path / "lf.zarr")
+    res = run("export", tmp_path / "lf.zarr", "-o", tmp_path / "lf.tif", "--bit-depth", 32)
+    assert res.exit_code == 0, res.output
+    assert np.abs(load_lightfield(tmp_path / "lf.tif").data - lf.data).max() < 1e-6
+    res = run("export", tmp_path / "lf.zarr", "-o", tmp_path / "v", "--format", "views", "--image-type", "tif",
+              "--bit-depth", 32)
+    assert res.exit_code == 0 and read_image(tmp_path / "v" / "input_Cam112.tif").dtype == np.float32, res.output
+    with pytest.raises(ValueError, match="an ESLF mosaic is written as"):
+        save_lightfield(lf, tmp_path / "lf.exr", format="eslf")
+    assert not (tmp_path / "lf.exr").exists()
+
+
+def test_a_light_field_never_replaces_a_folder_of_other_files(tmp_path):
+    """'decode RAW -o important --overwrite', with 'important' a folder of the user's files, replaced the folder by
+    the views and deleted them (and without --overwrite the advice was 'pass --overwrite to replace it').  A folder
+    that holds files but no light field is now refused naming -o, with or without --overwrite, by decode, export
+    and save_lightfield; a light-field folder is still replaced with --overwrite."""
+    from plenodecode.io.lightfield import load_lightfield, save_lightfield
+
+    mine = tmp_path / "important"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("precious")
+    assert run("decode", ILLUM, "--database", ROOT / "calib", "-o", tmp_path / "lf.zarr").exit_code == 0
+    for args in (["decode", ILLUM, "--database", ROOT / "calib", "-o", mine],
+                 ["decode", ILLUM, "--database", ROOT / "calib", "-o", mine, "--overwrite"],
+                 ["export", tmp_path / "lf.zarr", "-o", mine, "--format", "zarr", "--overwrite"]):
+        res = run(*args)
+        errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+        assert res.exit_code == 2 and len(errors) == 1, res.output
+        assert "Invalid value for -o / --output:" in errors[0] and "folder of other files (notes.txt)" in errors[0]
+        assert "--overwrite" not in errors[0]
+    lf = load_lightfield(tmp_path / "lf.zarr")
+    with pytest.raises(ValueError, match="would replace the folder and delete them"):
+        save_lightfield(lf, mine, format="views", overwrite=True)
+    assert sorted(p.name for p in mine.iterdir()) == ["notes.txt"] and (mine / "notes.txt").read_text() == "precious"
+    res = run("export", tmp_path / "lf.zarr", "-o", tmp_path / "v", "--format", "views")
+    assert res.exit_code == 0 and run("export", tmp_path / "lf.zarr", "-o", tmp_path / "v", "--format", "views",
+                                      "--bit-depth", 8, "--overwrite").exit_code == 0
+    assert read_image(tmp_path / "v" / "input_Cam112.png").dtype == np.uint8
+
+
+def test_views_of_a_light_field_name_the_corner_views_without_data(tmp_path):
+    """'decode RAW -o views/ --format views' wrote the Illum sample's corner views as black PNGs without a word
+    ('plenodecode views' names them); decode and export now say how many hold no data and where the weight is."""
+    from plenodecode.imaging import view_data_share
+    from plenodecode.io.lightfield import load_lightfield
+
+    res = run("decode", ILLUM, "--database", ROOT / "calib", "-o", tmp_path / "v", "--format", "views")
+    assert res.exit_code == 0, res.output
+    lf = load_lightfield(tmp_path / "v")
+    empty = view_data_share(lf.weight) == 0
+    assert f"; {int(empty.sum())} corner views past the round micro-images hold no data" in res.output
+    assert empty.sum() == (lf.weight.max(axis=(2, 3)) < 0.01).sum() == 24          # the 15 x 15 Illum's corners
+    U = empty.shape[1]
+    black = [read_image(tmp_path / "v" / f"input_Cam{v * U + u:03d}.png").max() == 0
+             for v, u in zip(*np.nonzero(empty))]
+    assert sum(black) == 16                                       # the other 8: samples of weight < 0.01 (stripes)
+    res = run("export", tmp_path / "v", "-o", tmp_path / "e.png")
+    assert res.exit_code == 0 and "hold no data (weight under 0.01: black, or the rims' stripes; the image's last " \
+        "channel holds" in res.output
+    res = run("export", tmp_path / "v", "-o", tmp_path / "z.zarr")
+    assert res.exit_code == 0 and "hold no data" not in res.output
+
+
+def test_srgb_of_an_srgb_light_field_names_the_option(tmp_path):
+    """'export antinous -o v --format views --srgb' said 'encode_srgb: the light field is already sRGB-encoded'
+    (the Python keyword); it names --srgb and writes nothing."""
+    from tests.conftest import shared_path
+
+    res = run("export", shared_path("hci-antinous"), "-o", tmp_path / "v", "--format", "views", "--srgb")
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert res.exit_code == 2 and len(errors) == 1, res.output
+    assert "Invalid value for --srgb: hci-antinous is sRGB-encoded already" in errors[0] and "encode_srgb" not in \
+        res.output
+    assert not (tmp_path / "v").exists()

@@ -170,3 +170,43 @@ def test_cli_synth_checkerboard_takes_the_camera_from_a_calibration_file(tmp_pat
     truth = load_geometric_calibration(tmp_path / "set" / "geometry_truth.json")
     np.testing.assert_array_equal(truth.intrinsics, h)
     assert truth.lf_shape == (7, 7, 49, 58) and truth.distortion[0] == 0.1
+
+
+@pytest.mark.parametrize("extra, option, words", [
+    (["--pitch", "0.5"], "'--pitch'", "not in the range x>2"),
+    (["--rotation", "3"], "'--rotation'", "not in the range -0.5<x<0.5"),
+    (["--shape", "10", "10"], "'--shape'", "10 is not in the range 16<=x<=16384"),
+    (["--shape", "100000", "100000"], "'--shape'", "not in the range 16<=x<=16384"),
+    (["--shape", "16000", "16000"], "--shape", "16000 x 16000 is 256 Mpx; at most 64 Mpx"),
+    (["--checkerboard", "8x6x0.0036", "--shape", "9000", "9000"], "--shape", "at most 64 Mpx"),
+], ids=["pitch", "rotation", "shape-small", "shape-huge", "shape-pixels", "board-shape"])
+def test_cli_synth_geometry_out_of_bounds_names_the_option(tmp_path, extra, option, words):
+    """'synth --pitch 0.5' said 'Invalid value: pitch must be > 2 px' (no option named) after parsing, and
+    '--shape 100000 100000' ran until OpenCV failed to allocate 26 GB; both are usage errors naming the option now,
+    while the command line is parsed, with nothing written."""
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+
+    res = CliRunner().invoke(cli, ["synth", "f01-mini", "-o", str(tmp_path / "out"), *extra])
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert res.exit_code == 2 and len(errors) == 1, res.output
+    assert f"Invalid value for {option}:" in errors[0] and words in errors[0], errors
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("extra, words", [
+    ([], "the synthetic raw goes into a folder, and out.png names an image file; give a folder, e.g."),
+    (["--checkerboard", "8x6x0.0036", "--captures", "3"], "the calibration set goes into a folder, and out.png"),
+], ids=["scene", "checkerboard"])
+def test_cli_synth_output_named_like_an_image_is_refused(tmp_path, extra, words):
+    """'synth f01-mini -o out.png' made a folder called out.png holding scene.lfp ..., as other commands' folder
+    outputs did before they were refused; it is a usage error naming -o now, with nothing made."""
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+
+    res = CliRunner().invoke(cli, ["synth", "f01-mini", "-o", str(tmp_path / "out.png"), *extra])
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert res.exit_code == 2 and len(errors) == 1 and "Invalid value for -o / --output:" in errors[0], res.output
+    assert words in errors[0] and not (tmp_path / "out.png").exists()

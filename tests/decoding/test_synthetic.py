@@ -264,3 +264,30 @@ def test_hex_resample_removes_the_zipper_on_vertical_slats():
     assert zipper["cubic"] > 0.09
     assert zipper["hex"] < 0.65 * zipper["cubic"]
     assert centre["hex"] > centre["cubic"] + 1.0
+
+
+def test_python_tour_mistakes_get_answers_that_name_the_parameter(tmp_path):
+    """What a user of ``import plenodecode as pd`` types: ``pd.decode(raw, grid, white='MOD_0000.RAW')`` was
+    refused ('white must be a RawCapture or an ndarray') though ``pd.calibrate`` takes the same path; a folder given
+    to ``pd.read_raw`` was 'no such file'; ``pd.calibrate(..., pitch_hint=-3)`` was ignored in silence; sensor
+    sizes were H x W here and W x H in every command's message."""
+    from pathlib import Path
+
+    import plenodecode as pd
+    from plenodecode.errors import FormatError
+
+    root = Path(__file__).resolve().parents[2] / "sample_raws" / "illum-mini"
+    raw = pd.read_raw(root / "scene.lfr")
+    white = pd.read_raw(root / "MOD_0000.RAW")
+    grid = pd.calibrate(white)
+    by_path = pd.decode(raw, grid, white=str(root / "MOD_0000.RAW"))
+    assert np.array_equal(by_path.data, pd.decode(raw, grid, white=white).data)
+    with pytest.raises(FormatError, match="is a folder; read_raw reads one raw file"):
+        pd.read_raw(root)
+    with pytest.raises(ValueError, match="pitch_hint must be a finite lens pitch > 2 px, got -3"):
+        pd.calibrate(white, pitch_hint=-3)
+    small = pd.read_raw(root.parent / "f01-mini" / "scene.lfp")
+    with pytest.raises(CalibrationError, match="fitted on a 1544x1072 sensor but the raw is 656x656 "):
+        pd.decode(small, grid)
+    with pytest.raises(DecodeError, match="size 1544x1072, found 656x656"):
+        pd.decode(raw, grid, white=root.parent / "f01-mini" / "MOD_0000.RAW")

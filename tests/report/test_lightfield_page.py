@@ -353,3 +353,19 @@ def test_large_light_fields_are_reduced_to_max_side():
         assert img.shape[:2] == (32, 44)
     disp = np.frombuffer(base64.b64decode(depth["values"]), "<f4").reshape(32, 44)
     assert np.abs(disp[12:20, 28:36] - D_FG).max() < 0.05                # the rectangle, at its reduced place
+
+
+def test_the_page_says_a_word_before_the_depth_map_and_follows_it(tmp_path, monkeypatch):
+    """'export antinous -o page.html' was silent for 23 s: the progress bar appeared only after the depth map (the
+    first of 3 steps).  It now starts at 0 before the depth map and moves while the depth map is estimated."""
+    from plenodecode import depth
+
+    events = []
+    real = depth.estimate_depth
+    monkeypatch.setattr(depth, "estimate_depth",
+                        lambda *a, **k: events.append("depth") or real(*a, **k))
+    lf, _ = two_planes(n=5, shape=SHAPE, d_bg=D_BG, d_fg=D_FG, rect=RECT)
+    lightfield_page_data(lf, progress=lambda d, t: events.append((d, t)))
+    assert events[0] == (0, 10) and events[1] == "depth", events[:3]
+    during = [e for e in events[2:] if e != "depth" and e[0] < 8]
+    assert len(during) >= 3 and events[-1] == (10, 10), events

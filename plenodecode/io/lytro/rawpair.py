@@ -98,10 +98,22 @@ def read_raw_pair_metadata(path: str | os.PathLike,
     if side is None:
         raise FormatError(f"{p}: no metadata sidecar ({p.stem}.TXT, .txt or .json) beside the raw; put the "
                           "camera's JSON next to it")
-    return pair_metadata(read_sidecar(side), p.stat().st_size, str(p), str(side))
+    private = _private_beside(p)
+    return pair_metadata(read_sidecar(side), p.stat().st_size, str(p), str(side), private=private)
 
 
-def pair_metadata(doc: Any, size: int, raw_where: str, side_where: str,
+def _private_beside(raw: Path) -> Mapping[str, Any] | None:
+    """The private metadata 'plenodecode extract' writes beside a container's raw (``frame.raw`` ->
+    ``frame_private.json``: the camera's serial), or None."""
+    side = raw.with_name(f"{raw.stem}_private.json")
+    if not side.is_file():
+        return None
+    doc = read_sidecar(side)
+    return doc if isinstance(doc, Mapping) else None
+
+
+def pair_metadata(doc: Any, size: int, raw_where: str, side_where: str, *,
+                  private: Mapping[str, Any] | None = None,
                   ) -> tuple[CameraMetadata, str, np.ndarray, np.ndarray, int, int, int, str]:
     """:func:`metadata_from_lytro` of a sidecar document, checked against the raw's size in bytes.
 
@@ -116,6 +128,8 @@ def pair_metadata(doc: Any, size: int, raw_where: str, side_where: str,
         Bytes of the headerless raw.
     raw_where, side_where : str
         The raw's and the sidecar's paths, for messages.
+    private : dict, optional
+        The frame's private metadata (camera serial), when it is a file of its own.
 
     Raises
     ------
@@ -125,7 +139,7 @@ def pair_metadata(doc: Any, size: int, raw_where: str, side_where: str,
     if not isinstance(doc, Mapping):
         raise FormatError(f"{side_where}: expected a JSON object, found {type(doc).__name__}")
     default = KNOWN_SENSORS[size][:2] if size in KNOWN_SENSORS else None
-    result = metadata_from_lytro(doc, None, side_where, default_size=default)
+    result = metadata_from_lytro(doc, private, side_where, default_size=default)
     _, _, _, _, w, h, bits, _ = result
     expected = packed_size_or_error(h, w, bits, raw_where)
     if size != expected:
