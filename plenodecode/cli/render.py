@@ -127,7 +127,12 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
     note_if_dark(ctx, photo, exposure)
     if not quiet(ctx):
         how = "total focus" if total_focus else describe_focus(photo.data)
-        if chosen is not None:
-            how = (f"{'the camera' if total_focus else 'focused as captured'}: {how}; choose the focus with "
-                   f"--refocus, --slope, --focus-at or --focus-distance")
+        if chosen is not None and total_focus:      # a focused raw refocuses at a virtual depth, not by slope
+            from ..decoding.focused import shown_virtual_depth_range
+
+            lo, hi = shown_virtual_depth_range(src.calibration.grid)
+            how = (f"the camera's total focus; refocus it at a virtual depth V of {lo:g} .. {hi:g} with "
+                   f"'plenodecode refocus {input_path} --virtual-depth V -o photo.png'")
+        elif chosen is not None:
+            how = f"focused as captured: {how}; choose the focus with --refocus, --slope, --focus-at or --focus-distance"
         click.echo(f"wrote {output} ({how})")
