@@ -134,5 +134,6 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
             how = (f"the camera's total focus; refocus it at a virtual depth V of {lo:g} .. {hi:g} with "
                    f"'plenodecode refocus {input_path} --virtual-depth V -o photo.png'")
         elif chosen is not None:
-            how = f"focused as captured: {how}; choose the focus with --refocus, --slope, --focus-at or --focus-distance"
+            how = (f"focused as captured: {how}; choose the focus with --refocus, --slope, --focus-at or "
+                   f"--focus-distance")
         click.echo(f"wrote {output} ({how})")

@@ -784,5 +784,6 @@ def render_at_virtual_depth(raw, grid: LensletGrid, virtual_depth: float, *, whi
 
 __all__ = ["FocusedRender", "estimate_patch_sizes", "focus_measure", "render_focused", "render_total_focus",
            "focus_weights", "map_to_render",
-           "virtual_depth_range", "shown_virtual_depth_range", "check_virtual_depth", "lens_weights_at", "detect_orientation",
+           "virtual_depth_range", "shown_virtual_depth_range", "check_virtual_depth", "lens_weights_at",
+           "detect_orientation",
            "render_at_virtual_depth"]

@@ -262,7 +262,7 @@ def test_depth_of_a_focused_raw_is_virtual_depth_on_the_total_focus_grid(shoot, 
     assert v.shape == read_image(photo).shape[:2]
     lf_shape = pipeline.open_source(raw).calibration.grid.shape
     assert v.shape[0] > 4 * lf_shape[0] and v.shape[1] > 4 * lf_shape[1]
-    conf = read_image(tmp_path / "d_confidence.png") / 255.0
+    conf = read_image(tmp_path / "d_confidence.exr").squeeze()
     assert np.mean(conf >= 0.1) > 0.5
     for option in (["--metric"], ["--ply", tmp_path / "c.ply"], ["--method", "fast"], ["--disparity-range", "0:1"]):
         target = tmp_path / f"refused{len(option)}{option[0][2:]}.pfm"
@@ -284,7 +284,7 @@ def test_r42_depth_at_total_focus_resolution_agrees_with_the_per_lens_patch_size
     res = run("depth", r42, "-o", out)
     assert res.exit_code == 0, res.output
     v = read_depth(out)
-    conf = read_image(tmp_path / "d_confidence.png") / 255.0
+    conf = read_image(tmp_path / "d_confidence.exr").squeeze()
     src = pipeline.open_source(r42)
     render = pipeline.render_product(src, "total-focus").data["render"]
     assert v.shape == render.image.shape[:2] == (122, 176)
@@ -424,7 +424,8 @@ def test_the_one_liner_on_the_r42_points_to_its_virtual_depth_not_to_the_refused
     """The one-liner's photograph of the real R42 crop said 'choose the focus with --refocus, --slope, --focus-at or
     --focus-distance', each of which that raw refuses; --refocus and --focus-distance said 'use --slope S instead',
     which is refused too.  Now the photograph's line names --virtual-depth and its range (1.07 .. 100, the lens
-    types' 1.0609 .. 100 rounded inwards: the message said [1.06, 100] and refused 1.06), and alpha or a distance names the virtual depth, or --slope only with --views-anyway, before decoding."""
+    types' 1.0609 .. 100 rounded inwards: the message said [1.06, 100] and refused 1.06), and alpha or a distance
+    names the virtual depth, or --slope only with --views-anyway, before decoding."""
     from plenodecode.pipeline import source
 
     r42 = shared_path("raytrix-r42", "sc2_klein.png")
