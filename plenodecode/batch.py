@@ -679,8 +679,10 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
                 # 'photo' is the 'refocus' at the same focus, or a focused raw's 'total-focus': one file
                 log.info("%s: %s is the same image as an earlier output", product, name)
                 continue
-            dest, = pipeline.write_product(rendered, folder / name, bit_depth=bits, exposure=options.exposure)
-            shown = pipeline.expose(image, rendered.colour, pipeline.exposure_gain(rendered, options.exposure))
+            # one gain for the file and its thumbnail ('auto' measures the image once)
+            gain = pipeline.exposure_gain(rendered, options.exposure)
+            dest, = pipeline.write_product(rendered, folder / name, bit_depth=bits, exposure=math.log2(gain))
+            shown = pipeline.expose(image, rendered.colour, gain)
             written.append((dest, _thumbnail(shown, thumbs / f"{stem}.png", colour=rendered.colour)))
     return written
 

@@ -501,12 +501,18 @@ def test_cli_real_desktop_exports_fail_for_their_reason_and_passed_over_images_a
     assert "note: 3 image(s) (dark_frame.tif, light_field.png, radiometry_frame.png) were not taken" in res.output
 
 
-def test_cli_exposure_brightens_the_photo_and_its_thumbnail(tmp_path):
+def test_cli_exposure_brightens_the_photo_and_its_thumbnail(tmp_path, monkeypatch):
     """``batch --exposure auto`` on the real ant-leg capture (a dim specimen over a bright radiometry frame): the
-    photo's brightest 0.5 % reach full scale and so does the thumbnail's, where the default leaves both dark;
-    BatchOptions refuses a bad exposure (and the CLI, naming --exposure, before any work)."""
+    photo's brightest 0.5 % reach full scale and so does the thumbnail's, where the default leaves both dark, from
+    one measurement of the photo (it was measured twice, for the file and for the thumbnail); BatchOptions refuses
+    a bad exposure (and the CLI, naming --exposure, before any work)."""
     from tests.conftest import shared_path
     from plenodecode.io.images import read_image, srgb_decode, to_unit_float
+    from plenodecode.pipeline import output
+
+    measured = []
+    real_level = output.image_level
+    monkeypatch.setattr(output, "image_level", lambda rendered: measured.append(1) or real_level(rendered))
 
     scope = shared_path("lf-microscopy-antleg")
     base = ["batch", str(scope / "light_field.png"), "-w", str(scope / "radiometry_frame.png"), "--dark",
@@ -514,8 +520,10 @@ def test_cli_exposure_brightens_the_photo_and_its_thumbnail(tmp_path):
     level = {}
     for exposure in ("0", "auto"):
         out = tmp_path / exposure
-        res = CliRunner().invoke(cli, base + ["-o", str(out), "--exposure", exposure])
+        measured.clear()
+        res = CliRunner().invoke(cli, base + ["-o", str(out), "--exposure", exposure, "--jobs", "1"])
         assert res.exit_code == 0, res.output
+        assert len(measured) == (exposure == "auto")          # in this process: --jobs 1
         photo, = (out / "light_field").glob("*.png")
         thumb, = (out / "light_field" / "thumbs").glob("*.png")
         level[exposure] = [float(np.percentile(srgb_decode(to_unit_float(read_image(p))), 99.5))
