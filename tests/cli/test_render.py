@@ -169,6 +169,27 @@ def test_parallax_writes_animation_and_numbered_frames(tmp_path):
     assert run("parallax", src, "-o", tmp_path / "w.gif", "--radius", 5).exit_code == 2
 
 
+def test_parallax_bit_depth_and_frames_dir_are_checked_before_any_work(tmp_path, monkeypatch):
+    """--bit-depth 32 was refused only after decoding and rendering, naming the keyword 'bit_depth' (the frames are
+    PNGs); --frames-dir with --no-frames was silently ignored.  Both are usage errors naming the option now, before
+    the input is even opened; without frames --bit-depth 32 means nothing to the GIF and passes."""
+    from plenodecode import pipeline
+
+    src = save_npy(tmp_path, small_lf())
+    opened = []
+    real = pipeline.open_source
+    monkeypatch.setattr(pipeline, "open_source", lambda *a, **k: opened.append(a) or real(*a, **k))
+    for args, option in ((("--bit-depth", 32), "--bit-depth"),
+                         (("--no-frames", "--frames-dir", tmp_path / "f"), "--frames-dir")):
+        res = run("parallax", src, "-o", tmp_path / "w.gif", *args)
+        err = [ln for ln in res.output.splitlines() if ln.startswith("Error")]
+        assert res.exit_code == 2 and len(err) == 1 and option in err[0] and "bit_depth" not in err[0], res.output
+    assert opened == [] and sorted(p.name for p in tmp_path.iterdir()) == ["lf.json", "lf.npy"]
+    res = run("parallax", src, "-o", tmp_path / "w.gif", "--frames", 1, "--no-frames", "--bit-depth", 32)
+    assert res.exit_code == 0 and "(1 frame)" in res.output, res.output
+    assert (tmp_path / "w.gif").read_bytes()[:3] == b"GIF" and not (tmp_path / "w_frames").exists()
+
+
 def test_raw_is_decoded_then_refocused(tmp_path):
     """The card's form on a generated Illum raw: decode with a calibration (grid JSON, or the white image)."""
     from plenodecode import synthetic
