@@ -559,13 +559,14 @@ def focus_options(fn: Callable[..., Any]) -> Callable[..., Any]:
 
 
 def check_focus_options(given: Mapping[str, Any], no_depth: bool, *, optional: bool = False) -> None:
-    """Exactly one (with ``optional``, at most one) of the focus options in ``given`` (option name -> value or
-    None) was typed, and ``--no-depth`` only with ``--focus-at``; a usage error (exit 2) naming them otherwise."""
+    """Exactly one (with ``optional``, at most one) of the focus options in ``given`` (option name, maybe with its
+    metavar, ``'--focus-at X,Y'`` -> value or None) was typed, and ``--no-depth`` only with ``--focus-at``; a usage
+    error (exit 2) naming them otherwise."""
     typed = [name for name, value in given.items() if value is not None and value is not False]
     if len(typed) != 1 and not (optional and not typed):
         raise click.UsageError(f"pass {'at most' if optional else 'exactly'} one of {', '.join(given)}"
                                + (f" (got {' and '.join(typed)})" if typed else ""))
-    if no_depth and given.get("--focus-at") is None:
+    if no_depth and not any(name.split()[0] == "--focus-at" for name in typed):
         raise click.UsageError("--no-depth applies to --focus-at only")
 
 
@@ -575,4 +576,6 @@ def describe_focus(rendered_data: Mapping[str, Any]) -> str:
     what = f"slope {rendered_data['slope']:+.3f} px/view"
     if rendered_data.get("alpha") is not None:
         what = f"alpha {rendered_data['alpha']:g} = {what}"
+    elif rendered_data.get("distance_m") is not None:
+        what = f"focus distance {rendered_data['distance_m']:g} m = {what}"
     return f"{what}; refocusable {rendered_data['range'].describe()}"

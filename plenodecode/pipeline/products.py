@@ -124,7 +124,7 @@ def render_refocus(src: Source, *, slope: float | None = None, alpha: float | No
     """One photograph focused by one of ``slope``, ``alpha``, ``at = (y, x)``, ``distance_m`` (:func:`~plenodecode.
     render.refocus_methods.focus_slope`); outside :func:`~plenodecode.render.alpha.refocus_range_units` it is
     still rendered, with a one-line warning (ValueError, without it, beyond :func:`~plenodecode.render._common.
-    check_slope_reach`).  ``data``: 'slope' (chosen), 'alpha', 'method', 'aperture', 'range'."""
+    check_slope_reach`).  ``data``: 'slope' (chosen), 'alpha', 'distance_m', 'method', 'aperture', 'range'."""
     from ..render import refocus, refocus_range_units
     from ..render._common import check_slope_reach
     from ..render.refocus_methods import focus_slope
@@ -139,7 +139,8 @@ def render_refocus(src: Source, *, slope: float | None = None, alpha: float | No
     img = refocus(lf, slope=chosen, method=method, aperture=aperture, upsample=upsample)
     stem = refocus_stem(alpha=alpha) if alpha is not None else refocus_stem(slope=chosen)
     return Rendered("refocus", ((stem, img),), lf.colour,
-                    data={"slope": chosen, "alpha": alpha, "method": method, "aperture": aperture, "range": span})
+                    data={"slope": chosen, "alpha": alpha, "distance_m": distance_m, "method": method,
+                          "aperture": aperture, "range": span})
 
 
 def focal_stack_names(n: int, ext: str) -> list[str]:
