@@ -121,7 +121,8 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
         at = focus_point(focus_at, src.lightfield.shape)
         with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
             photo = render_product(src, "refocus", alpha=alpha, slope=slope, distance_m=distance_m, at=at,
-                                   at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture)
+                                   at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture,
+                                   progress=progress_bar("depth at --focus-at (fast)", ctx))
     with usage_errors():
         write_product(photo, output, bit_depth=bits, overwrite=overwrite, exposure=exposure)
     note_if_dark(ctx, photo, exposure)
