@@ -944,3 +944,30 @@ def test_a_slope_past_the_picture_fails_before_decoding(tmp_path, monkeypatch):
     assert result.error.startswith("DecodeError: --alpha 1.5 does not suit scene.lfr: slope 20.27 px/view"), result
     ok = process_raw(illum, tmp_path / "b", BatchOptions(outputs=("refocus",), slope=17.5, db_dir=str(root / "calib")))
     assert ok.status == "done", ok
+
+
+def test_cli_raws_of_one_file_name_are_told_apart_in_the_table_and_the_index(tmp_path):
+    """Two raws named scene.lfr (folders a/ and b/) were both 'scene.lfr' in the terminal table and on the index
+    page, while their outputs went to a__scene and b__scene: now each is named by as many of its last folders as
+    tell it apart, and a raw whose name is unique keeps its bare file name."""
+    import re
+    import shutil
+
+    root = Path(__file__).resolve().parents[1]
+    illum, f01 = root / "sample_raws" / "illum-mini" / "scene.lfr", root / "sample_raws" / "f01-mini" / "scene.lfp"
+    shoot = tmp_path / "shoot"
+    for folder in ("a", "b"):
+        (shoot / folder).mkdir(parents=True)
+        shutil.copy(illum, shoot / folder / "scene.lfr")
+    shutil.copy(f01, shoot / "scene.lfp")
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["batch", str(shoot), "-o", str(out), "--database", str(root / "calib"),
+                                   "--jobs", "1"])
+    assert res.exit_code == 0, res.output
+    rows = [line.split()[0] for line in res.output.splitlines() if " done " in line]
+    assert sorted(rows) == ["a/scene.lfr", "b/scene.lfr", "scene.lfp"], res.output
+    page = (out / "index.html").read_text()
+    shown = dict(re.findall(r'class="name" title="([^"]+)">([^<]+)<', page))
+    assert shown == {str(shoot / "a" / "scene.lfr"): "a/scene.lfr", str(shoot / "b" / "scene.lfr"): "b/scene.lfr",
+                     str(shoot / "scene.lfp"): "scene.lfp"}
+    assert sorted(p.name for p in out.iterdir() if p.is_dir()) == ["a__scene", "b__scene", "scene"]
