@@ -95,7 +95,8 @@ class BatchOptions:
     bit_depth : {8, 16, 32}
         Image outputs: 8/16-bit sRGB-encoded PNG, or 32 = linear float EXR.
     exposure : float or 'auto'
-        Stops the image outputs and their thumbnails are brightened by, or 'auto' (``--exposure``;
+        Stops the image outputs (the 'views' folder too, from its centre view, as ``plenodecode views``; not the
+        'lightfield' data) and their thumbnails are brightened by, or 'auto' (``--exposure``;
         :func:`plenodecode.pipeline.exposure_gain`).
     slope : float
         Refocus slope of the 'refocus' and 'photo' outputs (px per view step, design.md), unless ``alpha`` or
@@ -656,10 +657,10 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     thumbs.mkdir()
     written: list[tuple[Path, Path | None]] = []
 
-    def centre_thumbnail(name: str) -> Path:
+    def centre_thumbnail(name: str, lf: Any = None) -> Path:
         from .render import perspective
 
-        lf = src.lightfield
+        lf = src.lightfield if lf is None else lf
         return _thumbnail(perspective(lf, *lf.centre_index), thumbs / f"{name}.png", colour=lf.colour)
 
     for product in options.outputs:
@@ -668,9 +669,14 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
                                              format=options.lightfield_format, bit_depth=bits)
             written.append((dest, centre_thumbnail("lightfield")))
         elif product == "views":
-            dest = pipeline.write_lightfield(src.lightfield, folder / "views", format="views", bit_depth=bits,
-                                             display=True)
-            written.append((dest, centre_thumbnail("views")))
+            # image outputs for viewing: --exposure as 'plenodecode views' applies it (one gain, from the centre
+            # view); the 'lightfield' output stays the data as decoded
+            lf = src.lightfield
+            gain = pipeline.exposure_gain(pipeline.render_product(src, "views"), options.exposure)
+            if gain != 1.0:
+                lf = lf.replace(data=pipeline.expose(lf.data, lf.colour, gain))
+            dest = pipeline.write_lightfield(lf, folder / "views", format="views", bit_depth=bits, display=True)
+            written.append((dest, centre_thumbnail("views", lf)))
         elif product == "depth":
             rendered = pipeline.render_product(src, "depth", method=options.depth_method)
             stem = depth_stem(rendered)

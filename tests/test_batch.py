@@ -971,3 +971,26 @@ def test_cli_raws_of_one_file_name_are_told_apart_in_the_table_and_the_index(tmp
     assert shown == {str(shoot / "a" / "scene.lfr"): "a/scene.lfr", str(shoot / "b" / "scene.lfr"): "b/scene.lfr",
                      str(shoot / "scene.lfp"): "scene.lfp"}
     assert sorted(p.name for p in out.iterdir() if p.is_dir()) == ["a__scene", "b__scene", "scene"]
+
+
+def test_cli_exposure_brightens_the_views_folder_as_the_views_command_does(tmp_path):
+    """'batch --outputs views --exposure auto' wrote the views (and their thumbnail) as decoded, dark for the ant
+    leg, while centre.png beside them was brightened; now the views take the gain 'plenodecode views' takes (from
+    the centre view): the centre view's brightest 0.5 % reach full scale as centre.png's do."""
+    from tests.conftest import shared_path
+    from plenodecode.io.images import read_image, srgb_decode, to_unit_float
+
+    scope = shared_path("lf-microscopy-antleg")
+    base = ["batch", str(scope / "light_field.png"), "-w", str(scope / "radiometry_frame.png"), "--dark",
+            str(scope / "dark_frame.tif"), "--outputs", "centre,views", "--jobs", "1"]
+    level = {}
+    for exposure in ("0", "auto"):
+        out = tmp_path / exposure / "light_field"
+        res = CliRunner().invoke(cli, base + ["-o", str(out.parent), "--exposure", exposure])
+        assert res.exit_code == 0, res.output
+        views = json.loads((out / "views" / "lightfield.json").read_text())
+        v, u = (n // 2 for n in views["shape"][:2])
+        centre_view = out / "views" / f"input_Cam{v * views['shape'][1] + u:03d}.png"
+        level[exposure] = [float(np.percentile(srgb_decode(to_unit_float(read_image(p))), 99.5))
+                           for p in (centre_view, out / "centre.png", out / "thumbs" / "views.png")]
+    assert max(level["0"]) < 0.25 and min(level["auto"]) > 0.9, level
