@@ -18,6 +18,7 @@ from typing import Any, Callable, Iterator, Mapping
 import click
 from click.core import ParameterSource
 
+from ..io.atomic import refuse_folder
 from ..pipeline import BIT_DEPTHS
 
 
@@ -301,6 +302,8 @@ def usage_errors(param_hint: str | None = None) -> Iterator[None]:
     with ``param_hint`` a ValueError names that option."""
     try:
         yield
+    except IsADirectoryError as exc:        # an output file named like a folder that exists: never replaced
+        raise click.UsageError(str(exc)) from exc
     except FileExistsError as exc:
         text = str(exc).replace("overwrite=True", "--overwrite")       # the library's keyword, as the CLI spells it
         raise click.UsageError(f"{text}; pass --overwrite" if "--overwrite" not in text else text) from exc
@@ -356,7 +359,10 @@ def image_bit_depth(ctx: click.Context, bit_depth: str, suffix: str, *, param_hi
 
 
 def check_output(path: Path, overwrite: bool) -> None:
-    """Refuse to replace an existing output unless ``--overwrite`` was given (usage error, exit 2)."""
+    """Refuse an output file that is an existing folder, even with ``--overwrite``, and to replace an existing
+    output unless ``--overwrite`` was given (usage errors, exit 2)."""
+    with usage_errors():
+        refuse_folder(path)
     if path.exists() and not overwrite:
         raise click.UsageError(f"{path} exists; pass --overwrite to replace it")
 

@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from ..depth import DEFAULT_METHOD
+from ..io.atomic import refuse_folder
 from ..io.depthio import DEFAULT_MIN_CONFIDENCE
 from .common import (POSITIVE, UNIT_INTERVAL, RegistryChoice, calibration_kwargs, input_options, output_option,
                      overwrite_option, progress_bar, quiet, usage_errors)
@@ -93,6 +94,9 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
         paths = depth_output_paths(output, ply=ply, confidence=True)
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="--output") from None
+    with usage_errors():
+        for p in paths.values():
+            refuse_folder(p)
     if not overwrite:
         clash = [p for p in paths.values() if p.exists()]
         if clash:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import atomic_output, check_destination, write_bytes_atomic
+from .atomic import atomic_output, check_destination, refuse_folder, write_bytes_atomic
 from .images import quantise, write_image
 from .pfm import write_pfm
 
@@ -325,10 +325,12 @@ def write_depth_outputs(pfm_path: str | os.PathLike, values: np.ndarray, *, labe
     Returns
     -------
     list of Path
-        The files written.  Nothing is written when any output exists and ``overwrite`` is False.
+        The files written.  Nothing is written when any output is a folder, or exists and ``overwrite`` is False.
     """
     min_confidence = check_min_confidence(min_confidence)
     paths = depth_output_paths(pfm_path, ply=ply, confidence=confidence is not None)
+    for q in paths.values():        # all checked before the first is written
+        refuse_folder(q)
     if not overwrite:
         clash = [q for q in paths.values() if q.exists()]
         if clash:
