@@ -159,3 +159,31 @@ def test_antleg_background_is_masked_and_the_structures_have_the_parallax_sign(a
         medians.append(est)
     # the two structures lie on opposite sides of the focal plane: distinct disparities
     assert abs(medians[0] - medians[1]) > 0.3
+
+
+def test_a_disparity_range_past_the_picture_is_refused_before_estimating(tmp_path, monkeypatch):
+    """'--disparity-range -100:100' on the illum-mini light field (15 x 15 views of 87 x 125) searched for 27 s
+    over disparities at which no view overlaps the centre one; now a range past |d| = max(Y, X) / 7 = 17.9 px/view
+    (here 64 / half the view grid) is a usage error naming --disparity-range and the bound, before any estimation,
+    and writes nothing; a range inside it still runs."""
+    from plenodecode import depth
+    from plenodecode.io.lightfield import save_lightfield
+
+    lf, _, _ = half_featureless_scene()
+    src = save_lightfield(lf, tmp_path / "lf.npy", format="npy")
+    V, U, Y, X = lf.shape[:4]
+    reach = max(Y, X) / max(V // 2, U // 2)
+    estimated = []
+    real = depth.estimate_depth
+    monkeypatch.setattr(depth, "estimate_depth", lambda *a, **k: estimated.append(1) or real(*a, **k))
+    out = tmp_path / "d.pfm"
+    for bad in (f"-{reach * 1.01:.3f}:1", f"0:{reach * 5:.3f}"):
+        r = CliRunner().invoke(cli, ["depth", str(src), "-o", str(out), "--disparity-range", bad], obj={})
+        errors = [ln for ln in r.output.splitlines() if ln.startswith("Error")]
+        assert r.exit_code == 2 and len(errors) == 1 and "--disparity-range" in errors[0], r.output
+        assert f"|disparity| <= {reach:.3g} here" in errors[0]
+    assert estimated == [] and not list(tmp_path.glob("d*"))
+    r = CliRunner().invoke(cli, ["depth", str(src), "-o", str(out), "--method", "fast", "--disparity-range",
+                                 f"-{reach * 0.5:.3f}:{reach * 0.5:.3f}"], obj={})
+    assert r.exit_code == 0, r.output
+    assert np.isfinite(read_pfm(out)).all()
