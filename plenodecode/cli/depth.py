@@ -91,8 +91,9 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
     map in [0, 1] as OUTPUT_confidence.exr and .png (laid out as OUTPUT's .png, --min-confidence marked on
     its colour bar): disparity in px per view step (HCI sign: positive = closer than the focus plane), or
     depth in metres with --metric (micrometres for a light-field microscope, whose optics come from
-    --magnification, --na, ..., --optics FILE or a metadata.txt beside the raw).  A focused-plenoptic (Raytrix) raw gives its virtual depth (v = a / B) at the
-    resolution of its total-focus image ('plenodecode RAW -o photo.png'), aligned with it pixel for pixel.
+    --magnification, --na, ..., --optics FILE or a metadata.txt beside the raw).  A focused-plenoptic
+    (Raytrix) raw gives its virtual depth (v = a / B) at the resolution of its total-focus image
+    ('plenodecode RAW -o photo.png'), aligned with it pixel for pixel.
 
     \b
     Examples:

@@ -8,8 +8,8 @@ import click
 
 from ..pipeline import parallax_frame_names
 from .common import (FOCUSED_PHOTO, NON_NEGATIVE, POSITIVE, bit_depth_option, calibration_kwargs, check_folder_output,
-                     check_output, exposure_option, image_bit_depth, input_options, output_option, overwrite_option, progress_bar,
-                     quiet, refuse_focused_views, usage_errors, views_anyway_option)
+                     check_output, exposure_option, image_bit_depth, input_options, output_option, overwrite_option,
+                     progress_bar, quiet, refuse_focused_views, usage_errors, views_anyway_option)
 from .views import INTERP_CHOICE
 
 

@@ -404,6 +404,7 @@ def write_text_atomic(path: str | os.PathLike, text: str, *, overwrite: bool = F
     return Path(path)
 
 
-__all__ = ["check_destination", "refuse_existing", "refuse_folder", "atomic_output", "atomic_outputs", "write_bytes_atomic", "write_text_atomic",
+__all__ = ["check_destination", "refuse_existing", "refuse_folder", "atomic_output", "atomic_outputs",
+           "write_bytes_atomic", "write_text_atomic",
            "temporary_sibling", "commit", "discard", "is_temporary", "remove_stale_temporaries", "TEMP_MARK",
            "OLD_MARK", "STALE_AFTER_S"]
