@@ -95,7 +95,8 @@ class BatchOptions:
     bit_depth : {8, 16, 32}
         Image outputs: 8/16-bit sRGB-encoded PNG, or 32 = linear float EXR.
     exposure : float or 'auto'
-        Stops the image outputs and their thumbnails are brightened by, or 'auto' (``--exposure``;
+        Stops the image outputs (the 'views' folder too, from its centre view, as ``plenodecode views``; not the
+        'lightfield' data) and their thumbnails are brightened by, or 'auto' (``--exposure``;
         :func:`plenodecode.pipeline.exposure_gain`).
     slope : float
         Refocus slope of the 'refocus' and 'photo' outputs (px per view step, design.md), unless ``alpha`` or
@@ -361,6 +362,23 @@ def find_raws(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os
     from .io.discovery import find_raws as find
 
     return find(inputs, exclude=exclude, stop_marker=DONE_MARKER)
+
+
+def display_names(files: Sequence[str | os.PathLike]) -> list[str]:
+    """How the terminal table and the index page name each raw: its file name, or where two raws share one, as
+    many of its last folders as tell them apart (``a/scene.lfr``, ``b/scene.lfr``)."""
+    parts = [Path(f).resolve().parts for f in files]
+    depth = [1] * len(parts)
+    while True:
+        names = ["/".join(p[-k:]) for p, k in zip(parts, depth)]
+        seen: dict[str, list[int]] = {}
+        for i, n in enumerate(names):
+            seen.setdefault(n, []).append(i)
+        grow = [i for group in seen.values() if len(group) > 1 for i in group if depth[i] < len(parts[i])]
+        if not grow:
+            return [n.lstrip("/") or n for n in names]
+        for i in grow:
+            depth[i] += 1
 
 
 def output_names(files: Sequence[str | os.PathLike]) -> list[str]:
@@ -639,10 +657,10 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     thumbs.mkdir()
     written: list[tuple[Path, Path | None]] = []
 
-    def centre_thumbnail(name: str) -> Path:
+    def centre_thumbnail(name: str, lf: Any = None) -> Path:
         from .render import perspective
 
-        lf = src.lightfield
+        lf = src.lightfield if lf is None else lf
         return _thumbnail(perspective(lf, *lf.centre_index), thumbs / f"{name}.png", colour=lf.colour)
 
     for product in options.outputs:
@@ -651,9 +669,14 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
                                              format=options.lightfield_format, bit_depth=bits)
             written.append((dest, centre_thumbnail("lightfield")))
         elif product == "views":
-            dest = pipeline.write_lightfield(src.lightfield, folder / "views", format="views", bit_depth=bits,
-                                             display=True)
-            written.append((dest, centre_thumbnail("views")))
+            # image outputs for viewing: --exposure as 'plenodecode views' applies it (one gain, from the centre
+            # view); the 'lightfield' output stays the data as decoded
+            lf = src.lightfield
+            gain = pipeline.exposure_gain(pipeline.render_product(src, "views"), options.exposure)
+            if gain != 1.0:
+                lf = lf.replace(data=pipeline.expose(lf.data, lf.colour, gain))
+            dest = pipeline.write_lightfield(lf, folder / "views", format="views", bit_depth=bits, display=True)
+            written.append((dest, centre_thumbnail("views", lf)))
         elif product == "depth":
             rendered = pipeline.render_product(src, "depth", method=options.depth_method)
             stem = depth_stem(rendered)
@@ -679,8 +702,10 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
                 # 'photo' is the 'refocus' at the same focus, or a focused raw's 'total-focus': one file
                 log.info("%s: %s is the same image as an earlier output", product, name)
                 continue
-            dest, = pipeline.write_product(rendered, folder / name, bit_depth=bits, exposure=options.exposure)
-            shown = pipeline.expose(image, rendered.colour, pipeline.exposure_gain(rendered, options.exposure))
+            # one gain for the file and its thumbnail ('auto' measures the image once)
+            gain = pipeline.exposure_gain(rendered, options.exposure)
+            dest, = pipeline.write_product(rendered, folder / name, bit_depth=bits, exposure=math.log2(gain))
+            shown = pipeline.expose(image, rendered.colour, gain)
             written.append((dest, _thumbnail(shown, thumbs / f"{stem}.png", colour=rendered.colour)))
     return written
 
@@ -848,5 +873,5 @@ def write_summary(summary: BatchSummary, out_dir: str | os.PathLike, *, overwrit
     return js, html
 
 
-__all__ = ["BATCH_OUTPUTS", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
+__all__ = ["display_names", "BATCH_OUTPUTS", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
            "task_key", "process_raw", "run_batch", "write_summary", "check_summary_files"]

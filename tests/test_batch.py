@@ -501,12 +501,18 @@ def test_cli_real_desktop_exports_fail_for_their_reason_and_passed_over_images_a
     assert "note: 3 image(s) (dark_frame.tif, light_field.png, radiometry_frame.png) were not taken" in res.output
 
 
-def test_cli_exposure_brightens_the_photo_and_its_thumbnail(tmp_path):
+def test_cli_exposure_brightens_the_photo_and_its_thumbnail(tmp_path, monkeypatch):
     """``batch --exposure auto`` on the real ant-leg capture (a dim specimen over a bright radiometry frame): the
-    photo's brightest 0.5 % reach full scale and so does the thumbnail's, where the default leaves both dark;
-    BatchOptions refuses a bad exposure (and the CLI, naming --exposure, before any work)."""
+    photo's brightest 0.5 % reach full scale and so does the thumbnail's, where the default leaves both dark, from
+    one measurement of the photo (it was measured twice, for the file and for the thumbnail); BatchOptions refuses
+    a bad exposure (and the CLI, naming --exposure, before any work)."""
     from tests.conftest import shared_path
     from plenodecode.io.images import read_image, srgb_decode, to_unit_float
+    from plenodecode.pipeline import output
+
+    measured = []
+    real_level = output.image_level
+    monkeypatch.setattr(output, "image_level", lambda rendered: measured.append(1) or real_level(rendered))
 
     scope = shared_path("lf-microscopy-antleg")
     base = ["batch", str(scope / "light_field.png"), "-w", str(scope / "radiometry_frame.png"), "--dark",
@@ -514,8 +520,10 @@ def test_cli_exposure_brightens_the_photo_and_its_thumbnail(tmp_path):
     level = {}
     for exposure in ("0", "auto"):
         out = tmp_path / exposure
-        res = CliRunner().invoke(cli, base + ["-o", str(out), "--exposure", exposure])
+        measured.clear()
+        res = CliRunner().invoke(cli, base + ["-o", str(out), "--exposure", exposure, "--jobs", "1"])
         assert res.exit_code == 0, res.output
+        assert len(measured) == (exposure == "auto")          # in this process: --jobs 1
         photo, = (out / "light_field").glob("*.png")
         thumb, = (out / "light_field" / "thumbs").glob("*.png")
         level[exposure] = [float(np.percentile(srgb_decode(to_unit_float(read_image(p))), 99.5))
@@ -936,3 +944,53 @@ def test_a_slope_past_the_picture_fails_before_decoding(tmp_path, monkeypatch):
     assert result.error.startswith("DecodeError: --alpha 1.5 does not suit scene.lfr: slope 20.27 px/view"), result
     ok = process_raw(illum, tmp_path / "b", BatchOptions(outputs=("refocus",), slope=17.5, db_dir=str(root / "calib")))
     assert ok.status == "done", ok
+
+
+def test_cli_raws_of_one_file_name_are_told_apart_in_the_table_and_the_index(tmp_path):
+    """Two raws named scene.lfr (folders a/ and b/) were both 'scene.lfr' in the terminal table and on the index
+    page, while their outputs went to a__scene and b__scene: now each is named by as many of its last folders as
+    tell it apart, and a raw whose name is unique keeps its bare file name."""
+    import re
+    import shutil
+
+    root = Path(__file__).resolve().parents[1]
+    illum, f01 = root / "sample_raws" / "illum-mini" / "scene.lfr", root / "sample_raws" / "f01-mini" / "scene.lfp"
+    shoot = tmp_path / "shoot"
+    for folder in ("a", "b"):
+        (shoot / folder).mkdir(parents=True)
+        shutil.copy(illum, shoot / folder / "scene.lfr")
+    shutil.copy(f01, shoot / "scene.lfp")
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["batch", str(shoot), "-o", str(out), "--database", str(root / "calib"),
+                                   "--jobs", "1"])
+    assert res.exit_code == 0, res.output
+    rows = [line.split()[0] for line in res.output.splitlines() if " done " in line]
+    assert sorted(rows) == ["a/scene.lfr", "b/scene.lfr", "scene.lfp"], res.output
+    page = (out / "index.html").read_text()
+    shown = dict(re.findall(r'class="name" title="([^"]+)">([^<]+)<', page))
+    assert shown == {str(shoot / "a" / "scene.lfr"): "a/scene.lfr", str(shoot / "b" / "scene.lfr"): "b/scene.lfr",
+                     str(shoot / "scene.lfp"): "scene.lfp"}
+    assert sorted(p.name for p in out.iterdir() if p.is_dir()) == ["a__scene", "b__scene", "scene"]
+
+
+def test_cli_exposure_brightens_the_views_folder_as_the_views_command_does(tmp_path):
+    """'batch --outputs views --exposure auto' wrote the views (and their thumbnail) as decoded, dark for the ant
+    leg, while centre.png beside them was brightened; now the views take the gain 'plenodecode views' takes (from
+    the centre view): the centre view's brightest 0.5 % reach full scale as centre.png's do."""
+    from tests.conftest import shared_path
+    from plenodecode.io.images import read_image, srgb_decode, to_unit_float
+
+    scope = shared_path("lf-microscopy-antleg")
+    base = ["batch", str(scope / "light_field.png"), "-w", str(scope / "radiometry_frame.png"), "--dark",
+            str(scope / "dark_frame.tif"), "--outputs", "centre,views", "--jobs", "1"]
+    level = {}
+    for exposure in ("0", "auto"):
+        out = tmp_path / exposure / "light_field"
+        res = CliRunner().invoke(cli, base + ["-o", str(out.parent), "--exposure", exposure])
+        assert res.exit_code == 0, res.output
+        views = json.loads((out / "views" / "lightfield.json").read_text())
+        v, u = (n // 2 for n in views["shape"][:2])
+        centre_view = out / "views" / f"input_Cam{v * views['shape'][1] + u:03d}.png"
+        level[exposure] = [float(np.percentile(srgb_decode(to_unit_float(read_image(p))), 99.5))
+                           for p in (centre_view, out / "centre.png", out / "thumbs" / "views.png")]
+    assert max(level["0"]) < 0.25 and min(level["auto"]) > 0.9, level

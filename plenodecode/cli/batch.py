@@ -35,7 +35,9 @@ def _latency_note(summary) -> str:
 
 def _echo_table(summary) -> None:
     """The summary table: one line per raw (its error when it failed)."""
-    names = [Path(r.source).name for r in summary.results]
+    from ..batch import display_names
+
+    names = display_names([r.source for r in summary.results])
     width = max([len("raw"), *map(len, names)])
     click.echo(f"{'raw':{width}s}  {'status':8s} {'seconds':>8s}  detail")
     for name, r in zip(names, summary.results):

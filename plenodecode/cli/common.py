@@ -18,6 +18,7 @@ from typing import Any, Callable, Iterator, Mapping
 import click
 from click.core import ParameterSource
 
+from ..io.atomic import refuse_folder
 from ..pipeline import BIT_DEPTHS
 
 
@@ -301,6 +302,8 @@ def usage_errors(param_hint: str | None = None) -> Iterator[None]:
     with ``param_hint`` a ValueError names that option."""
     try:
         yield
+    except IsADirectoryError as exc:        # an output file named like a folder that exists: never replaced
+        raise click.UsageError(str(exc)) from exc
     except FileExistsError as exc:
         text = str(exc).replace("overwrite=True", "--overwrite")       # the library's keyword, as the CLI spells it
         raise click.UsageError(f"{text}; pass --overwrite" if "--overwrite" not in text else text) from exc
@@ -418,7 +421,10 @@ def refuse_writing_over_inputs(written: list[Path], inputs: list[Any], *,
 
 
 def check_output(path: Path, overwrite: bool) -> None:
-    """Refuse to replace an existing output unless ``--overwrite`` was given (usage error, exit 2)."""
+    """Refuse an output file that is an existing folder, even with ``--overwrite``, and to replace an existing
+    output unless ``--overwrite`` was given (usage errors, exit 2)."""
+    with usage_errors():
+        refuse_folder(path)
     if path.exists() and not overwrite:
         raise click.UsageError(f"{path} exists; pass --overwrite to replace it")
 
@@ -625,13 +631,14 @@ def focus_options(fn: Callable[..., Any]) -> Callable[..., Any]:
 
 
 def check_focus_options(given: Mapping[str, Any], no_depth: bool, *, optional: bool = False) -> None:
-    """Exactly one (with ``optional``, at most one) of the focus options in ``given`` (option name -> value or
-    None) was typed, and ``--no-depth`` only with ``--focus-at``; a usage error (exit 2) naming them otherwise."""
+    """Exactly one (with ``optional``, at most one) of the focus options in ``given`` (option name, maybe with its
+    metavar, ``'--focus-at X,Y'`` -> value or None) was typed, and ``--no-depth`` only with ``--focus-at``; a usage
+    error (exit 2) naming them otherwise."""
     typed = [name for name, value in given.items() if value is not None and value is not False]
     if len(typed) != 1 and not (optional and not typed):
         raise click.UsageError(f"pass {'at most' if optional else 'exactly'} one of {', '.join(given)}"
                                + (f" (got {' and '.join(typed)})" if typed else ""))
-    if no_depth and given.get("--focus-at") is None:
+    if no_depth and not any(name.split()[0] == "--focus-at" for name in typed):
         raise click.UsageError("--no-depth applies to --focus-at only")
 
 
@@ -641,4 +648,6 @@ def describe_focus(rendered_data: Mapping[str, Any]) -> str:
     what = f"slope {rendered_data['slope']:+.3f} px/view"
     if rendered_data.get("alpha") is not None:
         what = f"alpha {rendered_data['alpha']:g} = {what}"
+    elif rendered_data.get("distance_m") is not None:
+        what = f"focus distance {rendered_data['distance_m']:g} m = {what}"
     return f"{what}; refocusable {rendered_data['range'].describe()}"

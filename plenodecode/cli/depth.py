@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from ..depth import DEFAULT_METHOD
+from ..io.atomic import refuse_folder
 from ..io.depthio import DEFAULT_MIN_CONFIDENCE
 from .common import (POSITIVE, UNIT_INTERVAL, RegistryChoice, calibration_kwargs, input_options, output_option,
                      overwrite_option, progress_bar, quiet, usage_errors)
@@ -31,6 +32,23 @@ def parse_range(text: str | None) -> tuple[float, float] | None:
     return lo, hi
 
 
+def check_range_reach(src, rng: tuple[float, float] | None, text: str | None) -> None:
+    """A ``--disparity-range`` past the slope at which the outermost views still overlap the centre one
+    (:func:`plenodecode.render._common.slope_reach`: 17.9 px/view on the bundled illum-mini) is a usage error
+    naming the option, before decoding: nothing there can match, and the search costs time in proportion."""
+    if rng is None:
+        return
+    from ..decoding.rectify import decoded_shape
+    from ..render._common import slope_reach
+
+    shape = src.lightfield.shape if src.raw is None else decoded_shape(src.calibration.grid)
+    reach, worst = slope_reach(shape), max(abs(rng[0]), abs(rng[1]))
+    if worst > reach:
+        raise click.BadParameter(f"{text}: a disparity of {worst:g} px/view moves the outermost views past the whole "
+                                 f"{shape[2]} x {shape[3]} picture, where no view overlaps the centre one; search "
+                                 f"within |disparity| <= {reach:.3g} here", param_hint="--disparity-range")
+
+
 def check_focused_options(ctx: click.Context) -> None:
     """A focused-plenoptic (Raytrix) raw's depth is searched over its virtual depth range from its micro-images:
     a usage error naming ``--method`` or ``--disparity-range`` when typed (options of a light field's depth)."""
@@ -52,7 +70,8 @@ def check_focused_options(ctx: click.Context) -> None:
 @click.option("--ply", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Also write a coloured point cloud (needs the camera geometry, as --metric).")
 @click.option("--disparity-range", "disparity_range", metavar="LO:HI", default=None,
-              help="Search range in px per view step (default: from the metadata, else estimated).")
+              help="Search range in px per view step (default: from the metadata, else estimated); at most the "
+                   "disparity at which the outermost views still overlap the centre one.")
 @click.option("--focus-distance", "focus_distance", type=POSITIVE, default=None,
               help="Distance of the plane in focus (m), for --metric/--ply when the metadata lacks it.")
 @click.option("--min-confidence", "min_confidence", type=UNIT_INTERVAL, default=DEFAULT_MIN_CONFIDENCE,
@@ -69,11 +88,12 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
 
     Writes OUTPUT (.pfm, readable by the HCI benchmark toolkit), OUTPUT with .exr (32-bit float),
     OUTPUT with .png (colour map with a legend, pixels below --min-confidence grey) and the confidence
-    map in [0, 1] as OUTPUT_confidence.exr and .png: disparity in px per view step (HCI sign: positive =
-    closer than the focus plane), or depth in metres with --metric (micrometres for a light-field
-    microscope, whose optics come from --magnification, --na, ..., --optics FILE or a metadata.txt
-    beside the raw).  A focused-plenoptic (Raytrix) raw gives its virtual depth (v = a / B) at the
-    resolution of its total-focus image ('plenodecode RAW -o photo.png'), aligned with it pixel for pixel.
+    map in [0, 1] as OUTPUT_confidence.exr and .png (laid out as OUTPUT's .png, --min-confidence marked on
+    its colour bar): disparity in px per view step (HCI sign: positive = closer than the focus plane), or
+    depth in metres with --metric (micrometres for a light-field microscope, whose optics come from
+    --magnification, --na, ..., --optics FILE or a metadata.txt beside the raw).  A focused-plenoptic
+    (Raytrix) raw gives its virtual depth (v = a / B) at the resolution of its total-focus image
+    ('plenodecode RAW -o photo.png'), aligned with it pixel for pixel.
 
     \b
     Examples:
@@ -93,6 +113,9 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
         paths = depth_output_paths(output, ply=ply, confidence=True)
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="--output") from None
+    with usage_errors():
+        for p in paths.values():
+            refuse_folder(p)
     if not overwrite:
         clash = [p for p in paths.values() if p.exists()]
         if clash:
@@ -106,6 +129,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
                                   progress=progress_bar("depth (focused: virtual depth)", ctx))
         method = rendered.data["method"]
     else:
+        check_range_reach(src, rng, disparity_range)
         rendered = render_product(src, "depth", method=method, disparity_range=rng, metric=metric,
                                   points=ply is not None, focus_distance=focus_distance,
                                   progress=progress_bar(f"depth ({method})", ctx))

@@ -8,8 +8,8 @@ import click
 
 from ..pipeline import parallax_frame_names
 from .common import (FOCUSED_PHOTO, NON_NEGATIVE, POSITIVE, bit_depth_option, calibration_kwargs, check_folder_output,
-                     check_output, exposure_option, input_options, output_option, overwrite_option, progress_bar,
-                     quiet, refuse_focused_views, usage_errors, views_anyway_option)
+                     check_output, exposure_option, image_bit_depth, input_options, output_option, overwrite_option,
+                     progress_bar, quiet, refuse_focused_views, usage_errors, views_anyway_option)
 from .views import INTERP_CHOICE
 
 
@@ -51,8 +51,12 @@ def command(ctx: click.Context, input_path: Path, output: Path, n_frames: int, r
     if output.suffix.lower() not in (".gif", ".webp"):
         raise click.BadParameter(f"OUTPUT must end in .gif or .webp, got {output.name!r}", param_hint="-o")
     check_output(output, overwrite)
+    if no_frames and frames_dir is not None:
+        raise click.UsageError("--frames-dir names the folder of the frames that --no-frames leaves out: pass one")
     folder = None if no_frames else (frames_dir or output.with_name(output.stem + "_frames"))
-    if folder is not None:
+    bits = int(bit_depth)
+    if folder is not None:      # the frames are PNGs: a depth they cannot hold is refused before any work
+        bits = image_bit_depth(ctx, bit_depth, ".png", param_hint="--bit-depth")
         check_folder_output(folder, parallax_frame_names(n_frames), overwrite)
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       **calibration_kwargs(calibration, white, database, self_calibrate))
@@ -62,7 +66,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, n_frames: int, r
         rendered = render_product(src, "parallax", frames=n_frames, radius=radius, interp=interp,
                                   progress=progress_bar("rendering", ctx))
     with usage_errors():
-        write_parallax(rendered, output, fps=fps, frames_dir=folder, bit_depth=int(bit_depth), overwrite=overwrite,
+        write_parallax(rendered, output, fps=fps, frames_dir=folder, bit_depth=bits, overwrite=overwrite,
                        exposure=exposure)
     if not quiet(ctx):
-        click.echo(f"wrote {output} ({n_frames} frames)" + ("" if folder is None else f" and frames in {folder}"))
+        click.echo(f"wrote {output} ({n_frames} frame{'s' * (n_frames != 1)})"
+                   + ("" if folder is None else f" and frames in {folder}"))

@@ -162,7 +162,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
         with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
             photo = render_product(src, "refocus", slope=slope, alpha=alpha, distance_m=distance_m, at=at,
                                    at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture,
-                                   upsample=upsample)
+                                   upsample=upsample, progress=progress_bar("depth at --focus-at (fast)", ctx))
         with usage_errors():
             write_product(photo, output, bit_depth=bits, overwrite=overwrite, exposure=exposure)
         note_if_dark(ctx, photo, exposure)

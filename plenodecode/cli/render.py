@@ -121,13 +121,20 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
         at = focus_point(focus_at, src.lightfield.shape)
         with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
             photo = render_product(src, "refocus", alpha=alpha, slope=slope, distance_m=distance_m, at=at,
-                                   at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture)
+                                   at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture,
+                                   progress=progress_bar("depth at --focus-at (fast)", ctx))
     with usage_errors():
         write_product(photo, output, bit_depth=bits, overwrite=overwrite, exposure=exposure)
     note_if_dark(ctx, photo, exposure)
     if not quiet(ctx):
         how = "total focus" if total_focus else describe_focus(photo.data)
-        if chosen is not None:
-            how = (f"{'the camera' if total_focus else 'focused as captured'}: {how}; choose the focus with "
-                   f"--refocus, --slope, --focus-at or --focus-distance")
+        if chosen is not None and total_focus:      # a focused raw refocuses at a virtual depth, not by slope
+            from ..decoding.focused import shown_virtual_depth_range
+
+            lo, hi = shown_virtual_depth_range(src.calibration.grid)
+            how = (f"the camera's total focus; refocus it at a virtual depth V of {lo:g} .. {hi:g} with "
+                   f"'plenodecode refocus {input_path} --virtual-depth V -o photo.png'")
+        elif chosen is not None:
+            how = (f"focused as captured: {how}; choose the focus with --refocus, --slope, --focus-at or "
+                   f"--focus-distance")
         click.echo(f"wrote {output} ({how})")

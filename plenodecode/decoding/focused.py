@@ -701,12 +701,25 @@ def virtual_depth_range(grid: LensletGrid) -> tuple[float, float]:
     return max(geometric, min(r[0] for r in ranges)), max(r[1] for r in ranges)
 
 
+def shown_virtual_depth_range(grid: LensletGrid) -> tuple[float, float]:
+    """:func:`virtual_depth_range` to three significant digits, rounded inwards (the R42's 1.0609 .. 100 reads
+    1.07 .. 100): every value a message shows is one :func:`check_virtual_depth` accepts."""
+    def inward(x: float, up: bool) -> float:
+        scale = 10.0 ** (2 - math.floor(math.log10(x)))
+        return (math.ceil(x * scale) if up else math.floor(x * scale)) / scale
+
+    lo, hi = virtual_depth_range(grid)
+    return max(lo, inward(lo, True)), min(hi, inward(hi, False))
+
+
 def check_virtual_depth(grid: LensletGrid, virtual_depth: float) -> None:
-    """Raise ValueError naming ``virtual_depth`` unless it lies in :func:`virtual_depth_range`."""
+    """Raise ValueError naming ``virtual_depth`` unless it lies in :func:`virtual_depth_range` (the message shows
+    :func:`shown_virtual_depth_range`)."""
     lo, hi = virtual_depth_range(grid)
     if not (math.isfinite(virtual_depth) and lo <= virtual_depth <= hi):
         source = "its lens types' depth ranges" if _lens_depth_ranges(grid) else "its micro-image size"
-        raise ValueError(f"virtual depth must lie in [{lo:.3g}, {hi:.3g}] for this camera ({source}; patch = "
+        lo, hi = shown_virtual_depth_range(grid)
+        raise ValueError(f"virtual depth must lie in [{lo:g}, {hi:g}] for this camera ({source}; patch = "
                          f"lens pitch {grid.pitch:.2f} px / virtual depth), got {virtual_depth:g}")
 
 
@@ -772,5 +785,6 @@ def render_at_virtual_depth(raw, grid: LensletGrid, virtual_depth: float, *, whi
 
 __all__ = ["FocusedRender", "estimate_patch_sizes", "focus_measure", "render_focused", "render_total_focus",
            "focus_weights", "map_to_render",
-           "virtual_depth_range", "check_virtual_depth", "lens_weights_at", "detect_orientation",
+           "virtual_depth_range", "shown_virtual_depth_range", "check_virtual_depth", "lens_weights_at",
+           "detect_orientation",
            "render_at_virtual_depth"]

@@ -95,6 +95,15 @@ def _refuse_existing(p: Path, overwrite: bool) -> None:
         raise FileExistsError(f"{p} exists; pass overwrite=True to replace it")
 
 
+def refuse_folder(path: str | os.PathLike) -> None:
+    """Raise :class:`IsADirectoryError` when the output file ``path`` is an existing folder: ``overwrite`` replaces
+    a file, never a folder and what it holds (``-o photos.png`` naming a folder of that name)."""
+    p = Path(path)
+    if p.is_dir() and not p.is_symlink():
+        raise IsADirectoryError(f"{p} is a folder; an output file never replaces a folder (name a file, e.g. "
+                                f"{p / 'out'}{p.suffix or '.png'})")
+
+
 def refuse_existing(paths: Iterable[str | os.PathLike], overwrite: bool) -> None:
     """Raise :class:`FileExistsError` for the first of ``paths`` that exists, unless ``overwrite``.
 
@@ -280,12 +289,16 @@ def atomic_output(path: str | os.PathLike, *, overwrite: bool = False, folder: b
     ------
     FileExistsError
         ``path`` exists and ``overwrite`` is False.
+    IsADirectoryError
+        ``path`` is an existing folder and ``folder`` is False (:func:`refuse_folder`), even with ``overwrite``.
 
     Examples
     --------
     >>> with atomic_output(out / "view.png", suffix=".png") as tmp:   # doctest: +SKIP
     ...     write_png(tmp, image)
     """
+    if not folder:
+        refuse_folder(path)
     p = check_destination(path, overwrite)
     tmp = temporary_sibling(p, folder=folder, suffix=suffix)
     try:
@@ -328,6 +341,8 @@ def atomic_outputs(paths: Sequence[str | os.PathLike], *, overwrite: bool = Fals
     ps = [Path(p) for p in paths]
     if len({os.path.abspath(p) for p in ps}) != len(ps):
         raise ValueError(f"paths must all be different, got {[str(p) for p in ps]}")
+    for p in ps:
+        refuse_folder(p)
     refuse_existing(ps, overwrite)
     for p in ps:
         check_destination(p, True)
@@ -389,6 +404,7 @@ def write_text_atomic(path: str | os.PathLike, text: str, *, overwrite: bool = F
     return Path(path)
 
 
-__all__ = ["check_destination", "refuse_existing", "atomic_output", "atomic_outputs", "write_bytes_atomic", "write_text_atomic",
+__all__ = ["check_destination", "refuse_existing", "refuse_folder", "atomic_output", "atomic_outputs",
+           "write_bytes_atomic", "write_text_atomic",
            "temporary_sibling", "commit", "discard", "is_temporary", "remove_stale_temporaries", "TEMP_MARK",
            "OLD_MARK", "STALE_AFTER_S"]

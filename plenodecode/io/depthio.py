@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import atomic_output, check_destination, write_bytes_atomic
+from .atomic import atomic_output, check_destination, refuse_folder, write_bytes_atomic
 from .images import quantise, write_image
 from .pfm import write_pfm
 
@@ -150,6 +150,9 @@ def colour_mapped(values: np.ndarray, *, cmap: str = DEPTH_CMAP, percentiles: tu
 DEFAULT_MIN_CONFIDENCE = 0.1
 #: Display colour (RGB in [0, 1]) of the pixels below ``min_confidence``.
 MASK_GREY = (0.62, 0.62, 0.62)
+#: Colour map of the confidence PNG (0 .. 1, fixed), and the colour of the ``min_confidence`` line on its colour bar.
+CONFIDENCE_CMAP = "viridis"
+CONFIDENCE_MARK = "red"
 
 
 def check_min_confidence(value: float, name: str = "min_confidence") -> float:
@@ -166,7 +169,7 @@ def check_min_confidence(value: float, name: str = "min_confidence") -> float:
 def colour_map_figure(values: np.ndarray, *, label: str, cmap: str = DEPTH_CMAP, vmin: float | None = None,
                       vmax: float | None = None, percentiles: tuple[float, float] = DEPTH_PERCENTILES,
                       title: str | None = None, masked: np.ndarray | None = None, width_in: float = 6.0,
-                      dpi: int | None = None, fontsize: float | None = None):
+                      dpi: int | None = None, fontsize: float | None = None, mark: float | None = None):
     """A matplotlib Figure (no pyplot state) of ``values`` with a colour bar naming ``label``.
 
     Parameters
@@ -184,6 +187,11 @@ def colour_map_figure(values: np.ndarray, *, label: str, cmap: str = DEPTH_CMAP,
     width_in, dpi, fontsize
         Width of the image part (inches), resolution (default: about one pixel per value, at least 100) and
         text size (points; default matplotlib's).
+    mark : float, optional
+        A value drawn as a :data:`CONFIDENCE_MARK` line across the colour bar (a threshold).
+
+    The figure's size and the image's place in it depend only on the shape of ``values``, whether there is a
+    title, ``width_in``, ``dpi`` and ``fontsize``: two maps of one shape line up pixel for pixel.
 
     Returns
     -------
@@ -216,6 +224,8 @@ def colour_map_figure(values: np.ndarray, *, label: str, cmap: str = DEPTH_CMAP,
     cax = fig.add_axes([image_share + 0.04 * (1 - image_share), 0.1, 0.25 * (1 - image_share), 0.8])
     cb = fig.colorbar(im, cax=cax)
     cb.set_label(label, fontsize=fontsize)
+    if mark is not None:
+        cb.ax.axhline(mark, color=CONFIDENCE_MARK, linewidth=2.0)
     if fontsize:
         cb.ax.tick_params(labelsize=fontsize)
     return fig
@@ -239,12 +249,13 @@ def colour_map_image(values: np.ndarray, **figure_options) -> np.ndarray:
 
 def write_colour_map_png(path: str | os.PathLike, values: np.ndarray, *, label: str, cmap: str = DEPTH_CMAP,
                          vmin: float | None = None, vmax: float | None = None, title: str | None = None,
-                         masked: np.ndarray | None = None, overwrite: bool = False) -> Path:
+                         masked: np.ndarray | None = None, mark: float | None = None, overwrite: bool = False) -> Path:
     """Write ``values`` (Y, X) as a colour-mapped PNG with a legend (see :func:`colour_map_figure`)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     p = check_destination(path, overwrite)            # refuse before drawing
-    fig = colour_map_figure(values, label=label, cmap=cmap, vmin=vmin, vmax=vmax, title=title, masked=masked)
+    fig = colour_map_figure(values, label=label, cmap=cmap, vmin=vmin, vmax=vmax, title=title, masked=masked,
+                            mark=mark)
     FigureCanvasAgg(fig)
     with atomic_output(p, overwrite=overwrite, suffix=".png") as tmp:
         fig.savefig(tmp, format="png")
@@ -300,9 +311,10 @@ def write_depth_outputs(pfm_path: str | os.PathLike, values: np.ndarray, *, labe
     label : str
         Legend of the PNG's colour bar (e.g. 'disparity (px / view)').
     confidence : ndarray (Y, X) float in [0, 1], optional
-        Written as ``X_confidence.exr`` (float32) and ``X_confidence.png`` (8-bit grey, ``rint(255 c)``); the
-        pixels of ``X.png`` with ``confidence < min_confidence`` are grey (:data:`MASK_GREY`) and do not count
-        in its colour range.
+        Written as ``X_confidence.exr`` (float32, the values) and ``X_confidence.png``, a figure laid out as
+        ``X.png`` (the same size, the map at the same pixels) in :data:`CONFIDENCE_CMAP` over 0 .. 1 with
+        ``min_confidence`` marked on its colour bar; the pixels of ``X.png`` with ``confidence < min_confidence``
+        are grey (:data:`MASK_GREY`) and do not count in its colour range.
     min_confidence : float in [0, 1]
         0 greys out nothing.
     points, colours : ndarray (Y, X, 3), optional
@@ -313,10 +325,12 @@ def write_depth_outputs(pfm_path: str | os.PathLike, values: np.ndarray, *, labe
     Returns
     -------
     list of Path
-        The files written.  Nothing is written when any output exists and ``overwrite`` is False.
+        The files written.  Nothing is written when any output is a folder, or exists and ``overwrite`` is False.
     """
     min_confidence = check_min_confidence(min_confidence)
     paths = depth_output_paths(pfm_path, ply=ply, confidence=confidence is not None)
+    for q in paths.values():        # all checked before the first is written
+        refuse_folder(q)
     if not overwrite:
         clash = [q for q in paths.values() if q.exists()]
         if clash:
@@ -330,8 +344,11 @@ def write_depth_outputs(pfm_path: str | os.PathLike, values: np.ndarray, *, labe
     if ply is not None and points is None:
         raise ValueError("ply needs points (3-D coordinates of every pixel)")
     masked = None if conf is None or min_confidence <= 0 else conf < np.float32(min_confidence)
-    if masked is not None:
-        title = f"{title + '; ' if title else ''}grey: confidence < {min_confidence:g}"
+    # both PNGs get a title, so that their maps lie at the same pixels (colour_map_figure)
+    base = title or (paths["pfm"].stem if conf is not None else None)
+    title = base if masked is None else f"{base}; grey: confidence < {min_confidence:g}"
+    conf_title = f"{base}: confidence" + (f"; below {min_confidence:g} (red line) is grey in {paths['png'].name}"
+                                          if masked is not None else "")
     written: list[Path] = []
     paths["pfm"].parent.mkdir(parents=True, exist_ok=True)
     written.append(write_pfm(paths["pfm"], v, overwrite=overwrite))
@@ -340,7 +357,9 @@ def write_depth_outputs(pfm_path: str | os.PathLike, values: np.ndarray, *, labe
                                         overwrite=overwrite))
     if conf is not None:
         written.append(write_image(paths["confidence_exr"], conf, bit_depth=32, overwrite=overwrite))
-        written.append(write_image(paths["confidence_png"], conf, bit_depth=8, overwrite=overwrite))
+        written.append(write_colour_map_png(paths["confidence_png"], conf, label="confidence (0 = no match, 1 = sure)",
+                                            cmap=CONFIDENCE_CMAP, vmin=0.0, vmax=1.0, title=conf_title,
+                                            mark=min_confidence if masked is not None else None, overwrite=overwrite))
     if ply is not None:
         pts = np.asarray(points, np.float32).reshape(-1, 3)
         keep = np.isfinite(pts).all(axis=1)
@@ -351,5 +370,6 @@ def write_depth_outputs(pfm_path: str | os.PathLike, values: np.ndarray, *, labe
 
 
 __all__ = ["write_ply", "read_ply", "write_colour_map_png", "colour_map_figure", "colour_map_image", "colour_range",
-           "colour_mapped", "DEFAULT_MIN_CONFIDENCE", "MASK_GREY", "check_min_confidence",
+           "colour_mapped", "DEFAULT_MIN_CONFIDENCE", "MASK_GREY", "CONFIDENCE_CMAP", "CONFIDENCE_MARK",
+           "check_min_confidence",
            "DEPTH_CMAP", "DEPTH_PERCENTILES", "write_depth_outputs", "depth_output_paths", "display_colours"]

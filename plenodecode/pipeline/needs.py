@@ -130,6 +130,13 @@ FOCUSED_NOT_METRIC = ("a focused-plenoptic (Raytrix) raw's depth is virtual dept
                       "instead (without --metric and --ply)")
 
 
+#: Why a focused-plenoptic (Raytrix) raw has no alpha or focus distance (:func:`check_product`), and what to do.
+FOCUSED_NO_FOCUS_CONSTANTS = ("{need} needs the main lens and the MLA-sensor distance, which a focused-plenoptic "
+                              "(Raytrix) raw's RayCalibData does not hold; refocus it at a virtual depth "
+                              "('plenodecode refocus {raw} --virtual-depth V'), or its views (one pixel per lens) by "
+                              "slope (--slope S --views-anyway)")
+
+
 def is_focused_raw(item: LightField | RawCapture) -> bool:
     """True for a raw read with a Raytrix RayCalibData that has lens types (its grid will have them:
     :attr:`~plenodecode.pipeline.Source.focused`), known before calibrating."""
@@ -178,9 +185,12 @@ def check_product(item: LightField | RawCapture, name: str, *, rectified: bool =
     if failure is not None:
         why, missing = failure
         source = _name(item)
+        if missing and need != "metric" and (is_focused_raw(item) if focused is None else focused):
+            # 'refocus by slope' alone would send a Raytrix raw to the views its commands refuse
+            why, missing = FOCUSED_NO_FOCUS_CONSTANTS.format(need=NEEDS[need], raw=source), ()
         instead = INSTEAD.get(keyword)
         raise MissingConstantsError(f"{source}: {why}" + (f"; {instead}" if instead and missing else ""),
                                     keyword=keyword, missing=missing, source=source, need=NEEDS[need])
 
 
-__all__ = ["NEEDS", "REQUESTS", "FOCUSED_NOT_METRIC", "check_product", "is_focused_raw"]
+__all__ = ["NEEDS", "REQUESTS", "FOCUSED_NOT_METRIC", "FOCUSED_NO_FOCUS_CONSTANTS", "check_product", "is_focused_raw"]

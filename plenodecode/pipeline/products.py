@@ -120,17 +120,20 @@ def refocus_stem(*, slope: float | None = None, alpha: float | None = None) -> s
 
 def render_refocus(src: Source, *, slope: float | None = None, alpha: float | None = None,
                    at: tuple[float, float] | None = None, distance_m: float | None = None, at_method: str = "depth",
-                   method: str = "shift-sum", aperture: float = 1.0, upsample: int = 1) -> Rendered:
+                   method: str = "shift-sum", aperture: float = 1.0, upsample: int = 1,
+                   progress: Progress = None) -> Rendered:
     """One photograph focused by one of ``slope``, ``alpha``, ``at = (y, x)``, ``distance_m`` (:func:`~plenodecode.
     render.refocus_methods.focus_slope`); outside :func:`~plenodecode.render.alpha.refocus_range_units` it is
     still rendered, with a one-line warning (ValueError, without it, beyond :func:`~plenodecode.render._common.
-    check_slope_reach`).  ``data``: 'slope' (chosen), 'alpha', 'method', 'aperture', 'range'."""
+    check_slope_reach`).  ``progress``: of the depth map a point ``at`` is focused by (seconds on a large light
+    field).  ``data``: 'slope' (chosen), 'alpha', 'distance_m', 'method', 'aperture', 'range'."""
     from ..render import refocus, refocus_range_units
     from ..render._common import check_slope_reach
     from ..render.refocus_methods import focus_slope
 
     lf = src.lightfield
-    chosen = focus_slope(lf, slope=slope, alpha=alpha, at=at, distance_m=distance_m, at_method=at_method)
+    chosen = focus_slope(lf, slope=slope, alpha=alpha, at=at, distance_m=distance_m, at_method=at_method,
+                         progress=progress)
     check_slope_reach(lf, chosen)       # a slope refused is refused without the out-of-range warning first
     span = refocus_range_units(lf)
     if not span.contains(chosen):
@@ -139,7 +142,8 @@ def render_refocus(src: Source, *, slope: float | None = None, alpha: float | No
     img = refocus(lf, slope=chosen, method=method, aperture=aperture, upsample=upsample)
     stem = refocus_stem(alpha=alpha) if alpha is not None else refocus_stem(slope=chosen)
     return Rendered("refocus", ((stem, img),), lf.colour,
-                    data={"slope": chosen, "alpha": alpha, "method": method, "aperture": aperture, "range": span})
+                    data={"slope": chosen, "alpha": alpha, "distance_m": distance_m, "method": method,
+                          "aperture": aperture, "range": span})
 
 
 def focal_stack_names(n: int, ext: str) -> list[str]:

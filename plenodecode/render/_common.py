@@ -99,6 +99,14 @@ def check_slopes(slopes: Any) -> np.ndarray:
     return s
 
 
+def slope_reach(lf: LightField | tuple[int, ...]) -> float:
+    """The largest ``|slope|`` (px per view step) at which the outermost views still overlap the centre one:
+    ``max(Y, X) / max(vc, uc)`` (inf for a single view); ``lf`` may be the shape ``(V, U, Y, X[, C])``."""
+    shape = tuple(lf) if isinstance(lf, tuple) else lf.shape
+    steps = max(shape[0] // 2, shape[1] // 2)
+    return float(max(shape[2:4])) / steps if steps > 0 else math.inf
+
+
 def check_slope_reach(lf: LightField | tuple[int, ...], slopes: Any, *, name: str = "slope") -> None:
     """Raise ValueError naming ``name`` when a slope moves the outermost views past the whole picture
     (``|s| * max(vc, uc) > max(Y, X)`` samples): no view then overlaps the centre one, the photograph means
@@ -110,10 +118,11 @@ def check_slope_reach(lf: LightField | tuple[int, ...], slopes: Any, *, name: st
     ny, nx = shape[2:4]
     steps = max(shape[0] // 2, shape[1] // 2)
     worst = float(np.max(np.abs(s))) if s.size else 0.0
-    if steps > 0 and worst * steps > max(ny, nx):
+    reach = slope_reach(shape)
+    if worst > reach:
         lead = f"slope {worst:.4g} px/view" + ("" if name in ("slope", "slopes") else f" (from {name})")
         raise ValueError(f"{lead} moves the outermost views {worst * steps:.3g} px, past the whole {ny} x {nx} "
-                         f"picture (|slope| <= {max(ny, nx) / steps:.3g} here): no view would overlap the centre one; "
+                         f"picture (|slope| <= {reach:.3g} here): no view would overlap the centre one; "
                          "refocus within the refocusable range")
 
 

@@ -12,7 +12,7 @@ each view.
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from typing import Any, Callable, Optional
 
 import numpy as np
 
@@ -34,11 +34,12 @@ def _weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
     return float(values[order][np.searchsorted(cumulative, 0.5 * cumulative[-1])])
 
 
-def _slope_at_from_depth(lf: LightField, y: int, x: int) -> float:
-    """Median of the 'fast' disparity over :data:`FOCUS_WINDOW` around ``(y, x)``, weighted by its confidence."""
+def _slope_at_from_depth(lf: LightField, y: int, x: int, progress: Progress = None) -> float:
+    """Median of the 'fast' disparity over :data:`FOCUS_WINDOW` around ``(y, x)``, weighted by its confidence;
+    ``progress`` is the depth map's (seconds on a large light field)."""
     from ..depth import estimate_depth
 
-    dm = estimate_depth(lf, method="fast")
+    dm = estimate_depth(lf, method="fast", progress=progress)
     h = FOCUS_WINDOW // 2
     win = (slice(max(y - h, 0), y + h + 1), slice(max(x - h, 0), x + h + 1))
     d = np.asarray(dm.disparity[win], np.float64).ravel()
@@ -49,9 +50,10 @@ def _slope_at_from_depth(lf: LightField, y: int, x: int) -> float:
     return _weighted_median(d[ok], w[ok])
 
 
-def _slope_at_from_sharpness(lf: LightField, y: int, x: int) -> float:
+def _slope_at_from_sharpness(lf: LightField, y: int, x: int, progress: Progress = None) -> float:
     """The sharpest slope of :data:`SHARPNESS_WINDOW` around ``(y, x)`` over a 25-slice focal stack spanning the
-    refocusable range (:func:`~plenodecode.render.focalstack.sharpest_slope`, parabola-refined)."""
+    refocusable range (:func:`~plenodecode.render.focalstack.sharpest_slope`, parabola-refined; a small region,
+    so without progress)."""
     from .focalstack import default_slopes, sharpest_slope
 
     lo, hi = refocus_range(lf)
@@ -61,14 +63,16 @@ def _slope_at_from_sharpness(lf: LightField, y: int, x: int) -> float:
     return sharpest_slope(lf, region=region, slopes=slopes)
 
 
-#: How :func:`slope_at` reads the slope of a point: name -> ``fn(lf, y, x) -> slope``.
-FOCUS_AT_METHODS: dict[str, Callable[[LightField, int, int], float]] = {
+#: A ``callback(done, total)``, or None.
+Progress = Optional[Callable[[int, int], None]]
+#: How :func:`slope_at` reads the slope of a point: name -> ``fn(lf, y, x, progress) -> slope``.
+FOCUS_AT_METHODS: dict[str, Callable[[LightField, int, int, Progress], float]] = {
     "depth": _slope_at_from_depth,
     "sharpness": _slope_at_from_sharpness,
 }
 
 
-def slope_at(lf: LightField, at: tuple[float, float], *, at_method: str = "depth") -> float:
+def slope_at(lf: LightField, at: tuple[float, float], *, at_method: str = "depth", progress: Progress = None) -> float:
     """The slope that brings the point ``at = (y, x)`` of the centre view into focus.
 
     'depth': the median of ``estimate_depth(lf, method='fast')`` over a 7 x 7 window around the point, weighted
@@ -82,6 +86,8 @@ def slope_at(lf: LightField, at: tuple[float, float], *, at_method: str = "depth
         Row and column of the centre view, samples (rounded to the nearest sample).
     at_method : str
         A key of :data:`FOCUS_AT_METHODS`.
+    progress : callable(done, total), optional
+        Progress of the depth map ('depth').
 
     Returns
     -------
@@ -95,7 +101,7 @@ def slope_at(lf: LightField, at: tuple[float, float], *, at_method: str = "depth
     """
     fn = lookup(FOCUS_AT_METHODS, at_method, param="at_method")
     y, x = check_point(at, lf.shape[2:4])
-    return float(fn(lf, int(round(y)), int(round(x))))
+    return float(fn(lf, int(round(y)), int(round(x)), progress))
 
 
 def check_point(at: Any, shape: tuple[int, int]) -> tuple[float, float]:
@@ -111,7 +117,7 @@ def check_point(at: Any, shape: tuple[int, int]) -> tuple[float, float]:
 
 def focus_slope(lf: LightField, *, slope: float | None = None, alpha: float | None = None,
                 at: tuple[float, float] | None = None, distance_m: float | None = None, at_method: str = "depth",
-                **constants: float) -> float:
+                progress: Progress = None, **constants: float) -> float:
     """The refocus slope of whichever way the focus is given (exactly one of the four).
 
     Parameters
@@ -122,7 +128,7 @@ def focus_slope(lf: LightField, *, slope: float | None = None, alpha: float | No
     alpha : float, optional
         Ng's relative film depth, finite and > 0 (:func:`~plenodecode.render.alpha.alpha_to_slope`).
     at : (float, float), optional
-        ``(y, x)`` of the centre view (:func:`slope_at`, with ``at_method``).
+        ``(y, x)`` of the centre view (:func:`slope_at`, with ``at_method`` and ``progress``).
     distance_m : float, optional
         Metres (:func:`~plenodecode.render.alpha.distance_to_slope`; needs the focus distance in the geometry).
     **constants : float
@@ -150,7 +156,7 @@ def focus_slope(lf: LightField, *, slope: float | None = None, alpha: float | No
     if alpha is not None:
         return float(alpha_to_slope(float(alpha), lf, **constants))
     if at is not None:
-        return slope_at(lf, at, at_method=at_method)
+        return slope_at(lf, at, at_method=at_method, progress=progress)
     return float(distance_to_slope(distance_m, lf))
 
 

@@ -40,8 +40,8 @@ def _rel(path: str, base: Path) -> str:
     return html.escape(Path(rel).as_posix(), quote=True)
 
 
-def _card(r: Any, base: Path) -> str:
-    name = html.escape(Path(r.source).name)
+def _card(r: Any, base: Path, shown: str) -> str:
+    name = html.escape(shown)
     meta = f"{html.escape(r.status)} &middot; {r.seconds:.1f} s"
     figs = []
     thumbs = tuple(r.thumbnails) + (None,) * max(0, len(r.outputs) - len(r.thumbnails))
@@ -73,11 +73,14 @@ def render_batch_index(summary: Any, base: str | os.PathLike = ".") -> str:
     str
         A complete HTML document (UTF-8, no scripts).
     """
+    from ..batch import display_names
+
     base = Path(base)
-    cards = "".join(_card(r, base) for r in summary.results)
-    failed = [r for r in summary.results if r.status == "failed"]
-    rows = "".join(f"<tr><td>{html.escape(Path(r.source).name)}</td><td class='err'>{html.escape(r.error or '')}"
-                   f"</td></tr>" for r in failed)
+    names = display_names([r.source for r in summary.results])
+    cards = "".join(_card(r, base, n) for r, n in zip(summary.results, names))
+    failed = [(r, n) for r, n in zip(summary.results, names) if r.status == "failed"]
+    rows = "".join(f"<tr><td>{html.escape(n)}</td><td class='err'>{html.escape(r.error or '')}"
+                   f"</td></tr>" for r, n in failed)
     table = (f"<h2>Failures</h2><table><tr><th>raw</th><th>error</th></tr>{rows}</table>" if failed else "")
     head = (f'<div class="sum"><b>{len(summary.results)}</b> raws: <b>{summary.count("done")}</b> decoded, '
             f'<b>{summary.count("skipped")}</b> skipped (already done), <b>{summary.count("failed")}</b> failed, '

@@ -20,6 +20,47 @@ def _grey_share(png) -> float:
     return float(np.mean(np.all(np.abs(rgb - np.rint(255 * np.array(MASK_GREY))) <= 1, axis=-1)))
 
 
+def _map_pixels(png, shape) -> tuple[np.ndarray, np.ndarray]:
+    """The RGB (uint8) of a depth figure (:func:`colour_map_figure` of a map of ``shape`` with a title) at the
+    centres of the map's samples: (Y, X, 3), and the figure's size."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from plenodecode.io.depthio import colour_map_figure
+
+    fig = colour_map_figure(np.zeros(shape), label="x", title="t")
+    FigureCanvasAgg(fig).draw()
+    x0, y0, x1, y1 = fig.axes[0].images[0].get_window_extent().extents
+    rgb = read_image(png)[..., :3]
+    h = rgb.shape[0]
+    rows = np.clip((h - y1 + (np.arange(shape[0]) + 0.5) * (y1 - y0) / shape[0]).astype(int), 0, h - 1)
+    cols = np.clip((x0 + (np.arange(shape[1]) + 0.5) * (x1 - x0) / shape[1]).astype(int), 0, rgb.shape[1] - 1)
+    return rgb[np.ix_(rows, cols)], np.array(rgb.shape[:2])
+
+
+def _confidence_shown(png, shape) -> np.ndarray:
+    """The confidence the confidence PNG shows at each sample: the nearest colour of its colour map over 0 .. 1."""
+    from matplotlib import colormaps
+
+    from plenodecode.io.depthio import CONFIDENCE_CMAP
+
+    rgb, _ = _map_pixels(png, shape)
+    table = np.rint(255 * colormaps[CONFIDENCE_CMAP](np.linspace(0, 1, 256))[:, :3])
+    dist = np.abs(rgb.reshape(-1, 1, 3).astype(np.float64) - table[None]).sum(-1)
+    return (np.argmin(dist, axis=1) / 255.0).reshape(shape)
+
+
+def assert_confidence_png_matches_the_depth_png(out, conf, threshold) -> None:
+    """X_confidence.png is laid out as X.png (same size, the map at the same pixels), shows the EXR's confidence
+    in its colour map, and X.png's grey pixels are those it shows below ``threshold``."""
+    shown = _confidence_shown(out.with_name(f"{out.stem}_confidence.png"), conf.shape)
+    depth_rgb, depth_size = _map_pixels(out.with_suffix(".png"), conf.shape)
+    _, conf_size = _map_pixels(out.with_name(f"{out.stem}_confidence.png"), conf.shape)
+    assert tuple(depth_size) == tuple(conf_size)
+    assert np.max(np.abs(shown - conf)) < 0.02          # neighbouring colours of the map are alike (measured 0.007)
+    grey = np.all(np.abs(depth_rgb.astype(np.int16) - np.rint(255 * np.array(MASK_GREY))) <= 1, axis=-1)
+    np.testing.assert_array_equal(grey, conf < threshold)
+
+
 def test_depth_writes_the_confidence_and_greys_out_the_featureless_half(tmp_path):
     from plenodecode.io.lightfield import save_lightfield
 
@@ -31,8 +72,7 @@ def test_depth_writes_the_confidence_and_greys_out_the_featureless_half(tmp_path
     assert f"% below {DEFAULT_MIN_CONFIDENCE:g}" in r.output
     conf = read_image(tmp_path / "d_confidence.exr").squeeze()
     assert conf.shape == (64, 64)
-    np.testing.assert_array_equal(read_image(tmp_path / "d_confidence.png").squeeze(),
-                                  np.rint(255 * conf).astype(np.uint8))
+    assert_confidence_png_matches_the_depth_png(out, conf, DEFAULT_MIN_CONFIDENCE)
     # the uniform right half of the background (away from the square) is below the default threshold, the
     # textured left half above it
     assert np.median(conf[4:18, 40:60]) < DEFAULT_MIN_CONFIDENCE and np.median(conf[4:18, 4:20]) > 0.4
@@ -73,6 +113,9 @@ def test_antleg_background_is_masked_and_the_structures_have_the_parallax_sign(a
     assert r.exit_code == 0, r.output
     d = read_pfm(out)
     conf = read_image(tmp_path / "antleg_confidence.exr").squeeze()
+    # the confidence PNG was the raw 94 x 79 map beside a 760 x 554 depth figure: now a figure laid out as it
+    assert read_image(tmp_path / "antleg_confidence.png").shape == read_image(out.with_suffix(".png")).shape
+    assert_confidence_png_matches_the_depth_png(out, conf, DEFAULT_MIN_CONFIDENCE)
     V, U = lf.shape[:2]
     centre = ndimage.gaussian_filter(np.nan_to_num(lf.data[V // 2, U // 2, :, :, 0]), 2.0)
     # the structures: the two largest bright blobs of the smoothed centre view; the background: far from both
@@ -116,3 +159,31 @@ def test_antleg_background_is_masked_and_the_structures_have_the_parallax_sign(a
         medians.append(est)
     # the two structures lie on opposite sides of the focal plane: distinct disparities
     assert abs(medians[0] - medians[1]) > 0.3
+
+
+def test_a_disparity_range_past_the_picture_is_refused_before_estimating(tmp_path, monkeypatch):
+    """'--disparity-range -100:100' on the illum-mini light field (15 x 15 views of 87 x 125) searched for 27 s
+    over disparities at which no view overlaps the centre one; now a range past |d| = max(Y, X) / 7 = 17.9 px/view
+    (here 64 / half the view grid) is a usage error naming --disparity-range and the bound, before any estimation,
+    and writes nothing; a range inside it still runs."""
+    from plenodecode import depth
+    from plenodecode.io.lightfield import save_lightfield
+
+    lf, _, _ = half_featureless_scene()
+    src = save_lightfield(lf, tmp_path / "lf.npy", format="npy")
+    V, U, Y, X = lf.shape[:4]
+    reach = max(Y, X) / max(V // 2, U // 2)
+    estimated = []
+    real = depth.estimate_depth
+    monkeypatch.setattr(depth, "estimate_depth", lambda *a, **k: estimated.append(1) or real(*a, **k))
+    out = tmp_path / "d.pfm"
+    for bad in (f"-{reach * 1.01:.3f}:1", f"0:{reach * 5:.3f}"):
+        r = CliRunner().invoke(cli, ["depth", str(src), "-o", str(out), "--disparity-range", bad], obj={})
+        errors = [ln for ln in r.output.splitlines() if ln.startswith("Error")]
+        assert r.exit_code == 2 and len(errors) == 1 and "--disparity-range" in errors[0], r.output
+        assert f"|disparity| <= {reach:.3g} here" in errors[0]
+    assert estimated == [] and not list(tmp_path.glob("d*"))
+    r = CliRunner().invoke(cli, ["depth", str(src), "-o", str(out), "--method", "fast", "--disparity-range",
+                                 f"-{reach * 0.5:.3f}:{reach * 0.5:.3f}"], obj={})
+    assert r.exit_code == 0, r.output
+    assert np.isfinite(read_pfm(out)).all()

@@ -234,3 +234,31 @@ def test_srgb_of_an_srgb_light_field_names_the_option(tmp_path):
     assert "Invalid value for --srgb: hci-antinous is sRGB-encoded already" in errors[0] and "encode_srgb" not in \
         res.output
     assert not (tmp_path / "v").exists()
+
+
+@pytest.mark.parametrize("command, name", [((), "photo.png"), (("refocus",), "photo.png"),
+                                           (("views", "--view", 1, 1), "view.png"), (("parallax",), "wobble.gif"),
+                                           (("depth",), "d.png"), (("decode",), "lf.npy")])
+def test_an_output_file_never_replaces_a_folder_of_its_name(tmp_path, no_work, command, name):
+    """'-o photo.png --overwrite' where photo.png was a folder deleted the folder and everything in it, and wrote
+    the photograph in its place ('depth -o d.pfm --overwrite' with a folder d.png wrote d.pfm and d.exr, then
+    failed: half-written); '-o folder/' without --overwrite said 'pass --overwrite to replace it'.  Now each is a
+    usage error naming the folder, before any work, and the folder and its file are left as they were."""
+    from plenodecode.io.lightfield import save_lightfield
+    from tests.cli.test_render import small_lf
+
+    src = save_lightfield(small_lf(), tmp_path / "in" / "lf.npy")
+    if command and command[0] == "decode":
+        src = ILLUM
+    out = tmp_path / "out"
+    folder = out / name
+    folder.mkdir(parents=True)
+    (folder / "keep.txt").write_text("mine")
+    target = out / "d.pfm" if command == ("depth",) else folder
+    for extra in (["--overwrite"], []):
+        res = run(*command[:1], src, *command[1:], "-o", target, *extra)
+        errors = [ln for ln in res.output.splitlines() if ln.startswith("Error")]
+        assert res.exit_code == 2 and len(errors) == 1, res.output
+        assert f"{folder} is a folder; an output file never replaces a folder" in errors[0], errors
+    assert (folder / "keep.txt").read_text() == "mine"
+    assert sorted(p.name for p in out.iterdir()) == [name] and no_work == []

@@ -183,7 +183,7 @@ def test_r42_decode_says_in_one_line_what_to_run(r42, tmp_path):
 def test_r42_refocus_at_a_virtual_depth_in_the_lens_types_range(r42, tmp_path):
     res = run("refocus", r42, "--virtual-depth", 0.9, "-o", tmp_path / "x.png")
     err = error_lines(res)
-    assert res.exit_code == 2 and "--virtual-depth" in err[0] and "[1.06, 100]" in err[0]
+    assert res.exit_code == 2 and "--virtual-depth" in err[0] and "[1.07, 100]" in err[0]
     out = tmp_path / "v.png"
     res = run("refocus", r42, "--virtual-depth", 3.5, "-o", out, "--raytrix-xml", r42.with_suffix(".xml"))
     assert res.exit_code == 0, res.output
@@ -262,7 +262,7 @@ def test_depth_of_a_focused_raw_is_virtual_depth_on_the_total_focus_grid(shoot, 
     assert v.shape == read_image(photo).shape[:2]
     lf_shape = pipeline.open_source(raw).calibration.grid.shape
     assert v.shape[0] > 4 * lf_shape[0] and v.shape[1] > 4 * lf_shape[1]
-    conf = read_image(tmp_path / "d_confidence.png") / 255.0
+    conf = read_image(tmp_path / "d_confidence.exr").squeeze()
     assert np.mean(conf >= 0.1) > 0.5
     for option in (["--metric"], ["--ply", tmp_path / "c.ply"], ["--method", "fast"], ["--disparity-range", "0:1"]):
         target = tmp_path / f"refused{len(option)}{option[0][2:]}.pfm"
@@ -284,7 +284,7 @@ def test_r42_depth_at_total_focus_resolution_agrees_with_the_per_lens_patch_size
     res = run("depth", r42, "-o", out)
     assert res.exit_code == 0, res.output
     v = read_depth(out)
-    conf = read_image(tmp_path / "d_confidence.png") / 255.0
+    conf = read_image(tmp_path / "d_confidence.exr").squeeze()
     src = pipeline.open_source(r42)
     render = pipeline.render_product(src, "total-focus").data["render"]
     assert v.shape == render.image.shape[:2] == (122, 176)
@@ -418,6 +418,44 @@ def test_views_parallax_and_refocus_by_slope_of_a_focused_raw_are_refused_as_dec
     # a refocus at a virtual depth is the focused raw's own: --views-anyway means nothing there
     res = run("refocus", r42, "--virtual-depth", 3.5, "--views-anyway", "-o", tmp_path / "v.png")
     assert res.exit_code == 2 and "--views-anyway refocuses a light field" in res.output, res.output
+
+
+def test_the_one_liner_on_the_r42_points_to_its_virtual_depth_not_to_the_refused_slope(tmp_path, monkeypatch):
+    """The one-liner's photograph of the real R42 crop said 'choose the focus with --refocus, --slope, --focus-at or
+    --focus-distance', each of which that raw refuses; --refocus and --focus-distance said 'use --slope S instead',
+    which is refused too.  Now the photograph's line names --virtual-depth and its range (1.07 .. 100, the lens
+    types' 1.0609 .. 100 rounded inwards: the message said [1.06, 100] and refused 1.06), and alpha or a distance
+    names the virtual depth, or --slope only with --views-anyway, before decoding."""
+    from plenodecode.pipeline import source
+
+    r42 = shared_path("raytrix-r42", "sc2_klein.png")
+    out = tmp_path / "photo.png"
+    res = run(r42, "-o", out)
+    assert res.exit_code == 0, res.output
+    line = next(ln for ln in res.output.splitlines() if ln.startswith("wrote"))
+    assert "--slope" not in line and "--refocus" not in line and "--focus-at" not in line, line
+    assert "virtual depth V of 1.07 .. 100" in line and f"'plenodecode refocus {r42} --virtual-depth V" in line
+    assert read_image(out).shape == (122, 176, 3)                   # the total focus
+    # the range it names is the one --virtual-depth accepts: its ends render, past them is refused
+    for v, code in ((1.07, 0), (100, 0), (1.06, 2), (100.5, 2)):
+        res = run("refocus", r42, "--virtual-depth", v, "-o", tmp_path / f"v{v}.png")
+        assert res.exit_code == code, (v, res.output)
+        assert code == 0 or "must lie in [1.07, 100]" in error_lines(res)[0]
+
+    decoded = []
+    real = source.decode_raw
+    monkeypatch.setattr(source, "decode_raw", lambda *a, **k: decoded.append(a) or real(*a, **k))
+    for args, option in (((r42, "--refocus", 1.01), "--refocus"), (("refocus", r42, "--alpha", 1.01), "--alpha"),
+                         ((r42, "--focus-distance", 2), "--focus-distance"),
+                         (("refocus", r42, "--focal-stack", "1:1.1:3", "--stack-units", "alpha"), "--stack-units")):
+        target = tmp_path / ("stack" if "--focal-stack" in args else "r.png")
+        res = run(*args, "-o", target)
+        err = error_lines(res)
+        assert res.exit_code == 2 and len(err) == 1 and option in err[0], (args, res.output)
+        assert "--virtual-depth V" in err[0] and "--slope S --views-anyway" in err[0], err
+        assert "use --slope S (px per view step) instead" not in err[0]
+        assert not target.exists()
+    assert decoded == []
 
 
 def test_batch_refuses_a_focused_raws_view_outputs_unless_asked(tmp_path):

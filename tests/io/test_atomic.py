@@ -124,14 +124,17 @@ def test_folder_replacement(tmp_path):
     assert _names(tmp_path) == ["lf.zarr"]          # no temporary, no '.old' folder left
 
 
-def test_folder_replaces_file_and_file_replaces_folder(tmp_path):
+def test_folder_replaces_file_but_a_file_never_replaces_a_folder(tmp_path):
+    """A folder output replaces a file with overwrite=True; a file output never replaces a folder (it deleted the
+    folder and everything in it: '-o photo.png --overwrite' naming a folder photo.png)."""
     a = tmp_path / "a"
     a.write_text("file")
     with atomic_output(a, folder=True, overwrite=True) as tmp:
         (tmp / "x").write_text("1")
     assert a.is_dir() and (a / "x").read_text() == "1"
-    write_bytes_atomic(a, b"back to a file", overwrite=True)
-    assert a.is_file() and a.read_bytes() == b"back to a file"
+    with pytest.raises(IsADirectoryError, match="is a folder; an output file never replaces a folder"):
+        write_bytes_atomic(a, b"back to a file", overwrite=True)
+    assert a.is_dir() and (a / "x").read_text() == "1"
     assert _names(tmp_path) == ["a"]
 
 
