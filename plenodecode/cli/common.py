@@ -445,18 +445,24 @@ def check_folder_output(folder: Path, names: list[str], overwrite: bool, *, what
 
 def lightfield_output_format(output: Path, fmt: str | None, overwrite: bool) -> str:
     """The light-field format to write ``output`` in: ``fmt``, else detected from its name (usage errors for an
-    existing output without ``--overwrite`` and for a name that says no format)."""
-    from ..io.lightfield import detect_format, refuse_foreign_folder
+    existing output without ``--overwrite``, for a name that says no format, for a file format over a folder and
+    for a folder of other files)."""
+    from ..io.lightfield import FOLDER_FORMATS, detect_format, refuse_foreign_folder
 
+    try:
+        name = fmt or detect_format(output, option="--format")
+    except ValueError as exc:
+        raise click.UsageError(str(exc)) from None
+    if name not in FOLDER_FORMATS:
+        with usage_errors():
+            refuse_folder(output)       # '-o lf.npy' naming a folder: a file never replaces a folder
     try:
         refuse_foreign_folder(output)       # before 'pass --overwrite', which would delete the folder's files
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="-o / --output") from None
-    check_output(output, overwrite)
-    try:
-        return fmt or detect_format(output, option="--format")
-    except ValueError as exc:
-        raise click.UsageError(str(exc)) from None
+    if output.exists() and not overwrite:
+        raise click.UsageError(f"{output} exists; pass --overwrite to replace it")
+    return name
 
 
 def progress_bar(label: str, ctx: click.Context | None = None) -> Callable[[int, int], None]:

@@ -442,7 +442,7 @@ LIGHTFIELD_FORMATS: dict[str, LightFieldFormat] = {
     "npy": LightFieldFormat("npy", _save_npy, _load_npy, ".npy float32 (+ .weight.npy, .json)"),
     "eslf": LightFieldFormat("eslf", _save_eslf, _load_eslf, "Stanford ESLF mosaic image (+ .json with V, U)"),
 }
-_FOLDER_FORMATS = ("zarr", "views")
+FOLDER_FORMATS = ("zarr", "views")
 _FILE_FORMATS = {".mat": "mat", ".npy": "npy", ".png": "eslf", ".tif": "eslf", ".tiff": "eslf", ".zarr": "zarr"}
 #: Image types an ESLF mosaic is written as: those :func:`detect_format` reads back as one, and that hold the
 #: weight as a 4th channel (a JPEG holds 3).
@@ -588,7 +588,7 @@ def save_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | No
     elif name == "eslf":
         outputs.append(p.with_suffix(".json"))
     refuse_existing(outputs, overwrite)
-    if name in _FOLDER_FORMATS:
+    if name in FOLDER_FORMATS:
         with atomic_output(p, overwrite=overwrite, folder=True) as tmp:
             fmt.save(lf, tmp, bit_depth=bit_depth, progress=progress, image_ext=image_ext)
     elif name == "mat":
@@ -641,5 +641,5 @@ def load_lightfield(path: str | os.PathLike, *, view: tuple[int, int] | None = N
 
 __all__ = ["LIGHTFIELD_FORMATS", "PAGE_EXTENSIONS", "LightFieldFormat", "save_lightfield", "load_lightfield",
            "detect_format", "eslf_from_lightfield", "lightfield_from_eslf", "ESLF_DEFAULT_VIEWS", "ESLF_EXTENSIONS",
-           "ESLF_NAMES", "VIEW_EXT", "holds_lightfield", "refuse_foreign_folder",
+           "ESLF_NAMES", "VIEW_EXT", "FOLDER_FORMATS", "holds_lightfield", "refuse_foreign_folder",
            "written_files"]
