@@ -66,7 +66,8 @@ COSTVOLUME: dict[str, Any] = {
                               # edge_floor_for; decoded thin means 22.03 -> 20.74 %, with gate_noise 20.65 -> 19.62
                               # %; thin GT, hci-antinous unchanged: their sigma_low is below 0.003)
     "gate_ratio": 2.0,        # clean-ups may not raise a pixel's matching cost above this x its own (0 = off)
-    "gate_floor": 0.05,       # ... plus this (cost units: the median per-pixel cost span)
+    "gate_floor": 0.02,       # ... plus this x the pixel's own cost span (gate_span_min; cost units: the median
+                              # per-pixel cost span)
     "gate_noise": 1.0,        # ... above this x the noise's cost on noisy views (pipeline.gate_base_for; 0 = off;
                               # decoded thin means 22.03 -> 20.65 %)
     "sgm_gate_ratio": 5.0,    # SGM's winner gives way to the matching cost's own where it costs more than this x
@@ -86,6 +87,10 @@ COSTVOLUME: dict[str, Any] = {
     "refine_radius_noisy": 5, # refinement box radius at least this on views noisier than contrast_smooth_noise
                               # (decoded thin means 32.24 -> 31.04 % at shift_noise 0; illum-mini dec 2.42 -> 2.21 %)
     "contrast_weight_noisy": 0.03,  # contrast_weight on noisy views (ramped in from contrast_smooth_noise to twice it)
+    "gate_span_min": 0.1,     # the gate floors above scale with the pixel's own cost span (clipped to [this, 1]):
+                              # in median-span units they exceeded a weakly textured pixel's whole span, so no
+                              # gate ever kept its slit or slat (36 thin GT scenes' mean 5.76 -> 4.80 % with
+                              # gate_floor 0.02; decoded 22.48 -> 21.78 %; illum-mini GT 0.08 -> 0.06 %)
     "p1_noisy_low": 0.5,      # SGM's p1 where even the pixels that match are noisy (pipeline.NOISY_LOW: decoded
                               # raws): the 36 thin decoded scenes' mean 24.76 -> 22.48 %, illum-mini dec 0.69 ->
                               # 0.59 %; not on the ideal light fields.  A refinement box of 9 px there as well gave
@@ -130,6 +135,7 @@ FAST: dict[str, Any] = {
     "refine_radius_noisy": 0,
     "radius_noisy": 0,
     "p1_noisy_low": 0.2,
+    "gate_span_min": 0.0,
     "contrast_weight_noisy": None,
 }
 

@@ -85,7 +85,7 @@ def cost_gate(cost: np.ndarray, labels: np.ndarray, before: np.ndarray, after: n
     c_before = cost_at(cost, labels, before)
     if b > 0:
         c_before = np.maximum(c_before - b, np.float32(0.0))
-    worse = cost_at(cost, labels, after) - b > np.float32(ratio) * c_before + np.float32(floor)
+    worse = cost_at(cost, labels, after) - b > np.float32(ratio) * c_before + np.asarray(floor, np.float32)
     return np.where(worse, before, after).astype(np.float32)
 
 
