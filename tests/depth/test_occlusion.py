@@ -434,17 +434,19 @@ def test_visibility_relabel_settles_values_between_the_surfaces(monkeypatch):
     """Oblique slats 0.5 px nearer than a textured plane (slats-o-j0.5-tex): their mixed pixels, and the windows
     across their edges, leave values between the two surfaces.  A band pixel whose side the views prefer takes
     that side's hypothesis where it explains the pixel's colour at least as well as the pixel's value does:
-    BadPix0.07 14.0 % end to end, 16.8 % without (bound 15.4 %)."""
+    BadPix0.07 14.0 % end to end, 16.8 % without; with the gates' floors scaled by each pixel's cost span 9.9 %
+    against 14.4 % (bound 12 %)."""
     with_it, without = _badpix_with_and_without(monkeypatch, "slats-o-j0.5-tex", "settle")
-    assert with_it <= 15.4 < without
+    assert with_it <= 12.0 < without
 
 
 def test_visibility_relabel_refits_the_far_hypothesis_to_the_views(monkeypatch):
     """A weakly textured plane between oblique slats 0.5 px nearer (slats-o-j0.5-weak): the box costs pull the
     plane's values towards the slats, and the far hypothesis, their mean, with them.  Fitted again to the
-    offsets the far pixels' own views prefer, BadPix0.07 is 12.2 % end to end, 25.5 % without (bound 18 %)."""
+    offsets the far pixels' own views prefer, BadPix0.07 is 12.2 % end to end, 25.5 % without; with the gates'
+    floors scaled by each pixel's cost span 8.1 % against 16.3 % (bound 12 %)."""
     with_it, without = _badpix_with_and_without(monkeypatch, "slats-o-j0.5-weak", "refit")
-    assert with_it <= 18.0 < without
+    assert with_it <= 12.0 < without
 
 
 def test_gates_keep_a_weakly_textured_slit():
