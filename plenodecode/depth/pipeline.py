@@ -75,8 +75,9 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    views, so a median window across a thin structure does not wipe it out (the same gate guards the edge
    snapping of step 6).  Every gate's floor (``gate_floor``, ``sgm_gate_floor``) is scaled by the pixel's own
    cost span, clipped to [``gate_span_min``, 1]: a floor in median-span units alone exceeded a weakly textured
-   slit's whole span, so no gate kept it (thin scenes' ground-truth mean 5.76 -> 4.80 %).  On noisy views the ratio compares the costs above the noise's (``gate_noise``,
-   :func:`gate_base_for`), which every label shares.
+   slit's whole span, so no gate kept it (thin scenes' ground-truth mean 5.76 -> 4.80 %).  On noisy views
+   the ratio compares the costs above the noise's (``gate_noise``, :func:`gate_base_for`), which every label
+   shares.
 5. **Sub-label refinement without the fronto-parallel bias**: a second, narrow cost volume of offsets
    ``+-refine_range`` labels around the estimate, every view warped per pixel by ``d(y, x) + offset``
    (bicubic), so slanted surfaces match exactly (SGM's label penalties favour fronto-parallel steps); its
@@ -515,7 +516,7 @@ def run_pipeline(lf: LightField, p: Mapping[str, Any], *, progress: Progress = N
     disparity, peak_ratio = winner(agg, labels)
     del agg
     own_span = None
-    if float(p.get("gate_span_min", 0.0)) > 0:
+    if float(p["gate_span_min"]) > 0:      # the gates' floors scale with each pixel's own cost span (Y, X)
         own_span = np.clip(cost.max(axis=-1) - cost.min(axis=-1), float(p["gate_span_min"]), 1.0).astype(np.float32)
     gate_base = gate_base_for(cost, float(p["gate_noise"]), float(p["contrast_smooth_noise"]), noise_low)
 

@@ -53,7 +53,7 @@ def cost_at(cost: np.ndarray, labels: np.ndarray, disparity: np.ndarray) -> np.n
 
 
 def cost_gate(cost: np.ndarray, labels: np.ndarray, before: np.ndarray, after: np.ndarray, *, ratio: float,
-              floor: float, base: float = 0.0) -> np.ndarray:
+              floor: float | np.ndarray, base: float = 0.0) -> np.ndarray:
     """Undo the changes of a clean-up step that the matching cost contradicts.
 
     A pixel keeps ``before`` where ``C(after) - base > ratio * max(C(before) - base, 0) + floor``, with ``C``
@@ -71,8 +71,10 @@ def cost_gate(cost: np.ndarray, labels: np.ndarray, before: np.ndarray, after: n
     labels : ndarray (L,)
     before, after : ndarray (Y, X) float32
         The map before and after the step.
-    ratio, floor : float
-        How much worse the new value's cost must be (factor, and an absolute margin in cost units).
+    ratio : float
+        How much worse the new value's cost must be (factor).
+    floor : float or ndarray (Y, X) float32
+        ... plus this absolute margin in cost units (per pixel: the pipeline scales it by each pixel's span).
     base : float
         The cost of views that differ by noise only (cost units), subtracted before the ratio: on noisy views
         it is shared by every label, so a ratio of costs stays near 1 even where the views prefer one value.
