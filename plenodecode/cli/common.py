@@ -420,6 +420,17 @@ def refuse_writing_over_inputs(written: list[Path], inputs: list[Any], *,
                                      param_hint=param_hint)
 
 
+def refuse_writing_over_command_inputs(written: list[Path], input_path: Path, calibration: Path | None = None,
+                                       white: Path | None = None, *, param_hint: str = "-o / --output") -> None:
+    """:func:`refuse_writing_over_inputs` for a command with :func:`input_options`: the files ``written`` must not
+    replace RAW_OR_LF, ``--calibration``, ``--white``, ``--dark``, ``--raytrix-xml`` or their sidecars
+    (``plenodecode scene.png -o scene.png --overwrite``)."""
+    ctx = click.get_current_context(silent=True)
+    xml = None if ctx is None else ctx.meta.get(RAYTRIX_XML_META)
+    refuse_writing_over_inputs(written, [input_path, calibration, white, current_microscope_inputs()["dark"], xml],
+                               param_hint=param_hint)
+
+
 def check_output(path: Path, overwrite: bool) -> None:
     """Refuse an output file that is an existing folder, even with ``--overwrite``, and to replace an existing
     output unless ``--overwrite`` was given (usage errors, exit 2)."""

@@ -10,7 +10,7 @@ import click
 from .common import (FOCUSED_PHOTO, RegistryChoice, bit_depth_option, calibration_kwargs, empty_views_note,
                      input_options, lightfield_bit_depth, lightfield_output_format, lightfield_summary, output_option,
                      overwrite_option, progress_bar, quiet, refuse_database_with_grid, refuse_focused_views,
-                     refuse_writing_over_inputs, usage_errors, views_anyway_option)
+                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
 
 log = logging.getLogger(__name__)
 
@@ -90,8 +90,7 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
     inputs = calibration_kwargs(calibration, white, database, self_calibrate)
     from ..io.lightfield import written_files
 
-    refuse_writing_over_inputs(written_files(output, name),
-                               [raw_path, calibration, white, inputs["dark"], inputs["raytrix_xml"]])
+    refuse_writing_over_command_inputs(written_files(output, name), raw_path, calibration, white)
     dark, optics, geometry = inputs.pop("dark"), inputs.pop("optics"), inputs.pop("geometry")
     raw = open_raw(raw_path, mosaic=inputs["mosaic"], raytrix_xml=inputs.pop("raytrix_xml"), optics=optics)
     dark = read_dark_frame(dark, inputs["mosaic"], raw=raw)       # its size checked before the calibration

@@ -9,7 +9,8 @@ import click
 from ..pipeline import IMAGE_EXTENSIONS
 from ..registry import lazy
 from .common import (RegistryChoice, bit_depth_option, check_output, empty_views_note, lightfield_bit_depth,
-                     lightfield_output_format, lightfield_summary, output_option, overwrite_option, progress_bar)
+                     lightfield_output_format, lightfield_summary, output_option, overwrite_option, progress_bar,
+                     refuse_writing_over_inputs)
 
 #: Exports that are pages for people, not light fields (they never load back; their extensions are
 #: :data:`plenodecode.io.lightfield.PAGE_EXTENSIONS`): name -> ``write(lf, path, *, overwrite, progress)``.
@@ -108,6 +109,9 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
     else:
         name = lightfield_output_format(output, fmt, overwrite)
         bit_depth = str(lightfield_bit_depth(ctx, name, output, bit_depth, image_type))
+    from ..io.lightfield import written_files
+
+    refuse_writing_over_inputs([output] if page is not None else written_files(output, name), [lf_in])
     lf = _load(lf_in)
     if srgb and lf.colour == "srgb":
         raise click.BadParameter(f"{lf_in.name} is sRGB-encoded already (colour 'srgb'); leave --srgb out",
