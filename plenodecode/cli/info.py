@@ -17,22 +17,23 @@ def _levels(a) -> str:
 
 
 def _camera_lines(model, make, serial, extra: str = "") -> list[str]:
-    cam = model or "unknown model"
+    cam = model or "model not recorded"
     if make:
         cam += f" ({make})"
     return [f"  camera   {cam}{extra}", f"  serial   {serial or '-'}"]
 
 
-def _sensor_by_size(raw) -> str | None:
-    """'Lytro F01 (by its 3280 x 3280 sensor; the file has no camera metadata)' for a mosaic without a sidecar at
-    the size of a known lenslet sensor (as the reader recognised it to choose its CFA and levels), else None."""
-    from ..io.generic import is_bare_mosaic
+def _sensor_by_size(camera, shape, *, whose: str = "the file") -> str | None:
+    """'Lytro F01 (by its 3280 x 3280 sensor; the file has no camera metadata)' for a mosaic without a sidecar
+    (``camera``: its CameraMetadata) at the size (rows, cols) of a known lenslet sensor, as the reader recognised it
+    to choose its CFA and levels, else None."""
+    from ..io.generic import BARE_MOSAIC_KEY
     from ..io.mosaic_levels import KNOWN_SENSORS
 
-    sensor = KNOWN_SENSORS.get(tuple(raw.shape)) if is_bare_mosaic(raw) else None
+    sensor = KNOWN_SENSORS.get(tuple(shape)) if BARE_MOSAIC_KEY in (camera.extra or {}) else None
     if sensor is None:
         return None
-    return f"{sensor.name} (by its {raw.shape[1]} x {raw.shape[0]} sensor; the file has no camera metadata)"
+    return f"{sensor.name} (by its {shape[1]} x {shape[0]} sensor; {whose} has no camera metadata)"
 
 
 def _describe_container(path: Path) -> list[str]:
@@ -131,7 +132,12 @@ def _describe_lightfield(path: Path) -> list[str]:
     if g.hci is not None:
         lines.append("  camera   HCI scene (pinhole views, parameters.cfg)")
     elif g.camera is not None:
-        lines += _camera_lines(g.camera.model, g.camera.make, g.camera.serial)
+        source = Path(g.source).name if g.source else None
+        shape = (g.calibration or {}).get("sensor_shape") or ()
+        model = g.camera.model or _sensor_by_size(g.camera, shape, whose=source or "the raw")
+        if model is None and source:
+            model = f"model not recorded (decoded from {source})"
+        lines += _camera_lines(model, g.camera.make, g.camera.serial)
     if g.spatial_step_px:
         lines.append(f"  sampling {g.spatial_step_px:.3f} px per spatial sample, {g.view_step_px or 1:g} px per view")
     consts = [f"f = {g.focal_length_m * 1e3:.2f} mm" if g.focal_length_m else "",
@@ -304,7 +310,7 @@ def _describe_other(path: Path) -> list[str]:
     m = raw.metadata
     h, w = raw.shape
     lines = [f"{path}: raw image"]
-    lines += _camera_lines(m.model or _sensor_by_size(raw), m.make, m.serial)
+    lines += _camera_lines(m.model or _sensor_by_size(m, raw.shape), m.make, m.serial)
     lines.append(f"  kind     {'raw, white image' if m.is_white_image else 'raw'}")
     from ..io.raytrix import is_rgb_export
 
