@@ -207,7 +207,7 @@ def _describe_project_json(path: Path, doc: Mapping) -> list[str] | None:
     kind = doc.get("format")
     if kind == "plenodecode.LensletGrid":
         from ..calib.grid import SOURCE_KINDS
-        from ..report.calibration import rms_text, source_kind
+        from ..report.calibration import angle_text, rms_text, source_kind
         from ..types import LensletGrid
 
         g = LensletGrid.from_dict(doc)
@@ -216,7 +216,7 @@ def _describe_project_json(path: Path, doc: Mapping) -> list[str] | None:
         source = (f"from {white}" if white else "origin not recorded") if kind == "grid-file" else \
             SOURCE_KINDS[kind] + (f": {white}" if white else "")
         return [f"{path}: lenslet grid ({source})",
-                f"  lattice  {g.lattice}, pitch {g.pitch:.4f} px, rotation {g.rotation:.6f} rad, "
+                f"  lattice  {g.lattice}, pitch {g.pitch:.4f} px, rotation {angle_text(g.rotation)}, "
                 f"{g.shape[0]} x {g.shape[1]} lenses (rows x cols), RMS {rms_text(g)}",
                 f"  sensor   {g.sensor_shape[1]} x {g.sensor_shape[0]}; {g.n_views()} x {g.n_views()} views "
                 "when decoded"]
@@ -288,6 +288,7 @@ def _describe_npz(path: Path) -> list[str]:
 def _describe_raycalib(path: Path) -> list[str]:
     """A Raytrix RayCalibData XML: the micro-lens array it describes and the image it belongs to."""
     from ..io.raytrix import parse_raycalib
+    from ..report.calibration import angle_text
 
     cal = parse_raycalib(path)
     images = [p for p in (path.with_suffix(ext) for ext in (".png", ".tif", ".tiff", ".bmp")) if p.is_file()]
@@ -295,7 +296,7 @@ def _describe_raycalib(path: Path) -> list[str]:
                       else str(t.id) for t in cal.lens_types)
     return [f"{path}: Raytrix RayCalibData (the micro-lens array of a focused-plenoptic camera)"
             + (f"; its image is {images[0].name}" if images else ""),
-            f"  lenses   hex, diameter {cal.diameter:.3f} px, rotation {cal.rotation:.6f} rad, "
+            f"  lenses   hex, diameter {cal.diameter:.3f} px, rotation {angle_text(cal.rotation)}, "
             f"{len(cal.lens_types) or 'no'} lens type(s){': ' + types if types else ''}"]
 
 

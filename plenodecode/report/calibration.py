@@ -105,6 +105,13 @@ def smooth_part(grid: LensletGrid, rms: float | None) -> dict[str, float] | None
     return smooth if smooth is not None and smooth["rest_rms_px"] < rms / 2 else None
 
 
+def angle_text(rad: float) -> str:
+    """``'-0.00487 rad (-0.279 deg)'``: an angle as the report, ``calibrate`` and ``info`` print it (0.00001 rad,
+    0.001 deg; a rotation that rounds to zero, or the Raytrix XML's -0.0, prints as 0, never -0)."""
+    r, d = round(float(rad), 5) + 0.0, round(math.degrees(float(rad)), 3) + 0.0      # + 0.0 turns -0.0 into 0.0
+    return f"{r:.5f} rad ({d:.3f} deg)"
+
+
 def rms_text(grid: LensletGrid) -> str:
     """The one RMS figure as shown by the report and ``plenodecode calibrate`` (:data:`RMS_DEFINITION`), with
     what is left about a smooth distortion of the lens array's image when that explains it (:func:`smooth_part`)."""
@@ -467,7 +474,7 @@ def _params(grid: LensletGrid) -> list[tuple[str, str]]:
         ("lattice", grid.lattice),
         ("pitch (along rows)", f"{grid.pitch:.5f} px"),
         ("row spacing", f"{grid.row_spacing:.5f} px ({grid.row_spacing / grid.pitch:.5f} x pitch)"),
-        ("rotation", f"{grid.rotation:.6f} rad ({math.degrees(grid.rotation):.4f} deg)"),
+        ("rotation", angle_text(grid.rotation)),
         ("origin (lens 0, 0)", f"row {grid.origin[0]:.3f}, col {grid.origin[1]:.3f}"),
         ("odd row shift", f"{grid.odd_row_shift:+.1f} pitch"),
         ("lenses (rows x cols)", f"{grid.shape[0]} x {grid.shape[1]} = {grid.shape[0] * grid.shape[1]}"),
