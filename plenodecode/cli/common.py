@@ -58,6 +58,10 @@ class DatabaseOption(click.Option):
             self.opts = shown
         return None if record is None else (record[0], f"{record[1]}  [default: ./{DEFAULT_DB}]")
 
+    def get_error_hint(self, ctx: click.Context) -> str:
+        """Errors name the option ``'--database'``, not its hidden old spelling."""
+        return f"'{self.opts[0]}'"
+
 
 database_option = click.option("--database", "--white-dir", "database", cls=DatabaseOption, default=None,
                                type=click.Path(exists=True, file_okay=False, path_type=Path),

@@ -57,6 +57,19 @@ def test_database_option_has_one_spelling_in_the_help():
         assert f"[default: ./{DEFAULT_DB}]" in " ".join(out.split()), command
 
 
+def test_errors_name_the_database_option_not_its_old_spelling(tmp_path):
+    """'--database nowhere' (or the old '--white-dir nowhere') said "Invalid value for '--database' / '--white-dir'",
+    naming the spelling the help hides; the error names '--database' alone, whichever was typed."""
+    for command in ("decode", "refocus", "views", "parallax", "depth", "render", "batch", "calibrate-geometry"):
+        for spelling in ("--database", "--white-dir"):
+            res = CliRunner().invoke(cli, [command, str(tmp_path), spelling, str(tmp_path / "nowhere"),
+                                           "-o", str(tmp_path / "out.png")])
+            errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+            assert res.exit_code == 2 and errors == [
+                f"Error: Invalid value for '--database': Directory '{tmp_path / 'nowhere'}' does not exist."], \
+                (command, spelling, res.output)
+
+
 @pytest.mark.parametrize("name", list(COMMANDS))
 def test_command_help_imports_neither_numba_nor_opencv(name):
     """Help is read often and must come fast: building it imports no compiled-kernel or OpenCV module
