@@ -341,6 +341,13 @@ def empty_views_note(lf: Any, name: str) -> str:
             f"black, or the rims' stripes; {where} holds every sample's weight)")
 
 
+def encoded_note(name: str) -> str:
+    """``'; 8-bit views are sRGB-encoded for viewing ...'``: the note of a light field saved sRGB-encoded
+    (:func:`~plenodecode.pipeline.output.stores_display_encoded`)."""
+    what = "an 8-bit ESLF mosaic is" if name == "eslf" else f"8-bit {name} are"
+    return f"; {what} sRGB-encoded for viewing (--bit-depth 16 keeps linear light)"
+
+
 def lightfield_summary(shape: tuple[int, ...], colour: str) -> str:
     """``'9x9 views of 381x381, camera RGB'`` for a (V, U, Y, X, C) light field; one channel reads 'monochrome'."""
     V, U, Y, X, C = shape
