@@ -55,9 +55,9 @@ class DecodeError(PlenodecodeError):
     """A raw cannot be decoded with the given grid or options."""
 
 
-class DarkFrameMismatchError(DecodeError):
+class DarkFrameMismatchError(DecodeError, ValueError):
     """A dark frame (``--dark``) of another size than the raw, or one that would leave it black (a white or scene
-    frame), found before any work."""
+    frame), found before any work; a ValueError too, as ``decode(dark=...)`` is a bad argument then."""
 
 
 class LevelOptionError(MetadataError):

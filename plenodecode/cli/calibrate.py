@@ -122,9 +122,9 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
     if database is not None:  # a cached grid's warnings were logged when it was fitted, not now
         for msg in grid.info.get("warnings", []):
             click.echo(f"warning: {msg}", err=True)
-    from ..report.calibration import rms_text
+    from ..report.calibration import angle_text, rms_text
     _write_text(output, grid.to_json())
-    click.echo(f"grid  {output}  ({grid.lattice}, pitch {grid.pitch:.4f} px, rotation {grid.rotation:.6f} rad, "
+    click.echo(f"grid  {output}  ({grid.lattice}, pitch {grid.pitch:.4f} px, rotation {angle_text(grid.rotation)}, "
                f"{grid.shape[0]}x{grid.shape[1]} lenses, RMS {rms_text(grid)})")
     _warn_high_rms(grid, report)
     if report is not None:

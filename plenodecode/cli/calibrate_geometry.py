@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from .common import (BOARD, calibration_kwargs, check_output, database_option, mosaic_options, overwrite_option,
-                     progress_bar, quiet, refuse_database_with_grid, usage_errors)
+                     progress_bar, quiet, refuse_database_with_grid, refuse_writing_over_inputs, usage_errors)
 
 
 @click.command("calibrate-geometry")
@@ -46,6 +46,11 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], board, output: Path, r
     from ..pipeline.geometry import calibrate_geometry_files, write_geometry_outputs
 
     refuse_database_with_grid(calibration, white, database)
+    # the captures (the files of each DIR) and the calibration inputs, with their sidecars, are never written over
+    read = [f for p in inputs for f in (sorted(p.iterdir()) if p.is_dir() else [p])]
+    for path, option in ((output, "-o / --output"), (report, "--report")):
+        if path is not None:
+            refuse_writing_over_inputs([path], [*read, calibration, white], param_hint=option)
     check_output(output, overwrite)
     if report is not None:
         check_output(report, overwrite)

@@ -58,6 +58,10 @@ class DatabaseOption(click.Option):
             self.opts = shown
         return None if record is None else (record[0], f"{record[1]}  [default: ./{DEFAULT_DB}]")
 
+    def get_error_hint(self, ctx: click.Context) -> str:
+        """Errors name the option ``'--database'``, not its hidden old spelling."""
+        return f"'{self.opts[0]}'"
+
 
 database_option = click.option("--database", "--white-dir", "database", cls=DatabaseOption, default=None,
                                type=click.Path(exists=True, file_okay=False, path_type=Path),
@@ -337,6 +341,13 @@ def empty_views_note(lf: Any, name: str) -> str:
             f"black, or the rims' stripes; {where} holds every sample's weight)")
 
 
+def encoded_note(name: str) -> str:
+    """``'; 8-bit views are sRGB-encoded for viewing ...'``: the note of a light field saved sRGB-encoded
+    (:func:`~plenodecode.pipeline.output.stores_display_encoded`)."""
+    what = "an 8-bit ESLF mosaic is" if name == "eslf" else f"8-bit {name} are"
+    return f"; {what} sRGB-encoded for viewing (--bit-depth 16 keeps linear light)"
+
+
 def lightfield_summary(shape: tuple[int, ...], colour: str) -> str:
     """``'9x9 views of 381x381, camera RGB'`` for a (V, U, Y, X, C) light field; one channel reads 'monochrome'."""
     V, U, Y, X, C = shape
@@ -418,6 +429,17 @@ def refuse_writing_over_inputs(written: list[Path], inputs: list[Any], *,
             what = hit.name if Path(out).resolve() == hit.resolve() else f"{Path(out).name}, the sidecar of {hit.name}"
             raise click.BadParameter(f"writing {Path(out).name} would replace the input {what}; choose another name",
                                      param_hint=param_hint)
+
+
+def refuse_writing_over_command_inputs(written: list[Path], input_path: Path, calibration: Path | None = None,
+                                       white: Path | None = None, *, param_hint: str = "-o / --output") -> None:
+    """:func:`refuse_writing_over_inputs` for a command with :func:`input_options`: the files ``written`` must not
+    replace RAW_OR_LF, ``--calibration``, ``--white``, ``--dark``, ``--raytrix-xml`` or their sidecars
+    (``plenodecode scene.png -o scene.png --overwrite``)."""
+    ctx = click.get_current_context(silent=True)
+    xml = None if ctx is None else ctx.meta.get(RAYTRIX_XML_META)
+    refuse_writing_over_inputs(written, [input_path, calibration, white, current_microscope_inputs()["dark"], xml],
+                               param_hint=param_hint)
 
 
 def check_output(path: Path, overwrite: bool) -> None:

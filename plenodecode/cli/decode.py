@@ -7,10 +7,10 @@ from pathlib import Path
 
 import click
 
-from .common import (FOCUSED_PHOTO, RegistryChoice, bit_depth_option, calibration_kwargs, empty_views_note,
+from .common import (FOCUSED_PHOTO, encoded_note, RegistryChoice, bit_depth_option, calibration_kwargs, empty_views_note,
                      input_options, lightfield_bit_depth, lightfield_output_format, lightfield_summary, output_option,
                      overwrite_option, progress_bar, quiet, refuse_database_with_grid, refuse_focused_views,
-                     refuse_writing_over_inputs, usage_errors, views_anyway_option)
+                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
 
 log = logging.getLogger(__name__)
 
@@ -79,7 +79,8 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
       plenodecode decode IMG_1.jpg -o lf.zarr
       plenodecode decode scene.lfr --geometry CalInfo.json -o rectified.zarr
     """
-    from ..pipeline import check_geometry, choose_calibration, decode_raw, open_raw, read_dark_frame, write_lightfield
+    from ..pipeline import (check_geometry, choose_calibration, decode_raw, open_raw, read_dark_frame,
+                            stores_display_encoded, write_lightfield)
 
     refuse_decoded_input(raw_path)
     refuse_database_with_grid(calibration, white, database)
@@ -90,8 +91,7 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
     inputs = calibration_kwargs(calibration, white, database, self_calibrate)
     from ..io.lightfield import written_files
 
-    refuse_writing_over_inputs(written_files(output, name),
-                               [raw_path, calibration, white, inputs["dark"], inputs["raytrix_xml"]])
+    refuse_writing_over_command_inputs(written_files(output, name), raw_path, calibration, white)
     dark, optics, geometry = inputs.pop("dark"), inputs.pop("optics"), inputs.pop("geometry")
     raw = open_raw(raw_path, mosaic=inputs["mosaic"], raytrix_xml=inputs.pop("raytrix_xml"), optics=optics)
     dark = read_dark_frame(dark, inputs["mosaic"], raw=raw)       # its size checked before the calibration
@@ -107,10 +107,11 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
     lf = decode_raw(raw, cal, dark=dark, demosaic=demosaic, resample=resample,
                     colour=colour, n_views=n_views, hot_pixels=not no_hot_pixels,
                     progress=progress_bar("decoding", ctx), geometry=geometry)
+    encoded = stores_display_encoded(name, lf.colour, depth)
     with usage_errors():
-        out = write_lightfield(lf, output, format=name, bit_depth=depth, overwrite=overwrite,
+        out = write_lightfield(lf, output, format=name, bit_depth=depth, overwrite=overwrite, display=encoded,
                                progress=progress_bar(f"writing {name}", ctx))
     if not quiet(ctx):
         rectified = ", rectified" if lf.geometry.ray_model else ""
-        click.echo(f"wrote {out} ({name}: {lightfield_summary(lf.shape, lf.colour)}{rectified})"
-                   + empty_views_note(lf, name))
+        click.echo(f"wrote {out} ({name}: {lightfield_summary(lf.shape, 'srgb' if encoded else lf.colour)}"
+                   f"{rectified}){encoded_note(name) if encoded else ''}" + empty_views_note(lf, name))

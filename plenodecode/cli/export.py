@@ -8,8 +8,9 @@ import click
 
 from ..pipeline import IMAGE_EXTENSIONS
 from ..registry import lazy
-from .common import (RegistryChoice, bit_depth_option, check_output, empty_views_note, lightfield_bit_depth,
-                     lightfield_output_format, lightfield_summary, output_option, overwrite_option, progress_bar)
+from .common import (RegistryChoice, encoded_note, bit_depth_option, check_output, empty_views_note, lightfield_bit_depth,
+                     lightfield_output_format, lightfield_summary, output_option, overwrite_option, progress_bar,
+                     refuse_writing_over_inputs)
 
 #: Exports that are pages for people, not light fields (they never load back; their extensions are
 #: :data:`plenodecode.io.lightfield.PAGE_EXTENSIONS`): name -> ``write(lf, path, *, overwrite, progress)``.
@@ -76,7 +77,8 @@ def _load(lf_in: Path):
 @bit_depth_option
 @click.option("--image-type", type=click.Choice(IMAGE_EXTENSIONS), default=None,
               help="Image type of the 'views' format (default: png for 8/16 bit, exr for 32).")
-@click.option("--srgb", is_flag=True, help="Apply the sRGB transfer function (display encoding) before writing.")
+@click.option("--srgb", is_flag=True, help="Apply the sRGB transfer function (display encoding) before writing "
+                                            "(8-bit views and ESLF images always get it).")
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_depth: str, image_type: str | None,
@@ -100,6 +102,7 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
       plenodecode export photo.zarr -o photo.html --format html
     """
     from ..io.lightfield import save_lightfield
+    from ..pipeline import stores_display_encoded
 
     page = _page_format(output, fmt, overwrite)
     if page is not None:
@@ -108,10 +111,15 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
     else:
         name = lightfield_output_format(output, fmt, overwrite)
         bit_depth = str(lightfield_bit_depth(ctx, name, output, bit_depth, image_type))
+    from ..io.lightfield import written_files
+
+    refuse_writing_over_inputs([output] if page is not None else written_files(output, name), [lf_in])
     lf = _load(lf_in)
     if srgb and lf.colour == "srgb":
         raise click.BadParameter(f"{lf_in.name} is sRGB-encoded already (colour 'srgb'); leave --srgb out",
                                  param_hint="--srgb")
+    encoded = page is None and stores_display_encoded(name, lf.colour, int(bit_depth))
+    srgb = srgb or encoded
     try:
         if page is not None:
             out = PAGE_FORMATS[page](lf, output, overwrite=overwrite, progress=progress_bar(f"writing {page}", ctx))
@@ -125,4 +133,5 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
         raise click.UsageError(str(exc)) from exc
     if not (ctx.obj or {}).get("quiet"):
         colour = "srgb" if srgb or page is not None else lf.colour
-        click.echo(f"wrote {out} ({name}: {lightfield_summary(lf.shape, colour)})" + empty_views_note(lf, name))
+        click.echo(f"wrote {out} ({name}: {lightfield_summary(lf.shape, colour)})"
+                   f"{encoded_note(name) if encoded else ''}" + empty_views_note(lf, name))

@@ -17,22 +17,23 @@ def _levels(a) -> str:
 
 
 def _camera_lines(model, make, serial, extra: str = "") -> list[str]:
-    cam = model or "unknown model"
+    cam = model or "model not recorded"
     if make:
         cam += f" ({make})"
     return [f"  camera   {cam}{extra}", f"  serial   {serial or '-'}"]
 
 
-def _sensor_by_size(raw) -> str | None:
-    """'Lytro F01 (by its 3280 x 3280 sensor; the file has no camera metadata)' for a mosaic without a sidecar at
-    the size of a known lenslet sensor (as the reader recognised it to choose its CFA and levels), else None."""
-    from ..io.generic import is_bare_mosaic
+def _sensor_by_size(camera, shape, *, whose: str = "the file") -> str | None:
+    """'Lytro F01 (by its 3280 x 3280 sensor; the file has no camera metadata)' for a mosaic without a sidecar
+    (``camera``: its CameraMetadata) at the size (rows, cols) of a known lenslet sensor, as the reader recognised it
+    to choose its CFA and levels, else None."""
+    from ..io.generic import BARE_MOSAIC_KEY
     from ..io.mosaic_levels import KNOWN_SENSORS
 
-    sensor = KNOWN_SENSORS.get(tuple(raw.shape)) if is_bare_mosaic(raw) else None
+    sensor = KNOWN_SENSORS.get(tuple(shape)) if BARE_MOSAIC_KEY in (camera.extra or {}) else None
     if sensor is None:
         return None
-    return f"{sensor.name} (by its {raw.shape[1]} x {raw.shape[0]} sensor; the file has no camera metadata)"
+    return f"{sensor.name} (by its {shape[1]} x {shape[0]} sensor; {whose} has no camera metadata)"
 
 
 def _describe_container(path: Path) -> list[str]:
@@ -131,7 +132,12 @@ def _describe_lightfield(path: Path) -> list[str]:
     if g.hci is not None:
         lines.append("  camera   HCI scene (pinhole views, parameters.cfg)")
     elif g.camera is not None:
-        lines += _camera_lines(g.camera.model, g.camera.make, g.camera.serial)
+        source = Path(g.source).name if g.source else None
+        shape = (g.calibration or {}).get("sensor_shape") or ()
+        model = g.camera.model or _sensor_by_size(g.camera, shape, whose=source or "the raw")
+        if model is None and source:
+            model = f"model not recorded (decoded from {source})"
+        lines += _camera_lines(model, g.camera.make, g.camera.serial)
     if g.spatial_step_px:
         lines.append(f"  sampling {g.spatial_step_px:.3f} px per spatial sample, {g.view_step_px or 1:g} px per view")
     consts = [f"f = {g.focal_length_m * 1e3:.2f} mm" if g.focal_length_m else "",
@@ -201,7 +207,7 @@ def _describe_project_json(path: Path, doc: Mapping) -> list[str] | None:
     kind = doc.get("format")
     if kind == "plenodecode.LensletGrid":
         from ..calib.grid import SOURCE_KINDS
-        from ..report.calibration import rms_text, source_kind
+        from ..report.calibration import angle_text, rms_text, source_kind
         from ..types import LensletGrid
 
         g = LensletGrid.from_dict(doc)
@@ -210,7 +216,7 @@ def _describe_project_json(path: Path, doc: Mapping) -> list[str] | None:
         source = (f"from {white}" if white else "origin not recorded") if kind == "grid-file" else \
             SOURCE_KINDS[kind] + (f": {white}" if white else "")
         return [f"{path}: lenslet grid ({source})",
-                f"  lattice  {g.lattice}, pitch {g.pitch:.4f} px, rotation {g.rotation:.6f} rad, "
+                f"  lattice  {g.lattice}, pitch {g.pitch:.4f} px, rotation {angle_text(g.rotation)}, "
                 f"{g.shape[0]} x {g.shape[1]} lenses (rows x cols), RMS {rms_text(g)}",
                 f"  sensor   {g.sensor_shape[1]} x {g.sensor_shape[0]}; {g.n_views()} x {g.n_views()} views "
                 "when decoded"]
@@ -282,6 +288,7 @@ def _describe_npz(path: Path) -> list[str]:
 def _describe_raycalib(path: Path) -> list[str]:
     """A Raytrix RayCalibData XML: the micro-lens array it describes and the image it belongs to."""
     from ..io.raytrix import parse_raycalib
+    from ..report.calibration import angle_text
 
     cal = parse_raycalib(path)
     images = [p for p in (path.with_suffix(ext) for ext in (".png", ".tif", ".tiff", ".bmp")) if p.is_file()]
@@ -289,7 +296,7 @@ def _describe_raycalib(path: Path) -> list[str]:
                       else str(t.id) for t in cal.lens_types)
     return [f"{path}: Raytrix RayCalibData (the micro-lens array of a focused-plenoptic camera)"
             + (f"; its image is {images[0].name}" if images else ""),
-            f"  lenses   hex, diameter {cal.diameter:.3f} px, rotation {cal.rotation:.6f} rad, "
+            f"  lenses   hex, diameter {cal.diameter:.3f} px, rotation {angle_text(cal.rotation)}, "
             f"{len(cal.lens_types) or 'no'} lens type(s){': ' + types if types else ''}"]
 
 
@@ -304,7 +311,7 @@ def _describe_other(path: Path) -> list[str]:
     m = raw.metadata
     h, w = raw.shape
     lines = [f"{path}: raw image"]
-    lines += _camera_lines(m.model or _sensor_by_size(raw), m.make, m.serial)
+    lines += _camera_lines(m.model or _sensor_by_size(m, raw.shape), m.make, m.serial)
     lines.append(f"  kind     {'raw, white image' if m.is_white_image else 'raw'}")
     from ..io.raytrix import is_rgb_export
 

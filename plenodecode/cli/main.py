@@ -99,6 +99,10 @@ class LazyGroup(click.Group):
         return super().parse_args(ctx, args)
 
     def resolve_command(self, ctx: click.Context, args: list[str]):
+        if args and args[0] in ("version", "help") and not Path(args[0]).exists():
+            # what a user types for 'plenodecode --version' / '--help' (no file of that name: not the one-liner)
+            click.echo(f"plenodecode, version {__version__}" if args[0] == "version" else ctx.get_help())
+            ctx.exit(0)
         if args and args[0] not in COMMANDS and not args[0].startswith("-"):
             # 'plenodecode RAW ...' is the one-liner; a mistyped command is no file either: say which it meant
             close = difflib.get_close_matches(args[0], self.list_commands(ctx), n=1, cutoff=0.75)

@@ -9,7 +9,8 @@ import click
 from ..pipeline import parallax_frame_names
 from .common import (FOCUSED_PHOTO, NON_NEGATIVE, POSITIVE, bit_depth_option, calibration_kwargs, check_folder_output,
                      check_output, exposure_option, image_bit_depth, input_options, output_option, overwrite_option,
-                     progress_bar, quiet, refuse_focused_views, usage_errors, views_anyway_option)
+                     progress_bar, quiet, refuse_focused_views, refuse_writing_over_command_inputs, usage_errors,
+                     views_anyway_option)
 from .views import INTERP_CHOICE
 
 
@@ -58,6 +59,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, n_frames: int, r
     if folder is not None:      # the frames are PNGs: a depth they cannot hold is refused before any work
         bits = image_bit_depth(ctx, bit_depth, ".png", param_hint="--bit-depth")
         check_folder_output(folder, parallax_frame_names(n_frames), overwrite)
+    written = [output] + ([] if folder is None else [folder / name for name in parallax_frame_names(n_frames)])
+    refuse_writing_over_command_inputs(written, input_path, calibration, white)
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     refuse_focused_views(src.focused, input_path, views_anyway, instead=FOCUSED_PHOTO.format(raw=input_path))

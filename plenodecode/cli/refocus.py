@@ -14,7 +14,7 @@ from .common import (FINITE, FOCUSED_REFOCUS, POSITIVE, FiniteFloat, RegistryCho
                      calibration_kwargs, check_focus_options, check_folder_output, check_output, describe_focus,
                      exposure_option, focus_hint, focus_options, focus_point, image_bit_depth, input_options,
                      note_if_dark, output_option, overwrite_option, progress_bar, quiet, refuse_focused_views,
-                     usage_errors, views_anyway_option)
+                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
 
 #: The refocus methods of the library, for ``--method`` (imported when the command needs them).
 REFOCUS_METHOD_CHOICE = RegistryChoice("plenodecode.render", "REFOCUS_METHODS")
@@ -62,6 +62,7 @@ def refocus_at_virtual_depth(ctx: click.Context, input_path: Path, output: Path,
     if input_kind(input_path) != "raw":
         raise click.UsageError(f"--virtual-depth renders a focused-plenoptic raw (Raytrix image + RayCalibData XML); "
                                f"{input_path} is a {input_kind(input_path)} input")
+    refuse_writing_over_command_inputs([output], input_path, inputs["grid"], inputs["white"])
     check_output(output, overwrite)
     bits = image_bit_depth(ctx, str(bit_depth), output.suffix)
     src = open_source(input_path, **inputs)
@@ -145,12 +146,14 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
         return refocus_at_virtual_depth(ctx, input_path, output, virtual_depth, bit_depth=int(bit_depth),
                                         overwrite=overwrite, exposure=exposure, inputs=inputs)
     if stack is None:
+        refuse_writing_over_command_inputs([output], input_path, calibration, white)
         check_output(output, overwrite)
         bits = image_bit_depth(ctx, bit_depth, output.suffix)
     else:
         start, stop, n = parse_stack(stack, stack_units)
         names = focal_stack_names(n, ext)
         check_folder_output(output, names, overwrite, what="a focal stack")
+        refuse_writing_over_command_inputs([output / name for name in names], input_path, calibration, white)
         bits = image_bit_depth(ctx, bit_depth, ext, param_hint="--ext")
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       check={"refocus": {"alpha": alpha, "distance_m": distance_m}} if stack is None

@@ -16,7 +16,8 @@ from click.core import ParameterSource
 from .common import (FINITE, FOCUSED_REFOCUS, POSITIVE, FiniteFloat, bit_depth_option, calibration_kwargs,
                      check_focus_options, check_output, describe_focus, exposure_option, focus_hint, focus_options,
                      focus_point, image_bit_depth, input_options, note_if_dark, output_option, overwrite_option,
-                     progress_bar, quiet, refuse_focused_views, usage_errors, views_anyway_option)
+                     progress_bar, quiet, refuse_focused_views, refuse_writing_over_command_inputs, usage_errors,
+                     views_anyway_option)
 from .refocus import REFOCUS_METHOD_CHOICE
 
 #: The refocusing options that mean nothing to --total-focus (parameter name -> option); each asks for a refocus of
@@ -100,6 +101,7 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
 
     check_render_options(ctx, input_path, alpha=alpha, slope=slope, total_focus=total_focus, patch=patch,
                          focus_at=focus_at, distance_m=distance_m, no_depth=no_depth)
+    refuse_writing_over_command_inputs([output], input_path, calibration, white)
     check_output(output, overwrite)
     bits = image_bit_depth(ctx, bit_depth, output.suffix)
     src = open_source(input_path, progress=progress_bar("decoding", ctx),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import click
@@ -10,8 +11,8 @@ from ..imaging import MIN_VIEW_DATA
 from ..pipeline import IMAGE_EXTENSIONS
 from .common import (FOCUSED_PHOTO, NON_NEGATIVE, RegistryChoice, bit_depth_option, calibration_kwargs,
                      check_folder_output, check_output, exposure_option, image_bit_depth, input_options,
-                     output_option, overwrite_option, progress_bar, quiet, refuse_focused_views, usage_errors,
-                     views_anyway_option)
+                     output_option, overwrite_option, progress_bar, quiet, refuse_focused_views,
+                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
 
 #: Angular interpolation kernels of perspective views, for ``--interp``.
 INTERP_CHOICE = RegistryChoice("plenodecode.render.viewpoints", "PERSPECTIVE_INTERPOLATIONS")
@@ -48,9 +49,14 @@ def command(ctx: click.Context, input_path: Path, output: Path, view: tuple[floa
     from ..pipeline import open_source, render_product, write_product
 
     if view is not None:
+        refuse_writing_over_command_inputs([output], input_path, calibration, white)
         check_output(output, overwrite)
     else:       # the names depend on the light field's shape: their clash is checked when they are written
         check_folder_output(output, [], overwrite, what="every view (without --view)")
+        # an input in OUTPUT named like a view ('views out/view_00_00.png -o out/') would be written over
+        clash = [output / p.name for p in (input_path, calibration, white) if p is not None
+                 and re.fullmatch(rf"view_\d{{2,}}_\d{{2,}}\.{ext}", p.name, flags=re.IGNORECASE)]
+        refuse_writing_over_command_inputs(clash, input_path, calibration, white)
     bits = (image_bit_depth(ctx, bit_depth, output.suffix) if view is not None
             else image_bit_depth(ctx, bit_depth, ext, param_hint="--ext"))
     src = open_source(input_path, progress=progress_bar("decoding", ctx),

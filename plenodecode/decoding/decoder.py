@@ -58,6 +58,30 @@ def _as_plane(img, name: str, raw: RawCapture):
     return arr, black, white
 
 
+#: A dark frame must leave the raw at least this share of its range at its brightest 0.1 % once subtracted (the
+#: ant leg's dark frame leaves 13 %, its radiometry frame given as the dark none: an all-black light field).
+DARK_LEAVES_MIN = 0.01
+
+
+def refuse_bright_dark(dark: np.ndarray, raw: RawCapture, name: str = "the frame given as dark") -> None:
+    """Raise :class:`~plenodecode.errors.DarkFrameMismatchError` (a ValueError) when subtracting ``dark`` (H, W),
+    in sensor units, would leave ``raw`` black: a white, a scene or the raw itself given as the dark frame.
+
+    ``--dark`` and ``decode(raw, grid, dark=...)`` share it; ``name`` is what the message calls the frame.
+    """
+    from ..errors import DarkFrameMismatchError
+
+    step = max(1, int(np.sqrt(raw.mosaic.size / 2e6)))          # ~2 Mpx are plenty for a percentile
+    rest = raw.mosaic[::step, ::step].astype(np.float32) - dark[::step, ::step]
+    span = float(np.max(raw.white) - np.min(raw.black)) or 1.0
+    top = float(np.percentile(rest, 99.9))
+    if top <= DARK_LEAVES_MIN * span:
+        raise DarkFrameMismatchError(
+            f"{name} is no dark frame for {os.path.basename(raw.path) if raw.path else 'this raw'}: subtracted "
+            f"from it, the brightest 0.1 % keep {max(top, 0.0) / span:.1%} of the range, a black picture (a white "
+            "or scene frame, or the raw itself?); pass the frame taken with no light")
+
+
 #: Arrays at least this large (bytes) are mapped by :func:`small_page_empty`, smaller ones by ``np.empty``.
 SMALL_PAGE_MIN_BYTES = 1 << 24
 
@@ -187,6 +211,8 @@ def decode(raw: RawCapture, grid: LensletGrid, *, white: RawCapture | np.ndarray
         The grid was fitted on another sensor size; ``geometry`` is for another light-field shape.
     DecodeError
         White or dark frame of the wrong size or with NaNs.
+    DarkFrameMismatchError
+        (a ValueError too) ``dark`` would leave the raw black: a white or scene frame (:func:`refuse_bright_dark`).
     """
     return decode_timed(raw, grid, white=white, dark=dark, demosaic=demosaic, colour=colour, n_views=n_views,
                         hot_pixels=hot_pixels, resample=resample, floor=floor, workers=workers,
@@ -279,6 +305,9 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
     nv = _check_views(n_views, grid)
     white_p = _as_plane(white, "white", raw)
     dark_p = _as_plane(dark, "dark", raw)
+    if dark_p is not None:
+        path = dark if isinstance(dark, (str, os.PathLike)) else getattr(dark, "path", None)
+        refuse_bright_dark(dark_p[0], raw, os.path.basename(path) if path else "the frame given as dark")
     if white_p is None:
         log.warning("no white image: the raw is not devignetted; weights come from the lenslet disk radius")
 

@@ -18,7 +18,8 @@ five steps, each implemented once here::
 
 Display encoding (one rule, :func:`display_encoding`): images of a linear light field (colour state
 'camera' or 'linear-srgb') get the sRGB transfer function, except 32-bit float outputs, which stay linear;
-'srgb' images are written as they are.
+'srgb' images are written as they are.  A light field saved by ``decode`` / ``export`` stays linear, except as
+8-bit views or ESLF (:func:`stores_display_encoded`).
 
 Importing this module is light (no numba, OpenCV or OpenImageIO): the CLI reads its registries for
 ``click.Choice`` lists.
@@ -37,7 +38,7 @@ from .source import Source, check_geometry, decode_raw, load_lightfield_input, o
 from .products import (MAX_STACK_SLICES, PRODUCTS, STACK_UNITS, Rendered, virtual_depth_stem, render_product,
                        check_total_focus_patch, view_names, refocus_stem, focal_stack_names, parallax_frame_names)
 from .output import (AUTO_EXPOSURE, DARK_LEVEL, check_exposure, display_encoding, default_extension, expose,
-                     exposure_gain, image_level,
+                     exposure_gain, image_level, stores_display_encoded,
                      write_image_file, refuse_folder_clash, staged_folder,
                      write_product, write_parallax, write_depth, write_lightfield)
 
@@ -46,7 +47,7 @@ __all__ = [
     "STACK_UNITS", "REQUESTS", "Calibration", "Source", "Rendered", "input_kind", "is_hci_folder", "is_lightfield_path",
     "open_input", "check_product", "choose_calibration", "check_geometry", "decode_raw", "open_raw", "open_source", "with_optics",
     "read_dark_frame", "virtual_depth_stem", "load_lightfield_input", "render_product",
-    "check_total_focus_patch", "display_encoding", "default_extension", "write_image_file", "AUTO_EXPOSURE",
+    "check_total_focus_patch", "display_encoding", "stores_display_encoded", "default_extension", "write_image_file", "AUTO_EXPOSURE",
     "DARK_LEVEL", "check_exposure", "expose", "exposure_gain", "image_level",
     "refuse_folder_clash", "staged_folder", "write_product", "write_parallax", "write_depth",
     "write_lightfield", "view_names", "refocus_stem", "focal_stack_names", "parallax_frame_names",

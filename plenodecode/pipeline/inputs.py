@@ -169,33 +169,11 @@ def read_dark_frame(dark: str | os.PathLike | RawCapture | None,
         raise DarkFrameMismatchError(f"{name} is {dark.shape[1]} x {dark.shape[0]} px but the raw "
                                      f"{Path(raw.path).name if raw.path else ''} is {raw.shape[1]} x {raw.shape[0]}; "
                                      "pass the dark frame of this camera")
-    if raw is not None:
-        _refuse_bright_dark(dark, raw)
+    if raw is not None:        # the check decode(dark=...) makes, before the calibration
+        from ..decoding.decoder import refuse_bright_dark
+
+        refuse_bright_dark(dark.mosaic, raw, Path(dark.path).name if dark.path else "the dark frame")
     return dark
-
-
-#: A dark frame must leave the raw at least this share of its range at its brightest 0.1 % once subtracted (the
-#: ant leg's dark frame leaves 13 %, its radiometry frame given as the dark none: an all-black light field).
-DARK_LEAVES_MIN = 0.01
-
-
-def _refuse_bright_dark(dark: RawCapture, raw: RawCapture) -> None:
-    """DarkFrameMismatchError when subtracting ``dark`` would leave ``raw`` black: a white, scene or the raw itself
-    given as the dark frame."""
-    import numpy as np
-
-    step = max(1, int(np.sqrt(raw.mosaic.size / 2e6)))          # ~2 Mpx are plenty for a percentile
-    rest = raw.mosaic[::step, ::step].astype(np.float32) - dark.mosaic[::step, ::step]
-    span = float(np.max(raw.white) - np.min(raw.black)) or 1.0
-    top = float(np.percentile(rest, 99.9))
-    if top <= DARK_LEAVES_MIN * span:
-        from ..errors import DarkFrameMismatchError
-
-        name = Path(dark.path).name if dark.path else "the dark frame"
-        raise DarkFrameMismatchError(
-            f"{name} is no dark frame for {Path(raw.path).name if raw.path else 'this raw'}: subtracted from it, "
-            f"the brightest 0.1 % keep {max(top, 0.0) / span:.1%} of the range, a black picture (a white or "
-            "scene frame, or the raw itself?); pass the frame taken with no light")
 
 
 #: Input kind -> reader ``fn(path) -> LightField | RawCapture``.

@@ -26,6 +26,18 @@ def display_encoding(colour: str, bit_depth: int) -> bool:
     return colour in LINEAR_COLOURS and int(bit_depth) != 32
 
 
+#: Light-field formats stored as image files (a views folder, an ESLF mosaic): at 8 bits they are sRGB-encoded.
+IMAGE_LIGHTFIELD_FORMATS = ("views", "eslf")
+
+
+def stores_display_encoded(format: str, colour: str, bit_depth: int) -> bool:
+    """Whether a light field of colour state ``colour`` saved as ``format`` at ``bit_depth`` is sRGB-encoded: the
+    8-bit image formats (views, eslf) of a linear one are, as 'views' and every photograph are (8-bit linear views
+    look dark and keep 1/255 steps in the shadows); the data then load back as colour 'srgb'.  Every other format
+    and depth stores linear light."""
+    return format in IMAGE_LIGHTFIELD_FORMATS and int(bit_depth) == 8 and colour in LINEAR_COLOURS
+
+
 def default_extension(bit_depth: int) -> str:
     """Image type of a product written without an explicit one: 'exr' for 32-bit float, else 'png'."""
     return "exr" if int(bit_depth) == 32 else "png"

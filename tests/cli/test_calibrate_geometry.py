@@ -127,3 +127,23 @@ def test_calibrates_raws_and_skips_a_capture_without_board(raw_set, tmp_path):
     assert "skipped plain.lfp" in result.output
     html = report.read_text()
     assert "plain.lfp" in html and html.count("data:image/png;base64") >= 1
+
+
+def test_outputs_over_a_capture_or_its_sidecar_are_refused_before_any_work(tmp_path):
+    """'calibrate-geometry caps/ -o caps/board.json --overwrite' would have written the calibration over the capture
+    board.png's sidecar (and '--report caps/board.png' over the capture): both are refused naming their option,
+    before any decoding, and the captures are unchanged."""
+    caps = tmp_path / "caps"
+    caps.mkdir()
+    (caps / "board.png").write_bytes(b"a capture")
+    (caps / "board.json").write_text("{}")
+    before = {p.name: p.read_bytes() for p in caps.iterdir()}
+    for args, option, words in ((["-o", caps / "board.json"], "-o / --output", "replace the input board.json"),
+                                (["-o", tmp_path / "cal.json", "--report", caps / "board.png"], "--report",
+                                 "replace the input board.png")):
+        res = CliRunner().invoke(cli, ["calibrate-geometry", str(caps), "--board", "8x6x0.0036",
+                                       *map(str, args), "--overwrite"])
+        errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+        assert res.exit_code == 2 and errors and f"Invalid value for {option}:" in errors[0], res.output
+        assert words in errors[0], errors
+    assert {p.name: p.read_bytes() for p in caps.iterdir()} == before and not (tmp_path / "cal.json").exists()

@@ -241,3 +241,61 @@ def test_an_output_over_the_raw_or_its_sidecar_is_refused(files, tmp_path):
     res = CliRunner().invoke(cli, ["decode", str(tmp_path / "scene.png"), "-w", str(tmp_path / "white.png"),
                                    "-o", str(tmp_path / "lf.png")])
     assert res.exit_code == 0 and (tmp_path / "lf.json").is_file(), res.output
+
+
+def test_the_one_liner_and_the_other_writers_refuse_to_write_over_their_inputs(files, tmp_path):
+    """'plenodecode scene.png -w white.png -o scene.png --overwrite' decoded the mosaic and wrote the photograph over
+    it (the raw lost); refocus, views, parallax and export did the same with their outputs.  Every writer now
+    refuses, naming -o, before any work, and leaves the inputs byte for byte as they were."""
+    import shutil
+
+    sim, raw, white, grid = files
+    for p in (raw, raw.with_suffix(".json"), white, white.with_suffix(".json")):
+        shutil.copy(p, tmp_path / p.name)
+    scene, wpng, frame = tmp_path / "scene.png", tmp_path / "white.png", tmp_path / "frame_001.png"
+    shutil.copy(scene, frame)                               # a raw named like a parallax frame
+    (tmp_path / "lf.npy").write_bytes(b"not read")          # export's input: refused before it is read
+    (tmp_path / "lf.json").write_text("{}")
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    cases = [([scene, "-w", wpng, "-o", scene], "would replace the input scene.png"),
+             ([scene, "-w", wpng, "--refocus", "1.01", "-o", wpng], "would replace the input white.png"),
+             (["refocus", scene, "-w", wpng, "-o", scene], "would replace the input scene.png"),
+             (["views", scene, "-w", wpng, "--view", "1", "1", "-o", wpng], "would replace the input white.png"),
+             (["parallax", frame, "-w", wpng, "-o", tmp_path / "w.gif", "--frames-dir", tmp_path, "--frames", "2"],
+              "would replace the input frame_001.png"),
+             (["export", tmp_path / "lf.npy", "-o", tmp_path / "lf.png", "--format", "eslf"],
+              "would replace the input lf.json, the sidecar of lf.npy")]
+    for args, words in cases:
+        res = CliRunner().invoke(cli, [str(a) for a in args] + ["--overwrite"])
+        errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+        assert res.exit_code == 2 and len(errors) == 1, (args, res.output)
+        assert "Invalid value for -o / --output:" in errors[0] and words in errors[0], (args, errors)
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+    res = CliRunner().invoke(cli, [str(scene), "-w", str(wpng), "-o", str(tmp_path / "photo.png")])
+    assert res.exit_code == 0 and (tmp_path / "photo.png").is_file(), res.output
+
+
+def test_8_bit_views_are_written_for_viewing_and_16_bit_ones_stay_linear(files, tmp_path):
+    """'decode RAW -o views/ --format views --bit-depth 8' wrote linear light in 8 bits: views about a third as bright
+    as the 'views' command's (the real F01 JPEG's centre view: median 42 of 255 against 113) and 1/255 steps in the
+    shadows.  8-bit views and ESLF mosaics are now sRGB-encoded, recorded as colour 'srgb' (they load back as what
+    they are) and said so; 16 bits keep linear light; export does the same without --srgb."""
+    from plenodecode.io.images import srgb_encode
+    from plenodecode.io.lightfield import load_lightfield
+
+    sim, raw, white, grid = files
+    base = ["decode", str(raw), "-g", str(grid), "-w", str(white), "--format", "views"]
+    res8 = run([*base, "-o", str(tmp_path / "v8"), "--bit-depth", "8"])
+    assert res8.exit_code == 0 and "8-bit views are sRGB-encoded for viewing" in res8.output, res8.output
+    assert "views of" in res8.output and "sRGB)" in res8.output
+    res16 = run([*base, "-o", str(tmp_path / "v16")])
+    assert res16.exit_code == 0 and "sRGB-encoded" not in res16.output, res16.output
+    v8, v16 = load_lightfield(tmp_path / "v8"), load_lightfield(tmp_path / "v16")
+    assert v8.colour == "srgb" and v16.colour == "linear-srgb"
+    centre = v16.centre_view()
+    assert np.abs(v8.centre_view() - srgb_encode(centre)).max() <= 0.5 / 255 + 1e-3
+    assert np.median(v8.centre_view()) > 1.5 * np.median(centre) > 0
+    res = run(["export", str(tmp_path / "v16"), "-o", str(tmp_path / "e.png"), "--format", "eslf", "--bit-depth", "8"])
+    assert res.exit_code == 0 and "an 8-bit ESLF mosaic is sRGB-encoded" in res.output, res.output
+    e = load_lightfield(tmp_path / "e.png")
+    assert e.colour == "srgb" and np.abs(e.centre_view() - srgb_encode(centre)).max() <= 0.5 / 255 + 1e-3

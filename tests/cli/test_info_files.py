@@ -4,6 +4,7 @@ index, geometric calibrations and Raytrix XML.  Each used to be refused as 'JSON
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from click.testing import CliRunner
@@ -64,7 +65,8 @@ def test_info_on_a_grid_calibrate_just_wrote(tmp_path):
     assert res.exit_code == 0, res.output
     grid = LensletGrid.from_json((tmp_path / name).read_text())
     assert "lenslet grid (fitted to white image(s): MOD_0000.RAW)" in info(tmp_path / name)
-    assert f"pitch {grid.pitch:.4f} px, rotation {grid.rotation:.6f} rad" in info(tmp_path / name)
+    deg = math.degrees(grid.rotation)
+    assert f"pitch {grid.pitch:.4f} px, rotation {grid.rotation:.5f} rad ({deg:.3f} deg)" in info(tmp_path / name)
 
 
 def test_info_of_a_decoded_light_field_names_its_colour_as_decode_did(tmp_path):

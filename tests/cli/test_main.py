@@ -2,6 +2,7 @@
 
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
@@ -55,6 +56,35 @@ def test_database_option_has_one_spelling_in_the_help():
         out = CliRunner().invoke(cli, [command, "--help"]).output
         assert "--database" in out and "--white-dir" not in out, command
         assert f"[default: ./{DEFAULT_DB}]" in " ".join(out.split()), command
+
+
+def test_errors_name_the_database_option_not_its_old_spelling(tmp_path):
+    """'--database nowhere' (or the old '--white-dir nowhere') said "Invalid value for '--database' / '--white-dir'",
+    naming the spelling the help hides; the error names '--database' alone, whichever was typed."""
+    for command in ("decode", "refocus", "views", "parallax", "depth", "render", "batch", "calibrate-geometry"):
+        for spelling in ("--database", "--white-dir"):
+            res = CliRunner().invoke(cli, [command, str(tmp_path), spelling, str(tmp_path / "nowhere"),
+                                           "-o", str(tmp_path / "out.png")])
+            errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+            assert res.exit_code == 2 and errors == [
+                f"Error: Invalid value for '--database': Directory '{tmp_path / 'nowhere'}' does not exist."], \
+                (command, spelling, res.output)
+
+
+def test_version_and_help_typed_as_commands_do_what_the_flags_do(tmp_path, monkeypatch):
+    """'plenodecode version' said "Invalid value for 'RAW_OR_LF': Path 'version' does not exist" (the one-liner took
+    it for a raw); it prints what '--version' prints, and 'plenodecode help' the group's help, exit 0.  A file
+    named 'version' is still the one-liner's input."""
+    runner = CliRunner()
+    flag = runner.invoke(cli, ["--version"])
+    typed = runner.invoke(cli, ["version"])
+    assert typed.exit_code == 0 and typed.output == flag.output and flag.output.startswith("plenodecode, version ")
+    helped = runner.invoke(cli, ["help"])
+    assert helped.exit_code == 0 and helped.output == runner.invoke(cli, ["--help"]).output
+    monkeypatch.chdir(tmp_path)
+    Path("version").write_bytes(b"not a raw")
+    res = runner.invoke(cli, ["version", "-o", "photo.png"])
+    assert res.exit_code != 0 and "plenodecode, version" not in res.output, res.output
 
 
 @pytest.mark.parametrize("name", list(COMMANDS))

@@ -196,7 +196,29 @@ def test_info_names_the_sensor_a_real_f01_jpeg_was_recognised_by(tmp_path):
     other = tmp_path / "other.png"
     write_image(other, np.full((60, 80), 1000, np.uint16), bit_depth=16)
     res = CliRunner().invoke(cli, ["info", str(other)])
-    assert res.exit_code == 0 and "camera   unknown model" in res.output, res.output
+    assert res.exit_code == 0 and "camera   model not recorded\n" in res.output, res.output
+
+
+def test_info_of_a_light_field_decoded_from_a_real_f01_jpeg_names_the_camera(tmp_path):
+    """'plenodecode info lf.zarr' of a light field decoded from IMG_1.jpg said 'camera unknown model' while 'info
+    IMG_1.jpg' names the F01; it now says the same, from the source's recorded sensor size, and a light field whose
+    camera nobody recorded says so and where it came from."""
+    from plenodecode.io.lightfield import save_lightfield
+    from plenodecode.metadata import LightFieldGeometry
+    from plenodecode.types import CameraMetadata, LightField
+
+    jpg = shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg")
+    res = CliRunner().invoke(cli, ["-q", "decode", str(jpg), "-o", str(tmp_path / "lf.npy")])
+    assert res.exit_code == 0, res.output
+    res = CliRunner().invoke(cli, ["info", str(tmp_path / "lf.npy")])
+    camera = [line for line in res.output.splitlines() if line.strip().startswith("camera")]
+    assert res.exit_code == 0 and camera == [
+        "  camera   Lytro F01 (by its 3280 x 3280 sensor; IMG_1.jpg has no camera metadata)"], res.output
+    lf = LightField(np.zeros((3, 3, 4, 5, 1), np.float32), None, "camera",
+                    geometry=LightFieldGeometry(source="/data/scan.png", camera=CameraMetadata()))
+    save_lightfield(lf, tmp_path / "other.npy")
+    res = CliRunner().invoke(cli, ["info", str(tmp_path / "other.npy")])
+    assert res.exit_code == 0 and "  camera   model not recorded (decoded from scan.png)\n" in res.output, res.output
 
 
 def test_info_of_a_sidecarless_mosaic_gives_its_size_one_way(tmp_path, caplog):

@@ -477,3 +477,16 @@ def test_batch_refuses_a_focused_raws_view_outputs_unless_asked(tmp_path):
     res = run(*base, "-o", tmp_path / "anyway", "--views-anyway")
     assert res.exit_code == 0, res.output
     assert read_image(tmp_path / "anyway" / "sc2_klein" / "centre.png").shape[:2] == (22, 31)
+
+
+def test_the_real_r42_rotation_prints_as_zero_not_minus_zero(tmp_path):
+    """The R42's RayCalibData has rotation -0.0: 'info' of its XML and of the grid, 'calibrate' and the HTML report
+    printed 'rotation -0.000000 rad'.  Angles now print as 0.00000 rad (0.000 deg) everywhere, 5 decimals in rad
+    and 3 in degrees."""
+    png = shared_path("raytrix-r42", "sc2_klein.png")
+    res = run("calibrate", png, "-o", tmp_path / "grid.json", "--report", tmp_path / "grid.html")
+    assert res.exit_code == 0, res.output
+    shown = [res.output, run("info", png.with_suffix(".xml"), tmp_path / "grid.json").output,
+             (tmp_path / "grid.html").read_text(encoding="utf-8")]
+    for text in shown:
+        assert "rotation 0.00000 rad (0.000 deg)" in text.replace("</td><td>", " ") and "-0.0" not in text, text[:600]

@@ -101,3 +101,16 @@ def test_real_f01_jpeg_decodes_with_self_calibrated_grid():
     assert nb > 0.9
     # smooth at the sample scale: no lenslet-disk pattern (row-to-row jumps) left in the view
     assert np.mean(np.abs(gy)) < 0.2 * g.mean() and np.mean(np.abs(gx)) < 0.2 * g.mean()
+
+
+
+def test_python_decode_refuses_a_bright_frame_given_as_the_dark(antleg):
+    """'decode(raw, grid, dark=white)' (the frames swapped) returned an all-black light field without a word, while
+    the CLI's --dark refused it; the Python API now raises a ValueError naming the frame and what it leaves of the
+    range (0.0 %), before any decoding, the same check as --dark."""
+    raw, white, dark, grid, lf = antleg
+    for bright, name in ((white, "radiometry_frame.png"), (raw.mosaic, "the frame given as dark")):
+        with pytest.raises(ValueError, match=f"{name} is no dark frame for light_field.png: subtracted from it, the "
+                                             r"brightest 0.1 % keep 0.0% of the range"):
+            decode(raw, grid, white=white, dark=bright)
+    assert float(np.percentile(lf.centre_view(), 99.5)) > 0.1         # the real dark frame: the specimen

@@ -140,3 +140,30 @@ def test_white_with_a_smooth_distortion_is_judged_about_it_and_scatter_stays_bad
     scattered = straight.replace(refined=straight.lattice_centres() + noise, residual_rms=grid.residual_rms)
     assert smooth_distortion(scattered)["rest_rms_px"] > 0.8 * grid.residual_rms
     assert "about a smooth distortion" not in rms_text(scattered)
+
+
+def test_the_two_disk_counts_of_a_real_white_are_labelled(tmp_path):
+    """The ant leg's report showed 'detected disks near a grid lens 100.0% of 6899' and 'n detected 6890' for the
+    same white image without a word: the check detects the disks again at full resolution, the fit detected them at
+    binning 2.  Both counts now say what they count, and the check names the fit's count when they differ."""
+    import html
+
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+    from plenodecode.types import LensletGrid
+    from tests.conftest import shared_path
+
+    white = shared_path("lf-microscopy-antleg", "radiometry_frame.png")
+    res = CliRunner().invoke(cli, ["-q", "calibrate", str(white), "-o", str(tmp_path / "g.json"),
+                                   "--report", str(tmp_path / "r.html")])
+    assert res.exit_code == 0, res.output
+    info = LensletGrid.from_json((tmp_path / "g.json").read_text()).info
+    text = html.unescape(_text(tmp_path / "r.html"))
+    again = int(re.search(r"detected disks near a grid lens [\d.]+% of (\d+)", text).group(1))
+    assert info["binning"] == 2 and abs(again - info["n_detected"]) < 0.01 * again        # 6899 vs 6890
+    assert again != info["n_detected"]
+    assert (f"of {again} (detected again for this check, at full resolution; the fit's detection at binning 2 found "
+            f"{info['n_detected']})") in text, text
+    assert f"disks detected by the fit {info['n_detected']} disks the fit kept (inliers) {info['n_fit']}" in text
+    assert "n detected" not in text
