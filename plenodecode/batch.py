@@ -24,9 +24,9 @@ of runs that no longer live, and leaves those of a live one alone).  Two batches
 same ``out_dir`` at the same time.
 
 Resuming: ``.done.json`` holds the task key, the SHA-256 of the input's bytes and of the options
-(:func:`task_key`); a later run with the same key skips the raw, a changed input or option re-runs it
-and replaces its folder.  A folder ``out_dir/<name>`` without a marker was not written by a batch
-and is replaced only with ``overwrite=True``.
+(:func:`task_key`); a later run with the same key skips the raw.  A folder ``out_dir/<name>`` of a
+changed input or option, or without a marker (not written by a batch), is replaced only with
+``overwrite=True``: without it the whole run is refused before any work (:func:`check_outputs_to_replace`).
 
 Where the tasks run (forked local workers, a Dask cluster) and how those are kept busy:
 :mod:`plenodecode.batch_workers`.  On a Dask cluster (``scheduler=``) the workers must see the inputs,
@@ -430,6 +430,46 @@ def task_key(path: str | os.PathLike, options: BatchOptions) -> str:
     return h.hexdigest()
 
 
+def outputs_to_replace(files: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
+                       options: BatchOptions) -> list[Path]:
+    """The output folders ``out_dir/<name>`` of ``files`` (:func:`output_names`) that a run would replace:
+    each one that exists and is not a finished result of the same raw bytes and options (which a run
+    skips), i.e. written with other options or inputs, or not by a batch at all.
+
+    Returns
+    -------
+    list of Path
+        In the order of ``files``; only the raws whose folder exists are read (their bytes hashed).
+    """
+    out = Path(out_dir)
+    found = []
+    for f, name in zip(files, output_names(files)):
+        target = out / name
+        if not target.exists():
+            continue
+        marker = _read_marker(target)
+        try:
+            same = marker is not None and marker.get("key") == task_key(f, options)
+        except OSError:         # an unreadable raw fails in its task, for its reason
+            same = True
+        if not same:
+            found.append(target)
+    return found
+
+
+def check_outputs_to_replace(files: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
+                             options: BatchOptions) -> None:
+    """Raise FileExistsError, in one line, when a run without ``overwrite`` would replace output folders
+    (:func:`outputs_to_replace`): how many, the first three, and what to do."""
+    found = outputs_to_replace(files, out_dir, options)
+    if not found:
+        return
+    names = ", ".join(p.name for p in found[:3]) + (f" and {len(found) - 3} more" if len(found) > 3 else "")
+    raise FileExistsError(f"{len(found)} of {len(files)} raws already have an output folder in {out_dir} ({names}) "
+                          "from a run with other options or inputs, or not from a batch; pass --overwrite "
+                          "(overwrite=True) to replace them, or choose another output folder")
+
+
 # ------------------------------------------------------------------------------- tasks
 def _worker_id() -> str:
     return f"{socket.gethostname()}:{os.getpid()}"
@@ -504,9 +544,10 @@ def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: Ba
             skipped = _skip_result(src, target, key, t0, started)
             if skipped is not None:
                 return skipped
-            if target.exists() and _read_marker(target) is None:
-                raise FileExistsError(f"{target} exists and was not written by a batch run; "
-                                      "pass --overwrite (overwrite=True) to replace it")
+            done = _read_marker(target) if target.exists() else None
+            if target.exists() and (done is None or done.get("key") != key):
+                why = "was not written by a batch run" if done is None else "holds a run with other options or inputs"
+                raise FileExistsError(f"{target} exists and {why}; pass --overwrite (overwrite=True) to replace it")
         if threads is not None:
             limit_threads(threads)
         from .optics import MicroscopeOptics
@@ -751,7 +792,8 @@ def run_batch(inputs: Sequence[str | os.PathLike], out_dir: str | os.PathLike, o
     max_in_flight : int, optional
         Tasks submitted at once (default: 2 per worker).
     overwrite : bool
-        Redo every raw, ignoring earlier results.
+        Redo every raw, ignoring earlier results, and replace its folder.  Without it a run that would replace
+        a folder (another run's options or inputs, or not a batch's) raises FileExistsError before any work.
     progress : callable(done, total), optional
         Called once with ``(0, total)`` and after every finished raw.
 
@@ -769,6 +811,8 @@ def run_batch(inputs: Sequence[str | os.PathLike], out_dir: str | os.PathLike, o
     options = replace(options, db_dir=str(Path(options.db_dir).resolve()))
     out = Path(out_dir).resolve()
     files = [f.resolve() for f in find_raws(inputs, exclude=[out])]
+    if not overwrite:
+        check_outputs_to_replace(files, out, options)
     if scheduler is None:
         jobs = min(jobs or os.cpu_count() or 1, max(1, len(files)))
     pool = None
@@ -874,4 +918,4 @@ def write_summary(summary: BatchSummary, out_dir: str | os.PathLike, *, overwrit
 
 
 __all__ = ["display_names", "BATCH_OUTPUTS", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
-           "task_key", "process_raw", "run_batch", "write_summary", "check_summary_files"]
+           "task_key", "outputs_to_replace", "check_outputs_to_replace", "process_raw", "run_batch", "write_summary", "check_summary_files"]

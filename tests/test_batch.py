@@ -19,7 +19,7 @@ import pytest
 from click.testing import CliRunner
 
 from plenodecode.batch import (BATCH_OUTPUTS, DONE_MARKER, BatchOptions, BatchSummary, TaskResult, find_raws,
-                               output_names, run_batch, task_key, write_summary)
+                               output_names, process_raw, run_batch, task_key, write_summary)
 from plenodecode.cli.main import cli
 
 SHAPE = (200, 280)
@@ -292,15 +292,16 @@ def test_second_run_skips_finished_raws_and_keeps_files(data, local_run, tmp_pat
     skipped = next(r for r in again.results if r.status == "skipped")
     assert [Path(o).name for o in skipped.outputs] == ["centre.png", "refocus_s+0.30.png", "disparity.pfm",
                                                         "lightfield.npy"]
-    # a changed option re-runs and replaces the folder (the old refocus is gone, the new one there)
+    # a changed option would replace the folders: refused before any work, the files untouched
     changed = replace(local_run["opts"], slope=-0.2)
-    third = run_batch([data["shoot"]], out, changed, jobs=1)
+    with pytest.raises(FileExistsError, match=r"^3 of 3 raws already have an output folder in .*overwrite"):
+        run_batch([data["shoot"]], out, changed, jobs=1)
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()} == stamps
+    # overwrite re-runs and replaces the folder (the old refocus is gone, the new one there)
+    third = run_batch([data["shoot"]], out, changed, jobs=1, overwrite=True)
     assert [r.status for r in third.results] == ["done"] * 3
     assert (out / "scene1" / "refocus_s-0.20.png").is_file()
     assert not (out / "scene1" / "refocus_s+0.30.png").exists()
-    # overwrite redoes everything
-    fourth = run_batch([data["shoot"] / "take3"], out, changed, jobs=1, overwrite=True)
-    assert [r.status for r in fourth.results] == ["done"]
 
 
 def test_changed_input_reruns(data, tmp_path):
@@ -312,7 +313,9 @@ def test_changed_input_reruns(data, tmp_path):
     assert run_batch([src], out, opts, jobs=1).results[0].status == "done"
     assert run_batch([src], out, opts, jobs=1).results[0].status == "skipped"
     shutil.copy(data["shoot"] / "take2" / "scene2.lfr", src / "a.LFR")
-    assert run_batch([src], out, opts, jobs=1).results[0].status == "done"
+    with pytest.raises(FileExistsError, match="1 of 1 raws"):      # its folder holds the other input's outputs
+        run_batch([src], out, opts, jobs=1)
+    assert run_batch([src], out, opts, jobs=1, overwrite=True).results[0].status == "done"
 
 
 def test_refuses_a_foreign_folder_without_overwrite(data, tmp_path):
@@ -320,8 +323,12 @@ def test_refuses_a_foreign_folder_without_overwrite(data, tmp_path):
     (out / "scene1").mkdir(parents=True)
     (out / "scene1" / "mine.txt").write_text("keep me")
     opts = BatchOptions(outputs=("centre",), db_dir=str(data["db"]))
-    r = run_batch([data["shoot"] / "take1"], out, opts, jobs=1).results[0]
-    assert r.status == "failed" and "overwrite" in r.error
+    with pytest.raises(FileExistsError, match="not from a batch; pass --overwrite"):
+        run_batch([data["shoot"] / "take1"], out, opts, jobs=1)
+    assert (out / "scene1" / "mine.txt").read_text() == "keep me"
+    # a task meeting such a folder (made after the check) fails, and keeps it
+    r = process_raw(data["shoot"] / "take1" / "scene1.lfr", out, opts)
+    assert r.status == "failed" and "was not written by a batch run; pass --overwrite" in r.error
     assert (out / "scene1" / "mine.txt").read_text() == "keep me"
     r = run_batch([data["shoot"] / "take1"], out, opts, jobs=1, overwrite=True).results[0]
     assert r.status == "done" and not (out / "scene1" / "mine.txt").exists()
@@ -445,6 +452,31 @@ def test_cli_runs_reports_and_exits_1_on_failures(data, tmp_path):
     assert res.exit_code == 0, res.output
     assert res.stdout == ""
     assert json.loads((out / "summary.json").read_text())["skipped"] == 3
+
+
+def test_cli_second_run_with_other_options_is_refused_up_front_and_overwrite_replaces(data, tmp_path):
+    """'batch FOLDER -o OUT' again with other options replaced every raw's folder without --overwrite (data
+    loss).  Now the run is refused in one line before any work, counting the folders it would replace; the
+    same options resume (skip), and --overwrite replaces them."""
+    out = tmp_path / "out"
+    base = ["batch", str(data["shoot"]), "-o", str(out), "--database", str(data["db"]), "--jobs", "1",
+            "--outputs", "refocus", "--bit-depth", "8"]
+    assert CliRunner().invoke(cli, base).exit_code == 0
+    first = {p: p.read_bytes() for p in out.rglob("*") if p.is_file() and p.parent.parent == out}
+    assert sorted(p.name for p in first if p.suffix == ".png") == ["refocus_s+0.00.png"] * 3
+    res = CliRunner().invoke(cli, [*base, "--slope", "0.25"])
+    assert res.exit_code == 2, res.output
+    error = res.stderr.strip().splitlines()[-1]
+    assert error == (f"Error: 3 of 3 raws already have an output folder in {out} (scene1, scene2, scene3) from a "
+                     "run with other options or inputs, or not from a batch; pass --overwrite to replace them, or "
+                     "choose another -o folder"), error
+    assert "decoding" not in res.stderr
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file() and p.parent.parent == out} == first
+    res = CliRunner().invoke(cli, base)                    # the same options: resumed, nothing replaced
+    assert res.exit_code == 0 and "0 done, 3 skipped" in res.stdout, res.output
+    res = CliRunner().invoke(cli, [*base, "--slope", "0.25", "--overwrite"])
+    assert res.exit_code == 0 and "3 done" in res.stdout, res.output
+    assert sorted(p.name for p in (out / "scene2").glob("*.png")) == ["refocus_s+0.25.png"]
 
 
 @pytest.mark.parametrize("extra", [["--outputs", "centre,bogus"], ["--jobs", "0"], ["--database", "/nonexistent"],
