@@ -640,23 +640,78 @@ def _focus_option_error(product: str, options: BatchOptions, raw: Any, exc: Valu
     return DecodeError(f"{FOCUS_OPTIONS[keyword]} {value:g} does not suit {_raw_name(raw)}: {exc}")
 
 
-def _check_focus_reach(src: Any, options: BatchOptions) -> None:
-    """Refuse, before decoding, a ``slope`` that moves the outermost views of the raw's light field past its
-    whole picture (:func:`plenodecode.render._common.check_slope_reach` on the decoded shape the calibration
-    gives); alpha and a distance become slopes only with the decoded geometry and are checked when rendered."""
+def _slope_reach_error(src: Any, options: BatchOptions) -> tuple[str, ValueError, float] | None:
+    """(product, error, largest |slope| the raw allows) of the first refocused product whose ``slope`` moves
+    the outermost views of the raw's light field past its whole picture
+    (:func:`plenodecode.render._common.check_slope_reach` on the decoded shape the calibration gives), else None;
+    alpha and a distance become slopes only with the decoded geometry and are checked when rendered."""
     from .decoding.rectify import decoded_shape
     from .pipeline.products import photo_focus
-    from .render._common import check_slope_reach
+    from .render._common import check_slope_reach, slope_reach
 
     for product in options.outputs:
         if product not in ("refocus", "photo") or options.alpha is not None or options.distance_m is not None:
             continue
         if product == "photo" and photo_focus(src.focused).get("total_focus"):
             continue
+        shape = decoded_shape(src.calibration.grid)
         try:
-            check_slope_reach(decoded_shape(src.calibration.grid), options.slope)
+            check_slope_reach(shape, options.slope)
         except ValueError as exc:
-            raise _focus_option_error(product, options, src.raw, exc) from None
+            return product, exc, slope_reach(shape)
+    return None
+
+
+def _check_focus_reach(src: Any, options: BatchOptions) -> None:
+    """Refuse, before decoding, a ``slope`` past the raw's picture (:func:`_slope_reach_error`): a DecodeError
+    naming the option."""
+    found = _slope_reach_error(src, options)
+    if found is not None:
+        raise _focus_option_error(found[0], options, src.raw, found[1])
+
+
+def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
+    """Raise ValueError when ``options.slope`` is past the picture of every raw of ``files`` it applies to (a
+    batch would fail them all), before any is decoded: the error :func:`~plenodecode.render._common.check_slope_reach`
+    gives for the raw allowing the largest slope.
+
+    Each raw is read and its calibration chosen (nothing decoded) until one suits the slope or has no slope to
+    suit (a Raytrix raw's total-focus photograph).  A raw that cannot be read or calibrated is passed over (its
+    task fails for that reason); one whose grid would come from self-calibrating the scene (an image mosaic
+    without a white image) ends the check without an error, as that costs a scene's fit; its task checks it.
+    The library's log is held back to errors meanwhile, so the tasks' warnings are not said twice.
+    """
+    if options.slope == 0 or options.alpha is not None or options.distance_m is not None or not any(
+            p in ("refocus", "photo") for p in options.outputs):
+        return
+    from . import pipeline
+    from .io.generic import is_bare_mosaic
+    from .optics import MicroscopeOptics
+
+    mosaic = options.mosaic_options()
+    refused: list[tuple[float, str, ValueError]] = []
+    logger = logging.getLogger(__name__.split(".")[0])
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        for f in files:
+            try:
+                raw = pipeline.open_raw(f, mosaic=mosaic, optics=MicroscopeOptics.from_dict(options.optics))
+                if options.white is None and is_bare_mosaic(raw):
+                    return
+                cal = pipeline.choose_calibration(raw, database=options.db_dir, white=options.white, mosaic=mosaic)
+                found = _slope_reach_error(pipeline.Source(raw=raw, calibration=cal), options)
+            except (PlenodecodeError, OSError, ValueError):
+                continue
+            if found is None:
+                return
+            refused.append((found[2], Path(f).name, found[1]))
+    finally:
+        logger.setLevel(level)
+    if refused:
+        reach, name, exc = max(refused, key=lambda r: r[0])
+        raise ValueError(str(exc) if len(refused) == 1 else f"{exc} (every one of the {len(refused)} raws; {name} "
+                                                             "allows the most)")
 
 
 def depth_stem(rendered: Any) -> str:
@@ -918,4 +973,4 @@ def write_summary(summary: BatchSummary, out_dir: str | os.PathLike, *, overwrit
 
 
 __all__ = ["display_names", "BATCH_OUTPUTS", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
-           "task_key", "outputs_to_replace", "check_outputs_to_replace", "process_raw", "run_batch", "write_summary", "check_summary_files"]
+           "task_key", "outputs_to_replace", "check_outputs_to_replace", "check_slope_for_any", "process_raw", "run_batch", "write_summary", "check_summary_files"]

@@ -1026,3 +1026,32 @@ def test_cli_exposure_brightens_the_views_folder_as_the_views_command_does(tmp_p
         level[exposure] = [float(np.percentile(srgb_decode(to_unit_float(read_image(p))), 99.5))
                            for p in (centre_view, out / "centre.png", out / "thumbs" / "views.png")]
     assert max(level["0"]) < 0.25 and min(level["auto"]) > 0.9, level
+
+
+def test_cli_a_slope_past_every_raws_picture_is_refused_up_front_before_decoding(tmp_path, monkeypatch):
+    """'batch ... --slope 2000' decoded nothing but still ran every raw into a per-raw failure.  A slope that
+    suits none of the raws is a usage error before any raw is decoded, in the line 'plenodecode refocus' gives
+    (of the raw allowing the most); one that suits some raws runs them and fails the rest per raw."""
+    from plenodecode import pipeline
+
+    root = Path(__file__).resolve().parents[1]
+    raws = [str(root / "sample_raws" / "illum-mini" / "scene.lfr"), str(root / "sample_raws" / "square")]
+    decoded = []
+    real = pipeline.source.decode_raw
+    monkeypatch.setattr(pipeline.source, "decode_raw", lambda *a, **k: decoded.append(a) or real(*a, **k))
+    out = tmp_path / "out"
+    base = ["batch", *raws, "-o", str(out), "--database", str(root / "calib"), "--jobs", "1"]
+    single = CliRunner().invoke(cli, ["refocus", raws[0], "-o", str(tmp_path / "r.png"), "--slope", "2000",
+                                      "--database", str(root / "calib")])
+    line = single.stderr.strip().splitlines()[-1]
+    decoded.clear()
+    res = CliRunner().invoke(cli, [*base, "--slope", "2000"])
+    assert res.exit_code == 2, res.output
+    assert line.startswith("Error: Invalid value for --slope: slope 2000 px/view") and "(|slope| <= 17.9 here)" in line
+    assert res.stderr.strip().splitlines()[-1] == f"{line} (every one of the 2 raws; scene.lfr allows the most)"
+    assert decoded == [] and not out.exists()
+    # a slope within one raw's picture only: that raw is decoded, the other fails in its line
+    res = CliRunner().invoke(cli, [*base, "--slope", "12", "--outputs", "refocus"])
+    rows = {line.split()[0]: line for line in res.stdout.splitlines() if line.startswith("scene.")}
+    assert res.exit_code == 1 and " done " in rows["scene.lfr"], res.output
+    assert " failed " in rows["scene.png"] and "--slope 12 does not suit scene.png" in rows["scene.png"], rows

@@ -118,8 +118,8 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
       plenodecode batch shoot/ -o decoded/ --outputs centre,refocus,depth --jobs 2
       plenodecode batch shoot/ -o decoded/ --scheduler tcp://10.0.0.5:8786
     """
-    from ..batch import (DONE_MARKER, BatchOptions, check_outputs_to_replace, check_summary_files, find_raws,
-                         run_batch, write_summary)
+    from ..batch import (DONE_MARKER, BatchOptions, check_outputs_to_replace, check_slope_for_any,
+                         check_summary_files, find_raws, run_batch, write_summary)
     from ..io.discovery import images_not_taken, needs_no_database
     from ..calib.store import DEFAULT_DB
 
@@ -172,6 +172,10 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
             check_outputs_to_replace(files, out_dir, options)
         except FileExistsError as exc:
             raise _refused(exc) from None
+    try:        # a slope past every raw's picture: refused as 'plenodecode refocus' refuses it, before decoding
+        check_slope_for_any(files, options)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--slope") from None
     try:
         summary = run_batch(files, out_dir, options, jobs=jobs, scheduler=scheduler, overwrite=overwrite,
                             progress=progress_bar(f"decoding {len(files)} raws", ctx))
