@@ -35,6 +35,8 @@ the calibration database and ``out_dir`` under the same paths as the client (a s
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import functools
 import hashlib
 import json
@@ -42,6 +44,7 @@ import logging
 import math
 import os
 import socket
+import threading
 import time
 import traceback
 from dataclasses import asdict, dataclass, replace
@@ -502,6 +505,48 @@ def _skip_result(src: Path, target: Path, key: str, t0: float, started: float) -
                       started=started)
 
 
+#: The file name of the raw the current task (thread) works on: its log lines start with it.
+_TASK_RAW: contextvars.ContextVar[str | None] = contextvars.ContextVar("plenodecode_batch_raw", default=None)
+#: Guards the record factory :func:`_logs_naming_raw` installs while tasks run (threads of a Dask worker).
+_FACTORY_LOCK = threading.Lock()
+_FACTORY_STATE: dict[str, Any] = {"tasks": 0, "base": None}
+
+
+def _naming_factory(base: Callable[..., logging.LogRecord]) -> Callable[..., logging.LogRecord]:
+    """A log record factory over ``base`` that starts the library's lines with the task's raw (:data:`_TASK_RAW`),
+    unless they already name it."""
+    def factory(*args: Any, **kwargs: Any) -> logging.LogRecord:
+        record = base(*args, **kwargs)
+        raw = _TASK_RAW.get()
+        if raw is not None and record.name.startswith("plenodecode.") and record.name != __name__:
+            text = record.getMessage()
+            if not text.startswith(f"{raw}:"):
+                record.msg, record.args = f"{raw}: {text}", ()
+        return record
+    return factory
+
+
+@contextlib.contextmanager
+def _logs_naming_raw(raw: str):
+    """Within: the library's log lines (warnings a worker prints) start with ``raw``, the raw's file name, so a
+    batch's interleaved lines say which raw they are about.  The record factory is installed while any task
+    runs in this process and the previous one restored after the last."""
+    token = _TASK_RAW.set(raw)
+    with _FACTORY_LOCK:
+        if _FACTORY_STATE["tasks"] == 0:
+            _FACTORY_STATE["base"] = logging.getLogRecordFactory()
+            logging.setLogRecordFactory(_naming_factory(_FACTORY_STATE["base"]))
+        _FACTORY_STATE["tasks"] += 1
+    try:
+        yield
+    finally:
+        _TASK_RAW.reset(token)
+        with _FACTORY_LOCK:
+            _FACTORY_STATE["tasks"] -= 1
+            if _FACTORY_STATE["tasks"] == 0:
+                logging.setLogRecordFactory(_FACTORY_STATE["base"])
+
+
 def _lost_result(path: Path, exc: BaseException) -> TaskResult:
     """The 'failed' result of a task whose worker died (or whose result could not come back)."""
     return TaskResult(str(path), "failed", error=f"worker failed: {one_line(exc)}")
@@ -536,7 +581,14 @@ def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: Ba
     t0 = time.perf_counter()
     started = time.time()
     src = Path(path)
-    out = Path(out_dir)
+    with _logs_naming_raw(src.name):
+        return _process_raw(src, Path(out_dir), options, name=name, overwrite=overwrite, threads=threads, t0=t0,
+                            started=started)
+
+
+def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | None, overwrite: bool,
+                 threads: int | None, t0: float, started: float) -> TaskResult:
+    """:func:`process_raw`, its log lines naming the raw."""
     target = out / (name or src.stem)
     try:
         key = task_key(src, options)

@@ -1055,3 +1055,23 @@ def test_cli_a_slope_past_every_raws_picture_is_refused_up_front_before_decoding
     rows = {line.split()[0]: line for line in res.stdout.splitlines() if line.startswith("scene.")}
     assert res.exit_code == 1 and " done " in rows["scene.lfr"], res.output
     assert " failed " in rows["scene.png"] and "--slope 12 does not suit scene.png" in rows["scene.png"], rows
+
+
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_cli_warnings_of_each_raw_name_it(tmp_path, jobs):
+    """Warnings printed by the batch's workers did not say which raw they were about ('slope 1.5 px/view is
+    outside the refocusable range ...' twice, once per raw, interleaved).  Each now starts with the raw's name,
+    in this process (--jobs 1) and from the worker processes (--jobs 2)."""
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    res = subprocess.run([sys.executable, "-m", "plenodecode", "batch", str(root / "sample_raws" / "illum-mini"),
+                          str(root / "sample_raws" / "square"), "-o", str(tmp_path / "out"), "--database",
+                          str(root / "calib"), "--outputs", "refocus", "--slope", "1.5", "--jobs", jobs],
+                         capture_output=True, text=True, env=env, timeout=300)
+    assert res.returncode == 0, res.stderr
+    lines = [line for line in res.stderr.splitlines() if "outside the refocusable range" in line]
+    assert len(lines) == 2, res.stderr
+    assert sorted(line.split("plenodecode.pipeline.products: ")[-1].split(":")[0] for line in lines) == \
+        ["scene.lfr", "scene.png"]
+    assert any("scene.png: slope 1.5 px/view is outside the refocusable range (slope -1.00..+1.00" in line
+               for line in lines), lines
