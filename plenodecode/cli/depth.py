@@ -123,6 +123,11 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       check={"depth": {"metric": metric, "points": ply is not None, "focus_distance": focus_distance}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
+    if metric or ply is not None:
+        from ..pipeline.needs import check_focus_distance
+
+        with usage_errors(param_hint="--focus-distance"):
+            check_focus_distance(src.input, focus_distance)
     if src.focused:     # --metric / --ply are refused by render_product (virtual depth has no metric scale)
         check_focused_options(ctx)
         rendered = render_product(src, "depth", metric=metric, points=ply is not None,
