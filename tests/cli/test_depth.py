@@ -187,3 +187,22 @@ def test_a_disparity_range_past_the_picture_is_refused_before_estimating(tmp_pat
                                  f"-{reach * 0.5:.3f}:{reach * 0.5:.3f}"], obj={})
     assert r.exit_code == 0, r.output
     assert np.isfinite(read_pfm(out)).all()
+
+
+def test_min_confidence_0_says_no_share_below_it_and_the_default_says_the_measured_share(tmp_path):
+    """'depth ... --min-confidence 0' printed '(0 % below 0)'; with 0 nothing is greyed and the line says nothing
+    of it.  With the default the share matches the confidence map written beside the depth."""
+    import re
+
+    from tests.conftest import shared_path
+
+    r42 = shared_path("raytrix-r42", "sc2_klein.png")
+    res = CliRunner().invoke(cli, ["depth", str(r42), "-o", str(tmp_path / "a.pfm"), "--min-confidence", "0"])
+    assert res.exit_code == 0, res.output
+    first = res.stdout.splitlines()[0]
+    assert "below" not in first and re.search(r"mean confidence \d\.\d\d, \d+\.\d s$", first), first
+    res = CliRunner().invoke(cli, ["depth", str(r42), "-o", str(tmp_path / "b.pfm")])
+    conf = read_image(tmp_path / "b_confidence.exr")
+    share = 100 * float(np.mean(conf < np.float32(DEFAULT_MIN_CONFIDENCE)))
+    assert share > 1 and f"({share:.0f} % below {DEFAULT_MIN_CONFIDENCE:g})" in res.stdout.splitlines()[0], \
+        (share, res.stdout)
