@@ -835,7 +835,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
             # the colour map and range of the depth PNG ``plenodecode depth`` writes, with a colour bar; pixels
             # below min_confidence grey
             colours = colour_map_image(rendered.data["values"], label=rendered.data["label"], masked=masked,
-                                       **THUMB_FIGURE)
+                                       near=rendered.data.get("near"), **THUMB_FIGURE)
             written.append((dest, _thumbnail(colours, thumbs / f"{stem}.png", colour="srgb")))
         else:
             try:
