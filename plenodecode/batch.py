@@ -1025,4 +1025,5 @@ def write_summary(summary: BatchSummary, out_dir: str | os.PathLike, *, overwrit
 
 
 __all__ = ["display_names", "BATCH_OUTPUTS", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
-           "task_key", "outputs_to_replace", "check_outputs_to_replace", "check_slope_for_any", "process_raw", "run_batch", "write_summary", "check_summary_files"]
+           "task_key", "outputs_to_replace", "check_outputs_to_replace", "check_slope_for_any", "process_raw",
+           "run_batch", "write_summary", "check_summary_files"]
