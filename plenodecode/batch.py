@@ -24,9 +24,9 @@ of runs that no longer live, and leaves those of a live one alone).  Two batches
 same ``out_dir`` at the same time.
 
 Resuming: ``.done.json`` holds the task key, the SHA-256 of the input's bytes and of the options
-(:func:`task_key`); a later run with the same key skips the raw, a changed input or option re-runs it
-and replaces its folder.  A folder ``out_dir/<name>`` without a marker was not written by a batch
-and is replaced only with ``overwrite=True``.
+(:func:`task_key`); a later run with the same key skips the raw.  A folder ``out_dir/<name>`` of a
+changed input or option, or without a marker (not written by a batch), is replaced only with
+``overwrite=True``: without it the whole run is refused before any work (:func:`check_outputs_to_replace`).
 
 Where the tasks run (forked local workers, a Dask cluster) and how those are kept busy:
 :mod:`plenodecode.batch_workers`.  On a Dask cluster (``scheduler=``) the workers must see the inputs,
@@ -35,6 +35,8 @@ the calibration database and ``out_dir`` under the same paths as the client (a s
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import functools
 import hashlib
 import json
@@ -42,6 +44,7 @@ import logging
 import math
 import os
 import socket
+import threading
 import time
 import traceback
 from dataclasses import asdict, dataclass, replace
@@ -430,6 +433,46 @@ def task_key(path: str | os.PathLike, options: BatchOptions) -> str:
     return h.hexdigest()
 
 
+def outputs_to_replace(files: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
+                       options: BatchOptions) -> list[Path]:
+    """The output folders ``out_dir/<name>`` of ``files`` (:func:`output_names`) that a run would replace:
+    each one that exists and is not a finished result of the same raw bytes and options (which a run
+    skips), i.e. written with other options or inputs, or not by a batch at all.
+
+    Returns
+    -------
+    list of Path
+        In the order of ``files``; only the raws whose folder exists are read (their bytes hashed).
+    """
+    out = Path(out_dir)
+    found = []
+    for f, name in zip(files, output_names(files)):
+        target = out / name
+        if not target.exists():
+            continue
+        marker = _read_marker(target)
+        try:
+            same = marker is not None and marker.get("key") == task_key(f, options)
+        except OSError:         # an unreadable raw fails in its task, for its reason
+            same = True
+        if not same:
+            found.append(target)
+    return found
+
+
+def check_outputs_to_replace(files: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
+                             options: BatchOptions) -> None:
+    """Raise FileExistsError, in one line, when a run without ``overwrite`` would replace output folders
+    (:func:`outputs_to_replace`): how many, the first three, and what to do."""
+    found = outputs_to_replace(files, out_dir, options)
+    if not found:
+        return
+    names = ", ".join(p.name for p in found[:3]) + (f" and {len(found) - 3} more" if len(found) > 3 else "")
+    raise FileExistsError(f"{len(found)} of {len(files)} raws already have an output folder in {out_dir} ({names}) "
+                          "from a run with other options or inputs, or not from a batch; pass --overwrite "
+                          "(overwrite=True) to replace them, or choose another output folder")
+
+
 # ------------------------------------------------------------------------------- tasks
 def _worker_id() -> str:
     return f"{socket.gethostname()}:{os.getpid()}"
@@ -460,6 +503,48 @@ def _skip_result(src: Path, target: Path, key: str, t0: float, started: float) -
     return TaskResult(str(src), "skipped", tuple(str(o) for o in outs), thumbs,
                       seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb(),
                       started=started)
+
+
+#: The file name of the raw the current task (thread) works on: its log lines start with it.
+_TASK_RAW: contextvars.ContextVar[str | None] = contextvars.ContextVar("plenodecode_batch_raw", default=None)
+#: Guards the record factory :func:`_logs_naming_raw` installs while tasks run (threads of a Dask worker).
+_FACTORY_LOCK = threading.Lock()
+_FACTORY_STATE: dict[str, Any] = {"tasks": 0, "base": None}
+
+
+def _naming_factory(base: Callable[..., logging.LogRecord]) -> Callable[..., logging.LogRecord]:
+    """A log record factory over ``base`` that starts the library's lines with the task's raw (:data:`_TASK_RAW`),
+    unless they already name it."""
+    def factory(*args: Any, **kwargs: Any) -> logging.LogRecord:
+        record = base(*args, **kwargs)
+        raw = _TASK_RAW.get()
+        if raw is not None and record.name.startswith("plenodecode.") and record.name != __name__:
+            text = record.getMessage()
+            if not text.startswith(f"{raw}:"):
+                record.msg, record.args = f"{raw}: {text}", ()
+        return record
+    return factory
+
+
+@contextlib.contextmanager
+def _logs_naming_raw(raw: str):
+    """Within: the library's log lines (warnings a worker prints) start with ``raw``, the raw's file name, so a
+    batch's interleaved lines say which raw they are about.  The record factory is installed while any task
+    runs in this process and the previous one restored after the last."""
+    token = _TASK_RAW.set(raw)
+    with _FACTORY_LOCK:
+        if _FACTORY_STATE["tasks"] == 0:
+            _FACTORY_STATE["base"] = logging.getLogRecordFactory()
+            logging.setLogRecordFactory(_naming_factory(_FACTORY_STATE["base"]))
+        _FACTORY_STATE["tasks"] += 1
+    try:
+        yield
+    finally:
+        _TASK_RAW.reset(token)
+        with _FACTORY_LOCK:
+            _FACTORY_STATE["tasks"] -= 1
+            if _FACTORY_STATE["tasks"] == 0:
+                logging.setLogRecordFactory(_FACTORY_STATE["base"])
 
 
 def _lost_result(path: Path, exc: BaseException) -> TaskResult:
@@ -496,7 +581,14 @@ def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: Ba
     t0 = time.perf_counter()
     started = time.time()
     src = Path(path)
-    out = Path(out_dir)
+    with _logs_naming_raw(src.name):
+        return _process_raw(src, Path(out_dir), options, name=name, overwrite=overwrite, threads=threads, t0=t0,
+                            started=started)
+
+
+def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | None, overwrite: bool,
+                 threads: int | None, t0: float, started: float) -> TaskResult:
+    """:func:`process_raw`, its log lines naming the raw."""
     target = out / (name or src.stem)
     try:
         key = task_key(src, options)
@@ -504,9 +596,10 @@ def process_raw(path: str | os.PathLike, out_dir: str | os.PathLike, options: Ba
             skipped = _skip_result(src, target, key, t0, started)
             if skipped is not None:
                 return skipped
-            if target.exists() and _read_marker(target) is None:
-                raise FileExistsError(f"{target} exists and was not written by a batch run; "
-                                      "pass --overwrite (overwrite=True) to replace it")
+            done = _read_marker(target) if target.exists() else None
+            if target.exists() and (done is None or done.get("key") != key):
+                why = "was not written by a batch run" if done is None else "holds a run with other options or inputs"
+                raise FileExistsError(f"{target} exists and {why}; pass --overwrite (overwrite=True) to replace it")
         if threads is not None:
             limit_threads(threads)
         from .optics import MicroscopeOptics
@@ -599,23 +692,78 @@ def _focus_option_error(product: str, options: BatchOptions, raw: Any, exc: Valu
     return DecodeError(f"{FOCUS_OPTIONS[keyword]} {value:g} does not suit {_raw_name(raw)}: {exc}")
 
 
-def _check_focus_reach(src: Any, options: BatchOptions) -> None:
-    """Refuse, before decoding, a ``slope`` that moves the outermost views of the raw's light field past its
-    whole picture (:func:`plenodecode.render._common.check_slope_reach` on the decoded shape the calibration
-    gives); alpha and a distance become slopes only with the decoded geometry and are checked when rendered."""
+def _slope_reach_error(src: Any, options: BatchOptions) -> tuple[str, ValueError, float] | None:
+    """(product, error, largest |slope| the raw allows) of the first refocused product whose ``slope`` moves
+    the outermost views of the raw's light field past its whole picture
+    (:func:`plenodecode.render._common.check_slope_reach` on the decoded shape the calibration gives), else None;
+    alpha and a distance become slopes only with the decoded geometry and are checked when rendered."""
     from .decoding.rectify import decoded_shape
     from .pipeline.products import photo_focus
-    from .render._common import check_slope_reach
+    from .render._common import check_slope_reach, slope_reach
 
     for product in options.outputs:
         if product not in ("refocus", "photo") or options.alpha is not None or options.distance_m is not None:
             continue
         if product == "photo" and photo_focus(src.focused).get("total_focus"):
             continue
+        shape = decoded_shape(src.calibration.grid)
         try:
-            check_slope_reach(decoded_shape(src.calibration.grid), options.slope)
+            check_slope_reach(shape, options.slope)
         except ValueError as exc:
-            raise _focus_option_error(product, options, src.raw, exc) from None
+            return product, exc, slope_reach(shape)
+    return None
+
+
+def _check_focus_reach(src: Any, options: BatchOptions) -> None:
+    """Refuse, before decoding, a ``slope`` past the raw's picture (:func:`_slope_reach_error`): a DecodeError
+    naming the option."""
+    found = _slope_reach_error(src, options)
+    if found is not None:
+        raise _focus_option_error(found[0], options, src.raw, found[1])
+
+
+def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
+    """Raise ValueError when ``options.slope`` is past the picture of every raw of ``files`` it applies to (a
+    batch would fail them all), before any is decoded: the error :func:`~plenodecode.render._common.check_slope_reach`
+    gives for the raw allowing the largest slope.
+
+    Each raw is read and its calibration chosen (nothing decoded) until one suits the slope or has no slope to
+    suit (a Raytrix raw's total-focus photograph).  A raw that cannot be read or calibrated is passed over (its
+    task fails for that reason); one whose grid would come from self-calibrating the scene (an image mosaic
+    without a white image) ends the check without an error, as that costs a scene's fit; its task checks it.
+    The library's log is held back to errors meanwhile, so the tasks' warnings are not said twice.
+    """
+    if options.slope == 0 or options.alpha is not None or options.distance_m is not None or not any(
+            p in ("refocus", "photo") for p in options.outputs):
+        return
+    from . import pipeline
+    from .io.generic import is_bare_mosaic
+    from .optics import MicroscopeOptics
+
+    mosaic = options.mosaic_options()
+    refused: list[tuple[float, str, ValueError]] = []
+    logger = logging.getLogger(__name__.split(".")[0])
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        for f in files:
+            try:
+                raw = pipeline.open_raw(f, mosaic=mosaic, optics=MicroscopeOptics.from_dict(options.optics))
+                if options.white is None and is_bare_mosaic(raw):
+                    return
+                cal = pipeline.choose_calibration(raw, database=options.db_dir, white=options.white, mosaic=mosaic)
+                found = _slope_reach_error(pipeline.Source(raw=raw, calibration=cal), options)
+            except (PlenodecodeError, OSError, ValueError):
+                continue
+            if found is None:
+                return
+            refused.append((found[2], Path(f).name, found[1]))
+    finally:
+        logger.setLevel(level)
+    if refused:
+        reach, name, exc = max(refused, key=lambda r: r[0])
+        raise ValueError(str(exc) if len(refused) == 1 else f"{exc} (every one of the {len(refused)} raws; {name} "
+                                                             "allows the most)")
 
 
 def depth_stem(rendered: Any) -> str:
@@ -687,7 +835,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
             # the colour map and range of the depth PNG ``plenodecode depth`` writes, with a colour bar; pixels
             # below min_confidence grey
             colours = colour_map_image(rendered.data["values"], label=rendered.data["label"], masked=masked,
-                                       **THUMB_FIGURE)
+                                       near=rendered.data.get("near"), **THUMB_FIGURE)
             written.append((dest, _thumbnail(colours, thumbs / f"{stem}.png", colour="srgb")))
         else:
             try:
@@ -751,7 +899,8 @@ def run_batch(inputs: Sequence[str | os.PathLike], out_dir: str | os.PathLike, o
     max_in_flight : int, optional
         Tasks submitted at once (default: 2 per worker).
     overwrite : bool
-        Redo every raw, ignoring earlier results.
+        Redo every raw, ignoring earlier results, and replace its folder.  Without it a run that would replace
+        a folder (another run's options or inputs, or not a batch's) raises FileExistsError before any work.
     progress : callable(done, total), optional
         Called once with ``(0, total)`` and after every finished raw.
 
@@ -769,6 +918,8 @@ def run_batch(inputs: Sequence[str | os.PathLike], out_dir: str | os.PathLike, o
     options = replace(options, db_dir=str(Path(options.db_dir).resolve()))
     out = Path(out_dir).resolve()
     files = [f.resolve() for f in find_raws(inputs, exclude=[out])]
+    if not overwrite:
+        check_outputs_to_replace(files, out, options)
     if scheduler is None:
         jobs = min(jobs or os.cpu_count() or 1, max(1, len(files)))
     pool = None
@@ -874,4 +1025,5 @@ def write_summary(summary: BatchSummary, out_dir: str | os.PathLike, *, overwrit
 
 
 __all__ = ["display_names", "BATCH_OUTPUTS", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
-           "task_key", "process_raw", "run_batch", "write_summary", "check_summary_files"]
+           "task_key", "outputs_to_replace", "check_outputs_to_replace", "check_slope_for_any", "process_raw",
+           "run_batch", "write_summary", "check_summary_files"]

@@ -19,7 +19,7 @@ import pytest
 from click.testing import CliRunner
 
 from plenodecode.batch import (BATCH_OUTPUTS, DONE_MARKER, BatchOptions, BatchSummary, TaskResult, find_raws,
-                               output_names, run_batch, task_key, write_summary)
+                               output_names, process_raw, run_batch, task_key, write_summary)
 from plenodecode.cli.main import cli
 
 SHAPE = (200, 280)
@@ -292,15 +292,16 @@ def test_second_run_skips_finished_raws_and_keeps_files(data, local_run, tmp_pat
     skipped = next(r for r in again.results if r.status == "skipped")
     assert [Path(o).name for o in skipped.outputs] == ["centre.png", "refocus_s+0.30.png", "disparity.pfm",
                                                         "lightfield.npy"]
-    # a changed option re-runs and replaces the folder (the old refocus is gone, the new one there)
+    # a changed option would replace the folders: refused before any work, the files untouched
     changed = replace(local_run["opts"], slope=-0.2)
-    third = run_batch([data["shoot"]], out, changed, jobs=1)
+    with pytest.raises(FileExistsError, match=r"^3 of 3 raws already have an output folder in .*overwrite"):
+        run_batch([data["shoot"]], out, changed, jobs=1)
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()} == stamps
+    # overwrite re-runs and replaces the folder (the old refocus is gone, the new one there)
+    third = run_batch([data["shoot"]], out, changed, jobs=1, overwrite=True)
     assert [r.status for r in third.results] == ["done"] * 3
     assert (out / "scene1" / "refocus_s-0.20.png").is_file()
     assert not (out / "scene1" / "refocus_s+0.30.png").exists()
-    # overwrite redoes everything
-    fourth = run_batch([data["shoot"] / "take3"], out, changed, jobs=1, overwrite=True)
-    assert [r.status for r in fourth.results] == ["done"]
 
 
 def test_changed_input_reruns(data, tmp_path):
@@ -312,7 +313,9 @@ def test_changed_input_reruns(data, tmp_path):
     assert run_batch([src], out, opts, jobs=1).results[0].status == "done"
     assert run_batch([src], out, opts, jobs=1).results[0].status == "skipped"
     shutil.copy(data["shoot"] / "take2" / "scene2.lfr", src / "a.LFR")
-    assert run_batch([src], out, opts, jobs=1).results[0].status == "done"
+    with pytest.raises(FileExistsError, match="1 of 1 raws"):      # its folder holds the other input's outputs
+        run_batch([src], out, opts, jobs=1)
+    assert run_batch([src], out, opts, jobs=1, overwrite=True).results[0].status == "done"
 
 
 def test_refuses_a_foreign_folder_without_overwrite(data, tmp_path):
@@ -320,8 +323,12 @@ def test_refuses_a_foreign_folder_without_overwrite(data, tmp_path):
     (out / "scene1").mkdir(parents=True)
     (out / "scene1" / "mine.txt").write_text("keep me")
     opts = BatchOptions(outputs=("centre",), db_dir=str(data["db"]))
-    r = run_batch([data["shoot"] / "take1"], out, opts, jobs=1).results[0]
-    assert r.status == "failed" and "overwrite" in r.error
+    with pytest.raises(FileExistsError, match="not from a batch; pass --overwrite"):
+        run_batch([data["shoot"] / "take1"], out, opts, jobs=1)
+    assert (out / "scene1" / "mine.txt").read_text() == "keep me"
+    # a task meeting such a folder (made after the check) fails, and keeps it
+    r = process_raw(data["shoot"] / "take1" / "scene1.lfr", out, opts)
+    assert r.status == "failed" and "was not written by a batch run; pass --overwrite" in r.error
     assert (out / "scene1" / "mine.txt").read_text() == "keep me"
     r = run_batch([data["shoot"] / "take1"], out, opts, jobs=1, overwrite=True).results[0]
     assert r.status == "done" and not (out / "scene1" / "mine.txt").exists()
@@ -445,6 +452,31 @@ def test_cli_runs_reports_and_exits_1_on_failures(data, tmp_path):
     assert res.exit_code == 0, res.output
     assert res.stdout == ""
     assert json.loads((out / "summary.json").read_text())["skipped"] == 3
+
+
+def test_cli_second_run_with_other_options_is_refused_up_front_and_overwrite_replaces(data, tmp_path):
+    """'batch FOLDER -o OUT' again with other options replaced every raw's folder without --overwrite (data
+    loss).  Now the run is refused in one line before any work, counting the folders it would replace; the
+    same options resume (skip), and --overwrite replaces them."""
+    out = tmp_path / "out"
+    base = ["batch", str(data["shoot"]), "-o", str(out), "--database", str(data["db"]), "--jobs", "1",
+            "--outputs", "refocus", "--bit-depth", "8"]
+    assert CliRunner().invoke(cli, base).exit_code == 0
+    first = {p: p.read_bytes() for p in out.rglob("*") if p.is_file() and p.parent.parent == out}
+    assert sorted(p.name for p in first if p.suffix == ".png") == ["refocus_s+0.00.png"] * 3
+    res = CliRunner().invoke(cli, [*base, "--slope", "0.25"])
+    assert res.exit_code == 2, res.output
+    error = res.stderr.strip().splitlines()[-1]
+    assert error == (f"Error: 3 of 3 raws already have an output folder in {out} (scene1, scene2, scene3) from a "
+                     "run with other options or inputs, or not from a batch; pass --overwrite to replace them, or "
+                     "choose another -o folder"), error
+    assert "decoding" not in res.stderr
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file() and p.parent.parent == out} == first
+    res = CliRunner().invoke(cli, base)                    # the same options: resumed, nothing replaced
+    assert res.exit_code == 0 and "0 done, 3 skipped" in res.stdout, res.output
+    res = CliRunner().invoke(cli, [*base, "--slope", "0.25", "--overwrite"])
+    assert res.exit_code == 0 and "3 done" in res.stdout, res.output
+    assert sorted(p.name for p in (out / "scene2").glob("*.png")) == ["refocus_s+0.25.png"]
 
 
 @pytest.mark.parametrize("extra", [["--outputs", "centre,bogus"], ["--jobs", "0"], ["--database", "/nonexistent"],
@@ -994,3 +1026,52 @@ def test_cli_exposure_brightens_the_views_folder_as_the_views_command_does(tmp_p
         level[exposure] = [float(np.percentile(srgb_decode(to_unit_float(read_image(p))), 99.5))
                            for p in (centre_view, out / "centre.png", out / "thumbs" / "views.png")]
     assert max(level["0"]) < 0.25 and min(level["auto"]) > 0.9, level
+
+
+def test_cli_a_slope_past_every_raws_picture_is_refused_up_front_before_decoding(tmp_path, monkeypatch):
+    """'batch ... --slope 2000' decoded nothing but still ran every raw into a per-raw failure.  A slope that
+    suits none of the raws is a usage error before any raw is decoded, in the line 'plenodecode refocus' gives
+    (of the raw allowing the most); one that suits some raws runs them and fails the rest per raw."""
+    from plenodecode import pipeline
+
+    root = Path(__file__).resolve().parents[1]
+    raws = [str(root / "sample_raws" / "illum-mini" / "scene.lfr"), str(root / "sample_raws" / "square")]
+    decoded = []
+    real = pipeline.source.decode_raw
+    monkeypatch.setattr(pipeline.source, "decode_raw", lambda *a, **k: decoded.append(a) or real(*a, **k))
+    out = tmp_path / "out"
+    base = ["batch", *raws, "-o", str(out), "--database", str(root / "calib"), "--jobs", "1"]
+    single = CliRunner().invoke(cli, ["refocus", raws[0], "-o", str(tmp_path / "r.png"), "--slope", "2000",
+                                      "--database", str(root / "calib")])
+    line = single.stderr.strip().splitlines()[-1]
+    decoded.clear()
+    res = CliRunner().invoke(cli, [*base, "--slope", "2000"])
+    assert res.exit_code == 2, res.output
+    assert line.startswith("Error: Invalid value for --slope: slope 2000 px/view") and "(|slope| <= 17.9 here)" in line
+    assert res.stderr.strip().splitlines()[-1] == f"{line} (every one of the 2 raws; scene.lfr allows the most)"
+    assert decoded == [] and not out.exists()
+    # a slope within one raw's picture only: that raw is decoded, the other fails in its line
+    res = CliRunner().invoke(cli, [*base, "--slope", "12", "--outputs", "refocus"])
+    rows = {line.split()[0]: line for line in res.stdout.splitlines() if line.startswith("scene.")}
+    assert res.exit_code == 1 and " done " in rows["scene.lfr"], res.output
+    assert " failed " in rows["scene.png"] and "--slope 12 does not suit scene.png" in rows["scene.png"], rows
+
+
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_cli_warnings_of_each_raw_name_it(tmp_path, jobs):
+    """Warnings printed by the batch's workers did not say which raw they were about ('slope 1.5 px/view is
+    outside the refocusable range ...' twice, once per raw, interleaved).  Each now starts with the raw's name,
+    in this process (--jobs 1) and from the worker processes (--jobs 2)."""
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    res = subprocess.run([sys.executable, "-m", "plenodecode", "batch", str(root / "sample_raws" / "illum-mini"),
+                          str(root / "sample_raws" / "square"), "-o", str(tmp_path / "out"), "--database",
+                          str(root / "calib"), "--outputs", "refocus", "--slope", "1.5", "--jobs", jobs],
+                         capture_output=True, text=True, env=env, timeout=300)
+    assert res.returncode == 0, res.stderr
+    lines = [line for line in res.stderr.splitlines() if "outside the refocusable range" in line]
+    assert len(lines) == 2, res.stderr
+    assert sorted(line.split("plenodecode.pipeline.products: ")[-1].split(":")[0] for line in lines) == \
+        ["scene.lfr", "scene.png"]
+    assert any("scene.png: slope 1.5 px/view is outside the refocusable range (slope -1.00..+1.00" in line
+               for line in lines), lines

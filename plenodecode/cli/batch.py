@@ -45,6 +45,12 @@ def _echo_table(summary) -> None:
         click.echo(f"{name:{width}s}  {r.status:8s} {r.seconds:8.1f}  {detail}")
 
 
+def _refused(exc: FileExistsError) -> click.UsageError:
+    """The usage error of an output the batch would replace: the library's advice in the options' names."""
+    text = str(exc).replace(" (overwrite=True)", "").replace("choose another output folder", "choose another -o folder")
+    return click.UsageError(text)
+
+
 def _is_lightfield_folder(folder: Path) -> bool:
     """An HCI scene folder or a light field saved as a folder of views (its ``lightfield.json``)."""
     from ..pipeline import input_kind
@@ -112,7 +118,8 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
       plenodecode batch shoot/ -o decoded/ --outputs centre,refocus,depth --jobs 2
       plenodecode batch shoot/ -o decoded/ --scheduler tcp://10.0.0.5:8786
     """
-    from ..batch import DONE_MARKER, BatchOptions, check_summary_files, find_raws, run_batch, write_summary
+    from ..batch import (DONE_MARKER, BatchOptions, check_outputs_to_replace, check_slope_for_any,
+                         check_summary_files, find_raws, run_batch, write_summary)
     from ..io.discovery import images_not_taken, needs_no_database
     from ..calib.store import DEFAULT_DB
 
@@ -123,7 +130,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
         try:
             check_summary_files(out_dir)
         except FileExistsError as exc:
-            raise click.UsageError(str(exc)) from None
+            raise _refused(exc) from None
     files = find_raws(inputs, exclude=[out_dir])
     # e.g. a microscope's raw beside its white and dark frames: only the user knows which image is the raw
     images = images_not_taken(inputs, exclude=[out_dir], stop_marker=DONE_MARKER, taken=files)
@@ -160,6 +167,15 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
                            input_encoding=mosaic.input_encoding, white=None if white is None else str(white),
                            geometry=None if current_geometry() is None else current_geometry().to_dict(),
                            views_anyway=views_anyway, **_microscope_fields())
+    if not overwrite:       # a second run with other options must not replace the first run's folders
+        try:
+            check_outputs_to_replace(files, out_dir, options)
+        except FileExistsError as exc:
+            raise _refused(exc) from None
+    try:        # a slope past every raw's picture: refused as 'plenodecode refocus' refuses it, before decoding
+        check_slope_for_any(files, options)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--slope") from None
     try:
         summary = run_batch(files, out_dir, options, jobs=jobs, scheduler=scheduler, overwrite=overwrite,
                             progress=progress_bar(f"decoding {len(files)} raws", ctx))

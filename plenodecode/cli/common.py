@@ -631,8 +631,12 @@ def focus_point(at: tuple[float, float, bool] | None, shape: tuple[int, ...]) ->
         return None
     x, y, fractional = at
     point = (y * (shape[2] - 1), x * (shape[3] - 1)) if fractional else (y, x)
-    with usage_errors(param_hint="--focus-at"):
+    try:
         return check_point(point, shape[2:4])
+    except ValueError:      # the library's message names its keyword 'at' and (row, column): say it as typed
+        raise click.BadParameter(f"X,Y = {x:g},{y:g} lies outside the centre view: X (column) 0 to {shape[3] - 1}, "
+                                 f"Y (row) 0 to {shape[2] - 1}, or fractions 0.0-1.0",
+                                 param_hint="--focus-at") from None
 
 
 def focus_hint(*, alpha: Any = None, distance_m: Any = None, focus_at: Any = None, stack: Any = None) -> str:

@@ -59,6 +59,15 @@ def check_focused_options(ctx: click.Context) -> None:
                                      param_hint=opt)
 
 
+def _below_note(confidence, min_confidence: float) -> str:
+    """' (12 % below 0.1)': the share of pixels the PNG greys out, or '' with --min-confidence 0 (none are)."""
+    import numpy as np
+
+    if min_confidence <= 0:
+        return ""
+    return f" ({100 * float(np.mean(confidence < np.float32(min_confidence))):.0f} % below {min_confidence:g})"
+
+
 @click.command("depth")
 @click.argument("input_path", metavar="RAW_OR_LF", type=click.Path(exists=True, path_type=Path))
 @output_option
@@ -123,6 +132,11 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       check={"depth": {"metric": metric, "points": ply is not None, "focus_distance": focus_distance}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
+    if metric or ply is not None:
+        from ..pipeline.needs import check_focus_distance
+
+        with usage_errors(param_hint="--focus-distance"):
+            check_focus_distance(src.input, focus_distance)
     if src.focused:     # --metric / --ply are refused by render_product (virtual depth has no metric scale)
         check_focused_options(ctx)
         rendered = render_product(src, "depth", metric=metric, points=ply is not None,
@@ -140,8 +154,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
         v, conf = rendered.data["values"], rendered.data["depthmap"].confidence
         lo, hi = np.nanpercentile(v, [2, 98]) if np.isfinite(v).any() else (np.nan, np.nan)
         click.echo(f"focused-plenoptic raw: virtual depth {lo:.2f} .. {hi:.2f} (2nd..98th percentile) on the "
-                   f"{v.shape[1]} x {v.shape[0]} total-focus grid, mean confidence {float(conf.mean()):.2f} "
-                   f"({100 * float(np.mean(conf < min_confidence)):.0f} % below {min_confidence:g}), "
+                   f"{v.shape[1]} x {v.shape[0]} total-focus grid, mean confidence {float(conf.mean()):.2f}"
+                   f"{_below_note(conf, min_confidence)}, "
                    f"{rendered.data['depthmap'].params['seconds']:.1f} s")
         for p in written:
             click.echo(f"wrote {p}")
@@ -149,8 +163,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
         dm = rendered.data["depthmap"]
         d = dm.disparity
         click.echo(f"{method}: disparity {float(np.nanmin(d)):.3f} .. {float(np.nanmax(d)):.3f} px/view, "
-                   f"mean confidence {float(dm.confidence.mean()):.2f} "
-                   f"({100 * float(np.mean(dm.confidence < min_confidence)):.0f} % below {min_confidence:g}), "
+                   f"mean confidence {float(dm.confidence.mean()):.2f}"
+                   f"{_below_note(dm.confidence, min_confidence)}, "
                    f"{dm.params['seconds']:.1f} s")
         if metric:
             z = rendered.data["values"]

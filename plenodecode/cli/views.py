@@ -63,6 +63,11 @@ def command(ctx: click.Context, input_path: Path, output: Path, view: tuple[floa
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     refuse_focused_views(src.focused, input_path, views_anyway, instead=FOCUSED_PHOTO.format(raw=input_path))
     lf = src.lightfield
+    if view is not None:        # said as the option's V U, not the library's keywords v, u
+        for label, index, n in (("V (view row)", view[0], lf.shape[0]), ("U (view column)", view[1], lf.shape[1])):
+            if index > n - 1:
+                raise click.BadParameter(f"{label} {index:g} is past the last view of this {lf.shape[0]} x "
+                                         f"{lf.shape[1]} light field: 0 to {n - 1}", param_hint="--view")
     with usage_errors(param_hint="--view"):
         rendered = render_product(src, "views", view=view, interp=interp)
     with usage_errors():

@@ -169,7 +169,8 @@ def check_min_confidence(value: float, name: str = "min_confidence") -> float:
 def colour_map_figure(values: np.ndarray, *, label: str, cmap: str = DEPTH_CMAP, vmin: float | None = None,
                       vmax: float | None = None, percentiles: tuple[float, float] = DEPTH_PERCENTILES,
                       title: str | None = None, masked: np.ndarray | None = None, width_in: float = 6.0,
-                      dpi: int | None = None, fontsize: float | None = None, mark: float | None = None):
+                      dpi: int | None = None, fontsize: float | None = None, mark: float | None = None,
+                      near: str | None = None):
     """A matplotlib Figure (no pyplot state) of ``values`` with a colour bar naming ``label``.
 
     Parameters
@@ -189,6 +190,10 @@ def colour_map_figure(values: np.ndarray, *, label: str, cmap: str = DEPTH_CMAP,
         text size (points; default matplotlib's).
     mark : float, optional
         A value drawn as a :data:`CONFIDENCE_MARK` line across the colour bar (a threshold).
+    near : {'high', 'low'}, optional
+        Which end of ``values`` is nearest the camera: 'high' for disparity (HCI sign), 'low' for depth.  Near is
+        then the top (warm) end of the colour map and of the colour bar in both (depth: ``cmap`` reversed, its bar
+        upside down), whose ends say 'near' and 'far'.  None: the map as it is, no such words.
 
     The figure's size and the image's place in it depend only on the shape of ``values``, whether there is a
     title, ``width_in``, ``dpi`` and ``fontsize``: two maps of one shape line up pixel for pixel.
@@ -197,8 +202,13 @@ def colour_map_figure(values: np.ndarray, *, label: str, cmap: str = DEPTH_CMAP,
     -------
     matplotlib.figure.Figure
     """
+    from matplotlib import colormaps
     from matplotlib.figure import Figure
 
+    if near not in (None, "high", "low"):
+        raise ValueError(f"near must be 'high', 'low' or None, got {near!r}")
+    if near == "low":
+        cmap = colormaps[cmap].reversed()
     v = np.asarray(values, np.float64)
     grey = None if masked is None else np.asarray(masked, bool)
     if grey is not None and grey.shape != v.shape:
@@ -226,6 +236,11 @@ def colour_map_figure(values: np.ndarray, *, label: str, cmap: str = DEPTH_CMAP,
     cb.set_label(label, fontsize=fontsize)
     if mark is not None:
         cb.ax.axhline(mark, color=CONFIDENCE_MARK, linewidth=2.0)
+    if near is not None:
+        if near == "low":
+            cb.ax.invert_yaxis()
+        for text, y, va in (("near", 1.01, "bottom"), ("far", -0.01, "top")):
+            cb.ax.text(0.5, y, text, transform=cb.ax.transAxes, ha="center", va=va, fontsize=fontsize or 9)
     if fontsize:
         cb.ax.tick_params(labelsize=fontsize)
     return fig
@@ -249,13 +264,14 @@ def colour_map_image(values: np.ndarray, **figure_options) -> np.ndarray:
 
 def write_colour_map_png(path: str | os.PathLike, values: np.ndarray, *, label: str, cmap: str = DEPTH_CMAP,
                          vmin: float | None = None, vmax: float | None = None, title: str | None = None,
-                         masked: np.ndarray | None = None, mark: float | None = None, overwrite: bool = False) -> Path:
+                         masked: np.ndarray | None = None, mark: float | None = None, near: str | None = None,
+                         overwrite: bool = False) -> Path:
     """Write ``values`` (Y, X) as a colour-mapped PNG with a legend (see :func:`colour_map_figure`)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     p = check_destination(path, overwrite)            # refuse before drawing
     fig = colour_map_figure(values, label=label, cmap=cmap, vmin=vmin, vmax=vmax, title=title, masked=masked,
-                            mark=mark)
+                            mark=mark, near=near)
     FigureCanvasAgg(fig)
     with atomic_output(p, overwrite=overwrite, suffix=".png") as tmp:
         fig.savefig(tmp, format="png")
@@ -297,7 +313,7 @@ def display_colours(image: np.ndarray, colour_state: str) -> np.ndarray:
 def write_depth_outputs(pfm_path: str | os.PathLike, values: np.ndarray, *, label: str,
                         confidence: np.ndarray | None = None, min_confidence: float = DEFAULT_MIN_CONFIDENCE,
                         points: np.ndarray | None = None, colours: np.ndarray | None = None,
-                        ply: str | os.PathLike | None = None, title: str | None = None,
+                        ply: str | os.PathLike | None = None, title: str | None = None, near: str | None = None,
                         overwrite: bool = False) -> list[Path]:
     """Write a disparity or depth map as PFM + 32-bit EXR + colour-mapped PNG (+ confidence EXR and PNG)
     (+ PLY point cloud).
@@ -321,6 +337,9 @@ def write_depth_outputs(pfm_path: str | os.PathLike, values: np.ndarray, *, labe
         3-D points (m) and uint8 colours for the PLY; non-finite points are skipped.
     ply : path-like, optional
         Where to write the point cloud (needs ``points``).
+    near : {'high', 'low'}, optional
+        Which end of ``values`` is nearest (disparity: 'high', depth: 'low'): near is the warm end of the PNG's
+        colours and the top of its colour bar either way (:func:`colour_map_figure`).
 
     Returns
     -------
@@ -353,7 +372,7 @@ def write_depth_outputs(pfm_path: str | os.PathLike, values: np.ndarray, *, labe
     paths["pfm"].parent.mkdir(parents=True, exist_ok=True)
     written.append(write_pfm(paths["pfm"], v, overwrite=overwrite))
     written.append(write_image(paths["exr"], v, bit_depth=32, overwrite=overwrite))
-    written.append(write_colour_map_png(paths["png"], v, label=label, title=title, masked=masked,
+    written.append(write_colour_map_png(paths["png"], v, label=label, title=title, masked=masked, near=near,
                                         overwrite=overwrite))
     if conf is not None:
         written.append(write_image(paths["confidence_exr"], conf, bit_depth=32, overwrite=overwrite))

@@ -124,6 +124,23 @@ def _missing(item: LightField | RawCapture, need: str, options: Mapping[str, Any
     return None
 
 
+def check_focus_distance(item: LightField | RawCapture, focus_distance_m: float | None) -> None:
+    """Refuse, before decoding, a focus distance given for a plenoptic camera's metric depth that is not beyond
+    its main lens's focal length (no image forms there: :func:`plenodecode.depth.metric.plenoptic_constants` would
+    fail after the whole depth estimate).  ValueError saying both lengths; None passes."""
+    from ..depth.metric import depth_model
+
+    if focus_distance_m is None:
+        return
+    stand_in = _decoded_geometry(item)
+    f = getattr(stand_in.geometry, "focal_length_m", None)
+    if f is None or depth_model(stand_in, {"focus_distance_m": focus_distance_m}) != "plenoptic":
+        return
+    if focus_distance_m <= f:
+        raise ValueError(f"{focus_distance_m:g} m is not beyond the main lens's focal length ({f * 1000:.3g} mm) of "
+                         f"{_name(item)}: give the distance the camera was focused at, in metres")
+
+
 #: Why a focused-plenoptic raw's depth stays in virtual depth (:func:`check_product`).
 FOCUSED_NOT_METRIC = ("a focused-plenoptic (Raytrix) raw's depth is virtual depth (v = a / B): metres need the main "
                       "lens and the MLA-sensor distance B, which its RayCalibData does not hold; write virtual depth "

@@ -285,7 +285,7 @@ def write_depth(rendered: Rendered, pfm_path: str | os.PathLike, *, ply: str | o
     return write_depth_outputs(pfm_path, values, label=rendered.data["label"],
                                confidence=rendered.data["depthmap"].confidence, min_confidence=min_confidence,
                                points=rendered.data.get("points"), colours=rendered.data.get("colours"), ply=ply,
-                               title=title, overwrite=overwrite)
+                               title=title, near=rendered.data.get("near"), overwrite=overwrite)
 
 
 def write_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | None = None, bit_depth: int = 16,

@@ -242,7 +242,8 @@ def render_depth(src: Source, *, method: str | None = None, disparity_range: tup
     colour.
 
     ``data``: 'depthmap' (DepthMap), 'values' (Y, X) float32 (depth in 'unit' with ``metric``, else disparity),
-    'unit', 'label', and with ``points`` 'points' (Y, X, 3) in 'unit' and 'colours' (Y, X, 3) uint8.
+    'unit', 'label', 'near' (which values are nearest: 'high' for disparity, 'low' for depth), and with ``points``
+    'points' (Y, X, 3) in 'unit' and 'colours' (Y, X, 3) uint8.
 
     A focused-plenoptic (Raytrix) raw (``src.focused``) is not decoded (its views have one pixel per lens):
     :func:`render_focused_depth` gives its virtual depth at the total-focus image's resolution.
@@ -263,7 +264,8 @@ def render_depth(src: Source, *, method: str | None = None, disparity_range: tup
     depth = disparity_to_depth(dm, lf, **overrides) if (metric or points) else None
     data: dict[str, Any] = {"depthmap": dm, "method": method, "unit": unit if metric else "px / view step",
                             "values": depth * scale if metric else dm.disparity,
-                            "label": f"depth ({unit})" if metric else "disparity (px / view step)"}
+                            "label": f"depth ({unit})" if metric else "disparity (px / view step)",
+                            "near": "low" if metric else "high"}     # which values are nearest: the colour maps
     if points:
         from ..io.depthio import display_colours
 

@@ -187,3 +187,57 @@ def test_a_disparity_range_past_the_picture_is_refused_before_estimating(tmp_pat
                                  f"-{reach * 0.5:.3f}:{reach * 0.5:.3f}"], obj={})
     assert r.exit_code == 0, r.output
     assert np.isfinite(read_pfm(out)).all()
+
+
+def test_min_confidence_0_says_no_share_below_it_and_the_default_says_the_measured_share(tmp_path):
+    """'depth ... --min-confidence 0' printed '(0 % below 0)'; with 0 nothing is greyed and the line says nothing
+    of it.  With the default the share matches the confidence map written beside the depth."""
+    import re
+
+    from tests.conftest import shared_path
+
+    r42 = shared_path("raytrix-r42", "sc2_klein.png")
+    res = CliRunner().invoke(cli, ["depth", str(r42), "-o", str(tmp_path / "a.pfm"), "--min-confidence", "0"])
+    assert res.exit_code == 0, res.output
+    first = res.stdout.splitlines()[0]
+    assert "below" not in first and re.search(r"mean confidence \d\.\d\d, \d+\.\d s$", first), first
+    res = CliRunner().invoke(cli, ["depth", str(r42), "-o", str(tmp_path / "b.pfm")])
+    conf = read_image(tmp_path / "b_confidence.exr")
+    share = 100 * float(np.mean(conf < np.float32(DEFAULT_MIN_CONFIDENCE)))
+    assert share > 1 and f"({share:.0f} % below {DEFAULT_MIN_CONFIDENCE:g})" in res.stdout.splitlines()[0], \
+        (share, res.stdout)
+
+
+def test_disparity_and_metric_depth_pngs_colour_near_the_same_way(tmp_path):
+    """The metric-depth PNG coloured near as blue (small depth, the cold end of the map) while the disparity PNG
+    coloured near as red.  On HCI antinous (the bust in front of a far wall) the nearest tenth of the confident
+    pixels is warm and the farthest tenth cold in both PNGs, and both colour bars say near at the top."""
+    from plenodecode.io.depthio import colour_map_figure
+    from tests.conftest import shared_path
+
+    hci = shared_path("hci-antinous")
+    shown = {}
+    for name, extra in (("d", []), ("z", ["--metric"])):
+        res = CliRunner().invoke(cli, ["depth", str(hci), "-o", str(tmp_path / f"{name}.pfm"), "--method", "fast",
+                                       *extra])
+        assert res.exit_code == 0, res.output
+    d = read_pfm(tmp_path / "d.pfm")
+    conf = read_image(tmp_path / "d_confidence.exr")
+    ok = np.isfinite(d) & (conf >= DEFAULT_MIN_CONFIDENCE)
+    near = ok & (d >= np.quantile(d[ok], 0.9))
+    far = ok & (d <= np.quantile(d[ok], 0.1))
+    for name in ("d", "z"):
+        rgb, _ = _map_pixels(tmp_path / f"{name}.png", d.shape)
+        warmth = rgb[..., 0].astype(np.float64) - rgb[..., 2]
+        shown[name] = (float(np.mean(warmth[near])), float(np.mean(warmth[far])))
+    for name, (near_warmth, far_warmth) in shown.items():
+        assert near_warmth > 100 and far_warmth < -15, shown       # red - blue, 0-255 (measured 174, -28)
+    z = read_pfm(tmp_path / "z.pfm")
+    assert np.nanmedian(z[near]) < np.nanmedian(z[far])             # the near pixels are near in metres too
+    for values, near_end in ((d, "high"), (z, "low")):
+        fig = colour_map_figure(values, label="x", near=near_end)
+        bar = fig.axes[1]
+        top = max(bar.texts, key=lambda t: t.get_position()[1])
+        warm_at_top = bar.get_ylim()[1] == (np.nanmax if near_end == "high" else np.nanmin)(bar.get_ylim())
+        assert top.get_text() == "near" and {t.get_text() for t in bar.texts} == {"near", "far"}
+        assert warm_at_top
