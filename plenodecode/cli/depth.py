@@ -11,7 +11,7 @@ from ..depth import DEFAULT_METHOD
 from ..io.atomic import refuse_folder
 from ..io.depthio import DEFAULT_MIN_CONFIDENCE
 from .common import (POSITIVE, UNIT_INTERVAL, RegistryChoice, calibration_kwargs, input_options, output_option,
-                     overwrite_option, progress_bar, quiet, usage_errors)
+                     overwrite_option, progress_bar, quiet, refuse_writing_over_command_inputs, usage_errors)
 
 
 def parse_range(text: str | None) -> tuple[float, float] | None:
@@ -125,6 +125,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
     with usage_errors():
         for p in paths.values():
             refuse_folder(p)
+    refuse_writing_over_command_inputs(list(paths.values()), input_path, calibration, white)
     if not overwrite:
         clash = [p for p in paths.values() if p.exists()]
         if clash:

@@ -245,8 +245,9 @@ def test_an_output_over_the_raw_or_its_sidecar_is_refused(files, tmp_path):
 
 def test_the_one_liner_and_the_other_writers_refuse_to_write_over_their_inputs(files, tmp_path):
     """'plenodecode scene.png -w white.png -o scene.png --overwrite' decoded the mosaic and wrote the photograph over
-    it (the raw lost); refocus, views, parallax and export did the same with their outputs.  Every writer now
-    refuses, naming -o, before any work, and leaves the inputs byte for byte as they were."""
+    it (the raw lost); refocus, views, parallax, export and depth (its colour map scene.png beside scene.pfm) did the
+    same with their outputs.  Every writer now refuses, naming -o, before any work, and leaves the inputs byte for
+    byte as they were."""
     import shutil
 
     sim, raw, white, grid = files
@@ -264,7 +265,8 @@ def test_the_one_liner_and_the_other_writers_refuse_to_write_over_their_inputs(f
              (["parallax", frame, "-w", wpng, "-o", tmp_path / "w.gif", "--frames-dir", tmp_path, "--frames", "2"],
               "would replace the input frame_001.png"),
              (["export", tmp_path / "lf.npy", "-o", tmp_path / "lf.png", "--format", "eslf"],
-              "would replace the input lf.json, the sidecar of lf.npy")]
+              "would replace the input lf.json, the sidecar of lf.npy"),
+             (["depth", scene, "-w", wpng, "-o", tmp_path / "scene.pfm"], "would replace the input scene.png")]
     for args, words in cases:
         res = CliRunner().invoke(cli, [str(a) for a in args] + ["--overwrite"])
         errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
