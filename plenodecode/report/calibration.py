@@ -582,8 +582,9 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
         if len(m["centres"]):
             what = ("disk rims fitted at every lens as self-calibration measures them, lenses the fit rejected "
                     "included; the RMS line is over the fit's inliers") \
-                if kind == "self-calibration" else ("disks of the white image; the grid centre is the lens centre the "
-                                                    "decoder uses")
+                if kind == "self-calibration" else ("disks of the white image, detected again at full resolution; the "
+                                                    "grid centre is the lens centre the decoder uses, so the RMS line "
+                                                    f"is theirs, not the fit's {rms}")
             # a white image's residuals are against the centres the decoder uses (measured where a smooth
             # distortion moves them): their own RMS, not the lattice fit's
             rms_line = j.rms if kind == "self-calibration" else None

@@ -4,6 +4,7 @@ the grid by what that source can show, with one RMS figure defined once."""
 from __future__ import annotations
 
 import dataclasses
+import html as html_module
 import re
 
 import pytest
@@ -21,7 +22,7 @@ def _text(path) -> str:
     html = path.read_text()
     html = re.sub(r"<style>.*?</style>", "", html, flags=re.S)
     html = re.sub(r'data:image/png;base64,[^"]+', "", html)
-    return re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html))
+    return html_module.unescape(re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html)))
 
 
 @pytest.fixture(scope="module")
@@ -73,7 +74,11 @@ def test_one_rms_defined_once(white, tmp_path):
     figure = rms_text(grid)
     assert f"RMS {figure}" in text                       # the header
     assert f"{figure} (of the fit)" in text              # the table, the same figure
-    assert text.count("RMS") == 3                        # header, table row, definition
+    assert text.count("RMS") == 4                        # header, table row, definition, residuals' caption
+    # the histogram's RMS line is of the full-resolution detection against the decoder's centres: its caption
+    # says so and names the fit's figure
+    assert f"detected again at full resolution; the grid centre is the lens centre the decoder uses, so the RMS " \
+           f"line is theirs, not the fit's {figure}" in text
     from click.testing import CliRunner
 
     from plenodecode.cli.main import cli
