@@ -508,7 +508,8 @@ def _params(grid: LensletGrid) -> list[tuple[str, str]]:
                 "n_detected", "n_fit"):
         if inf.get(key) is not None:
             v = inf[key]
-            rows.append((INFO_LABELS.get(key, key.replace("_", " ")), f"{v:.3f}" if isinstance(v, float) else str(v)))
+            text = (f"{v:.0f}" if float(v).is_integer() else f"{v:.3f}") if isinstance(v, float) else str(v)
+            rows.append((INFO_LABELS.get(key, key.replace("_", " ")), text))     # zoom step -312, not -312.000
     return rows
 
 

@@ -172,3 +172,21 @@ def test_the_two_disk_counts_of_a_real_white_are_labelled(tmp_path):
             f"{info['n_detected']})") in text, text
     assert f"disks detected by the fit {info['n_detected']} disks the fit kept (inliers) {info['n_fit']}" in text
     assert "n detected" not in text
+
+
+def test_the_camera_steps_of_a_real_white_read_as_whole_numbers(tmp_path):
+    """'calibrate sample_raws/illum-mini/MOD_0000.RAW --report' listed 'zoom step -312.000' and 'focus step
+    417.000' (the camera writes whole steps); they read -312 and 417, other floats keep three decimals."""
+    from pathlib import Path
+
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+
+    white = Path(__file__).resolve().parents[2] / "sample_raws" / "illum-mini" / "MOD_0000.RAW"
+    res = CliRunner().invoke(cli, ["calibrate", str(white), "-o", str(tmp_path / "g.json"),
+                                   "--report", str(tmp_path / "r.html")])
+    assert res.exit_code == 0, res.output
+    text = _text(tmp_path / "r.html")
+    assert " zoom step -312 " in text and " focus step 417 " in text and ".000 " not in text.split("zoom step")[1][:40]
+    assert re.search(r" disk radius \d+\.\d{3} px ", text)
