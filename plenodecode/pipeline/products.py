@@ -481,17 +481,17 @@ def photo_focus(focused: bool, *, refocus: bool = False) -> dict[str, Any]:
 
 
 def render_photo(src: Source, *, slope: float | None = None, alpha: float | None = None,
-                 distance_m: float | None = None) -> Rendered:
+                 distance_m: float | None = None, aperture: float = 1.0) -> Rendered:
     """The camera's photograph, as ``plenodecode RAW -o photo.png`` writes it without a focus option
     (:func:`photo_focus`): a focused-plenoptic (Raytrix) raw's total focus (:func:`render_total_focus`), else the
-    photograph refocused (:func:`render_refocus`) at ``slope``, ``alpha`` or ``distance_m``, by default as
-    captured.  The rendered product says which ('total-focus' or 'refocus')."""
+    photograph refocused (:func:`render_refocus`, through the synthetic ``aperture``) at ``slope``, ``alpha`` or
+    ``distance_m``, by default as captured.  The rendered product says which ('total-focus' or 'refocus')."""
     chosen = photo_focus(src.focused)
     if chosen.get("total_focus"):
         return render_total_focus(src)
     if slope is None and alpha is None and distance_m is None:
         slope = chosen["slope"]
-    return render_refocus(src, slope=slope, alpha=alpha, distance_m=distance_m)
+    return render_refocus(src, slope=slope, alpha=alpha, distance_m=distance_m, aperture=aperture)
 
 
 #: Product name -> ``fn(source, **options) -> Rendered``; the same names in the CLI, batch and Python.
