@@ -182,7 +182,7 @@ def render_focal_stack(src: Source, *, start: float, stop: float, n: int, units:
     from ..render.allinfocus import all_in_focus_from_stack
 
     if not 2 <= int(n) <= MAX_STACK_SLICES:
-        raise ValueError(f"a focal stack has 2 to {MAX_STACK_SLICES} slices, got {n}")
+        raise ValueError(f"n (slices of a focal stack) must be 2 to {MAX_STACK_SLICES}, got {n}")
     lf = src.lightfield
     slopes = lookup(STACK_UNITS, units, param="units")(np.linspace(start, stop, n), lf)
     imgs = focal_stack(lf, slopes, method=method, aperture=aperture, upsample=upsample, progress=progress)
@@ -225,6 +225,8 @@ def render_parallax(src: Source, *, frames: int = 24, radius: float | None = Non
     numbered frames ``frame_000`` ... and, in ``data['animation']``, the (N, Y, X, 3) frames of the animation."""
     from ..render import render_parallax as parallax
 
+    if isinstance(frames, bool) or int(frames) != frames or frames < 1:     # named as this function takes it
+        raise ValueError(f"frames must be a positive integer, got {frames!r}")
     lf = src.lightfield
     out = parallax(lf, frames, radius, interp=interp, progress=progress)
     anim = out if out.shape[-1] == 3 else out.repeat(3, axis=-1)

@@ -20,6 +20,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from plenodecode import pipeline
+from plenodecode.batch import BatchOptions
 from plenodecode.cli.main import cli
 from tests.conftest import ROOT
 
@@ -197,7 +199,7 @@ def test_table_names_real_options_and_keywords_and_says_why_they_differ(key):
 def test_every_batch_option_sets_a_batch_keyword(option):
     """``plenodecode batch --x`` is ``run_batch(..., BatchOptions(x=...))`` in Python: the same name, or one of
     :data:`BATCH_KEYWORDS`."""
-    from plenodecode.batch import BatchOptions, run_batch
+    from plenodecode.batch import run_batch
 
     spec = BATCH_KEYWORDS.get(option, option.lstrip("-").replace("-", "_"))
     target, _, keyword = spec.rpartition(":")
@@ -232,16 +234,14 @@ def grid_json(tmp_path_factory):
     return out
 
 
-def test_decoding_options_and_grid_reach_the_same_light_field_from_decode_batch_and_python(tmp_path, grid_json):
+def test_decoding_options_and_grid_reach_the_same_light_field_from_decode_batch_and_python(tmp_path, grid_json,
+                                                                                          monkeypatch):
     """--demosaic bilinear --colour camera --no-hot-pixels --views 9 with -g GRID.json: 'decode', 'batch' (which had
     none of these options) and pipeline.open_source(grid=, decode_options=) give the same light field, bit for bit,
     and not the default one."""
-    from plenodecode import pipeline
-
     opts = ["--demosaic", "bilinear", "--colour", "camera", "--no-hot-pixels", "--views", "9"]
     _invoke(["decode", RAW, "-g", grid_json, "-o", tmp_path / "cli.npy", *opts])
-    empty_db = tmp_path / "no-db"          # the batch must take the grid, not the database
-    empty_db.mkdir()
+    monkeypatch.chdir(tmp_path)         # no ./calib: the batch must take the grid, not the database
     _invoke(["batch", RAW, "-o", tmp_path / "batch", "-g", grid_json, "--outputs", "lightfield", "--format", "npy",
              "-j", "1", *opts])
     src = pipeline.open_source(RAW, grid=grid_json, decode_options={
@@ -257,8 +257,9 @@ def test_decoding_options_and_grid_reach_the_same_light_field_from_decode_batch_
     assert np.abs(default - cli_lf).max() > 0.05        # the options changed the light field
 
 
-def test_batch_grid_is_used_without_a_database(tmp_path, grid_json):
+def test_batch_grid_is_used_without_a_database(tmp_path, grid_json, monkeypatch):
     """'batch -g GRID.json' decodes with that grid where no database is (it refused '--database' missing before)."""
+    monkeypatch.chdir(tmp_path)
     _invoke(["batch", RAW, "-o", tmp_path / "out", "-g", grid_json, "--outputs", "centre", "-j", "1"])
     assert (tmp_path / "out" / "scene" / "centre.png").is_file()
     res = CliRunner().invoke(cli, ["batch", str(RAW), "-o", str(tmp_path / "o2"), "-g", str(grid_json),
@@ -274,7 +275,6 @@ def test_aperture_reaches_the_same_photograph_from_refocus_batch_and_python(tmp_
     """--slope 0.5 --aperture 0.5 (batch had no --aperture): 'refocus', 'batch --outputs refocus,photo' and
     pipeline.render_product(src, 'refocus', aperture=0.5) give the same linear 32-bit picture; it differs from the
     full aperture's."""
-    from plenodecode import pipeline
     from plenodecode.io.images import read_image
 
     _invoke(["refocus", RAW, "-o", tmp_path / "cli.exr", "--slope", "0.5", "--aperture", "0.5", "--bit-depth", "32",
@@ -297,7 +297,6 @@ def test_aperture_reaches_the_same_photograph_from_refocus_batch_and_python(tmp_
 def test_disparity_range_reaches_the_same_depth_from_depth_batch_and_python(tmp_path):
     """--method fast --disparity-range -0.4:0.4 (batch had no --disparity-range): 'depth', 'batch --outputs depth'
     and pipeline.render_product(src, 'depth', disparity_range=) give the same disparities, not the default search's."""
-    from plenodecode import pipeline
     from plenodecode.io.pfm import read_pfm
 
     _invoke(["depth", RAW, "-o", tmp_path / "cli.pfm", "--method", "fast", "--disparity-range", "-0.4:0.4",
@@ -320,4 +319,51 @@ def test_batch_refuses_a_disparity_range_past_the_picture_naming_the_option(tmp_
                                    "--disparity-range", "-500:500", "-j", "1", *_database()])
     assert res.exit_code == 1
     assert "--disparity-range -500:500 does not suit scene.lfr" in res.output
+    assert not (tmp_path / "b" / "scene").exists()
+
+
+# ------------------------------------------------ a bad value: Python names the keyword, the CLI the option
+def _source():
+    return pipeline.open_source(RAW, database=ROOT / "calib")       # not decoded: the checks come first
+
+
+BAD_VALUES = [   # (Python call, the keyword its error starts with; command line, the option its error names)
+    (lambda: BatchOptions(aperture=2), "aperture",
+     ["batch", RAW, "-o", "OUT", "--aperture", "2"], "--aperture"),
+    (lambda: BatchOptions(n_views=4), "n_views",
+     ["batch", RAW, "-o", "OUT", "--views", "4"], "--views"),
+    (lambda: BatchOptions(disparity_range=(1, 0)), "disparity_range",
+     ["batch", RAW, "-o", "OUT", "--disparity-range", "1:0"], "--disparity-range"),
+    (lambda: pipeline.render_product(_source(), "parallax", frames=0), "frames",
+     ["parallax", RAW, "-o", "OUT.gif", "--frames", "0"], "--frames"),
+    (lambda: pipeline.render_product(_source(), "focal-stack", start=0, stop=1, n=1), "n",
+     ["refocus", RAW, "-o", "OUT", "--focal-stack", "0:1:1"], "--focal-stack"),
+    (lambda: BatchOptions(demosaic="ahd"), "demosaic",
+     ["batch", RAW, "-o", "OUT", "--demosaic", "ahd"], "--demosaic"),
+]
+
+
+@pytest.mark.parametrize("call, keyword, args, option", BAD_VALUES, ids=[c[3] for c in BAD_VALUES])
+def test_a_bad_value_names_the_keyword_in_python_and_the_option_on_the_command_line(tmp_path, call, keyword, args,
+                                                                                    option):
+    """'render_product(src, "parallax", frames=0)' said 'n_frames must be ...' (render.render_parallax's name), and
+    only after decoding; a focal stack of n=1 said 'a focal stack has 2 to 512 slices'."""
+    with pytest.raises(ValueError) as err:
+        call()
+    assert str(err.value).split()[0] == keyword, str(err.value)
+    out = str(tmp_path / "out")
+    res = CliRunner().invoke(cli, [out + str(a)[3:] if str(a).startswith("OUT") else str(a) for a in args])
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert res.exit_code == 2 and len(errors) == 1 and option in errors[0], res.output
+    assert not list(tmp_path.iterdir())
+
+
+def test_batch_refuses_more_views_than_the_lenses_give_naming_the_option(tmp_path):
+    """'decode --views 31' is a usage error on illum-mini (at most 17 views per axis see a micro-image); a batch fails
+    that raw in one line naming --views, before decoding it."""
+    res = CliRunner().invoke(cli, ["batch", str(RAW), "-o", str(tmp_path / "b"), "--outputs", "centre", "--views",
+                                   "31", "-j", "1", *_database()])
+    assert res.exit_code == 1
+    error, = [r["error"] for r in json.loads((tmp_path / "b" / "summary.json").read_text())["results"]]
+    assert error.startswith("DecodeError: --views 31 does not suit scene.lfr: more than the 17 views per axis"), error
     assert not (tmp_path / "b" / "scene").exists()
