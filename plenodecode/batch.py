@@ -112,6 +112,12 @@ class BatchOptions:
         the metadata).
     depth_method : str or None
         Method of the 'depth' output (None: the library's default).
+    aperture : float in (0, 1]
+        Synthetic aperture radius of the 'refocus' and 'photo' outputs, a fraction of the view grid (``--aperture``,
+        the ``aperture`` of :func:`plenodecode.refocus`); not of a Raytrix raw's total-focus photograph.
+    disparity_range : (lo, hi) or None
+        Disparities (px per view step) the 'depth' output searches (``--disparity-range LO:HI``; None: the
+        method's default); refused for a focused-plenoptic raw, whose depth is its virtual depth.
     min_confidence : float in [0, 1] or None
         Pixels of the 'depth' thumbnail with a lower confidence are grey (None:
         :data:`plenodecode.io.depthio.DEFAULT_MIN_CONFIDENCE`; 0 = none), as ``plenodecode depth --min-confidence``.
@@ -128,6 +134,14 @@ class BatchOptions:
     views_anyway : bool
         Write the outputs cut from the decoded views (:data:`VIEW_OUTPUTS`) of a focused-plenoptic (Raytrix) raw
         too (``--views-anyway``); without it such a raw asking for them fails in one line, before decoding.
+    grid : str or None
+        Lenslet grid JSON used for every raw (``--calibration``; the ``grid`` of
+        :func:`plenodecode.pipeline.choose_calibration`), instead of the database.
+    self_calibrate : bool
+        Raws without any other calibration find their grid in the scene (``--self-calibrate``).
+    demosaic, resample, n_views, colour, hot_pixels :
+        How every raw is decoded: the keywords of :func:`plenodecode.decode` (``--demosaic``, ``--resample``,
+        ``--views``, ``--colour``, ``--no-hot-pixels``, as ``plenodecode decode`` takes them).
     geometry : dict or None
         Geometric calibration that rectifies every light field (``--geometry``;
         ``GeometricCalibration.to_dict()``, so its values, not its path, are hashed); a raw whose decoded
@@ -153,6 +167,15 @@ class BatchOptions:
     geometry: Mapping[str, Any] | None = None
     min_confidence: float | None = None
     views_anyway: bool = False
+    grid: str | None = None
+    self_calibrate: bool = False
+    demosaic: str = "malvar"
+    resample: str = "cubic"
+    n_views: int | None = None
+    colour: str = "linear-srgb"
+    hot_pixels: bool = True
+    aperture: float = 1.0
+    disparity_range: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         outs = tuple(self.outputs) if not isinstance(self.outputs, str) else (self.outputs,)
@@ -191,7 +214,16 @@ class BatchOptions:
 
             object.__setattr__(self, "db_dir", DEFAULT_DB)
         object.__setattr__(self, "db_dir", str(self.db_dir))
-        for name in ("white", "dark"):
+        self._check_decoding()
+        if not (0 < float(self.aperture) <= 1):
+            raise ValueError(f"aperture must be in (0, 1] (a fraction of the view grid), got {self.aperture!r}")
+        object.__setattr__(self, "aperture", float(self.aperture))
+        if self.disparity_range is not None:
+            lo, hi = (float(v) for v in self.disparity_range)
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise ValueError(f"disparity_range must be finite (lo, hi) with lo < hi, got {self.disparity_range!r}")
+            object.__setattr__(self, "disparity_range", (lo, hi))
+        for name in ("white", "dark", "grid"):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, str(Path(getattr(self, name)).resolve()))
         if self.optics is not None:
@@ -201,6 +233,23 @@ class BatchOptions:
             object.__setattr__(self, "optics", None if optics.empty else optics.to_dict())
         if self.geometry is not None:
             object.__setattr__(self, "geometry", self.geometric_calibration().to_dict())
+
+    def _check_decoding(self) -> None:
+        """ValueError naming the keyword of a decoding option :func:`plenodecode.decode` would refuse."""
+        from .decoding import DEMOSAIC_METHODS, RESAMPLE_METHODS
+        from .decoding.colour import DECODE_COLOURS
+
+        lookup(DEMOSAIC_METHODS, self.demosaic, param="demosaic")
+        lookup(RESAMPLE_METHODS, self.resample, param="resample")
+        lookup(dict.fromkeys(DECODE_COLOURS), self.colour, param="colour")
+        if self.n_views is not None and (isinstance(self.n_views, bool) or not isinstance(self.n_views, int)
+                                         or self.n_views < 1 or self.n_views % 2 == 0):
+            raise ValueError(f"n_views must be a positive odd integer, got {self.n_views!r}")
+
+    def decode_options(self) -> dict[str, Any]:
+        """The keywords of :func:`plenodecode.decode` these options set."""
+        return {"demosaic": self.demosaic, "resample": self.resample, "n_views": self.n_views,
+                "colour": self.colour, "hot_pixels": self.hot_pixels}
 
     def as_key_dict(self) -> dict[str, Any]:
         """The options as hashed into the task key.
@@ -215,6 +264,8 @@ class BatchOptions:
 
         if d["min_confidence"] == DEFAULT_MIN_CONFIDENCE:
             d["min_confidence"] = None          # the default: the keys of runs before this option stay valid
+        if d["disparity_range"] is not None:
+            d["disparity_range"] = list(d["disparity_range"])
         for option, product in (("slope", "refocus"), ("depth_method", "depth"), ("lightfield_format", "lightfield"),
                                 ("alpha", "refocus"), ("distance_m", "refocus"), ("min_confidence", "depth")):
             if product not in self.outputs or (option in ("alpha", "distance_m", "min_confidence")
@@ -222,7 +273,10 @@ class BatchOptions:
                 d.pop(option)      # unset alpha / distance_m keep the keys of earlier versions
         for option, default in (("cfa", None), ("black_level", None), ("white_level", None),
                                 ("input_encoding", "linear"), ("white", None), ("dark", None), ("optics", None),
-                                ("geometry", None)):
+                                ("geometry", None), ("grid", None), ("self_calibrate", False),
+                                ("demosaic", "malvar"), ("resample", "cubic"), ("n_views", None),
+                                ("colour", "linear-srgb"), ("hot_pixels", True), ("aperture", 1.0),
+                                ("disparity_range", None)):
             if d[option] == default:     # keys of runs before these options existed stay valid
                 d.pop(option)
         return d
@@ -655,9 +709,12 @@ def _image_product_options(product: str, options: BatchOptions) -> dict[str, Any
     """Options of an image product of :data:`plenodecode.pipeline.PRODUCTS` taken from ``options``."""
     if product not in ("refocus", "photo"):
         return {}
+    aperture = {} if options.aperture == 1.0 else {"aperture": options.aperture}
     if options.alpha is not None:
-        return {"alpha": options.alpha}
-    return {"distance_m": options.distance_m} if options.distance_m is not None else {"slope": options.slope}
+        return {"alpha": options.alpha, **aperture}
+    if options.distance_m is not None:
+        return {"distance_m": options.distance_m, **aperture}
+    return {"slope": options.slope, **aperture}
 
 
 #: Outputs cut from the decoded views; a focused-plenoptic raw's have one pixel per lens (:func:`_check_focused_views`).
@@ -751,7 +808,8 @@ def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOption
                 raw = pipeline.open_raw(f, mosaic=mosaic, optics=MicroscopeOptics.from_dict(options.optics))
                 if options.white is None and is_bare_mosaic(raw):
                     return
-                cal = pipeline.choose_calibration(raw, database=options.db_dir, white=options.white, mosaic=mosaic)
+                cal = pipeline.choose_calibration(raw, grid=options.grid, database=options.db_dir,
+                                                  white=options.white, mosaic=mosaic)
                 found = _slope_reach_error(pipeline.Source(raw=raw, calibration=cal), options)
             except (PlenodecodeError, OSError, ValueError):
                 continue
@@ -764,6 +822,36 @@ def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOption
         reach, name, exc = max(refused, key=lambda r: r[0])
         raise ValueError(str(exc) if len(refused) == 1 else f"{exc} (every one of the {len(refused)} raws; {name} "
                                                              "allows the most)")
+
+
+def _check_views(grid: Any, n_views: int | None, raw: Any) -> None:
+    """Refuse, before decoding, ``n_views`` past the views per axis that see a micro-image of ``grid``: a
+    DecodeError naming ``--views``, as ``plenodecode decode --views`` refuses it."""
+    if n_views is not None and n_views > grid.max_views():
+        raise DecodeError(f"--views {n_views} does not suit {_raw_name(raw)}: more than the {grid.max_views()} "
+                          f"views per axis that see a micro-image (the default is {grid.n_views()})")
+
+
+def _check_disparity_range(src: Any, options: BatchOptions) -> None:
+    """Refuse, before decoding, ``options.disparity_range`` for a raw's 'depth' output as ``plenodecode depth``
+    refuses ``--disparity-range``: for a focused-plenoptic (Raytrix) raw (its depth is virtual depth), and past the
+    slope at which the outermost views still overlap the centre one (:func:`plenodecode.render._common.slope_reach`);
+    a DecodeError naming the option."""
+    rng = options.disparity_range
+    if rng is None or "depth" not in options.outputs:
+        return
+    text = f"--disparity-range {rng[0]:g}:{rng[1]:g}"
+    if src.focused:
+        raise DecodeError(f"{text} does not suit {_raw_name(src.raw)}: a focused-plenoptic (Raytrix) raw's depth is "
+                          "its virtual depth, searched over its lens types' range")
+    from .decoding.rectify import decoded_shape
+    from .render._common import slope_reach
+
+    shape = decoded_shape(src.calibration.grid, options.n_views)
+    reach = slope_reach(shape)
+    if max(abs(rng[0]), abs(rng[1])) > reach:
+        raise DecodeError(f"{text} does not suit {_raw_name(src.raw)}: it moves the outermost views past the whole "
+                          f"{shape[2]} x {shape[3]} picture; search within |disparity| <= {reach:.3g} here")
 
 
 def depth_stem(rendered: Any) -> str:
@@ -794,12 +882,15 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
 
     mosaic = options.mosaic_options()
     dark = pipeline.read_dark_frame(options.dark, mosaic, raw=raw)     # its size checked before the calibration
-    calibration = pipeline.choose_calibration(raw, database=options.db_dir, white=options.white, mosaic=mosaic)
+    calibration = pipeline.choose_calibration(raw, grid=options.grid, database=options.db_dir, white=options.white,
+                                              self_calibrate=options.self_calibrate, mosaic=mosaic)
+    _check_views(calibration.grid, options.n_views, raw)
     src = pipeline.Source(raw=raw, calibration=calibration, decode_options={
-        "workers": threads, "dark": dark},
+        "workers": threads, "dark": dark, **options.decode_options()},
         geometry=options.geometric_calibration())
-    _check_focus_reach(src, options)        # both before the (lazy) decoding
+    _check_focus_reach(src, options)        # all three before the (lazy) decoding
     _check_focused_views(src, options)
+    _check_disparity_range(src, options)
     bits = options.bit_depth
     thumbs = folder / THUMB_DIR
     thumbs.mkdir()
@@ -826,7 +917,8 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
             dest = pipeline.write_lightfield(lf, folder / "views", format="views", bit_depth=bits, display=True)
             written.append((dest, centre_thumbnail("views", lf)))
         elif product == "depth":
-            rendered = pipeline.render_product(src, "depth", method=options.depth_method)
+            rendered = pipeline.render_product(src, "depth", method=options.depth_method,
+                                               disparity_range=options.disparity_range)
             stem = depth_stem(rendered)
             dest, = pipeline.write_depth(rendered, folder / f"{stem}.pfm", full=False)
             dm = rendered.data["depthmap"]

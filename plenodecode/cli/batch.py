@@ -9,10 +9,12 @@ import click
 from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES
 from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
 from ..io.depthio import DEFAULT_MIN_CONFIDENCE
-from .common import (FINITE, POSITIVE, UNIT_INTERVAL, RegistryChoice, bit_depth_option, current_geometry,
-                     current_microscope_inputs, current_mosaic_options, database_option, exposure_option,
-                     geometry_option, jobs_option, microscope_options, mosaic_options, progress_bar,
-                     views_anyway_option)
+from .common import (FINITE, POSITIVE, UNIT_INTERVAL, FiniteFloat, RegistryChoice, bit_depth_option,
+                     calibration_option, current_geometry, current_microscope_inputs, current_mosaic_options,
+                     database_option, decoding_options, exposure_option, geometry_option, jobs_option,
+                     microscope_options, mosaic_options, progress_bar, refuse_database_with_grid,
+                     self_calibrate_option, views_anyway_option)
+from .depth import parse_range
 
 
 def _parse_outputs(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
@@ -76,13 +78,16 @@ def _microscope_fields() -> dict:
               help=f"Comma-separated products per raw: {', '.join(OUTPUT_CHOICES)}. 'photo': the camera's "
                    "photograph, as 'plenodecode RAW -o photo.png' writes it (focused as captured, or --slope / "
                    "--alpha / --focus-distance; a Raytrix raw's total focus).")
+@calibration_option
 @database_option
+@self_calibrate_option
 @click.option("--white", "-w", "white", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
               help="White (radiometry) image for every raw: the lenslet grid and devignetting (microscopes; "
                    "instead of the database).")
 @mosaic_options
 @microscope_options
 @geometry_option
+@decoding_options
 @click.option("--format", "lf_format", type=RegistryChoice("plenodecode.batch", "LIGHTFIELD_NAMES"), default="zarr",
               show_default=True,
               help="Format of the 'lightfield' product.")
@@ -96,6 +101,11 @@ def _microscope_fields() -> dict:
 @click.option("--focus-distance", "distance_m", type=POSITIVE, default=None, metavar="METRES",
               help="Refocus the 'refocus' and 'photo' products at this distance (m) instead of --slope (cameras "
                    "with geometry).")
+@click.option("--aperture", type=FiniteFloat(0, 1, min_open=True), default=1.0, show_default=True,
+              help="Synthetic aperture radius of the 'refocus' and 'photo' products (1 = all views).")
+@click.option("--disparity-range", "disparity_range", metavar="LO:HI", default=None,
+              callback=lambda ctx, param, value: parse_range(value),
+              help="Disparities (px per view step) the 'depth' product searches [default: the method's].")
 @click.option("--depth-method", type=RegistryChoice("plenodecode.depth", "DEPTH_METHODS"),
               default=DEFAULT_DEPTH_METHOD, show_default=True, help="Method of the 'depth' product.")
 @click.option("--min-confidence", "min_confidence", type=UNIT_INTERVAL, default=DEFAULT_MIN_CONFIDENCE,
@@ -103,8 +113,9 @@ def _microscope_fields() -> dict:
 @views_anyway_option
 @click.option("--overwrite", is_flag=True, help="Redo raws a previous run finished and replace their outputs.")
 @click.pass_context
-def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, database, white, lf_format, bit_depth,
-            exposure, slope, alpha, distance_m, depth_method, min_confidence, views_anyway, overwrite) -> None:
+def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calibration, database, self_calibrate,
+            white, demosaic, resample, n_views, colour, no_hot_pixels, lf_format, bit_depth, exposure, slope, alpha,
+            distance_m, aperture, disparity_range, depth_method, min_confidence, views_anyway, overwrite) -> None:
     """Decode every raw under INPUTS and write the chosen outputs per raw into OUTPUT/<name>/.
 
     Each raw is matched to its camera's calibration in the database (by serial, zoom and
@@ -125,6 +136,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
 
     if alpha is not None and distance_m is not None:
         raise click.UsageError("pass at most one of --alpha and --focus-distance (each replaces --slope)")
+    refuse_database_with_grid(calibration, None, database)
     db_dir = database or Path(DEFAULT_DB)
     if not overwrite:
         try:
@@ -154,7 +166,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
             click.echo(f"note: {note}", err=True)
     # a --database typed that is no folder is refused; the default one missing only when no raw can do without it
     # (the others are decoded; those that need it fail with the reason, as a batch goes past any bad raw)
-    if white is None and not db_dir.is_dir() and (
+    if white is None and calibration is None and not db_dir.is_dir() and (
             database is not None and not all(needs_no_database(f) for f in files)
             or database is None and not any(needs_no_database(f) for f in files)):
         raise click.BadParameter(f"{db_dir} is not a folder; build the database with `plenodecode calibrate "
@@ -166,7 +178,10 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
                            black_level=mosaic.black_level, white_level=mosaic.white_level,
                            input_encoding=mosaic.input_encoding, white=None if white is None else str(white),
                            geometry=None if current_geometry() is None else current_geometry().to_dict(),
-                           views_anyway=views_anyway, **_microscope_fields())
+                           views_anyway=views_anyway, grid=None if calibration is None else str(calibration),
+                           self_calibrate=self_calibrate, demosaic=demosaic, resample=resample, n_views=n_views,
+                           colour=colour, hot_pixels=not no_hot_pixels, aperture=aperture,
+                           disparity_range=disparity_range, **_microscope_fields())
     if not overwrite:       # a second run with other options must not replace the first run's folders
         try:
             check_outputs_to_replace(files, out_dir, options)

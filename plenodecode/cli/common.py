@@ -242,16 +242,49 @@ def input_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     fn = microscope_options(fn)
     fn = mosaic_options(fn)
     fn = raytrix_xml_option(fn)
-    fn = click.option("--self-calibrate", "self_calibrate", is_flag=True,
-                      help="Raws without any other calibration: find the lenslet grid in the scene itself "
-                           "(automatic for image mosaics without a sidecar).")(fn)
+    fn = self_calibrate_option(fn)
     fn = database_option(fn)
     fn = click.option("--white", "-w", "white", type=click.Path(exists=True, dir_okay=False, path_type=Path),
                       default=None, help="White image of the same zoom/focus: devignetting (and the grid, if no "
                                          "--calibration).")(fn)
-    fn = click.option("--calibration", "-g", "calibration", type=click.Path(exists=True, dir_okay=False,
-                                                                            path_type=Path),
-                      default=None, help="Lenslet grid JSON written by 'plenodecode calibrate'.")(fn)
+    return calibration_option(fn)
+
+
+#: ``--calibration/-g GRID.json``: the ``grid`` of :func:`plenodecode.pipeline.choose_calibration`.
+calibration_option = click.option("--calibration", "-g", "calibration",
+                                  type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
+                                  help="Lenslet grid JSON written by 'plenodecode calibrate'.")
+#: ``--self-calibrate``: the ``self_calibrate`` of :func:`plenodecode.pipeline.choose_calibration`.
+self_calibrate_option = click.option("--self-calibrate", "self_calibrate", is_flag=True,
+                                     help="Raws without any other calibration: find the lenslet grid in the scene "
+                                          "itself (automatic for image mosaics without a sidecar).")
+
+
+def _check_n_views(ctx: click.Context, param: click.Parameter, value: int | None) -> int | None:
+    if value is not None and (value < 1 or value % 2 == 0):
+        raise click.BadParameter("must be a positive odd number")
+    return value
+
+
+def decoding_options(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """How a raw is decoded (``decode`` and ``batch``): ``--demosaic``, ``--resample``, ``--views``, ``--colour``,
+    ``--no-hot-pixels``; the keywords of :func:`plenodecode.decode` (``demosaic``, ``resample``, ``n_views``,
+    ``colour``, ``hot_pixels=not no_hot_pixels``) and of :class:`plenodecode.batch.BatchOptions`."""
+    fn = click.option("--no-hot-pixels", is_flag=True, help="Do not repair hot pixels.")(fn)
+    fn = click.option("--colour", type=RegistryChoice("plenodecode.decoding.colour", "DECODE_COLOURS"),
+                      default="linear-srgb", show_default=True,
+                      help="Colour of the light field: white balance + colour matrix, or camera RGB.")(fn)
+    fn = click.option("--views", "n_views", type=int, default=None, callback=_check_n_views,
+                      help="Views per angular axis (odd; a view step is one sensor pixel), at most "
+                           "2*ceil(pitch/2)+1 [default: 2*floor(pitch/2)+1, pitch in px].")(fn)
+    fn = click.option("--resample", type=RegistryChoice("plenodecode.imaging", "RESAMPLE_METHODS"), default="cubic",
+                      show_default=True,
+                      help="Hex -> rect resampling: 'cubic' along each lens row; 'hex' a 2-D kernel over 5 lens rows, "
+                           "half the row-alternating zipper at vertical edges and up to 2 dB sharper, 50 % slower, "
+                           "softer on fine oblique detail.")(fn)
+    fn = click.option("--demosaic", type=RegistryChoice("plenodecode.decoding.demosaic", "DEMOSAIC_METHODS",
+                                                        sort=True),
+                      default="malvar", show_default=True, help="Demosaicing method (within each micro-image).")(fn)
     return fn
 
 

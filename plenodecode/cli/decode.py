@@ -7,10 +7,11 @@ from pathlib import Path
 
 import click
 
-from .common import (FOCUSED_PHOTO, encoded_note, RegistryChoice, bit_depth_option, calibration_kwargs, empty_views_note,
-                     input_options, lightfield_bit_depth, lightfield_output_format, lightfield_summary, output_option,
-                     overwrite_option, progress_bar, quiet, refuse_database_with_grid, refuse_focused_views,
-                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
+from .common import (FOCUSED_PHOTO, encoded_note, RegistryChoice, bit_depth_option, calibration_kwargs,
+                     decoding_options, empty_views_note, input_options, lightfield_bit_depth,
+                     lightfield_output_format, lightfield_summary, output_option, overwrite_option, progress_bar,
+                     quiet, refuse_database_with_grid, refuse_focused_views, refuse_writing_over_command_inputs,
+                     usage_errors, views_anyway_option)
 
 log = logging.getLogger(__name__)
 
@@ -42,19 +43,7 @@ def refuse_decoded_input(raw_path: Path) -> None:
               default=None, help="Output format (default: from OUTPUT's extension; a path without one is a views "
                                  "folder).")
 @bit_depth_option
-@click.option("--demosaic", type=RegistryChoice("plenodecode.decoding.demosaic", "DEMOSAIC_METHODS", sort=True),
-              default="malvar", show_default=True, help="Demosaicing method (within each micro-image).")
-@click.option("--resample", type=RegistryChoice("plenodecode.imaging", "RESAMPLE_METHODS"), default="cubic",
-              show_default=True,
-              help="Hex -> rect resampling: 'cubic' along each lens row; 'hex' a 2-D kernel over 5 lens rows, half the "
-                   "row-alternating zipper at vertical edges and up to 2 dB sharper, 50 % slower, softer on "
-                   "fine oblique detail.")
-@click.option("--views", "n_views", type=int, default=None,
-              help="Views per angular axis (odd; a view step is one sensor pixel), at most 2*ceil(pitch/2)+1 "
-                   "[default: 2*floor(pitch/2)+1, pitch in px].")
-@click.option("--colour", type=RegistryChoice("plenodecode.decoding.colour", "DECODE_COLOURS"), default="linear-srgb",
-              show_default=True, help="Colour of the output: white balance + colour matrix, or camera RGB.")
-@click.option("--no-hot-pixels", is_flag=True, help="Do not repair hot pixels.")
+@decoding_options
 @views_anyway_option
 @overwrite_option
 @click.pass_context
@@ -84,8 +73,6 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
 
     refuse_decoded_input(raw_path)
     refuse_database_with_grid(calibration, white, database)
-    if n_views is not None and (n_views < 1 or n_views % 2 == 0):
-        raise click.BadParameter("must be a positive odd number", param_hint="--views")
     name = lightfield_output_format(output, fmt, overwrite)
     depth = lightfield_bit_depth(ctx, name, output, bit_depth)
     inputs = calibration_kwargs(calibration, white, database, self_calibrate)

@@ -182,7 +182,7 @@ def render_focal_stack(src: Source, *, start: float, stop: float, n: int, units:
     from ..render.allinfocus import all_in_focus_from_stack
 
     if not 2 <= int(n) <= MAX_STACK_SLICES:
-        raise ValueError(f"a focal stack has 2 to {MAX_STACK_SLICES} slices, got {n}")
+        raise ValueError(f"n (slices of a focal stack) must be 2 to {MAX_STACK_SLICES}, got {n}")
     lf = src.lightfield
     slopes = lookup(STACK_UNITS, units, param="units")(np.linspace(start, stop, n), lf)
     imgs = focal_stack(lf, slopes, method=method, aperture=aperture, upsample=upsample, progress=progress)
@@ -225,6 +225,8 @@ def render_parallax(src: Source, *, frames: int = 24, radius: float | None = Non
     numbered frames ``frame_000`` ... and, in ``data['animation']``, the (N, Y, X, 3) frames of the animation."""
     from ..render import render_parallax as parallax
 
+    if isinstance(frames, bool) or int(frames) != frames or frames < 1:     # named as this function takes it
+        raise ValueError(f"frames must be a positive integer, got {frames!r}")
     lf = src.lightfield
     out = parallax(lf, frames, radius, interp=interp, progress=progress)
     anim = out if out.shape[-1] == 3 else out.repeat(3, axis=-1)
@@ -481,17 +483,17 @@ def photo_focus(focused: bool, *, refocus: bool = False) -> dict[str, Any]:
 
 
 def render_photo(src: Source, *, slope: float | None = None, alpha: float | None = None,
-                 distance_m: float | None = None) -> Rendered:
+                 distance_m: float | None = None, aperture: float = 1.0) -> Rendered:
     """The camera's photograph, as ``plenodecode RAW -o photo.png`` writes it without a focus option
     (:func:`photo_focus`): a focused-plenoptic (Raytrix) raw's total focus (:func:`render_total_focus`), else the
-    photograph refocused (:func:`render_refocus`) at ``slope``, ``alpha`` or ``distance_m``, by default as
-    captured.  The rendered product says which ('total-focus' or 'refocus')."""
+    photograph refocused (:func:`render_refocus`, through the synthetic ``aperture``) at ``slope``, ``alpha`` or
+    ``distance_m``, by default as captured.  The rendered product says which ('total-focus' or 'refocus')."""
     chosen = photo_focus(src.focused)
     if chosen.get("total_focus"):
         return render_total_focus(src)
     if slope is None and alpha is None and distance_m is None:
         slope = chosen["slope"]
-    return render_refocus(src, slope=slope, alpha=alpha, distance_m=distance_m)
+    return render_refocus(src, slope=slope, alpha=alpha, distance_m=distance_m, aperture=aperture)
 
 
 #: Product name -> ``fn(source, **options) -> Rendered``; the same names in the CLI, batch and Python.
