@@ -135,6 +135,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
       plenodecode refocus raytrix.png --virtual-depth 3.5 -o v3.5.png
     """
     from ..pipeline import open_source, render_product, write_product
+    from ..pipeline.products import check_focus_reach
 
     check_focus_options({"--slope": slope, "--alpha": alpha, "--focus-at": focus_at, "--focus-distance": distance_m,
                          "--focal-stack": stack, "--virtual-depth": virtual_depth}, no_depth, optional=True)
@@ -160,6 +161,12 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
                       else {"focal-stack": {"units": stack_units}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     refuse_focused_views(src.focused, input_path, views_anyway, instead=FOCUSED_REFOCUS.format(raw=input_path))
+    with usage_errors(param_hint="--focal-stack" if stack is not None else
+                      focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
+        if stack is None:       # a slope past the picture, known from the calibration: refused before decoding
+            check_focus_reach(src, "refocus", slope=slope, alpha=alpha, distance_m=distance_m)
+        else:
+            check_focus_reach(src, "focal-stack", start=start, stop=stop, n=n, units=stack_units)
     if stack is None:
         at = focus_point(focus_at, src.lightfield.shape)
         with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):

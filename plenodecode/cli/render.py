@@ -97,7 +97,7 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
       plenodecode raytrix.png --total-focus -o photo.png --white raytrix_white.png
     """
     from ..pipeline import check_total_focus_patch, open_source, render_product, write_product
-    from ..pipeline.products import photo_focus
+    from ..pipeline.products import check_focus_reach, photo_focus
 
     check_render_options(ctx, input_path, alpha=alpha, slope=slope, total_focus=total_focus, patch=patch,
                          focus_at=focus_at, distance_m=distance_m, no_depth=no_depth)
@@ -120,6 +120,8 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
             check_total_focus_patch(src.calibration.grid, patch)       # its upper bound is the camera's
         photo = render_product(src, "total-focus", patch=patch, progress=progress_bar("rendering", ctx))
     else:
+        with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
+            check_focus_reach(src, "refocus", slope=slope, alpha=alpha, distance_m=distance_m)  # before decoding
         at = focus_point(focus_at, src.lightfield.shape)
         with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
             photo = render_product(src, "refocus", alpha=alpha, slope=slope, distance_m=distance_m, at=at,

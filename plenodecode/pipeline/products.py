@@ -146,6 +146,45 @@ def render_refocus(src: Source, *, slope: float | None = None, alpha: float | No
                           "aperture": aperture, "range": span})
 
 
+def check_focus_reach(src: Source, product: str, **options: Any) -> None:
+    """Refuse, before a raw is decoded, a 'refocus' (``slope``, ``alpha`` or ``distance_m``) or 'focal-stack'
+    (``start``, ``stop``, ``n``, ``units``) whose slope moves the outermost views past the whole picture: the
+    ValueError :func:`~plenodecode.render._common.check_slope_reach` gives after decoding, found from the shape
+    and camera constants the calibration gives (:func:`~plenodecode.decoding.rectify.decoded_shape`,
+    :func:`~plenodecode.decoding.rectify.decoded_geometry`).  Passes whatever needs the decoded light field
+    (a light-field input, a point ``at``, an alpha or distance of a rectified light field, a conversion the
+    metadata cannot make): rendering checks those."""
+    import numpy as np
+
+    from ..decoding.rectify import decoded_geometry, decoded_shape
+    from ..errors import PlenodecodeError
+    from ..render._common import check_slope_reach
+    from ..render.alpha import alpha_to_slope, distance_to_slope
+
+    if src.raw is None or "lightfield" in src.__dict__:
+        return
+    shape = decoded_shape(src.calibration.grid, src.decode_options.get("n_views"))
+    geometry = None if src.geometry is not None else decoded_geometry(src.raw, src.calibration.grid)
+    try:
+        if product == "focal-stack":
+            values = np.linspace(options["start"], options["stop"], int(options["n"]))
+            units = options.get("units", "slope")
+            if units != "slope" and geometry is None:
+                return
+            slopes = lookup(STACK_UNITS, units, param="units")(values, geometry)
+        elif options.get("slope") is not None:
+            slopes = float(options["slope"])
+        elif options.get("alpha") is not None and geometry is not None:
+            slopes = alpha_to_slope(float(options["alpha"]), geometry)
+        elif options.get("distance_m") is not None and geometry is not None:
+            slopes = distance_to_slope(float(options["distance_m"]), geometry)
+        else:
+            return
+    except (PlenodecodeError, ValueError):
+        return
+    check_slope_reach(shape, slopes, name="slopes" if product == "focal-stack" else "slope")
+
+
 def focal_stack_names(n: int, ext: str) -> list[str]:
     """Files of a focal stack of ``n`` slices: ``slice_000.<ext>`` ..., ``all_in_focus.<ext>``, the JSON."""
     return [f"slice_{i:03d}.{ext}" for i in range(n)] + [f"all_in_focus.{ext}", "focal_stack.json"]
