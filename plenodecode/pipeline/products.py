@@ -321,8 +321,12 @@ def render_focused_depth(src: Source, *, disparity_range: tuple[float, float] | 
     photograph align pixel for pixel).
 
     ``data``: 'values' (Ho, Wo) float32 virtual depth ``v = a / B``, 'label', 'unit', 'method' ('focused'),
-    'focused' (the FocusedDepth) and 'depthmap', a DepthMap whose 'disparity' is the micro-image disparity
-    ``D / v`` (px per lens step) with the confidence.
+    'focused' (the FocusedDepth), 'depthmap', a DepthMap whose 'disparity' is the micro-image disparity
+    ``D / v`` (px per lens step) with the confidence, and 'near' (which values are nearest, as
+    :func:`render_depth`): 'high' for upright (Galilean) micro-images, such as the real R42's, 'low' for inverted
+    (Keplerian) ones.  The main lens images a nearer object farther behind it (thin lens); a Galilean camera's
+    virtual image lies behind the MLA, so that is farther from the MLA (larger ``a``, larger ``v``), a Keplerian
+    camera's in front of it, so nearer the MLA (smaller ``v``).
 
     Metric depth has no scale here: 'depth' with ``metric`` or ``points`` is refused for a focused raw by
     :func:`~plenodecode.pipeline.needs.check_product` (:func:`render_product`), before any work.
@@ -351,7 +355,7 @@ def render_focused_depth(src: Source, *, disparity_range: tuple[float, float] | 
     dm = DepthMap(disparity=disparity, confidence=fd.confidence, method="focused", params=dict(fd.params))
     return Rendered("depth", (), "srgb", data={
         "depthmap": dm, "method": "focused", "focused": fd, "values": fd.virtual_depth, "unit": VIRTUAL_DEPTH_UNIT,
-        "label": VIRTUAL_DEPTH_LABEL})
+        "label": VIRTUAL_DEPTH_LABEL, "near": "low" if fd.params.get("keplerian") else "high"})
 
 
 def check_total_focus_patch(grid: LensletGrid, patch: Any) -> None:
