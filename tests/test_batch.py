@@ -1075,3 +1075,59 @@ def test_cli_warnings_of_each_raw_name_it(tmp_path, jobs):
         ["scene.lfr", "scene.png"]
     assert any("scene.png: slope 1.5 px/view is outside the refocusable range (slope -1.00..+1.00" in line
                for line in lines), lines
+
+
+def test_cli_a_folder_that_appears_after_the_up_front_check_fails_its_raw_naming_only_the_option(data, tmp_path,
+                                                                                                   monkeypatch):
+    """A raw's output folder made after the up-front check (another process, between the check and its task) failed
+    the raw with 'pass --overwrite (overwrite=True) to replace it' in the table, summary.json and index.html: the
+    library's keyword beside the option.  The command's outputs now name --overwrite only; the others are done."""
+    import plenodecode.batch as batch
+
+    out = tmp_path / "out"
+    check = batch.check_outputs_to_replace
+    calls = []
+
+    def check_then_a_folder_appears(*args, **kwargs):      # the command's check, then run_batch's
+        check(*args, **kwargs)
+        calls.append(1)
+        if len(calls) == 2:
+            (out / "scene2").mkdir(parents=True)
+            (out / "scene2" / "notes.txt").write_text("someone else's")
+
+    monkeypatch.setattr(batch, "check_outputs_to_replace", check_then_a_folder_appears)
+    res = CliRunner().invoke(cli, ["batch", str(data["shoot"]), "-o", str(out), "--database", str(data["db"]),
+                                   "--jobs", "1", "--outputs", "centre", "--bit-depth", "8"])
+    assert res.exit_code == 1 and "2 done, 0 skipped, 1 failed" in res.stdout, res.output
+    row = next(line for line in res.stdout.splitlines() if line.startswith("scene2"))
+    assert row.endswith(f"{out / 'scene2'} exists and was not written by a batch run; pass --overwrite to replace it")
+    summary = json.loads((out / "summary.json").read_text())
+    errors = [r["error"] for r in summary["results"] if r["error"]]
+    assert len(errors) == 1 and errors[0].endswith("pass --overwrite to replace it"), errors
+    page = (out / "index.html").read_text()
+    assert "overwrite=True" not in res.output + json.dumps(summary) + page and "pass --overwrite" in page
+    assert (out / "scene2" / "notes.txt").read_text() == "someone else's"
+
+
+def test_cli_folders_that_appear_before_the_run_starts_are_refused_as_the_up_front_check_refuses_them(
+        data, tmp_path, monkeypatch):
+    """A folder made between the command's check and run_batch's own said 'error: cannot use OUT: 1 of 3 raws
+    already have ... pass --overwrite (overwrite=True) ... or choose another output folder' (as if the folder were
+    unreachable; exit 1).  It is now the up-front refusal's usage error, in the option names, nothing decoded."""
+    import plenodecode.batch as batch
+
+    out = tmp_path / "out"
+    check = batch.check_outputs_to_replace
+
+    def check_then_a_folder_appears(*args, **kwargs):
+        check(*args, **kwargs)
+        (out / "scene2").mkdir(parents=True, exist_ok=True)
+
+    monkeypatch.setattr(batch, "check_outputs_to_replace", check_then_a_folder_appears)
+    res = CliRunner().invoke(cli, ["batch", str(data["shoot"]), "-o", str(out), "--database", str(data["db"]),
+                                   "--jobs", "1", "--outputs", "centre"])
+    assert res.exit_code == 2, res.output
+    assert res.stderr.strip().splitlines()[-1] == (
+        f"Error: 1 of 3 raws already have an output folder in {out} (scene2) from a run with other options or "
+        "inputs, or not from a batch; pass --overwrite to replace them, or choose another -o folder"), res.stderr
+    assert "decoding" not in res.stderr and sorted(p.name for p in out.iterdir()) == ["scene2"]
