@@ -195,7 +195,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
         raise click.BadParameter(str(exc), param_hint="--slope") from None
     try:
         summary = run_batch(files, out_dir, options, jobs=jobs, scheduler=scheduler, overwrite=overwrite,
-                            progress=progress_bar(f"decoding {len(files)} raws", ctx))
+                            progress=progress_bar(f"decoding {len(files)} raw{'s' * (len(files) != 1)}", ctx))
     except FileExistsError as exc:      # output folders that appeared since the check above: refused as it refuses
         raise _refused(exc) from None
     except OSError as exc:   # cannot reach the scheduler, cannot create the output folder

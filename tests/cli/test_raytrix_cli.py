@@ -197,6 +197,7 @@ def test_r42_batch_total_focus_with_colour_thumbnails(r42, tmp_path):
     res = run("batch", r42.parent, "-o", tmp_path / "batch", "--outputs", "total-focus", "--database", db,
               "--jobs", 1)
     assert res.exit_code == 0, res.output
+    assert "decoding 1 raw" in res.stderr and "1 raws" not in res.stderr, res.stderr   # said 'decoding 1 raws'
     folder = tmp_path / "batch" / "sc2_klein"
     thumb = read_image(folder / "thumbs" / "total_focus.png")
     assert thumb.ndim == 3 and thumb.shape[2] == 3 and channels_differ(thumb) > 0.2
