@@ -12,9 +12,9 @@ import math
 from ..pipeline import IMAGE_EXTENSIONS, MAX_STACK_SLICES, STACK_UNITS, focal_stack_names
 from .common import (FINITE, FOCUSED_REFOCUS, POSITIVE, FiniteFloat, RegistryChoice, bit_depth_option,
                      calibration_kwargs, check_focus_options, check_folder_output, check_output, describe_focus,
-                     exposure_option, focus_hint, focus_options, focus_point, image_bit_depth, input_options,
-                     note_if_dark, output_option, overwrite_option, progress_bar, quiet, refuse_focused_views,
-                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
+                     exposure_option, focus_choices, focus_hint, focus_options, focus_point, image_bit_depth,
+                     input_options, note_if_dark, output_option, overwrite_option, progress_bar, quiet,
+                     refuse_focused_views, refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
 
 #: The refocus methods of the library, for ``--method`` (imported when the command needs them).
 REFOCUS_METHOD_CHOICE = RegistryChoice("plenodecode.render", "REFOCUS_METHODS")
@@ -179,8 +179,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
         if not quiet(ctx):
             how = describe_focus(photo.data)
             if as_captured:
-                how = (f"focused as captured: {how}; choose the focus with --slope, --alpha, --focus-at or "
-                       f"--focus-distance")
+                ways = focus_choices(photo.data, ("--slope", "--alpha", "--focus-at", "--focus-distance"))
+                how = f"focused as captured: {how}; choose the focus with {ways}"
             click.echo(f"wrote {output} ({how}; {method}, aperture {aperture:g})")
         return
     with usage_errors(param_hint="--focal-stack"):
