@@ -954,8 +954,9 @@ def test_a_slope_past_a_raws_picture_fails_that_raw_in_one_line_naming_the_optio
 
 
 def test_a_slope_past_the_picture_fails_before_decoding(tmp_path, monkeypatch):
-    """The slope is checked against the decoded shape the calibration gives, before the raw is decoded; an alpha
-    (a slope only once decoded) fails when rendered, in the same one line naming --alpha."""
+    """The slope is checked against the decoded shape the calibration gives, before the raw is decoded; an alpha,
+    which failed only when rendered (after decoding), too: the calibration gives the constants that make it a
+    slope, in the same one line naming --alpha."""
     from plenodecode import pipeline
     from plenodecode.batch import process_raw
 
@@ -972,7 +973,7 @@ def test_a_slope_past_the_picture_fails_before_decoding(tmp_path, monkeypatch):
     (tmp_path / "b").mkdir()
     result = process_raw(illum, tmp_path / "b", BatchOptions(outputs=("refocus",), alpha=1.5,
                                                              db_dir=str(root / "calib")))
-    assert result.status == "failed" and len(decoded) == 1, result
+    assert result.status == "failed" and decoded == [], result
     assert result.error.startswith("DecodeError: --alpha 1.5 does not suit scene.lfr: slope 20.27 px/view"), result
     ok = process_raw(illum, tmp_path / "b", BatchOptions(outputs=("refocus",), slope=17.5, db_dir=str(root / "calib")))
     assert ok.status == "done", ok
@@ -1055,6 +1056,17 @@ def test_cli_a_slope_past_every_raws_picture_is_refused_up_front_before_decoding
     rows = {line.split()[0]: line for line in res.stdout.splitlines() if line.startswith("scene.")}
     assert res.exit_code == 1 and " done " in rows["scene.lfr"], res.output
     assert " failed " in rows["scene.png"] and "--slope 12 does not suit scene.png" in rows["scene.png"], rows
+    # an alpha past the picture, too (it decoded every raw first): the line 'plenodecode refocus --alpha' gives
+    single = CliRunner().invoke(cli, ["refocus", raws[0], "-o", str(tmp_path / "a.png"), "--alpha", "5",
+                                      "--database", str(root / "calib")])
+    decoded.clear()
+    res = CliRunner().invoke(cli, ["batch", raws[0], "-o", str(tmp_path / "alpha"), "--database", str(root / "calib"),
+                                   "--jobs", "1", "--outputs", "refocus", "--alpha", "5"])
+    assert res.exit_code == 2 and decoded == [] and not (tmp_path / "alpha").exists(), res.output
+    assert res.stderr.strip().splitlines()[-1] == single.stderr.strip().splitlines()[-1].replace(
+        "--refocus / --alpha", "--alpha") == ("Error: Invalid value for --alpha: slope 48.66 px/view moves the outermost "
+                                            "views 341 px, past the whole 87 x 125 picture (|slope| <= 17.9 here): no "
+                                            "view would overlap the centre one; refocus within the refocusable range")
 
 
 @pytest.mark.parametrize("jobs", ["1", "2"])

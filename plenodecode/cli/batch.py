@@ -192,7 +192,8 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, datab
     try:        # a slope past every raw's picture: refused as 'plenodecode refocus' refuses it, before decoding
         check_slope_for_any(files, options)
     except ValueError as exc:
-        raise click.BadParameter(str(exc), param_hint="--slope") from None
+        hint = "--alpha" if alpha is not None else "--focus-distance" if distance_m is not None else "--slope"
+        raise click.BadParameter(str(exc), param_hint=hint) from None
     try:
         summary = run_batch(files, out_dir, options, jobs=jobs, scheduler=scheduler, overwrite=overwrite,
                             progress=progress_bar(f"decoding {len(files)} raw{'s' * (len(files) != 1)}", ctx))
