@@ -1063,10 +1063,11 @@ def test_cli_a_slope_past_every_raws_picture_is_refused_up_front_before_decoding
     res = CliRunner().invoke(cli, ["batch", raws[0], "-o", str(tmp_path / "alpha"), "--database", str(root / "calib"),
                                    "--jobs", "1", "--outputs", "refocus", "--alpha", "5"])
     assert res.exit_code == 2 and decoded == [] and not (tmp_path / "alpha").exists(), res.output
-    assert res.stderr.strip().splitlines()[-1] == single.stderr.strip().splitlines()[-1].replace(
-        "--refocus / --alpha", "--alpha") == ("Error: Invalid value for --alpha: slope 48.66 px/view moves the outermost "
-                                            "views 341 px, past the whole 87 x 125 picture (|slope| <= 17.9 here): no "
-                                            "view would overlap the centre one; refocus within the refocusable range")
+    expected = ("Error: Invalid value for --alpha: slope 48.66 px/view moves the outermost views 341 px, past the "
+                "whole 87 x 125 picture (|slope| <= 17.9 here): no view would overlap the centre one; refocus within "
+                "the refocusable range")
+    refocus_line = single.stderr.strip().splitlines()[-1].replace("--refocus / --alpha", "--alpha")
+    assert res.stderr.strip().splitlines()[-1] == refocus_line == expected, res.stderr
 
 
 @pytest.mark.parametrize("jobs", ["1", "2"])
