@@ -8,7 +8,7 @@ without XDG); ``plenodecode/__init__.py`` calls it, so it runs before any kernel
 Every kernel module decorates its kernels with :func:`njit` (``numba.njit`` with ``cache=True``).  The first
 time a process compiles a kernel that is not in the cache (numba's ``numba:compile`` event, raised only on a
 cache miss), the callback set by :func:`set_compile_notice` (the CLI: one line on stderr) or, without one,
-the log receives ``"compiling decode kernels (first run only, ~6 s)..."``, once per group of kernels.
+the log receives ``"compiling decode kernels (first run only, ~4 s)..."``, once per group of kernels.
 
 Importing this module is light: numba is imported by :func:`njit`, that is by the kernel modules.
 """
@@ -82,7 +82,7 @@ def group_of(module: str) -> str | None:
 
 
 def compile_message(group: str) -> str:
-    """``'compiling decode kernels (first run only, ~8 s)...'``."""
+    """``'compiling decode kernels (first run only, ~4 s)...'`` (:data:`COMPILE_SECONDS`)."""
     seconds = COMPILE_SECONDS.get(group)
     estimate = f", ~{seconds:.0f} s" if seconds else ""
     return f"compiling {group} kernels (first run only{estimate})..."

@@ -750,39 +750,38 @@ def _focus_option_error(product: str, options: BatchOptions, raw: Any, exc: Valu
 
 
 def _slope_reach_error(src: Any, options: BatchOptions) -> tuple[str, ValueError, float] | None:
-    """(product, error, largest |slope| the raw allows) of the first refocused product whose ``slope`` moves
-    the outermost views of the raw's light field past its whole picture
-    (:func:`plenodecode.render._common.check_slope_reach` on the decoded shape the calibration gives), else None;
-    alpha and a distance become slopes only with the decoded geometry and are checked when rendered."""
+    """(product, error, largest |slope| the raw allows) of the first refocused product whose slope (``slope``,
+    or ``alpha`` or ``distance_m`` turned into one with the camera constants) moves the outermost views of the
+    raw's light field past its whole picture (:func:`plenodecode.pipeline.products.check_focus_reach` on the
+    decoded shape and geometry the calibration gives), else None."""
     from .decoding.rectify import decoded_shape
-    from .pipeline.products import photo_focus
-    from .render._common import check_slope_reach, slope_reach
+    from .pipeline.products import check_focus_reach, photo_focus
+    from .render._common import slope_reach
 
     for product in options.outputs:
-        if product not in ("refocus", "photo") or options.alpha is not None or options.distance_m is not None:
+        if product not in ("refocus", "photo"):
             continue
         if product == "photo" and photo_focus(src.focused).get("total_focus"):
             continue
-        shape = decoded_shape(src.calibration.grid)
         try:
-            check_slope_reach(shape, options.slope)
+            check_focus_reach(src, product, **_image_product_options(product, options))
         except ValueError as exc:
-            return product, exc, slope_reach(shape)
+            return product, exc, slope_reach(decoded_shape(src.calibration.grid, src.decode_options.get("n_views")))
     return None
 
 
 def _check_focus_reach(src: Any, options: BatchOptions) -> None:
-    """Refuse, before decoding, a ``slope`` past the raw's picture (:func:`_slope_reach_error`): a DecodeError
-    naming the option."""
+    """Refuse, before decoding, a slope, alpha or distance past the raw's picture (:func:`_slope_reach_error`): a
+    DecodeError naming the option."""
     found = _slope_reach_error(src, options)
     if found is not None:
         raise _focus_option_error(found[0], options, src.raw, found[1])
 
 
 def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
-    """Raise ValueError when ``options.slope`` is past the picture of every raw of ``files`` it applies to (a
-    batch would fail them all), before any is decoded: the error :func:`~plenodecode.render._common.check_slope_reach`
-    gives for the raw allowing the largest slope.
+    """Raise ValueError when ``options.slope`` (or the slope of ``options.alpha`` or ``options.distance_m``) is
+    past the picture of every raw of ``files`` it applies to (a batch would fail them all), before any is decoded:
+    the error :func:`~plenodecode.render._common.check_slope_reach` gives for the raw allowing the largest slope.
 
     Each raw is read and its calibration chosen (nothing decoded) until one suits the slope or has no slope to
     suit (a Raytrix raw's total-focus photograph).  A raw that cannot be read or calibrated is passed over (its
@@ -790,7 +789,7 @@ def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOption
     without a white image) ends the check without an error, as that costs a scene's fit; its task checks it.
     The library's log is held back to errors meanwhile, so the tasks' warnings are not said twice.
     """
-    if options.slope == 0 or options.alpha is not None or options.distance_m is not None or not any(
+    if options.slope == 0 and options.alpha is None and options.distance_m is None or not any(
             p in ("refocus", "photo") for p in options.outputs):
         return
     from . import pipeline
@@ -810,7 +809,9 @@ def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOption
                     return
                 cal = pipeline.choose_calibration(raw, grid=options.grid, database=options.db_dir,
                                                   white=options.white, mosaic=mosaic)
-                found = _slope_reach_error(pipeline.Source(raw=raw, calibration=cal), options)
+                found = _slope_reach_error(pipeline.Source(raw=raw, calibration=cal,
+                                                           geometry=options.geometric_calibration(),
+                                                           decode_options=options.decode_options()), options)
             except (PlenodecodeError, OSError, ValueError):
                 continue
             if found is None:

@@ -954,8 +954,9 @@ def test_a_slope_past_a_raws_picture_fails_that_raw_in_one_line_naming_the_optio
 
 
 def test_a_slope_past_the_picture_fails_before_decoding(tmp_path, monkeypatch):
-    """The slope is checked against the decoded shape the calibration gives, before the raw is decoded; an alpha
-    (a slope only once decoded) fails when rendered, in the same one line naming --alpha."""
+    """The slope is checked against the decoded shape the calibration gives, before the raw is decoded; an alpha,
+    which failed only when rendered (after decoding), too: the calibration gives the constants that make it a
+    slope, in the same one line naming --alpha."""
     from plenodecode import pipeline
     from plenodecode.batch import process_raw
 
@@ -972,7 +973,7 @@ def test_a_slope_past_the_picture_fails_before_decoding(tmp_path, monkeypatch):
     (tmp_path / "b").mkdir()
     result = process_raw(illum, tmp_path / "b", BatchOptions(outputs=("refocus",), alpha=1.5,
                                                              db_dir=str(root / "calib")))
-    assert result.status == "failed" and len(decoded) == 1, result
+    assert result.status == "failed" and decoded == [], result
     assert result.error.startswith("DecodeError: --alpha 1.5 does not suit scene.lfr: slope 20.27 px/view"), result
     ok = process_raw(illum, tmp_path / "b", BatchOptions(outputs=("refocus",), slope=17.5, db_dir=str(root / "calib")))
     assert ok.status == "done", ok
@@ -1055,6 +1056,18 @@ def test_cli_a_slope_past_every_raws_picture_is_refused_up_front_before_decoding
     rows = {line.split()[0]: line for line in res.stdout.splitlines() if line.startswith("scene.")}
     assert res.exit_code == 1 and " done " in rows["scene.lfr"], res.output
     assert " failed " in rows["scene.png"] and "--slope 12 does not suit scene.png" in rows["scene.png"], rows
+    # an alpha past the picture, too (it decoded every raw first): the line 'plenodecode refocus --alpha' gives
+    single = CliRunner().invoke(cli, ["refocus", raws[0], "-o", str(tmp_path / "a.png"), "--alpha", "5",
+                                      "--database", str(root / "calib")])
+    decoded.clear()
+    res = CliRunner().invoke(cli, ["batch", raws[0], "-o", str(tmp_path / "alpha"), "--database", str(root / "calib"),
+                                   "--jobs", "1", "--outputs", "refocus", "--alpha", "5"])
+    assert res.exit_code == 2 and decoded == [] and not (tmp_path / "alpha").exists(), res.output
+    expected = ("Error: Invalid value for --alpha: slope 48.66 px/view moves the outermost views 341 px, past the "
+                "whole 87 x 125 picture (|slope| <= 17.9 here): no view would overlap the centre one; refocus within "
+                "the refocusable range")
+    refocus_line = single.stderr.strip().splitlines()[-1].replace("--refocus / --alpha", "--alpha")
+    assert res.stderr.strip().splitlines()[-1] == refocus_line == expected, res.stderr
 
 
 @pytest.mark.parametrize("jobs", ["1", "2"])
@@ -1075,3 +1088,59 @@ def test_cli_warnings_of_each_raw_name_it(tmp_path, jobs):
         ["scene.lfr", "scene.png"]
     assert any("scene.png: slope 1.5 px/view is outside the refocusable range (slope -1.00..+1.00" in line
                for line in lines), lines
+
+
+def test_cli_a_folder_that_appears_after_the_up_front_check_fails_its_raw_naming_only_the_option(data, tmp_path,
+                                                                                                   monkeypatch):
+    """A raw's output folder made after the up-front check (another process, between the check and its task) failed
+    the raw with 'pass --overwrite (overwrite=True) to replace it' in the table, summary.json and index.html: the
+    library's keyword beside the option.  The command's outputs now name --overwrite only; the others are done."""
+    import plenodecode.batch as batch
+
+    out = tmp_path / "out"
+    check = batch.check_outputs_to_replace
+    calls = []
+
+    def check_then_a_folder_appears(*args, **kwargs):      # the command's check, then run_batch's
+        check(*args, **kwargs)
+        calls.append(1)
+        if len(calls) == 2:
+            (out / "scene2").mkdir(parents=True)
+            (out / "scene2" / "notes.txt").write_text("someone else's")
+
+    monkeypatch.setattr(batch, "check_outputs_to_replace", check_then_a_folder_appears)
+    res = CliRunner().invoke(cli, ["batch", str(data["shoot"]), "-o", str(out), "--database", str(data["db"]),
+                                   "--jobs", "1", "--outputs", "centre", "--bit-depth", "8"])
+    assert res.exit_code == 1 and "2 done, 0 skipped, 1 failed" in res.stdout, res.output
+    row = next(line for line in res.stdout.splitlines() if line.startswith("scene2"))
+    assert row.endswith(f"{out / 'scene2'} exists and was not written by a batch run; pass --overwrite to replace it")
+    summary = json.loads((out / "summary.json").read_text())
+    errors = [r["error"] for r in summary["results"] if r["error"]]
+    assert len(errors) == 1 and errors[0].endswith("pass --overwrite to replace it"), errors
+    page = (out / "index.html").read_text()
+    assert "overwrite=True" not in res.output + json.dumps(summary) + page and "pass --overwrite" in page
+    assert (out / "scene2" / "notes.txt").read_text() == "someone else's"
+
+
+def test_cli_folders_that_appear_before_the_run_starts_are_refused_as_the_up_front_check_refuses_them(
+        data, tmp_path, monkeypatch):
+    """A folder made between the command's check and run_batch's own said 'error: cannot use OUT: 1 of 3 raws
+    already have ... pass --overwrite (overwrite=True) ... or choose another output folder' (as if the folder were
+    unreachable; exit 1).  It is now the up-front refusal's usage error, in the option names, nothing decoded."""
+    import plenodecode.batch as batch
+
+    out = tmp_path / "out"
+    check = batch.check_outputs_to_replace
+
+    def check_then_a_folder_appears(*args, **kwargs):
+        check(*args, **kwargs)
+        (out / "scene2").mkdir(parents=True, exist_ok=True)
+
+    monkeypatch.setattr(batch, "check_outputs_to_replace", check_then_a_folder_appears)
+    res = CliRunner().invoke(cli, ["batch", str(data["shoot"]), "-o", str(out), "--database", str(data["db"]),
+                                   "--jobs", "1", "--outputs", "centre"])
+    assert res.exit_code == 2, res.output
+    assert res.stderr.strip().splitlines()[-1] == (
+        f"Error: 1 of 3 raws already have an output folder in {out} (scene2) from a run with other options or "
+        "inputs, or not from a batch; pass --overwrite to replace them, or choose another -o folder"), res.stderr
+    assert "decoding" not in res.stderr and sorted(p.name for p in out.iterdir()) == ["scene2"]

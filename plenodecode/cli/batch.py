@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -47,10 +48,26 @@ def _echo_table(summary) -> None:
         click.echo(f"{name:{width}s}  {r.status:8s} {r.seconds:8.1f}  {detail}")
 
 
+def _in_option_names(text: str) -> str:
+    """The library's advice about replacing outputs (``--overwrite (overwrite=True)``, 'output folder') in the
+    command's option names."""
+    return text.replace(" (overwrite=True)", "").replace("choose another output folder", "choose another -o folder")
+
+
 def _refused(exc: FileExistsError) -> click.UsageError:
     """The usage error of an output the batch would replace: the library's advice in the options' names."""
-    text = str(exc).replace(" (overwrite=True)", "").replace("choose another output folder", "choose another -o folder")
-    return click.UsageError(text)
+    return click.UsageError(_in_option_names(str(exc)))
+
+
+def _errors_in_option_names(summary: Any) -> Any:
+    """``summary`` (a BatchSummary) with every raw's error in the command's option names (:func:`_in_option_names`:
+    a folder that appeared after the up-front check fails its raw with the library's advice), as the table,
+    summary.json and index.html show it."""
+    import dataclasses
+
+    results = tuple(r if not r.error else dataclasses.replace(r, error=_in_option_names(r.error))
+                    for r in summary.results)
+    return dataclasses.replace(summary, results=results)
 
 
 def _is_lightfield_folder(folder: Path) -> bool:
@@ -190,15 +207,19 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
     try:        # a slope past every raw's picture: refused as 'plenodecode refocus' refuses it, before decoding
         check_slope_for_any(files, options)
     except ValueError as exc:
-        raise click.BadParameter(str(exc), param_hint="--slope") from None
+        hint = "--alpha" if alpha is not None else "--focus-distance" if distance_m is not None else "--slope"
+        raise click.BadParameter(str(exc), param_hint=hint) from None
     try:
         summary = run_batch(files, out_dir, options, jobs=jobs, scheduler=scheduler, overwrite=overwrite,
-                            progress=progress_bar(f"decoding {len(files)} raws", ctx))
+                            progress=progress_bar(f"decoding {len(files)} raw{'s' * (len(files) != 1)}", ctx))
+    except FileExistsError as exc:      # output folders that appeared since the check above: refused as it refuses
+        raise _refused(exc) from None
     except OSError as exc:   # cannot reach the scheduler, cannot create the output folder
         where = f"the Dask scheduler {scheduler}" if scheduler else f"{out_dir}"
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         click.echo(f"error: cannot use {where}: {msg}", err=True)
         ctx.exit(1)
+    summary = _errors_in_option_names(summary)
     js, index = write_summary(summary, out_dir, overwrite=overwrite)
     quiet = bool((ctx.obj or {}).get("quiet"))
     if not quiet:

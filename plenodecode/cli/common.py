@@ -707,6 +707,17 @@ def check_focus_options(given: Mapping[str, Any], no_depth: bool, *, optional: b
         raise click.UsageError("--no-depth applies to --focus-at only")
 
 
+def focus_choices(rendered_data: Mapping[str, Any], options: tuple[str, ...]) -> str:
+    """``'--slope, --focus-at or --focus-distance'``: of ``options`` (in the command's order, among ``--slope``,
+    ``--alpha`` / ``--refocus``, ``--focus-at``, ``--focus-distance``), the ways of choosing a photograph's focus
+    that its input serves: alpha and a distance only where the refocusable range of the 'refocus' product's
+    ``Rendered.data`` could be given in them (the camera constants, the focus distance)."""
+    span = rendered_data["range"]
+    served = [o for o in options if not (o in ("--alpha", "--refocus") and span.alpha is None
+                                         or o == "--focus-distance" and span.distance_m is None)]
+    return ", ".join(served[:-1]) + f" or {served[-1]}"
+
+
 def describe_focus(rendered_data: Mapping[str, Any]) -> str:
     """``'alpha 1.015 = slope +0.90 px/view; refocusable alpha 0.9814-1.0194 = ...'`` for the report line of a
     refocused photograph (``Rendered.data`` of the 'refocus' product)."""

@@ -12,9 +12,9 @@ import math
 from ..pipeline import IMAGE_EXTENSIONS, MAX_STACK_SLICES, STACK_UNITS, focal_stack_names
 from .common import (FINITE, FOCUSED_REFOCUS, POSITIVE, FiniteFloat, RegistryChoice, bit_depth_option,
                      calibration_kwargs, check_focus_options, check_folder_output, check_output, describe_focus,
-                     exposure_option, focus_hint, focus_options, focus_point, image_bit_depth, input_options,
-                     note_if_dark, output_option, overwrite_option, progress_bar, quiet, refuse_focused_views,
-                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
+                     exposure_option, focus_choices, focus_hint, focus_options, focus_point, image_bit_depth,
+                     input_options, note_if_dark, output_option, overwrite_option, progress_bar, quiet,
+                     refuse_focused_views, refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
 
 #: The refocus methods of the library, for ``--method`` (imported when the command needs them).
 REFOCUS_METHOD_CHOICE = RegistryChoice("plenodecode.render", "REFOCUS_METHODS")
@@ -135,6 +135,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
       plenodecode refocus raytrix.png --virtual-depth 3.5 -o v3.5.png
     """
     from ..pipeline import open_source, render_product, write_product
+    from ..pipeline.products import check_focus_reach
 
     check_focus_options({"--slope": slope, "--alpha": alpha, "--focus-at": focus_at, "--focus-distance": distance_m,
                          "--focal-stack": stack, "--virtual-depth": virtual_depth}, no_depth, optional=True)
@@ -160,6 +161,12 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
                       else {"focal-stack": {"units": stack_units}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     refuse_focused_views(src.focused, input_path, views_anyway, instead=FOCUSED_REFOCUS.format(raw=input_path))
+    with usage_errors(param_hint="--focal-stack" if stack is not None else
+                      focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
+        if stack is None:       # a slope past the picture, known from the calibration: refused before decoding
+            check_focus_reach(src, "refocus", slope=slope, alpha=alpha, distance_m=distance_m)
+        else:
+            check_focus_reach(src, "focal-stack", start=start, stop=stop, n=n, units=stack_units)
     if stack is None:
         at = focus_point(focus_at, src.lightfield.shape)
         with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
@@ -172,8 +179,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
         if not quiet(ctx):
             how = describe_focus(photo.data)
             if as_captured:
-                how = (f"focused as captured: {how}; choose the focus with --slope, --alpha, --focus-at or "
-                       f"--focus-distance")
+                ways = focus_choices(photo.data, ("--slope", "--alpha", "--focus-at", "--focus-distance"))
+                how = f"focused as captured: {how}; choose the focus with {ways}"
             click.echo(f"wrote {output} ({how}; {method}, aperture {aperture:g})")
         return
     with usage_errors(param_hint="--focal-stack"):

@@ -14,10 +14,10 @@ import click
 from click.core import ParameterSource
 
 from .common import (FINITE, FOCUSED_REFOCUS, POSITIVE, FiniteFloat, bit_depth_option, calibration_kwargs,
-                     check_focus_options, check_output, describe_focus, exposure_option, focus_hint, focus_options,
-                     focus_point, image_bit_depth, input_options, note_if_dark, output_option, overwrite_option,
-                     progress_bar, quiet, refuse_focused_views, refuse_writing_over_command_inputs, usage_errors,
-                     views_anyway_option)
+                     check_focus_options, check_output, describe_focus, exposure_option, focus_choices, focus_hint,
+                     focus_options, focus_point, image_bit_depth, input_options, note_if_dark, output_option,
+                     overwrite_option, progress_bar, quiet, refuse_focused_views, refuse_writing_over_command_inputs,
+                     usage_errors, views_anyway_option)
 from .refocus import REFOCUS_METHOD_CHOICE
 
 #: The refocusing options that mean nothing to --total-focus (parameter name -> option); each asks for a refocus of
@@ -97,7 +97,7 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
       plenodecode raytrix.png --total-focus -o photo.png --white raytrix_white.png
     """
     from ..pipeline import check_total_focus_patch, open_source, render_product, write_product
-    from ..pipeline.products import photo_focus
+    from ..pipeline.products import check_focus_reach, photo_focus
 
     check_render_options(ctx, input_path, alpha=alpha, slope=slope, total_focus=total_focus, patch=patch,
                          focus_at=focus_at, distance_m=distance_m, no_depth=no_depth)
@@ -120,6 +120,8 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
             check_total_focus_patch(src.calibration.grid, patch)       # its upper bound is the camera's
         photo = render_product(src, "total-focus", patch=patch, progress=progress_bar("rendering", ctx))
     else:
+        with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
+            check_focus_reach(src, "refocus", slope=slope, alpha=alpha, distance_m=distance_m)  # before decoding
         at = focus_point(focus_at, src.lightfield.shape)
         with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
             photo = render_product(src, "refocus", alpha=alpha, slope=slope, distance_m=distance_m, at=at,
@@ -137,6 +139,6 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
             how = (f"the camera's total focus; refocus it at a virtual depth V of {lo:g} .. {hi:g} with "
                    f"'plenodecode refocus {input_path} --virtual-depth V -o photo.png'")
         elif chosen is not None:
-            how = (f"focused as captured: {how}; choose the focus with --refocus, --slope, --focus-at or "
-                   f"--focus-distance")
+            ways = focus_choices(photo.data, ("--refocus", "--slope", "--focus-at", "--focus-distance"))
+            how = f"focused as captured: {how}; choose the focus with {ways}"
         click.echo(f"wrote {output} ({how})")

@@ -19,13 +19,13 @@ import numpy as np
 from ..errors import CalibrationError, DecodeError
 from ..raymodel import GeometricCalibration
 from ..registry import lookup
-from ..types import LensletGrid, LightField, LightFieldGeometry, RawCapture
+from ..types import LensletGrid, LightField, RawCapture
 from . import colour as _colour
 from . import devignette as _dv
 from .demosaic import DEMOSAIC_METHODS
 from .demosaic import demosaic as _demosaic
 from .devignette import DEFAULT_FLOOR, normalise, relative_white, repair_hot_pixels
-from .rectify import rectify
+from .rectify import decoded_geometry, rectify
 from .resample import HEX_CONTEXT, RESAMPLE_METHODS, hex_to_rect, output_shape
 from .slice import VIEW_EDGES, lens_labels, plan_bands, safe_radius, sample_lenses, usable_pixels, view_offsets
 
@@ -447,8 +447,7 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
 
     calibration = geometry
     s = grid.decoded_sampling()
-    geometry = LightFieldGeometry.from_camera(raw.metadata, grid.to_dict(), spatial_step_px=float(s["step"]),
-                                              view_step_px=1.0, source=raw.path)
+    geometry = decoded_geometry(raw, grid)
     provenance = {
         "decoded_sampling": {k: float(v) for k, v in s.items()},
         "n_views": nv,

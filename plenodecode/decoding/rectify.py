@@ -116,6 +116,17 @@ def decoded_shape(grid: Any, n_views: int | None = None) -> tuple[int, int, int,
     return (nv, nv, *output_shape(grid))
 
 
+def decoded_geometry(raw: Any, grid: Any) -> Any:
+    """The :class:`~plenodecode.types.LightFieldGeometry` :func:`plenodecode.decoding.decode` gives the light
+    field of ``raw`` (a :class:`~plenodecode.types.RawCapture`) decoded with ``grid``, known before decoding: its
+    camera constants, spatial step (the grid's row spacing, px) and one pixel per view step."""
+    from ..types import LightFieldGeometry
+
+    return LightFieldGeometry.from_camera(raw.metadata, grid.to_dict(),
+                                          spatial_step_px=float(grid.decoded_sampling()["step"]), view_step_px=1.0,
+                                          source=raw.path)
+
+
 def check_shape(calibration: GeometricCalibration, lf_shape: tuple[int, ...], what: str = "light field") -> None:
     """Raise GeometryMismatchError (a CalibrationError) unless ``lf_shape[:4]`` is the calibration's
     ``(V, U, Y, X)``."""

@@ -297,7 +297,7 @@ def _bare_mosaic(p: Path, mosaic: np.ndarray, bits: int, full_scale: float, opti
     cfa, cfa_from = bare_mosaic_cfa(mosaic.shape, options)
     black, white, levels_from = bare_mosaic_levels(mosaic, bits, full_scale, options)
     log.warning("%s: no JSON sidecar; CFA %s (%s)", p.name, cfa or "none, monochrome", cfa_from)
-    log.warning("%s: black %.4g, white %.4g of %g (%s)", p.name, black, white, full_scale, levels_from)
+    log.warning("%s: black %.5g, white %.5g of %g (%s)", p.name, black, white, full_scale, levels_from)  # 65535 whole
     if white <= black:
         typed = "--black-level" if options.black_level is not None else "--white-level" \
             if options.white_level is not None else None

@@ -146,6 +146,45 @@ def render_refocus(src: Source, *, slope: float | None = None, alpha: float | No
                           "aperture": aperture, "range": span})
 
 
+def check_focus_reach(src: Source, product: str, **options: Any) -> None:
+    """Refuse, before a raw is decoded, a 'refocus' (``slope``, ``alpha`` or ``distance_m``) or 'focal-stack'
+    (``start``, ``stop``, ``n``, ``units``) whose slope moves the outermost views past the whole picture: the
+    ValueError :func:`~plenodecode.render._common.check_slope_reach` gives after decoding, found from the shape
+    and camera constants the calibration gives (:func:`~plenodecode.decoding.rectify.decoded_shape`,
+    :func:`~plenodecode.decoding.rectify.decoded_geometry`).  Passes whatever needs the decoded light field
+    (a light-field input, a point ``at``, an alpha or distance of a rectified light field, a conversion the
+    metadata cannot make): rendering checks those."""
+    import numpy as np
+
+    from ..decoding.rectify import decoded_geometry, decoded_shape
+    from ..errors import PlenodecodeError
+    from ..render._common import check_slope_reach
+    from ..render.alpha import alpha_to_slope, distance_to_slope
+
+    if src.raw is None or "lightfield" in src.__dict__:
+        return
+    shape = decoded_shape(src.calibration.grid, src.decode_options.get("n_views"))
+    geometry = None if src.geometry is not None else decoded_geometry(src.raw, src.calibration.grid)
+    try:
+        if product == "focal-stack":
+            values = np.linspace(options["start"], options["stop"], int(options["n"]))
+            units = options.get("units", "slope")
+            if units != "slope" and geometry is None:
+                return
+            slopes = lookup(STACK_UNITS, units, param="units")(values, geometry)
+        elif options.get("slope") is not None:
+            slopes = float(options["slope"])
+        elif options.get("alpha") is not None and geometry is not None:
+            slopes = alpha_to_slope(float(options["alpha"]), geometry)
+        elif options.get("distance_m") is not None and geometry is not None:
+            slopes = distance_to_slope(float(options["distance_m"]), geometry)
+        else:
+            return
+    except (PlenodecodeError, ValueError):
+        return
+    check_slope_reach(shape, slopes, name="slopes" if product == "focal-stack" else "slope")
+
+
 def focal_stack_names(n: int, ext: str) -> list[str]:
     """Files of a focal stack of ``n`` slices: ``slice_000.<ext>`` ..., ``all_in_focus.<ext>``, the JSON."""
     return [f"slice_{i:03d}.{ext}" for i in range(n)] + [f"all_in_focus.{ext}", "focal_stack.json"]
@@ -284,8 +323,12 @@ def render_focused_depth(src: Source, *, disparity_range: tuple[float, float] | 
     photograph align pixel for pixel).
 
     ``data``: 'values' (Ho, Wo) float32 virtual depth ``v = a / B``, 'label', 'unit', 'method' ('focused'),
-    'focused' (the FocusedDepth) and 'depthmap', a DepthMap whose 'disparity' is the micro-image disparity
-    ``D / v`` (px per lens step) with the confidence.
+    'focused' (the FocusedDepth), 'depthmap', a DepthMap whose 'disparity' is the micro-image disparity
+    ``D / v`` (px per lens step) with the confidence, and 'near' (which values are nearest, as
+    :func:`render_depth`): 'high' for upright (Galilean) micro-images, such as the real R42's, 'low' for inverted
+    (Keplerian) ones.  The main lens images a nearer object farther behind it (thin lens); a Galilean camera's
+    virtual image lies behind the MLA, so that is farther from the MLA (larger ``a``, larger ``v``), a Keplerian
+    camera's in front of it, so nearer the MLA (smaller ``v``).
 
     Metric depth has no scale here: 'depth' with ``metric`` or ``points`` is refused for a focused raw by
     :func:`~plenodecode.pipeline.needs.check_product` (:func:`render_product`), before any work.
@@ -314,7 +357,7 @@ def render_focused_depth(src: Source, *, disparity_range: tuple[float, float] | 
     dm = DepthMap(disparity=disparity, confidence=fd.confidence, method="focused", params=dict(fd.params))
     return Rendered("depth", (), "srgb", data={
         "depthmap": dm, "method": "focused", "focused": fd, "values": fd.virtual_depth, "unit": VIRTUAL_DEPTH_UNIT,
-        "label": VIRTUAL_DEPTH_LABEL})
+        "label": VIRTUAL_DEPTH_LABEL, "near": "low" if fd.params.get("keplerian") else "high"})
 
 
 def check_total_focus_patch(grid: LensletGrid, patch: Any) -> None:

@@ -330,3 +330,21 @@ def test_the_grid_never_replaces_an_input_or_the_database(white_pair, tmp_path):
                                  "-o", str(db / "index.json"), "--overwrite"], obj={})
     assert r.exit_code == 2 and "is inside the calibration database" in r.output, r.output
     assert (db / "index.json").read_bytes() == index
+
+
+def test_the_levels_warning_of_a_16_bit_mosaic_prints_its_white_level_whole(tmp_path):
+    """'plenodecode depth light_field.png -w radiometry_frame.png ...' (the README's microscope line) warned
+    'radiometry_frame.png: black 91, white 6.554e+04 of 65535': the white level in four significant digits.  A
+    16-bit mosaic without a sidecar now reads 'white 65535 of 65535'."""
+    import shutil
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[2]
+    shutil.copy(root / "sample_raws" / "square" / "scene_white.png", tmp_path / "white.png")   # no sidecar
+    env = {**__import__("os").environ, "PYTHONPATH": str(root)}
+    proc = subprocess.run([sys.executable, "-m", "plenodecode", "info", str(tmp_path / "white.png")],
+                          capture_output=True, text=True, env=env, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    line = next(s for s in proc.stderr.splitlines() if "white.png: black" in s)
+    assert ", white 65535 of 65535 (" in line and "e+" not in line, line

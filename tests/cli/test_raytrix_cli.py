@@ -197,6 +197,7 @@ def test_r42_batch_total_focus_with_colour_thumbnails(r42, tmp_path):
     res = run("batch", r42.parent, "-o", tmp_path / "batch", "--outputs", "total-focus", "--database", db,
               "--jobs", 1)
     assert res.exit_code == 0, res.output
+    assert "decoding 1 raw" in res.stderr and "1 raws" not in res.stderr, res.stderr   # said 'decoding 1 raws'
     folder = tmp_path / "batch" / "sc2_klein"
     thumb = read_image(folder / "thumbs" / "total_focus.png")
     assert thumb.ndim == 3 and thumb.shape[2] == 3 and channels_differ(thumb) > 0.2
@@ -490,3 +491,32 @@ def test_the_real_r42_rotation_prints_as_zero_not_minus_zero(tmp_path):
              (tmp_path / "grid.html").read_text(encoding="utf-8")]
     for text in shown:
         assert "rotation 0.00000 rad (0.000 deg)" in text.replace("</td><td>", " ") and "-0.0" not in text, text[:600]
+
+
+def test_virtual_depth_png_marks_near_at_the_warm_top_as_the_disparity_png_does(shoot, r42, tmp_path, monkeypatch):
+    """The virtual-depth PNG had no near / far marks on its colour bar and coloured high v warm whatever the
+    camera.  A nearer object's main-lens image lies farther behind the main lens: behind the MLA (Galilean,
+    upright micro-images, the real R42) that is a larger v; in front of it (Keplerian, inverted: the synthetic
+    preset, whose front disk has the smallest v) a smaller v.  Through 'plenodecode depth' the nearest tenth of
+    the confident pixels is now warm and the farthest tenth cold on both (red - blue measured 166 / -62 on the
+    synthetic raw, 176 / -88 on the R42), and the colour bar says near at the top."""
+    from plenodecode.io import depthio
+    from tests.cli.test_depth import _map_pixels
+
+    asked = []
+    figure = depthio.colour_map_figure
+    monkeypatch.setattr(depthio, "colour_map_figure", lambda *a, **k: asked.append(k.get("near")) or figure(*a, **k))
+    for raw, near_end in ((shoot["raw"], "low"), (r42, "high")):
+        out = tmp_path / f"{near_end}.pfm"
+        res = run("depth", raw, "-o", out)
+        assert res.exit_code == 0, res.output
+        assert asked[-2:] == [near_end, None], asked      # the depth PNG's bar says near / far (not the confidence's)
+        v = read_depth(out)
+        conf = read_image(tmp_path / f"{near_end}_confidence.exr").squeeze()
+        ok = np.isfinite(v) & (conf >= 0.1)
+        nearness = -v if near_end == "low" else v
+        near, far = ok & (nearness >= np.quantile(nearness[ok], 0.9)), ok & (nearness <= np.quantile(nearness[ok], 0.1))
+        rgb, _ = _map_pixels(out.with_suffix(".png"), v.shape)
+        warmth = rgb[..., 0].astype(np.float64) - rgb[..., 2]
+        assert np.mean(warmth[near]) > 100 and np.mean(warmth[far]) < -50, (near_end, np.mean(warmth[near]),
+                                                                            np.mean(warmth[far]))

@@ -325,3 +325,36 @@ def test_one_liner_focus_at_with_no_depth_and_focus_distance_on_the_hci_scene(tm
     res = run(scene, "--focus-distance", 6.5, "-o", tmp_path / "d.png")
     assert res.exit_code == 0, res.output
     assert re.search(r"\(focus distance 6\.5 m = slope \+1\.\d+ px/view", res.output), res.output
+
+
+def test_a_slope_past_the_picture_of_a_raw_is_refused_before_decoding_it(tmp_path, monkeypatch):
+    """'plenodecode refocus RAW --slope 2000' decoded the raw (a progress bar, about a second on the bundled Illum,
+    minutes on a full-size one) and only then refused the slope.  The decoded shape (87 x 125, 15 x 15 views)
+    and camera constants come from the calibration, so refocus, the one-liner and a focal stack refuse a slope,
+    alpha or stack past the picture before decoding, with the message they gave after it (alpha 5 is slope
+    48.66 on this raw, as decoded)."""
+    from pathlib import Path
+
+    from plenodecode.pipeline import source
+
+    root = Path(__file__).resolve().parents[2]
+    raw = root / "sample_raws" / "illum-mini" / "scene.lfr"
+    decoded = []
+    real_decode = source.decode_raw
+    monkeypatch.setattr(source, "decode_raw", lambda *a, **k: decoded.append(1) or real_decode(*a, **k))
+    cases = [(["refocus", raw, "--slope", 2000], "--slope", "slope 2000 px/view moves the outermost views 1.4e+04"),
+             ([raw, "--slope", -2000], "--slope", "past the whole 87 x 125 picture (|slope| <= 17.9 here)"),
+             ([raw, "--refocus", 5], "--refocus / --alpha", "slope 48.66 px/view moves the outermost views 341 px"),
+             (["refocus", raw, "--alpha", 5], "--refocus / --alpha", "slope 48.66 px/view"),
+             (["refocus", raw, "--focal-stack", "-2000:1:3"], "--focal-stack", "slope 2000 px/view"),
+             (["refocus", raw, "--focal-stack", "0.5:5:3", "--stack-units", "alpha"], "--focal-stack",
+              "slope 60.82 px/view")]
+    for i, (args, option, words) in enumerate(cases):
+        out = tmp_path / (f"out{i}" if "--focal-stack" in args else f"out{i}.png")
+        res = run(*args, "--database", root / "calib", "-o", out)
+        errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+        assert res.exit_code == 2 and len(errors) == 1, res.output
+        assert f"Invalid value for {option}:" in errors[0] and words in errors[0], res.output
+        assert "decoding" not in res.output and not decoded and not out.exists(), (args, res.output)
+    res = run("refocus", raw, "--database", root / "calib", "--slope", 1, "-o", tmp_path / "ok.png")
+    assert res.exit_code == 0 and decoded == [1], res.output       # a slope in reach is decoded as before

@@ -369,3 +369,23 @@ def test_the_page_says_a_word_before_the_depth_map_and_follows_it(tmp_path, monk
     assert events[0] == (0, 10) and events[1] == "depth", events[:3]
     during = [e for e in events[2:] if e != "depth" and e[0] < 8]
     assert len(during) >= 3 and events[-1] == (10, 10), events
+
+
+def test_the_depth_legend_says_which_end_is_near(page):
+    """The page's disparity legend gave two numbers and no word for which colour is near, where the depth PNGs
+    mark near and far: now 'far' at the low (cold) end and 'near' at the high (warm) end, the rectangle in front
+    (disparity 0.8) warm and the background (-0.6) cold in the map."""
+    import base64
+
+    import cv2
+
+    legend = re.search(r'<div class="lf-legend"><span>(.*?)</span><span>.*?</span><span>(.*?)</span></div>',
+                       page["html"].replace("&nbsp;", " ")).groups()     # each end kept on one line
+    assert legend[0].startswith("far ") and legend[1].endswith(" near"), legend
+    low, high = float(legend[0].split()[1]), float(legend[1].split()[0])
+    assert low < 0 < high and abs(low - D_BG) < 0.15 and abs(high - D_FG) < 0.15, legend
+    src = page["data"]["depth"]["src"]
+    rgb = cv2.imdecode(np.frombuffer(base64.b64decode(src.split(",", 1)[1]), np.uint8), cv2.IMREAD_COLOR)[..., ::-1]
+    warmth = rgb[..., 0].astype(int) - rgb[..., 2]
+    y0, y1, x0, x1 = RECT
+    assert np.median(warmth[y0 + 4:y1 - 4, x0 + 4:x1 - 4]) > 100 and np.median(warmth[:8, :8]) < -10
