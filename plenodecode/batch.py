@@ -836,8 +836,8 @@ def _check_views(grid: Any, n_views: int | None, raw: Any) -> None:
 def _check_disparity_range(src: Any, options: BatchOptions) -> None:
     """Refuse, before decoding, ``options.disparity_range`` for a raw's 'depth' output as ``plenodecode depth``
     refuses ``--disparity-range``: for a focused-plenoptic (Raytrix) raw (its depth is virtual depth), and past the
-    slope at which the outermost views still overlap the centre one (:func:`plenodecode.render._common.slope_reach`);
-    a DecodeError naming the option."""
+    slope at which the outermost views still overlap the centre one
+    (:func:`plenodecode.pipeline.products.check_disparity_reach`); a DecodeError naming the option."""
     rng = options.disparity_range
     if rng is None or "depth" not in options.outputs:
         return
@@ -845,14 +845,12 @@ def _check_disparity_range(src: Any, options: BatchOptions) -> None:
     if src.focused:
         raise DecodeError(f"{text} does not suit {_raw_name(src.raw)}: a focused-plenoptic (Raytrix) raw's depth is "
                           "its virtual depth, searched over its lens types' range")
-    from .decoding.rectify import decoded_shape
-    from .render._common import slope_reach
+    from .pipeline.products import check_disparity_reach
 
-    shape = decoded_shape(src.calibration.grid, options.n_views)
-    reach = slope_reach(shape)
-    if max(abs(rng[0]), abs(rng[1])) > reach:
-        raise DecodeError(f"{text} does not suit {_raw_name(src.raw)}: it moves the outermost views past the whole "
-                          f"{shape[2]} x {shape[3]} picture; search within |disparity| <= {reach:.3g} here")
+    try:
+        check_disparity_reach(src, rng)
+    except ValueError as exc:
+        raise DecodeError(f"{text} does not suit {_raw_name(src.raw)}: {exc}") from None
 
 
 def depth_stem(rendered: Any) -> str:

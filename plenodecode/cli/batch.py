@@ -10,7 +10,7 @@ import click
 from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES
 from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
 from ..io.depthio import DEFAULT_MIN_CONFIDENCE
-from .common import (FINITE, POSITIVE, UNIT_INTERVAL, FiniteFloat, RegistryChoice, bit_depth_option,
+from .common import (FINITE, POSITIVE, UNIT_INTERVAL, RegistryChoice, aperture_option, bit_depth_option,
                      calibration_option, current_geometry, current_microscope_inputs, current_mosaic_options,
                      database_option, decoding_options, exposure_option, geometry_option, jobs_option,
                      microscope_options, mosaic_options, progress_bar, refuse_database_with_grid,
@@ -118,8 +118,7 @@ def _microscope_fields() -> dict:
 @click.option("--focus-distance", "distance_m", type=POSITIVE, default=None, metavar="METRES",
               help="Refocus the 'refocus' and 'photo' products at this distance (m) instead of --slope (cameras "
                    "with geometry).")
-@click.option("--aperture", type=FiniteFloat(0, 1, min_open=True), default=1.0, show_default=True,
-              help="Synthetic aperture radius of the 'refocus' and 'photo' products (1 = all views).")
+@aperture_option("Synthetic aperture radius of the 'refocus' and 'photo' products (1 = all views).")
 @click.option("--disparity-range", "disparity_range", metavar="LO:HI", default=None,
               callback=lambda ctx, param, value: parse_range(value),
               help="Disparities (px per view step) the 'depth' product searches [default: the method's].")

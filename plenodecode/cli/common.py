@@ -297,6 +297,12 @@ def views_anyway_option(fn: Callable[..., Any]) -> Callable[..., Any]:
                              "renders its total focus).")(fn)
 
 
+def aperture_option(help_text: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """``--aperture`` in (0, 1], default 1 (all views): the ``aperture`` of refocus, the one-liner and batch."""
+    return click.option("--aperture", type=FiniteFloat(0, 1, min_open=True), default=1.0, show_default=True,
+                        help=help_text)
+
+
 def refuse_focused_views(focused: bool, raw_path: Path, views_anyway: bool, *, instead: str) -> None:
     """The usage error (exit 2, one line, before any decoding) of a command that would render a focused-plenoptic
     (Raytrix) raw's decoded views (decode, views, parallax, a refocus by slope), unless ``--views-anyway``: such

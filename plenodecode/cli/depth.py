@@ -33,20 +33,13 @@ def parse_range(text: str | None) -> tuple[float, float] | None:
 
 
 def check_range_reach(src, rng: tuple[float, float] | None, text: str | None) -> None:
-    """A ``--disparity-range`` past the slope at which the outermost views still overlap the centre one
-    (:func:`plenodecode.render._common.slope_reach`: 17.9 px/view on the bundled illum-mini) is a usage error
-    naming the option, before decoding: nothing there can match, and the search costs time in proportion."""
-    if rng is None:
-        return
-    from ..decoding.rectify import decoded_shape
-    from ..render._common import slope_reach
+    """:func:`plenodecode.pipeline.products.check_disparity_reach` as a usage error naming ``--disparity-range``."""
+    from ..pipeline.products import check_disparity_reach
 
-    shape = src.lightfield.shape if src.raw is None else decoded_shape(src.calibration.grid)
-    reach, worst = slope_reach(shape), max(abs(rng[0]), abs(rng[1]))
-    if worst > reach:
-        raise click.BadParameter(f"{text}: a disparity of {worst:g} px/view moves the outermost views past the whole "
-                                 f"{shape[2]} x {shape[3]} picture, where no view overlaps the centre one; search "
-                                 f"within |disparity| <= {reach:.3g} here", param_hint="--disparity-range")
+    try:
+        check_disparity_reach(src, rng)
+    except ValueError as exc:
+        raise click.BadParameter(f"{text}: {exc}", param_hint="--disparity-range") from None
 
 
 def check_focused_options(ctx: click.Context) -> None:

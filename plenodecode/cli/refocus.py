@@ -10,7 +10,7 @@ import click
 import math
 
 from ..pipeline import IMAGE_EXTENSIONS, MAX_STACK_SLICES, STACK_UNITS, focal_stack_names
-from .common import (FINITE, FOCUSED_REFOCUS, POSITIVE, FiniteFloat, RegistryChoice, bit_depth_option,
+from .common import (FINITE, FOCUSED_REFOCUS, POSITIVE, RegistryChoice, aperture_option, bit_depth_option,
                      calibration_kwargs, check_focus_options, check_folder_output, check_output, describe_focus,
                      exposure_option, focus_choices, focus_hint, focus_options, focus_point, image_bit_depth,
                      input_options, note_if_dark, output_option, overwrite_option, progress_bar, quiet,
@@ -97,8 +97,7 @@ def refocus_at_virtual_depth(ctx: click.Context, input_path: Path, output: Path,
               help="Units of START and STOP.")
 @click.option("--method", type=REFOCUS_METHOD_CHOICE, default="shift-sum", show_default=True,
               help="Refocusing method.")
-@click.option("--aperture", type=FiniteFloat(0, 1, min_open=True), default=1.0, show_default=True,
-              help="Synthetic aperture radius as a fraction of the view grid (1 = all views); smaller = more "
+@aperture_option("Synthetic aperture radius as a fraction of the view grid (1 = all views); smaller = more "
                    "depth of field.")
 @click.option("--upsample", type=click.IntRange(1, 8), default=1, show_default=True,
               help="Spatial upsampling factor: views fused at their sub-pixel positions; sharper than bicubic for "

@@ -13,7 +13,7 @@ from pathlib import Path
 import click
 from click.core import ParameterSource
 
-from .common import (FINITE, FOCUSED_REFOCUS, POSITIVE, FiniteFloat, bit_depth_option, calibration_kwargs,
+from .common import (FINITE, FOCUSED_REFOCUS, POSITIVE, aperture_option, bit_depth_option, calibration_kwargs,
                      check_focus_options, check_output, describe_focus, exposure_option, focus_choices, focus_hint,
                      focus_options, focus_point, image_bit_depth, input_options, note_if_dark, output_option,
                      overwrite_option, progress_bar, quiet, refuse_focused_views, refuse_writing_over_command_inputs,
@@ -68,8 +68,7 @@ def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float |
 @output_option
 @click.option("--method", type=REFOCUS_METHOD_CHOICE, default="shift-sum", show_default=True,
               help="Refocusing method.")
-@click.option("--aperture", type=FiniteFloat(0, 1, min_open=True), default=1.0, show_default=True,
-              help="Synthetic aperture radius (1 = all views).")
+@aperture_option("Synthetic aperture radius (1 = all views).")
 @bit_depth_option
 @exposure_option
 @input_options

@@ -185,6 +185,25 @@ def check_focus_reach(src: Source, product: str, **options: Any) -> None:
     check_slope_reach(shape, slopes, name="slopes" if product == "focal-stack" else "slope")
 
 
+def check_disparity_reach(src: Source, disparity_range: tuple[float, float] | None) -> None:
+    """ValueError when a depth search range ``(lo, hi)`` (px per view step) reaches past the slope at which the
+    outermost views still overlap the centre one (:func:`~plenodecode.render._common.slope_reach`: 17.9 px/view
+    on the bundled illum-mini), before decoding (a raw's decoded shape comes from its calibration): nothing
+    there can match, and the search costs time in proportion."""
+    if disparity_range is None:
+        return
+    from ..decoding.rectify import decoded_shape
+    from ..render._common import slope_reach
+
+    shape = src.lightfield.shape if src.raw is None else decoded_shape(src.calibration.grid,
+                                                                        src.decode_options.get("n_views"))
+    reach, worst = slope_reach(shape), max(abs(disparity_range[0]), abs(disparity_range[1]))
+    if worst > reach:
+        raise ValueError(f"a disparity of {worst:g} px/view moves the outermost views past the whole {shape[2]} x "
+                         f"{shape[3]} picture, where no view overlaps the centre one; search within |disparity| <= "
+                         f"{reach:.3g} here")
+
+
 def focal_stack_names(n: int, ext: str) -> list[str]:
     """Files of a focal stack of ``n`` slices: ``slice_000.<ext>`` ..., ``all_in_focus.<ext>``, the JSON."""
     return [f"slice_{i:03d}.{ext}" for i in range(n)] + [f"all_in_focus.{ext}", "focal_stack.json"]
