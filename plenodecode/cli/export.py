@@ -8,9 +8,9 @@ import click
 
 from ..pipeline import IMAGE_EXTENSIONS
 from ..registry import lazy
-from .common import (RegistryChoice, encoded_note, bit_depth_option, check_output, empty_views_note, lightfield_bit_depth,
-                     lightfield_output_format, lightfield_summary, output_option, overwrite_option, progress_bar,
-                     refuse_writing_over_inputs)
+from .common import (RegistryChoice, bit_depth_option, check_output, empty_views_note, encoded_note,
+                     lightfield_bit_depth, lightfield_output_format, lightfield_summary, output_option,
+                     overwrite_option, progress_bar, refuse_writing_over_inputs)
 
 #: Exports that are pages for people, not light fields (they never load back; their extensions are
 #: :data:`plenodecode.io.lightfield.PAGE_EXTENSIONS`): name -> ``write(lf, path, *, overwrite, progress)``.
