@@ -1144,3 +1144,22 @@ def test_cli_folders_that_appear_before_the_run_starts_are_refused_as_the_up_fro
         f"Error: 1 of 3 raws already have an output folder in {out} (scene2) from a run with other options or "
         "inputs, or not from a batch; pass --overwrite to replace them, or choose another -o folder"), res.stderr
     assert "decoding" not in res.stderr and sorted(p.name for p in out.iterdir()) == ["scene2"]
+
+
+@pytest.mark.slow
+def test_cli_compile_notice_of_the_workers_appears_once(tmp_path):
+    """A first batch (kernels not in the cache yet) with --jobs 2 said nothing while its workers compiled the
+    calibration and depth kernels (their notices went to each worker's log, shown only with -v, then once per
+    worker): its first task took ~10 s longer with no word why.  The workers now relay each group to the command,
+    which says it once, as the single-file path does."""
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": str(root), "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    res = subprocess.run([sys.executable, "-m", "plenodecode", "batch", str(root / "sample_raws" / "illum-mini"),
+                          str(root / "sample_raws" / "f01-mini"), "-o", str(tmp_path / "out"), "--database",
+                          str(root / "calib"), "--outputs", "depth", "--jobs", "2"],
+                         capture_output=True, text=True, env=env, timeout=600)
+    assert res.returncode == 0, res.stderr
+    notices = [line for line in res.stderr.splitlines() if line.startswith("compiling ")]
+    assert notices.count("compiling depth kernels (first run only, ~4 s)...") == 1, res.stderr
+    assert len(notices) == len(set(notices)), notices
+    assert len(json.loads((tmp_path / "out" / "summary.json").read_text())["results"]) == 2
