@@ -8,7 +8,8 @@ without XDG); ``plenodecode/__init__.py`` calls it, so it runs before any kernel
 Every kernel module decorates its kernels with :func:`njit` (``numba.njit`` with ``cache=True``).  The first
 time a process compiles a kernel that is not in the cache (numba's ``numba:compile`` event, raised only on a
 cache miss), the callback set by :func:`set_compile_notice` (the CLI: one line on stderr) or, without one,
-the log receives ``"compiling decode kernels (first run only, ~4 s)..."``, once per group of kernels.
+the log receives ``"compiling decode kernels (first run only, ~4 s)..."``, once per group of kernels.  Batch
+workers relay the group to the process that started them (:func:`relay_compile_notices`), which says it once.
 
 Importing this module is light: numba is imported by :func:`njit`, that is by the kernel modules.
 """
@@ -48,7 +49,7 @@ COMPILE_SECONDS: dict[str, float] = {
     "depth": 4.0,
 }
 
-_state: dict[str, Any] = {"notify": None, "announced": set(), "listening": False}
+_state: dict[str, Any] = {"notify": None, "relay": None, "announced": set(), "listening": False}
 
 
 def default_cache_dir() -> Path:
@@ -93,11 +94,22 @@ def set_compile_notice(notify: Callable[[str], None] | None) -> None:
     _state["notify"] = notify
 
 
-def _announce(module: str) -> None:
-    group = group_of(module) or "plenodecode"
+def relay_compile_notices(send: Callable[[str], None] | None) -> None:
+    """In a worker process: hand each kernel group it starts compiling to ``send(group)`` instead of announcing
+    it, so that the process that started the workers announces it once (:func:`announce`) for all of them."""
+    _state["relay"] = send
+
+
+def announce(group: str) -> None:
+    """Say (once per process) that ``group``'s kernels are compiling: :func:`set_compile_notice`'s callback, or
+    the log; in a worker with :func:`relay_compile_notices`, the relay."""
     if group in _state["announced"]:
         return
     _state["announced"].add(group)
+    relay = _state["relay"]
+    if relay is not None:
+        relay(group)
+        return
     message = compile_message(group)
     notify = _state["notify"]
     if notify is not None:
@@ -118,7 +130,7 @@ def _listen() -> None:
             func = getattr(dispatcher, "py_func", None)
             module = getattr(func, "__module__", "") or ""
             if module.startswith("plenodecode"):
-                _announce(module)
+                announce(group_of(module) or "plenodecode")
 
         def on_end(self, ev: Any) -> None:
             pass
@@ -162,4 +174,4 @@ def run_in_blocks(call: Callable[[int, int], Any], n: int, *, blocks_per_thread:
 
 
 __all__ = ["KERNEL_GROUPS", "COMPILE_SECONDS", "default_cache_dir", "use_user_cache", "group_of",
-           "compile_message", "set_compile_notice", "njit", "run_in_blocks"]
+           "compile_message", "set_compile_notice", "relay_compile_notices", "announce", "njit", "run_in_blocks"]

@@ -93,10 +93,12 @@ def start_pool(jobs: int, outputs: Sequence[str]) -> tuple[ProcessPoolExecutor, 
     (ProcessPoolExecutor, int)
         The pool and the threads per worker.
     """
+    from . import _numba
     from .threads import worker_pool
 
     threads = max(1, (os.cpu_count() or 1) // jobs)
-    return worker_pool(jobs, threads, preload=preload_modules(outputs)), threads
+    # a kernel group the workers compile is said once, here (the CLI: one line on stderr), not once per worker
+    return worker_pool(jobs, threads, preload=preload_modules(outputs), compile_notices=_numba.announce), threads
 
 
 def run_pool(pool: ProcessPoolExecutor, tasks: list[tuple[Path, str]], task: Task, lost: Lost,

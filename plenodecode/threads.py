@@ -14,8 +14,9 @@ import contextlib
 import multiprocessing
 import multiprocessing.context
 import os
+import threading
 from concurrent.futures import ProcessPoolExecutor
-from typing import Iterable, Iterator
+from typing import Any, Callable, Iterable, Iterator
 
 #: Environment variables that size the BLAS / OpenMP thread pools when those libraries load.
 THREAD_ENV_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
@@ -138,16 +139,35 @@ class _CappedPool(ProcessPoolExecutor):
     the fork server) is being started (workers start on demand, from :meth:`submit`), then restored.
     """
 
-    def __init__(self, jobs: int, threads: int, context: multiprocessing.context.BaseContext) -> None:
-        super().__init__(max_workers=jobs, mp_context=context, initializer=limit_threads, initargs=(threads,))
+    def __init__(self, jobs: int, threads: int, context: multiprocessing.context.BaseContext,
+                 compile_notices: Callable[[str], None] | None = None) -> None:
+        # a SimpleQueue writes to its pipe at once: a worker leaves without flushing a feeder thread
+        self._notices = None if compile_notices is None else context.SimpleQueue()
+        super().__init__(max_workers=jobs, mp_context=context, initializer=_start_worker,
+                         initargs=(threads, self._notices))
         self._thread_env = _capped_environment(threads)
+        self._relay = None
+        if compile_notices is not None:
+            def relay(queue=self._notices, say=compile_notices) -> None:
+                for group in iter(queue.get, None):
+                    say(group)
+            self._relay = threading.Thread(target=relay, name="compile-notices", daemon=True)
+            self._relay.start()
 
     def submit(self, fn, /, *args, **kwargs):  # type: ignore[override]
         with _environment(self._thread_env):
             return super().submit(fn, *args, **kwargs)
 
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        super().shutdown(wait=wait, cancel_futures=cancel_futures)
+        if self._relay is not None and self._relay.is_alive():
+            self._notices.put(None)         # after the workers' last notices: the relay says them, then ends
+            if wait:
+                self._relay.join()
 
-def worker_pool(jobs: int, threads: int, *, preload: Iterable[str] = ()) -> ProcessPoolExecutor:
+
+def worker_pool(jobs: int, threads: int, *, preload: Iterable[str] = (),
+                compile_notices: Callable[[str], None] | None = None) -> ProcessPoolExecutor:
     """``jobs`` worker processes, each with its numba, OpenCV and BLAS pools capped at ``threads``.
 
     Where the platform has a fork server (Linux, macOS), the workers are forked from it: the server is
@@ -164,9 +184,22 @@ def worker_pool(jobs: int, threads: int, *, preload: Iterable[str] = ()) -> Proc
         Threads per pool in each worker.
     preload : iterable of str
         Modules the fork server imports (names; a module that fails to import is skipped by multiprocessing).
+    compile_notices : callable(group), optional
+        Called in this process (from a thread) with each numba kernel group a worker starts compiling
+        (:func:`plenodecode._numba.relay_compile_notices`), e.g. :func:`plenodecode._numba.announce`: said once
+        for the pool, not once per worker; without it each worker logs its own.
     """
     context = _fork_server_context(threads, tuple(preload)) or multiprocessing.get_context("spawn")
-    return _CappedPool(jobs, threads, context)
+    return _CappedPool(jobs, threads, context, compile_notices)
+
+
+def _start_worker(threads: int, notices: Any) -> None:
+    """A pool worker's initializer: :func:`limit_threads`; relay compile notices to ``notices`` (a queue)."""
+    limit_threads(threads)
+    if notices is not None:
+        from . import _numba
+
+        _numba.relay_compile_notices(notices.put)
 
 
 __all__ = ["THREAD_ENV_VARS", "thread_counts", "limit_threads", "worker_pool"]

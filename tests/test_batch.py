@@ -829,8 +829,45 @@ def test_cli_without_a_database_decodes_what_needs_none_and_fails_the_rest_with_
     assert rows["damaged.lfr"]["status"] == "failed" and "not a Lytro container" in rows["damaged.lfr"]["error"]
     # only raws that need the database: refused before any work, nothing written
     res = CliRunner().invoke(cli, ["batch", str(shoot / "take1"), "-o", str(tmp_path / "none")])
-    assert res.exit_code == 2 and "--database" in res.output and "calib is not a folder" in res.output
+    assert res.exit_code == 2 and "--database" in res.output and "no calibration database at ./calib" in res.output
+    assert f"'plenodecode calibrate --database calib {shoot / 'take1'}'" in res.output    # its white images
     assert not (tmp_path / "none").exists()
+
+
+def test_cli_without_the_default_database_says_how_to_build_it_from_the_whites_beside_the_raws(tmp_path,
+                                                                                                 monkeypatch):
+    """'plenodecode batch sample_raws -o out' where there is no ./calib said "Invalid value for --database: calib
+    is not a folder; build the database with `plenodecode calibrate --database`": an option the user did not type,
+    a command without its folder.  It says the default is missing and gives the command that builds it from the
+    white images beside the raws, which then lets the same batch decode every raw; --self-calibrate, which the
+    single-file error offers, needs no database and is no longer refused."""
+    import shlex
+
+    root = Path(__file__).resolve().parents[1]
+    samples = root / "sample_raws"
+    monkeypatch.chdir(tmp_path)                                   # no calib/ here
+    runner = CliRunner()
+    res = runner.invoke(cli, ["batch", str(samples), "-o", "out"])
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert res.exit_code == 2 and len(errors) == 1 and not (tmp_path / "out").exists(), res.output
+    assert errors[0].startswith("Error: Invalid value for --database: no calibration database at ./calib (the "
+                                "default) and every raw here needs one"), errors
+    assert "--self-calibrate" in errors[0] and "--white WHITE_IMAGE" in errors[0]
+    command = shlex.split(errors[0].split(" with '", 1)[1].split("'", 1)[0])
+    assert command == ["plenodecode", "calibrate", "--database", "calib", str(samples)]
+    assert runner.invoke(cli, command[1:]).exit_code == 0
+    res = runner.invoke(cli, ["-q", "batch", str(samples), "-o", "out", "--jobs", "1"])
+    rows = json.loads((tmp_path / "out" / "summary.json").read_text())["results"]
+    assert res.exit_code == 0 and len(rows) == 3 and {r["status"] for r in rows} == {"done"}, res.output
+
+    (tmp_path / "other").mkdir()
+    monkeypatch.chdir(tmp_path / "other")                         # no calib/ here either
+    res = runner.invoke(cli, ["-q", "batch", str(samples / "illum-mini" / "scene.lfr"), "-o", "out", "--jobs", "1",
+                              "--self-calibrate"])
+    from plenodecode.io.images import read_image
+
+    photo = read_image(next((tmp_path / "other" / "out" / "scene").glob("*.png")))
+    assert res.exit_code == 0 and photo.ndim == 3 and photo.std() > 0, res.output
 
 
 def test_batch_depth_of_a_raytrix_raw_is_the_depth_commands_virtual_depth(tmp_path):
@@ -1144,3 +1181,22 @@ def test_cli_folders_that_appear_before_the_run_starts_are_refused_as_the_up_fro
         f"Error: 1 of 3 raws already have an output folder in {out} (scene2) from a run with other options or "
         "inputs, or not from a batch; pass --overwrite to replace them, or choose another -o folder"), res.stderr
     assert "decoding" not in res.stderr and sorted(p.name for p in out.iterdir()) == ["scene2"]
+
+
+@pytest.mark.slow
+def test_cli_compile_notice_of_the_workers_appears_once(tmp_path):
+    """A first batch (kernels not in the cache yet) with --jobs 2 said nothing while its workers compiled the
+    calibration and depth kernels (their notices went to each worker's log, shown only with -v, then once per
+    worker): its first task took ~10 s longer with no word why.  The workers now relay each group to the command,
+    which says it once, as the single-file path does."""
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": str(root), "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    res = subprocess.run([sys.executable, "-m", "plenodecode", "batch", str(root / "sample_raws" / "illum-mini"),
+                          str(root / "sample_raws" / "f01-mini"), "-o", str(tmp_path / "out"), "--database",
+                          str(root / "calib"), "--outputs", "depth", "--jobs", "2"],
+                         capture_output=True, text=True, env=env, timeout=600)
+    assert res.returncode == 0, res.stderr
+    notices = [line for line in res.stderr.splitlines() if line.startswith("compiling ")]
+    assert notices.count("compiling depth kernels (first run only, ~4 s)...") == 1, res.stderr
+    assert len(notices) == len(set(notices)), notices
+    assert len(json.loads((tmp_path / "out" / "summary.json").read_text())["results"]) == 2

@@ -241,7 +241,7 @@ def _is_white_mosaic(p: Path) -> bool:
         return False
 
 
-def _find_whites(folder: Path) -> list[Path]:
+def find_whites(folder: Path) -> list[Path]:
     """Lytro ``MOD_NNNN.RAW`` white images, and mosaics whose sidecar says ``is_white_image``."""
     found = [p for p in folder.rglob("*") if p.is_file() and (
         (p.name.upper().startswith("MOD_") and p.suffix.upper() == ".RAW") or _is_white_mosaic(p))]
@@ -345,7 +345,7 @@ def build_database(folder: str | os.PathLike, db_dir: str | os.PathLike = DEFAUL
     if not src.is_dir() and not is_archive:
         raise CalibrationError(f"{src}: not a folder or a calibration archive; pass the folder holding the "
                                "MOD_NNNN.RAW/.TXT white images, the Illum caldata-<serial>.tar or the F01 data.C.0")
-    paths = [] if is_archive else _find_whites(src)
+    paths = [] if is_archive else find_whites(src)
     archives = [src] if is_archive else list(iter_archives(src))
     try:
         existing = {e.file: e for e in load_index(db)}
@@ -638,6 +638,6 @@ def read_white(entry: WhiteEntry, db_dir: str | os.PathLike, raw: RawCapture) ->
     return white
 
 
-__all__ = ["DEFAULT_DB", "WhiteEntry", "build_database", "cache_grids", "select_white", "other_whites", "white_path",
-           "grid_for", "calibration_for", "lookup_grid", "read_white", "load_index", "save_index", "update_index",
+__all__ = ["DEFAULT_DB", "WhiteEntry", "build_database", "find_whites", "cache_grids", "select_white", "other_whites",
+           "white_path", "grid_for", "calibration_for", "lookup_grid", "read_white", "load_index", "save_index", "update_index",
            "index_lock"]

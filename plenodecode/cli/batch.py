@@ -70,6 +70,23 @@ def _errors_in_option_names(summary: Any) -> Any:
     return dataclasses.replace(summary, results=results)
 
 
+def _no_database(db_dir: Path, default: bool, inputs: tuple[Path, ...]) -> str:
+    """Why a batch whose raws all need the calibration database ``db_dir``, which is no folder, is refused, with
+    the command that builds it: from the inputs' folders that hold white images (``MOD_0000.RAW`` beside the
+    raws), else from a FOLDER of them; and the options that do without one."""
+    from ..calib.store import find_whites
+
+    folders = [p if p.is_dir() else p.parent for p in inputs]
+    with_whites = [str(f) for f in dict.fromkeys(folders) if find_whites(f)]
+    what = (f"no calibration database at ./{db_dir} (the default) and every raw here needs one" if default
+            else f"{db_dir} is not a folder")
+    source = (f"the white images in {' '.join(with_whites)}" if with_whites else "a FOLDER of the camera's white "
+              "images")
+    command = f"plenodecode calibrate --database {db_dir} {' '.join(with_whites) or 'FOLDER'}"
+    return (f"{what}: build it from {source} with '{command}', or pass --database DIR, --white WHITE_IMAGE "
+            "or --self-calibrate")
+
+
 def _is_lightfield_folder(folder: Path) -> bool:
     """An HCI scene folder or a light field saved as a folder of views (its ``lightfield.json``)."""
     from ..pipeline import input_kind
@@ -182,11 +199,10 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
             click.echo(f"note: {note}", err=True)
     # a --database typed that is no folder is refused; the default one missing only when no raw can do without it
     # (the others are decoded; those that need it fail with the reason, as a batch goes past any bad raw)
-    if white is None and calibration is None and not db_dir.is_dir() and (
+    if white is None and calibration is None and not self_calibrate and not db_dir.is_dir() and (
             database is not None and not all(needs_no_database(f) for f in files)
             or database is None and not any(needs_no_database(f) for f in files)):
-        raise click.BadParameter(f"{db_dir} is not a folder; build the database with `plenodecode calibrate "
-                                 "--database`", param_hint="--database")
+        raise click.BadParameter(_no_database(db_dir, database is None, inputs), param_hint="--database")
     mosaic = current_mosaic_options()
     options = BatchOptions(outputs=outputs, db_dir=str(db_dir), lightfield_format=lf_format,
                            bit_depth=int(bit_depth), exposure=exposure, slope=slope, alpha=alpha, distance_m=distance_m,

@@ -2,7 +2,8 @@
 
 Commands live in one module each (``plenodecode.cli.<name>``, attribute ``command``) and
 are imported only when run, so ``plenodecode --help`` stays fast.  A first argument that
-is not a command but a file (``plenodecode raw.lfr --refocus 1.015``) runs ``render``.
+is not a command but a file (``plenodecode raw.lfr --refocus 1.015``) runs ``render``, which --help lists
+so that its options (``plenodecode render --help``) and the errors naming it can be found.
 
 Exit codes: 0 success, 1 data error (one line on stderr; traceback with ``-v``), 2 usage error.
 """
@@ -32,7 +33,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "export": ("plenodecode.cli.export", "Convert a saved light field to another format."),
     "extract": ("plenodecode.cli.extract", "Write the JPEGs, depth maps and H.264 streams embedded in a Lytro file."),
     "refocus": ("plenodecode.cli.refocus", "Refocus a raw or light field (slope or alpha), or write a focal stack."),
-    "render": ("plenodecode.cli.render", "Decode and refocus in one call: plenodecode RAW --refocus ALPHA."),
+    "render": ("plenodecode.cli.render", "Decode a raw and write its photograph in one call; 'plenodecode RAW ...' is "
+                                          "short for 'plenodecode render RAW ...'."),
     "views": ("plenodecode.cli.views", "Write sub-aperture or perspective views."),
     "parallax": ("plenodecode.cli.parallax", "Write a parallax animation (circle of viewpoints)."),
     "depth": ("plenodecode.cli.depth", "Estimate disparity / metric depth and write PFM, EXR, PNG, PLY."),
@@ -77,7 +79,7 @@ class LazyGroup(click.Group):
     """A click group whose commands are imported on first use."""
 
     def list_commands(self, ctx: click.Context) -> list[str]:
-        return [name for name in COMMANDS if name != "render"]
+        return list(COMMANDS)
 
     def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
         if name not in COMMANDS:
@@ -140,7 +142,7 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
 
     \b
     Example:
-      plenodecode raw.lfr --refocus 1.015 -o photo.png
+      plenodecode raw.lfr --refocus 1.015 -o photo.png    # the render command; its options: render --help
     """
     ctx.ensure_object(dict)
     ctx.obj["verbose"] = verbose

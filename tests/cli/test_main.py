@@ -1,5 +1,6 @@
 """The command line as a whole: every command listed, documented with an example, consistent exit codes."""
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -10,15 +11,32 @@ from click.testing import CliRunner
 from plenodecode import __version__
 from plenodecode.cli.main import COMMANDS, cli
 
-PUBLIC = [name for name in COMMANDS if name != "render"]
-
-
 def test_help_lists_every_command_with_a_description():
     res = CliRunner().invoke(cli, ["--help"])
     assert res.exit_code == 0
-    for name in PUBLIC:
-        assert name in res.output
+    listed = [line.split()[0] for line in res.output.split("Commands:", 1)[1].splitlines() if line.startswith("  ")
+              and not line.startswith("   ")]
+    assert listed == list(COMMANDS), listed
     assert "--version" in res.output
+
+
+def test_help_lists_the_render_command_the_errors_and_readme_name():
+    """'render' was hidden from --help while the one-liner's options live under 'plenodecode render --help' and a
+    focused raw's errors (and the README) say 'plenodecode render RAW --total-focus': --help lists it, as the
+    one-liner's long form, and the group's example says where its options are."""
+    from plenodecode.cli.common import FOCUSED_PHOTO
+
+    help_text = CliRunner().invoke(cli, ["--help"]).output
+    row = next(line for line in help_text.splitlines() if line.startswith("  render "))
+    assert "plenodecode RAW" in " ".join(help_text.split()) and "short for 'plenodecode render RAW" in \
+        " ".join(help_text.split()), row
+    assert "render --help" in help_text
+    assert FOCUSED_PHOTO.split("'plenodecode ", 1)[1].split()[0] == "render"
+    listed = {line.split()[0] for line in help_text.split("Commands:", 1)[1].splitlines() if line.startswith("  ")
+              and not line.startswith("   ")}
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    named = set(re.findall(r"plenodecode ([a-z][a-z-]+) ", readme)) & set(COMMANDS)
+    assert "render" in named and named <= listed, named - listed
 
 
 @pytest.mark.parametrize("name", list(COMMANDS))
