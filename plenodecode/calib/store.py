@@ -241,9 +241,11 @@ def _is_white_mosaic(p: Path) -> bool:
         return False
 
 
-def find_whites(folder: Path) -> list[Path]:
-    """Lytro ``MOD_NNNN.RAW`` white images, and mosaics whose sidecar says ``is_white_image``."""
-    found = [p for p in folder.rglob("*") if p.is_file() and (
+def find_whites(folder: Path, *, recursive: bool = True) -> list[Path]:
+    """Lytro ``MOD_NNNN.RAW`` white images, and mosaics whose sidecar says ``is_white_image``, in ``folder``
+    and (``recursive``) its sub-folders; sorted."""
+    files = folder.rglob("*") if recursive else folder.glob("*")
+    found = [p for p in files if p.is_file() and (
         (p.name.upper().startswith("MOD_") and p.suffix.upper() == ".RAW") or _is_white_mosaic(p))]
     return sorted(found)
 
@@ -639,5 +641,5 @@ def read_white(entry: WhiteEntry, db_dir: str | os.PathLike, raw: RawCapture) ->
 
 
 __all__ = ["DEFAULT_DB", "WhiteEntry", "build_database", "find_whites", "cache_grids", "select_white", "other_whites",
-           "white_path", "grid_for", "calibration_for", "lookup_grid", "read_white", "load_index", "save_index", "update_index",
-           "index_lock"]
+           "white_path", "grid_for", "calibration_for", "lookup_grid", "read_white", "load_index", "save_index",
+           "update_index", "index_lock"]

@@ -193,10 +193,25 @@ def _database_or_scene(raw: RawCapture, db: Path, *, self_calibrate: bool, progr
     elif not self_calibrate:
         raise CalibrationError(
             f"no calibration for {name} (camera {raw.metadata.model or '?'} {raw.metadata.serial or '?'}): "
-            f"no calibration database in {db} (no {store.INDEX_NAME}; 'plenodecode calibrate --database {db} "
-            "FOLDER' makes one of the white images in FOLDER); pass --database DIR, --calibration grid.json, "
-            "--white WHITE_IMAGE or --self-calibrate")
+            f"no calibration database in {db} (no {store.INDEX_NAME}); {_how_to_calibrate(raw, db)}")
     return _self_calibration(raw, progress)
+
+
+def _how_to_calibrate(raw: RawCapture, db: Path) -> str:
+    """The commands that give ``raw`` a calibration when the database ``db`` is missing: built from the white
+    images beside the raw (Lytro ``MOD_NNNN.RAW``, one folder, not recursive) when there are some, else from
+    a FOLDER of them; and the options that do without a database."""
+    from ..calib.store import find_whites
+
+    folder = Path(raw.path).parent if raw.path else None
+    whites = [] if folder is None else find_whites(folder, recursive=False)
+    if not whites:
+        return (f"'plenodecode calibrate --database {db} FOLDER' makes one of the white images in FOLDER; pass "
+                "--database DIR, --calibration grid.json, --white WHITE_IMAGE or --self-calibrate")
+    names = ", ".join(w.name for w in whites)
+    return (f"white images beside it ({names}): 'plenodecode calibrate --database {db} {folder}' builds the "
+            f"database of them, or pass --white {whites[0]} (or --database DIR, --calibration grid.json, "
+            "--self-calibrate)")
 
 
 def _self_calibration(raw: RawCapture, progress: Progress) -> Calibration:

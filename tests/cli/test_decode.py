@@ -215,8 +215,39 @@ def test_database_option_on_a_folder_of_white_images_says_how_to_index_it(tmp_pa
                                    "-o", str(tmp_path / "lf.zarr")])
     lines = res.output.strip().splitlines()
     assert res.exit_code == 1 and len(lines) == 1, res.output
-    assert f"no calibration database in {folder} (no index.json; 'plenodecode calibrate --database {folder} " \
-           "FOLDER' makes one" in lines[0] and not (tmp_path / "lf.zarr").exists()
+    assert f"no calibration database in {folder} (no index.json); white images beside it (MOD_0000.RAW): " \
+           f"'plenodecode calibrate --database {folder} {folder}' builds" in lines[0]
+    assert not (tmp_path / "lf.zarr").exists()
+
+
+def test_one_liner_without_a_database_names_the_white_image_beside_the_raw(tmp_path, monkeypatch):
+    """'plenodecode scene.lfr -o photo.png' in a folder without ./calib, the white image MOD_0000.RAW beside the
+    raw, said only 'calibrate --database calib FOLDER ... or --white WHITE_IMAGE'.  It now names the white image
+    and the two commands that use it; the --white one writes the photo.  A raw with no white image beside it keeps
+    the FOLDER form."""
+    import shutil
+    from pathlib import Path
+
+    import cv2
+
+    src = Path(__file__).resolve().parents[2] / "sample_raws" / "illum-mini"
+    raws = tmp_path / "raws"
+    raws.mkdir()
+    for name in ("scene.lfr", "MOD_0000.RAW", "MOD_0000.TXT"):
+        shutil.copy(src / name, raws / name)
+    monkeypatch.chdir(tmp_path)
+    res = CliRunner().invoke(cli, [str(raws / "scene.lfr"), "-o", "photo.png"])
+    lines = res.output.strip().splitlines()
+    assert res.exit_code == 1 and len(lines) == 1, res.output
+    assert "white images beside it (MOD_0000.RAW): 'plenodecode calibrate --database calib " \
+           f"{raws}' builds the database of them, or pass --white {raws / 'MOD_0000.RAW'}" in lines[0]
+    assert not (tmp_path / "photo.png").exists()
+    res = CliRunner().invoke(cli, [str(raws / "scene.lfr"), "--white", str(raws / "MOD_0000.RAW"), "-o", "photo.png"])
+    photo = cv2.imread(str(tmp_path / "photo.png"), cv2.IMREAD_UNCHANGED)
+    assert res.exit_code == 0 and photo is not None and photo.std() > 0.02 * np.iinfo(photo.dtype).max, res.output
+    (raws / "MOD_0000.RAW").unlink()
+    res = CliRunner().invoke(cli, [str(raws / "scene.lfr"), "-o", "photo2.png"])
+    assert res.exit_code == 1 and "'plenodecode calibrate --database calib FOLDER' makes one" in res.output
 
 
 def test_an_output_over_the_raw_or_its_sidecar_is_refused(files, tmp_path):
