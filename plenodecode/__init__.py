@@ -6,6 +6,12 @@ Importing the package is light: the public functions below are loaded on first u
 >>> raw = pd.read_raw("sample_raws/illum-mini/scene.lfr")      # doctest: +SKIP
 >>> grid = pd.calibrate("sample_raws/illum-mini/MOD_0000.RAW")  # doctest: +SKIP
 >>> lf = pd.decode(raw, grid)                                   # doctest: +SKIP
+
+The workflow the command line runs (:mod:`plenodecode.pipeline`, :mod:`plenodecode.batch`) is here too:
+
+>>> src = pd.open_source("sample_raws/illum-mini/scene.lfr")               # doctest: +SKIP
+>>> pd.write_product(pd.render_product(src, "centre"), "centre.png")     # doctest: +SKIP
+>>> pd.run_batch(["sample_raws"], "out", pd.BatchOptions(outputs=("centre",)))  # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -36,6 +42,15 @@ _LAZY = {
     "estimate_focused_depth": "plenodecode.depth.focused",
     "save_lightfield": "plenodecode.io.lightfield",
     "load_lightfield": "plenodecode.io.lightfield",
+    # the workflow layer both front ends use: any input -> a named product -> its files; a folder of raws
+    "open_source": "plenodecode.pipeline",
+    "PRODUCTS": "plenodecode.pipeline",
+    "render_product": "plenodecode.pipeline",
+    "write_product": "plenodecode.pipeline",
+    "write_parallax": "plenodecode.pipeline",
+    "write_depth": "plenodecode.pipeline",
+    "BatchOptions": "plenodecode.batch",
+    "run_batch": "plenodecode.batch",
 }
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY)

@@ -20,7 +20,8 @@ from dataclasses import dataclass, fields, replace
 from typing import Any, Mapping
 
 #: Field of :class:`MicroscopeOptics` -> (command-line option, unit of the option, scale option -> field).
-#: Errors that ask for a missing value name the option, never the Python field.
+#: The library's errors name the Python field; the command line rewrites them in its options
+#: (:func:`plenodecode.cli.common.in_option_names`).
 OPTICS_OPTIONS: dict[str, tuple[str, str, float]] = {
     "lens_pitch_m": ("--lens-pitch-um", "um", 1e-6),
     "pixel_pitch_m": ("--pixel-um", "um", 1e-6),
@@ -31,6 +32,12 @@ OPTICS_OPTIONS: dict[str, tuple[str, str, float]] = {
     "microlens_focal_length_m": ("--microlens-focal-um", "um", 1e-6),
     "wavelength_m": ("--wavelength-nm", "nm", 1e-9),
 }
+
+
+#: How a Python caller gives a microscope's optics, as the library's errors say it (the command line replaces the
+#: phrase by its ``--optics FILE``).
+OPTICS_SUPPLY = ("optics=MicroscopeOptics(...) of open_source / open_input, a keyword of disparity_to_depth, or a "
+                 "napari-LF metadata.txt beside the raw")
 
 
 def option_name(field_name: str) -> str:
@@ -85,15 +92,16 @@ class MicroscopeOptics:
             try:
                 v = float(value)
             except (TypeError, ValueError):
-                raise ValueError(f"{option_name(f.name)} must be a number, got {value!r}") from None
+                raise ValueError(f"{f.name} must be a number, got {value!r}") from None
             if not (v > 0 and math.isfinite(v)):
-                raise ValueError(f"{option_name(f.name)} must be a positive number, got {value!r}")
+                raise ValueError(f"{f.name} must be a positive number, got {value!r}")
             object.__setattr__(self, f.name, v)
         if self.medium_index is not None and self.medium_index < 1.0:
-            raise ValueError(f"--medium-index must be at least 1 (vacuum), got {self.medium_index:g}")
+            raise ValueError(f"medium_index must be at least 1 (vacuum), got {self.medium_index:g}")
         if self.numerical_aperture is not None and self.medium_index is not None \
                 and self.numerical_aperture >= self.medium_index:
-            raise ValueError(f"--na {self.numerical_aperture:g} must be below --medium-index {self.medium_index:g} "
+            raise ValueError(f"numerical_aperture {self.numerical_aperture:g} must be below medium_index "
+                             f"{self.medium_index:g} "
                              "(NA = n sin(theta))")
 
     @property
@@ -139,4 +147,4 @@ class MicroscopeOptics:
         return ", ".join(parts) if parts else "no values"
 
 
-__all__ = ["MicroscopeOptics", "OPTICS_OPTIONS", "option_name"]
+__all__ = ["MicroscopeOptics", "OPTICS_OPTIONS", "OPTICS_SUPPLY", "option_name"]

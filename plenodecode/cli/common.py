@@ -181,6 +181,35 @@ _OPTICS_HELP = {
 }
 
 
+def in_option_names(text: str) -> str:
+    """A library message about microscope optics in the command's words: the :class:`~plenodecode.optics.
+    MicroscopeOptics` fields it names become their options (``numerical_aperture`` -> ``--na``), the Python way of
+    giving optics (:data:`~plenodecode.optics.OPTICS_SUPPLY`) becomes ``--optics FILE.json``."""
+    import re
+
+    from ..optics import OPTICS_OPTIONS, OPTICS_SUPPLY, option_name
+
+    text = text.replace(OPTICS_SUPPLY, "or --optics FILE.json, or a napari-LF metadata.txt beside the raw")
+    return re.sub(r"\b(" + "|".join(OPTICS_OPTIONS) + r")\b", lambda m: option_name(m.group(1)), text)
+
+
+@contextlib.contextmanager
+def optics_in_option_names() -> Iterator[None]:
+    """Errors raised inside (ValueError, the library's errors, usage errors) with their message in the command's
+    option names (:func:`in_option_names`); the same exception object, so its type and attributes are kept."""
+    from ..errors import PlenodecodeError
+
+    try:
+        yield
+    except click.ClickException as exc:
+        exc.message = in_option_names(exc.message)
+        raise
+    except (ValueError, PlenodecodeError) as exc:
+        if len(exc.args) == 1 and isinstance(exc.args[0], str):
+            exc.args = (in_option_names(exc.args[0]),)
+        raise
+
+
 def microscope_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     """Light-field microscope inputs: ``--dark FRAME`` and the optics (``--lens-pitch-um``, ``--pixel-um``,
     ``--magnification``, ``--na``, ``--tube-lens-mm``, ``--medium-index``, ``--microlens-focal-um``,
@@ -204,15 +233,16 @@ def microscope_options(fn: Callable[..., Any]) -> Callable[..., Any]:
         try:
             optics = read_optics(optics_file) if optics_file is not None else None
         except PlenodecodeError as exc:
-            raise click.BadParameter(str(exc), param_hint="--optics") from None
+            raise click.BadParameter(in_option_names(str(exc)), param_hint="--optics") from None
         try:
             given = MicroscopeOptics.from_options(**values)
             optics = optics.merged(given) if optics is not None else given
         except ValueError as exc:
-            raise click.UsageError(str(exc)) from None
+            raise click.UsageError(in_option_names(str(exc))) from None
         click.get_current_context().meta[MICROSCOPE_META] = {
             "dark": dark, "optics": None if optics.empty else optics}
-        return fn(*args, **kwargs)
+        with optics_in_option_names():       # e.g. metric depth missing an optical constant
+            return fn(*args, **kwargs)
 
     for field, help_text in reversed(_OPTICS_HELP.items()):
         checked = click.option(OPTICS_OPTIONS[field][0], names[field], type=POSITIVE,

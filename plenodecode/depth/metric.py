@@ -108,7 +108,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import MetadataError
-from ..optics import OPTICS_OPTIONS, MicroscopeOptics, option_name
+from ..optics import OPTICS_OPTIONS, OPTICS_SUPPLY, MicroscopeOptics
 from ..types import HCIParameters, LightField
 
 log = logging.getLogger(__name__)
@@ -120,10 +120,11 @@ PLENOPTIC_KEYS = ("focal_length_m", "f_number", "lens_pitch_m", "spatial_step_px
                   "focus_distance_m", "infinity_lambda", "mla_sensor_gap_m")
 #: Keyword overrides for light-field microscopes: the fields of MicroscopeOptics and the sampling steps.
 MICROSCOPE_KEYS = (*OPTICS_OPTIONS, "spatial_step_px", "view_step_px")
-#: How a missing constant of a camera light field is supplied (errors name options, never Python keywords).
+#: How a missing constant of a camera light field is supplied (errors name the MicroscopeOptics fields; the command
+#: line rewrites them in its options).
 _CAMERA_HINT = ("it comes with the camera's metadata (decode the raw itself, with its metadata); for a "
-                "light-field microscope give its optics instead: --magnification, --na, --medium-index, "
-                "--lens-pitch-um, --pixel-um (or --optics FILE.json, or a napari-LF metadata.txt beside the raw)")
+                "light-field microscope give its optics instead: magnification, numerical_aperture, medium_index, "
+                f"lens_pitch_m, pixel_pitch_m ({OPTICS_SUPPLY})")
 
 
 def _positive(name: str, value: Any) -> float:
@@ -231,11 +232,9 @@ def _microscope_value(name: str, optics: MicroscopeOptics, lf: LightField, overr
     if value is None and name in ("lens_pitch_m", "pixel_pitch_m"):
         value = getattr(lf.geometry, name)
     if value is None:
-        raise MetadataError(f"metric depth of a light-field microscope needs {option_name(name)} "
-                            f"({name.replace('_m', '').replace('_', ' ')}), which its optics do not give; "
-                            f"pass {option_name(name)} (or --optics FILE.json, or a napari-LF metadata.txt beside "
-                            "the raw)")
-    return getattr(MicroscopeOptics(**{name: value}), name)      # checked: a ValueError names the option
+        raise MetadataError(f"metric depth of a light-field microscope needs {name}, which its optics do not "
+                            f"give; pass {name} ({OPTICS_SUPPLY})")
+    return getattr(MicroscopeOptics(**{name: value}), name)      # checked: a ValueError names the field
 
 
 def microscope_constants(lf: LightField, **overrides: float) -> tuple[float, float]:
@@ -253,7 +252,7 @@ def microscope_constants(lf: LightField, **overrides: float) -> tuple[float, flo
     Raises
     ------
     MetadataError
-        A constant is missing; the message names its command-line option (``--magnification``, ...).
+        A constant is missing; the message names its :class:`MicroscopeOptics` field (``magnification``, ...).
     """
     geometry = lf.geometry
     optics = geometry.microscope or MicroscopeOptics()
@@ -272,20 +271,20 @@ def microscope_constants(lf: LightField, **overrides: float) -> tuple[float, flo
     if pixel is None and pitch_px:
         pixel = pitch / float(pitch_px)
     if pixel is None:
-        pixel = _microscope_value("pixel_pitch_m", optics, lf, overrides)     # raises naming --pixel-um
-    pixel = _positive(option_name("pixel_pitch_m"), pixel)
+        pixel = _microscope_value("pixel_pitch_m", optics, lf, overrides)     # raises naming pixel_pitch_m
+    pixel = _positive("pixel_pitch_m", pixel)
     if pitch_px is None:
         pitch_px = pitch / pixel
     dx = pitch * steps["spatial_step_px"] / float(pitch_px) / mag
     f_mu = overrides.get("microlens_focal_length_m", optics.microlens_focal_length_m)
     if f_mu is not None:
-        na_step = mag * steps["view_step_px"] * pixel / _positive(option_name("microlens_focal_length_m"), f_mu)
+        na_step = mag * steps["view_step_px"] * pixel / _positive("microlens_focal_length_m", f_mu)
     else:
         na = _microscope_value("numerical_aperture", optics, lf, overrides)
         na_step = 2.0 * na * steps["view_step_px"] * pixel / pitch
     if not na_step < n:
-        raise ValueError(f"one view step spans n sin(theta) = {na_step:.3g}, not below --medium-index {n:g}: "
-                         "check --magnification, --pixel-um and --microlens-focal-um")
+        raise ValueError(f"one view step spans n sin(theta) = {na_step:.3g}, not below medium_index {n:g}: "
+                         "check magnification, pixel_pitch_m and microlens_focal_length_m")
     dtheta = math.asin(na_step / n)
     return dx / math.tan(dtheta), dx
 

@@ -45,7 +45,7 @@ def test_optics_dialects_agree():
     assert parse_optics(format_metadata_txt(optics)) == optics
     with pytest.raises(MetadataError, match="no microscope optics"):
         parse_optics('{"main": {}, "calibrate": {}}')
-    with pytest.raises(MetadataError, match="--na"):
+    with pytest.raises(MetadataError, match="numerical_aperture 1.5 must be below medium_index"):   # Python's names
         parse_optics('{"calibrate": {"objective_na": 1.5, "medium_index": 1.33}}')
 
 
@@ -106,7 +106,28 @@ def test_missing_optics_name_the_cli_options(square_capture, tmp_path):
     assert r.exit_code == 2 and "--medium-index" in r.output and "=..." not in r.output
     r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "c.pfm"), "--na", "1.4", "--medium-index", "1.33"],
                            obj={})
-    assert r.exit_code == 2 and "--na" in r.output
+    assert r.exit_code == 2 and "--na 1.4 must be below --medium-index 1.33" in r.output
+    # the library names MicroscopeOptics fields (numerical_aperture, ...); the command line says its options
+    for out in (r.output, CliRunner().invoke(cli, base + ["-o", str(tmp_path / "d.pfm"), "--magnification", "20"],
+                                             obj={}).output):
+        assert not any(f in out for f in ("numerical_aperture", "medium_index", "MicroscopeOptics", "open_source"))
+    r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "d.pfm"), "--magnification", "20"], obj={})
+    assert r.exit_code == 2 and "needs --medium-index, which its optics do not give; pass --medium-index (or " \
+        "--optics FILE.json" in " ".join(r.output.split()), r.output
+    assert not list(tmp_path.glob("?.pfm"))                  # refused before any output
+
+
+def test_optics_file_errors_name_the_cli_options(square_capture, tmp_path):
+    """A bad optics file seen through the CLI: the error names --optics and the value's option (--na), while
+    parse_optics from Python names the MicroscopeOptics field (test_optics_dialects_agree)."""
+    paths, _, _ = square_capture
+    bad = tmp_path / "optics.json"
+    bad.write_text('{"calibrate": {"objective_na": 1.5, "medium_index": 1.33}}')
+    r = CliRunner().invoke(cli, ["depth", str(paths["raw"]), "-w", str(paths["white"]), "--optics", str(bad),
+                                 "-o", str(tmp_path / "a.pfm")], obj={})
+    text = " ".join(r.output.split())
+    assert r.exit_code == 2 and "--optics" in text and "--na 1.5 must be below --medium-index 1.33" in text, text
+    assert "numerical_aperture" not in text and not (tmp_path / "a.pfm").exists()
 
 
 # ------------------------------------------------------------------------------------- the real ant-leg capture

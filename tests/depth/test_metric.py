@@ -9,6 +9,7 @@ from tests.conftest import shared_path
 from plenodecode.depth import disparity_to_depth
 from plenodecode.depth.metric import depth_to_disparity, depth_to_points, focal_length_px
 from plenodecode.errors import MetadataError
+from plenodecode.optics import MicroscopeOptics
 from plenodecode.types import LightField, LightFieldGeometry
 
 #: parameters.cfg of the HCI 'antinous' scene (the values every HCI scene shares for the camera)
@@ -145,8 +146,6 @@ def test_plenoptic_points_scale():
 
 # ------------------------------------------------------------------------------------------- light-field microscope
 def _microscope(**optics):
-    from plenodecode.optics import MicroscopeOptics
-
     values = dict(lens_pitch_m=125e-6, pixel_pitch_m=4.55e-6, magnification=20.0, numerical_aperture=0.5,
                   medium_index=1.33, microlens_focal_length_m=2433e-6)
     values.update(optics)
@@ -193,22 +192,32 @@ def test_microscope_constants_and_units():
         disparity_to_depth(np.zeros((1, 1)), _microscope(), focus_distance_m=1.0)
 
 
-@pytest.mark.parametrize("missing, option", [("magnification", "--magnification"), ("medium_index", "--medium-index"),
-                                             ("numerical_aperture", "--na")])
-def test_microscope_missing_constant_names_the_option(missing, option):
+@pytest.mark.parametrize("missing", ["magnification", "medium_index", "numerical_aperture"])
+def test_microscope_missing_constant_names_the_python_field(missing):
+    """Raised from Python, the error names the MicroscopeOptics field (and keyword) a Python caller passes, not
+    the command line's option (``--na``); the CLI rewrites it (tests/cli/test_microscope.py)."""
     kw = {missing: None}
     if missing == "numerical_aperture":
         kw["microlens_focal_length_m"] = None           # the NA is needed only without the micro-lens focal length
-    with pytest.raises(MetadataError, match=option) as info:
+    with pytest.raises(MetadataError, match=f"needs {missing},") as info:
         disparity_to_depth(np.zeros((1, 1)), _microscope(**kw))
-    assert "=..." not in str(info.value)
+    assert "--" not in str(info.value) and "MicroscopeOptics" in str(info.value)
 
 
-def test_camera_errors_name_options_not_keywords():
+def test_microscope_optics_values_are_refused_naming_the_field():
+    with pytest.raises(ValueError, match=r"^numerical_aperture 1\.4 must be below medium_index 1\.33 "):
+        MicroscopeOptics(numerical_aperture=1.4, medium_index=1.33)
+    with pytest.raises(ValueError, match="^medium_index must be at least 1"):
+        MicroscopeOptics(medium_index=0.9)
+    with pytest.raises(ValueError, match="^lens_pitch_m must be a positive number"):
+        MicroscopeOptics(lens_pitch_m=-1.0)
+
+
+def test_camera_errors_name_the_microscope_fields_for_python():
     with pytest.raises(MetadataError) as info:
         disparity_to_depth(np.zeros((1, 1)), _lf({"spatial_step_px": 10.0, "view_step_px": 1.0}))
     msg = str(info.value)
-    assert "focal_length_m" in msg and "=..." not in msg and "--magnification" in msg
+    assert "focal_length_m" in msg and "=..." not in msg and "numerical_aperture" in msg and "--na" not in msg
     with pytest.raises(MetadataError, match="--focus-distance"):
         disparity_to_depth(np.zeros((1, 1)), _plenoptic())
 
