@@ -421,23 +421,6 @@ def find_raws(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os
     return find(inputs, exclude=exclude, stop_marker=DONE_MARKER)
 
 
-def display_names(files: Sequence[str | os.PathLike]) -> list[str]:
-    """How the terminal table and the index page name each raw: its file name, or where two raws share one, as
-    many of its last folders as tell them apart (``a/scene.lfr``, ``b/scene.lfr``)."""
-    parts = [Path(f).resolve().parts for f in files]
-    depth = [1] * len(parts)
-    while True:
-        names = ["/".join(p[-k:]) for p, k in zip(parts, depth)]
-        seen: dict[str, list[int]] = {}
-        for i, n in enumerate(names):
-            seen.setdefault(n, []).append(i)
-        grow = [i for group in seen.values() if len(group) > 1 for i in group if depth[i] < len(parts[i])]
-        if not grow:
-            return [n.lstrip("/") or n for n in names]
-        for i in grow:
-            depth[i] += 1
-
-
 def output_names(files: Sequence[str | os.PathLike]) -> list[str]:
     """The output folder name of each raw: its file stem, made unique.
 
@@ -1115,6 +1098,6 @@ def write_summary(summary: BatchSummary, out_dir: str | os.PathLike, *, overwrit
     return js, html
 
 
-__all__ = ["display_names", "BATCH_OUTPUTS", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
+__all__ = ["BATCH_OUTPUTS", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
            "task_key", "outputs_to_replace", "check_outputs_to_replace", "check_slope_for_any", "process_raw",
            "run_batch", "write_summary", "check_summary_files"]

@@ -38,7 +38,7 @@ def _latency_note(summary) -> str:
 
 def _echo_table(summary) -> None:
     """The summary table: one line per raw (its error when it failed)."""
-    from ..batch import display_names
+    from ..report.batch import display_names
 
     names = display_names([r.source for r in summary.results])
     width = max([len("raw"), *map(len, names)])

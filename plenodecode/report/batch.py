@@ -10,7 +10,7 @@ from __future__ import annotations
 import html
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 #: ``<meta name="generator">`` of the index; marks an index.html a later run may replace.
 GENERATOR = "plenodecode batch index"
@@ -59,6 +59,23 @@ def _card(r: Any, base: Path, shown: str) -> str:
             f'<div class="meta">{meta}</div><div class="thumbs">{"".join(figs)}</div>{err}</div>')
 
 
+def display_names(files: Sequence[str | os.PathLike]) -> list[str]:
+    """How the terminal table and the index page name each raw: its file name, or where two raws share one, as
+    many of its last folders as tell them apart (``a/scene.lfr``, ``b/scene.lfr``)."""
+    parts = [Path(f).resolve().parts for f in files]
+    depth = [1] * len(parts)
+    while True:
+        names = ["/".join(p[-k:]) for p, k in zip(parts, depth)]
+        seen: dict[str, list[int]] = {}
+        for i, n in enumerate(names):
+            seen.setdefault(n, []).append(i)
+        grow = [i for group in seen.values() if len(group) > 1 for i in group if depth[i] < len(parts[i])]
+        if not grow:
+            return [n.lstrip("/") or n for n in names]
+        for i in grow:
+            depth[i] += 1
+
+
 def render_batch_index(summary: Any, base: str | os.PathLike = ".") -> str:
     """The index page of a :class:`plenodecode.batch.BatchSummary`.
 
@@ -73,8 +90,6 @@ def render_batch_index(summary: Any, base: str | os.PathLike = ".") -> str:
     str
         A complete HTML document (UTF-8, no scripts).
     """
-    from ..batch import display_names
-
     base = Path(base)
     names = display_names([r.source for r in summary.results])
     cards = "".join(_card(r, base, n) for r, n in zip(summary.results, names))
