@@ -69,6 +69,34 @@ database_option = click.option("--database", "--white-dir", "database", cls=Data
 
 
 #: ``ctx.meta`` key of the checked :class:`~plenodecode.io.mosaic_levels.MosaicOptions` of a command.
+class OneInputCommand(click.Command):
+    """A command that reads one input.  Several files typed (``plenodecode IMG_1.jpg IMG_2.jpg -o x.png``, a
+    shell glob) got click's 'Got unexpected extra argument (IMG_2.jpg)'; they now get one line that says the
+    command reads one input and gives the ``plenodecode batch`` command that takes them all, with the batch
+    output of the same product (:attr:`batch_output`, ``None``: no batch output for it)."""
+
+    #: The ``plenodecode batch --outputs`` name of what this command writes, per command name.
+    batch_output = {"render": "photo", "decode": "lightfield", "refocus": "refocus", "views": "views",
+                    "depth": "depth"}
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        allow = ctx.allow_extra_args
+        ctx.allow_extra_args = True
+        rest = super().parse_args(ctx, args)
+        ctx.allow_extra_args = allow
+        extra = list(ctx.args)
+        if extra and not allow and not ctx.resilient_parsing:
+            if not all(Path(a).exists() for a in extra):
+                ctx.fail(f"Got unexpected extra argument{'s' if len(extra) > 1 else ''} ({' '.join(extra)})")
+            typed = [ctx.params.get(p.name or "") for p in self.params if isinstance(p, click.Argument)]
+            files = [str(f) for f in typed if f is not None] + extra
+            output = self.batch_output.get(self.name or "")
+            hint = (f"; for several, 'plenodecode batch {' '.join(files)} -o OUT/ --outputs {output}' writes one "
+                    "folder per raw" if output else "; run it once per file")
+            ctx.fail(f"'plenodecode {self.name}' reads one input, got {len(files)} ({' '.join(files)}){hint}")
+        return rest
+
+
 MOSAIC_META = "plenodecode.mosaic_options"
 
 

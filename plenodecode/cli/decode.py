@@ -7,11 +7,11 @@ from pathlib import Path
 
 import click
 
-from .common import (FOCUSED_PHOTO, encoded_note, RegistryChoice, bit_depth_option, calibration_kwargs,
-                     decoding_options, empty_views_note, input_options, lightfield_bit_depth,
-                     lightfield_output_format, lightfield_summary, output_option, overwrite_option, progress_bar,
-                     quiet, refuse_database_with_grid, refuse_focused_views, refuse_writing_over_command_inputs,
-                     usage_errors, views_anyway_option)
+from .common import (OneInputCommand, FOCUSED_PHOTO, encoded_note, RegistryChoice, bit_depth_option, calibration_kwargs,
+                     decoding_options, empty_views_note, input_options, lightfield_bit_depth, lightfield_output_format,
+                     lightfield_summary, output_option, overwrite_option, progress_bar, quiet,
+                     refuse_database_with_grid, refuse_focused_views, refuse_writing_over_command_inputs, usage_errors,
+                     views_anyway_option)
 
 log = logging.getLogger(__name__)
 
@@ -35,7 +35,7 @@ def refuse_decoded_input(raw_path: Path) -> None:
                              param_hint="RAW")
 
 
-@click.command("decode")
+@click.command("decode", cls=OneInputCommand)
 @click.argument("raw_path", metavar="RAW", type=click.Path(exists=True, path_type=Path))
 @output_option
 @input_options

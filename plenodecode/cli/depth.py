@@ -10,8 +10,9 @@ import click
 from ..depth import DEFAULT_METHOD
 from ..io.atomic import refuse_folder
 from ..io.depthio import DEFAULT_MIN_CONFIDENCE
-from .common import (POSITIVE, UNIT_INTERVAL, RegistryChoice, calibration_kwargs, input_options, output_option,
-                     overwrite_option, progress_bar, quiet, refuse_writing_over_command_inputs, usage_errors)
+from .common import (OneInputCommand, POSITIVE, UNIT_INTERVAL, RegistryChoice, calibration_kwargs, input_options,
+                     output_option, overwrite_option, progress_bar, quiet, refuse_writing_over_command_inputs,
+                     usage_errors)
 
 
 def parse_range(text: str | None) -> tuple[float, float] | None:
@@ -61,7 +62,7 @@ def _below_note(confidence, min_confidence: float) -> str:
     return f" ({100 * float(np.mean(confidence < np.float32(min_confidence))):.0f} % below {min_confidence:g})"
 
 
-@click.command("depth")
+@click.command("depth", cls=OneInputCommand)
 @click.argument("input_path", metavar="RAW_OR_LF", type=click.Path(exists=True, path_type=Path))
 @output_option
 @click.option("--method", type=RegistryChoice("plenodecode.depth", "DEPTH_METHODS"), default=DEFAULT_METHOD, show_default=True,

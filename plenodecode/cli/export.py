@@ -8,7 +8,7 @@ import click
 
 from ..pipeline import IMAGE_EXTENSIONS
 from ..registry import lazy
-from .common import (RegistryChoice, bit_depth_option, check_output, empty_views_note, encoded_note,
+from .common import (OneInputCommand, RegistryChoice, bit_depth_option, check_output, empty_views_note, encoded_note,
                      lightfield_bit_depth, lightfield_output_format, lightfield_summary, output_option,
                      overwrite_option, progress_bar, refuse_writing_over_inputs)
 
@@ -69,7 +69,7 @@ def _load(lf_in: Path):
                                  f"decode {lf_in} -o lf.zarr', and export lf.zarr", param_hint="LF_IN") from None
 
 
-@click.command("export")
+@click.command("export", cls=OneInputCommand)
 @click.argument("lf_in", type=click.Path(exists=True, path_type=Path))
 @output_option
 @click.option("--format", "fmt", type=ExportFormatChoice(), default=None,

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import click
 
-from .common import check_folder_output, overwrite_option, quiet, usage_errors
+from .common import OneInputCommand, check_folder_output, overwrite_option, quiet, usage_errors
 
 #: The manifest written beside the extracted items.
 MANIFEST = "contents.json"
@@ -28,7 +28,7 @@ def manifest_name(taken: list[str]) -> str:
     return name
 
 
-@click.command("extract")
+@click.command("extract", cls=OneInputCommand)
 @click.argument("input_path", metavar="FILE", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option("-o", "--output", "output", type=click.Path(path_type=Path), required=True,
               help="Folder the items are written into (created if missing).")

@@ -7,14 +7,14 @@ from pathlib import Path
 import click
 
 from ..pipeline import parallax_frame_names
-from .common import (FOCUSED_PHOTO, NON_NEGATIVE, POSITIVE, bit_depth_option, calibration_kwargs, check_folder_output,
-                     check_output, exposure_option, image_bit_depth, input_options, output_option, overwrite_option,
-                     progress_bar, quiet, refuse_focused_views, refuse_writing_over_command_inputs, usage_errors,
-                     views_anyway_option)
+from .common import (OneInputCommand, FOCUSED_PHOTO, NON_NEGATIVE, POSITIVE, bit_depth_option, calibration_kwargs,
+                     check_folder_output, check_output, exposure_option, image_bit_depth, input_options, output_option,
+                     overwrite_option, progress_bar, quiet, refuse_focused_views, refuse_writing_over_command_inputs,
+                     usage_errors, views_anyway_option)
 from .views import INTERP_CHOICE
 
 
-@click.command("parallax")
+@click.command("parallax", cls=OneInputCommand)
 @click.argument("input_path", metavar="RAW_OR_LF", type=click.Path(exists=True, path_type=Path))
 @output_option
 @click.option("--frames", "n_frames", type=click.IntRange(min=1), default=24, show_default=True,

@@ -10,10 +10,10 @@ import click
 import math
 
 from ..pipeline import IMAGE_EXTENSIONS, MAX_STACK_SLICES, STACK_UNITS, focal_stack_names
-from .common import (FINITE, FOCUSED_REFOCUS, POSITIVE, RegistryChoice, aperture_option, bit_depth_option,
-                     calibration_kwargs, check_focus_options, check_folder_output, check_output, describe_focus,
-                     exposure_option, focus_choices, focus_hint, focus_options, focus_point, image_bit_depth,
-                     input_options, note_if_dark, output_option, overwrite_option, progress_bar, quiet,
+from .common import (OneInputCommand, FINITE, FOCUSED_REFOCUS, POSITIVE, RegistryChoice, aperture_option,
+                     bit_depth_option, calibration_kwargs, check_focus_options, check_folder_output, check_output,
+                     describe_focus, exposure_option, focus_choices, focus_hint, focus_options, focus_point,
+                     image_bit_depth, input_options, note_if_dark, output_option, overwrite_option, progress_bar, quiet,
                      refuse_focused_views, refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
 
 #: The refocus methods of the library, for ``--method`` (imported when the command needs them).
@@ -80,7 +80,7 @@ def refocus_at_virtual_depth(ctx: click.Context, input_path: Path, output: Path,
         click.echo(f"wrote {output} (virtual depth {virtual_depth:g}, patch {float(render.patch.flat[0]):.2f} px)")
 
 
-@click.command("refocus")
+@click.command("refocus", cls=OneInputCommand)
 @click.argument("input_path", metavar="RAW_OR_LF", type=click.Path(exists=True, path_type=Path))
 @output_option
 @click.option("--slope", type=FINITE, default=None, help="Refocus slope, px per view step (= the disparity in focus).")

@@ -13,11 +13,11 @@ from pathlib import Path
 import click
 from click.core import ParameterSource
 
-from .common import (FINITE, FOCUSED_REFOCUS, POSITIVE, aperture_option, bit_depth_option, calibration_kwargs,
-                     check_focus_options, check_output, describe_focus, exposure_option, focus_choices, focus_hint,
-                     focus_options, focus_point, image_bit_depth, input_options, note_if_dark, output_option,
-                     overwrite_option, progress_bar, quiet, refuse_focused_views, refuse_writing_over_command_inputs,
-                     usage_errors, views_anyway_option)
+from .common import (OneInputCommand, FINITE, FOCUSED_REFOCUS, POSITIVE, aperture_option, bit_depth_option,
+                     calibration_kwargs, check_focus_options, check_output, describe_focus, exposure_option,
+                     focus_choices, focus_hint, focus_options, focus_point, image_bit_depth, input_options,
+                     note_if_dark, output_option, overwrite_option, progress_bar, quiet, refuse_focused_views,
+                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
 from .refocus import REFOCUS_METHOD_CHOICE
 
 #: The refocusing options that mean nothing to --total-focus (parameter name -> option); each asks for a refocus of
@@ -53,7 +53,7 @@ def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float |
                                    f"XML); {input_path} is a {input_kind(input_path)} input")
 
 
-@click.command("render")
+@click.command("render", cls=OneInputCommand)
 @click.argument("input_path", metavar="RAW_OR_LF", type=click.Path(exists=True, path_type=Path))
 @click.option("--refocus", "--alpha", "alpha", type=POSITIVE, default=None,
               help="Relative film depth alpha (Ng 2005): 1 = focus as captured, > 1 nearer, < 1 farther; the "

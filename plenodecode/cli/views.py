@@ -9,16 +9,16 @@ import click
 
 from ..imaging import MIN_VIEW_DATA
 from ..pipeline import IMAGE_EXTENSIONS
-from .common import (FOCUSED_PHOTO, NON_NEGATIVE, RegistryChoice, bit_depth_option, calibration_kwargs,
-                     check_folder_output, check_output, exposure_option, image_bit_depth, input_options,
-                     output_option, overwrite_option, progress_bar, quiet, refuse_focused_views,
-                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
+from .common import (OneInputCommand, FOCUSED_PHOTO, NON_NEGATIVE, RegistryChoice, bit_depth_option, calibration_kwargs,
+                     check_folder_output, check_output, exposure_option, image_bit_depth, input_options, output_option,
+                     overwrite_option, progress_bar, quiet, refuse_focused_views, refuse_writing_over_command_inputs,
+                     usage_errors, views_anyway_option)
 
 #: Angular interpolation kernels of perspective views, for ``--interp``.
 INTERP_CHOICE = RegistryChoice("plenodecode.render.viewpoints", "PERSPECTIVE_INTERPOLATIONS")
 
 
-@click.command("views")
+@click.command("views", cls=OneInputCommand)
 @click.argument("input_path", metavar="RAW_OR_LF", type=click.Path(exists=True, path_type=Path))
 @output_option
 @click.option("--view", "view", type=(NON_NEGATIVE, NON_NEGATIVE), default=None, metavar="V U",

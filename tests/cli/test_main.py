@@ -176,3 +176,38 @@ def test_version_after_a_command_prints_the_version(command):
     command it now prints what 'plenodecode --version' prints, and does nothing else."""
     res = CliRunner().invoke(cli, [command, "--version"])
     assert res.exit_code == 0 and res.output.strip() == f"plenodecode, version {__version__}", res.output
+
+
+def test_several_files_to_a_one_input_command_give_the_batch_that_takes_them(tmp_path):
+    """'plenodecode IMG_1.jpg IMG_2.jpg -o photo.png' (a shell glob over the real F01 JPEGs) said only 'Got
+    unexpected extra argument (IMG_2.jpg)'.  Every one-input command now says it reads one input and, where batch
+    writes the same product, gives the batch command; that command, run as printed, writes both photos.  Extras
+    that are no files keep click's wording."""
+    import shlex
+
+    import cv2
+    import numpy as np
+
+    from tests.conftest import shared_path
+
+    folder = shared_path("lytro-f01-lenslet-jpg")
+    jpgs = [str(folder / "IMG_1.jpg"), str(folder / "IMG_2.jpg")]
+    res = CliRunner().invoke(cli, [*jpgs, "-o", str(tmp_path / "photo.png")])
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert res.exit_code == 2 and len(errors) == 1, res.output
+    assert f"'plenodecode render' reads one input, got 2 ({' '.join(jpgs)})" in errors[0]
+    command = re.search(r"'(plenodecode batch [^']*)'", errors[0]).group(1)
+    assert command == f"plenodecode batch {' '.join(jpgs)} -o OUT/ --outputs photo"
+    assert not (tmp_path / "photo.png").exists()
+    args = shlex.split(command.replace("OUT/", str(tmp_path / "out")))[1:]
+    res = CliRunner().invoke(cli, [*args, "--jobs", "1", "-q"])
+    assert res.exit_code == 0, res.output
+    for stem in ("IMG_1", "IMG_2"):
+        photo = cv2.imread(str(tmp_path / "out" / stem / "refocus_s+0.00.png"), cv2.IMREAD_UNCHANGED)   # batch's photo
+        assert photo is not None and photo.shape[:2] == (383, 382) and photo.std() > 0.05 * np.iinfo(photo.dtype).max
+    for argv, words in ((["depth", *jpgs, "-o", "d.pfm"], "--outputs depth' writes one folder per raw"),
+                        (["export", *jpgs, "-o", "x.mat"], "'plenodecode export' reads one input, got 2"),
+                        (["refocus", jpgs[0], "--slope", "0.5", "bogus", "-o", "r.png"],
+                         "Got unexpected extra argument (bogus)")):
+        res = CliRunner().invoke(cli, argv)
+        assert res.exit_code == 2 and words in res.output, (argv, res.output)
