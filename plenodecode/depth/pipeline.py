@@ -94,7 +94,8 @@ Steps (one module per stage; a method is a preset of :func:`run_pipeline`'s para
    it and its colour between its neighbours across the edge, both in linear light.
 
 The disparity range (:func:`disparity_range`) comes from the caller, else the metadata
-(:func:`metadata_disparity_range`), else a coarse search (:func:`estimate_disparity_range`).
+(:func:`metadata_disparity_range`), else a coarse search (:func:`estimate_disparity_range`), over
+:data:`SEARCH_REFOCUS_MULTIPLE` x the refocusable range for a decoded plenoptic light field.
 """
 
 from __future__ import annotations
@@ -156,13 +157,32 @@ def metadata_disparity_range(metadata: Any) -> tuple[float, float] | None:
     return None
 
 
+#: A decoded plenoptic light field's disparity search (when neither the caller nor the metadata gives one) spans
+#: this many times its refocusable range (:func:`plenodecode.render.alpha.refocus_range`, Ng's exact range: the views
+#: stay sharp within it, blur beyond; the real F01 shoe of ../shared/data reaches 1.5x).  Without it the search
+#: spanned a quarter of the picture per view step (+-24 px/view on the F01) and a periodic texture's repeats
+#: (the shoe's mesh) set the range to -9 .. 13 px/view: 211 labels instead of ~40, three times the time.
+SEARCH_REFOCUS_MULTIPLE = 3.0
+
+
+def plausible_disparity_reach(lf: LightField) -> float | None:
+    """``SEARCH_REFOCUS_MULTIPLE`` x the upper end of the refocusable range (px per view step) of a decoded
+    plenoptic light field (its lens footprint known); None for other light fields (HCI scenes, bare views)."""
+    from ..render.alpha import lens_footprint_samples, refocus_range
+
+    if lf.geometry.hci is not None or lens_footprint_samples(lf) is None:
+        return None
+    return SEARCH_REFOCUS_MULTIPLE * float(refocus_range(lf)[1])
+
+
 def estimate_disparity_range(views: Views, *, max_abs: float | None = None, n_labels: int = 48,
                              margin: float = 0.15) -> tuple[float, float]:
     """Disparity range from a coarse search on 4x down-sampled views.
 
-    Searches ``[-max_abs, max_abs]`` (default: a shift of at most a quarter of the image's smaller side at
-    the outermost view), takes the 2nd and 98th percentiles of the confident per-pixel minima and widens them
-    by ``margin`` of the span (at least 0.25 px).
+    Searches ``[-max_abs, max_abs]`` (default: a shift of at most a quarter of the image's smaller side at the
+    outermost view; a given ``max_abs`` at most half of it), takes the 2nd and 98th percentiles of the confident
+    per-pixel minima (the more confident half, a minimum on the first or last label excluded: there the cost ran
+    off the search) and widens them by ``margin`` of the span (at least 0.25 px).
 
     Returns
     -------
@@ -171,14 +191,16 @@ def estimate_disparity_range(views: Views, *, max_abs: float | None = None, n_la
     Y, X = views.data.shape[2:4]
     dv, du = views.offsets
     reach = float(max(np.abs(dv).max(), np.abs(du).max()))
-    if max_abs is None:
-        max_abs = 0.25 * min(Y, X) / reach
+    max_abs = 0.25 * min(Y, X) / reach if max_abs is None else min(float(max_abs), 0.5 * min(Y, X) / reach)
     f = 4 if min(Y, X) >= 64 else 1
     small = views.data[:, :, ::f, ::f] if f == 1 else _downsample(views.data, f)
     sv = Views(small, views.weight, views.centre)
     labels = np.linspace(-max_abs / f, max_abs / f, n_labels)
     cost = half_plane_cost_volume(sv, labels, radius=2)
     disp, conf = winner(cost, labels)
+    inside = np.abs(disp) < labels[-1] - 0.5 * (labels[1] - labels[0])
+    if inside.any():
+        disp, conf = disp[inside], conf[inside]
     d = disp[conf > np.percentile(conf, 50)] * f
     if d.size == 0:
         d = disp.ravel() * f
@@ -212,7 +234,7 @@ def disparity_range(lf: LightField, views: Callable[[], Views], requested: Any =
     r = metadata_disparity_range(lf.geometry)
     if r is not None:
         return r, "metadata"
-    return estimate_disparity_range(views()), "estimated"
+    return estimate_disparity_range(views(), max_abs=plausible_disparity_reach(lf)), "estimated"
 
 
 

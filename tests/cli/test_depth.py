@@ -241,3 +241,22 @@ def test_disparity_and_metric_depth_pngs_colour_near_the_same_way(tmp_path):
         warm_at_top = bar.get_ylim()[1] == (np.nanmax if near_end == "high" else np.nanmin)(bar.get_ylim())
         assert top.get_text() == "near" and {t.get_text() for t in bar.texts} == {"near", "far"}
         assert warm_at_top
+
+
+def test_f01_shoe_mesh_depth_keeps_to_the_scene_range(tmp_path):
+    """'plenodecode depth IMG_2.jpg' (the real F01 shoe: a periodic mesh) searched -8.6 .. 12.4 px/view, 211
+    labels, because the mesh matched itself a period away in the coarse search over +-24 px/view; the map it wrote
+    ran from -8.7 to 12.5 (5th percentile -2.8).  The search now spans 3x the refocusable range (+-1.15 here) and
+    the map keeps to what the scene holds: the shoe's toe at about +1.7 px/view, the carpet behind below +0.2."""
+    import re
+
+    from tests.conftest import shared_path
+
+    jpg = shared_path("lytro-f01-lenslet-jpg", "IMG_2.jpg")
+    res = CliRunner().invoke(cli, ["depth", str(jpg), "-o", str(tmp_path / "d.pfm")])
+    assert res.exit_code == 0, res.output
+    lo, hi = map(float, re.search(r"disparity (\S+) \.\. (\S+) px/view", res.output).groups())
+    assert -1.5 < lo and hi < 3.5, res.output
+    disparity = read_pfm(tmp_path / "d.pfm")
+    near, far = np.nanpercentile(disparity, [95, 5])
+    assert 1.2 < near < 2.5 and -1.0 < far < 0.5, (near, far)

@@ -1,8 +1,12 @@
 """The pipeline's parameter checking and the choice of the disparity range."""
 
+import cv2
+import numpy as np
 import pytest
 
-from plenodecode.depth.pipeline import _check_range, metadata_disparity_range
+from plenodecode.depth.pipeline import _check_range, disparity_range, metadata_disparity_range
+from plenodecode.depth.views import prepare_views
+from plenodecode.types import LightField, LightFieldGeometry
 
 
 def test_range_errors():
@@ -63,3 +67,37 @@ def test_edge_floor_is_the_strip_floor_less_two_standard_errors():
     assert edge_floor_for(1.0, 176, 2) == pytest.approx(1 - 2 * ((1 + 3 / 44) / 18) ** 0.5)
     assert edge_floor_for(0.0, 176, 2) == 0.0 and edge_floor_for(1.0, 0, 2) == 0.0
     assert 0.0 <= edge_floor_for(1.0, 8, 2) < edge_floor_for(1.0, 48, 2) < edge_floor_for(1.0, 176, 2)
+
+
+def _mesh_over_texture(d_mesh: float = 0.8, d_back: float = -0.3, period: float = 9.0, n: int = 9,
+                       size: int = 160) -> LightField:
+    """n x n views, size x size px: a periodic mesh (``cos x cos`` dots, ``period`` px) at disparity ``d_mesh`` over
+    the left two thirds, a random texture at ``d_back`` on the rest; ``view(v, u)(y, x) = layer(y + d (v - c),
+    x + d (u - c))``; the geometry of a decoded F01 (lens footprint 9.93 / 8.6 samples: refocusable +-1.15)."""
+    rng = np.random.default_rng(0)
+    big = size + 64
+    yy, xx = np.mgrid[0:big, 0:big].astype(np.float32)
+    mesh = 0.5 + 0.4 * np.cos(2 * np.pi * xx / period) * np.cos(2 * np.pi * yy / period)
+    back = cv2.GaussianBlur(rng.random((big, big)).astype(np.float32), (0, 0), 1.2)
+    back = 0.5 + 0.15 * (back - back.mean()) / back.std()
+    c = n // 2
+    data = np.empty((n, n, size, size, 1), np.float32)
+    left = np.arange(size)[None, :] < 2 * size // 3
+    for v in range(n):
+        for u in range(n):
+            layers = [cv2.warpAffine(img, np.float32([[1, 0, d * (u - c) + 32], [0, 1, d * (v - c) + 32]]),
+                                     (size, size), flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP)
+                      for img, d in ((mesh, d_mesh), (back, d_back))]
+            data[v, u, :, :, 0] = np.where(left, *layers)
+    return LightField(data, geometry=LightFieldGeometry(spatial_step_px=8.6, view_step_px=1.0,
+                                                        calibration={"pitch": 9.93}))
+
+
+def test_estimated_range_of_a_periodic_texture_stays_near_the_scene():
+    """A periodic mesh matches itself one period away: searched over a quarter of the picture per view step
+    (+-10 px/view here) its repeats set the range to -9.2 .. 1.1 (truth -0.3 .. 0.8).  A decoded plenoptic light
+    field's search spans 3x its refocusable range, and minima on the search's first or last label are left out."""
+    lf = _mesh_over_texture()
+    (lo, hi), source = disparity_range(lf, lambda: prepare_views(lf, grey=True))
+    assert source == "estimated"
+    assert -0.9 < lo < -0.3 and 0.8 < hi < 1.4, (lo, hi)
