@@ -167,6 +167,17 @@ class BatchOptions:
     parallax_frames : bool
         Write the parallax frames (``parallax_frames/frame_000.png`` ...) beside the animation (``--no-frames``:
         False); PNGs, so ``bit_depth=32`` needs False.
+    metric : bool
+        The 'depth' output is metric depth, ``depth.pfm`` (m; um for a light-field microscope), instead of
+        ``disparity.pfm`` (``--metric``), from each raw's own metadata (its focus distance: a raw without one fails
+        in one line; ``plenodecode depth --focus-distance`` supplies it for one raw).
+    ply : bool
+        The 'depth' output also writes a coloured point cloud ``<stem>.ply`` (``--ply``; needs the constants
+        ``metric`` needs).
+    depth_focus_distance : float > 0 or None
+        Distance (m) of the plane in focus for ``metric`` and ``ply`` of every raw, instead of its metadata's
+        (``--depth-focus-distance``: ``plenodecode depth --focus-distance``; a batch's ``--focus-distance`` is the
+        refocus distance, ``distance_m``).
     """
 
     outputs: tuple[str, ...] = ("photo",)
@@ -204,6 +215,9 @@ class BatchOptions:
     fps: float = 12.0
     interp: str = "linear"
     parallax_frames: bool = True
+    metric: bool = False
+    ply: bool = False
+    depth_focus_distance: float | None = None
 
     def __post_init__(self) -> None:
         outs = tuple(self.outputs) if not isinstance(self.outputs, str) else (self.outputs,)
@@ -231,6 +245,11 @@ class BatchOptions:
         object.__setattr__(self, "white_level", mosaic.white_level)
         if not math.isfinite(self.slope):
             raise ValueError(f"slope must be a finite number, got {self.slope}")
+        if self.depth_focus_distance is not None:
+            value = float(self.depth_focus_distance)
+            if not (value > 0 and math.isfinite(value)):
+                raise ValueError(f"depth_focus_distance must be a finite number > 0 (m), got {self.depth_focus_distance}")
+            object.__setattr__(self, "depth_focus_distance", value)
         if self.alpha is not None and self.distance_m is not None:
             raise ValueError("pass at most one of alpha and distance_m (they replace slope)")
         for name in ("alpha", "distance_m"):
@@ -343,12 +362,14 @@ class BatchOptions:
                                 ("colour", "linear-srgb"), ("hot_pixels", True), ("aperture", 1.0),
                                 ("disparity_range", None), ("focal_stack", None), ("stack_units", "slope"),
                                 ("frames", 24), ("radius", None), ("fps", 12.0), ("interp", "linear"),
-                                ("parallax_frames", True)):
+                                ("parallax_frames", True), ("metric", False), ("ply", False),
+                                ("depth_focus_distance", None)):
             if d[option] == default:     # keys of runs before these options existed stay valid
                 d.pop(option)
         for option, product in (("focal_stack", "focal-stack"), ("stack_units", "focal-stack"),
                                 ("frames", "parallax"), ("radius", "parallax"), ("fps", "parallax"),
-                                ("interp", "parallax"), ("parallax_frames", "parallax")):
+                                ("interp", "parallax"), ("parallax_frames", "parallax"), ("metric", "depth"),
+                                ("ply", "depth"), ("depth_focus_distance", "depth")):
             if product not in self.outputs:
                 d.pop(option, None)
         if d.get("focal_stack") is not None:
@@ -719,8 +740,7 @@ def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | Non
         raw = open_raw(src, mosaic=options.mosaic_options(), optics=MicroscopeOptics.from_dict(options.optics))
         for product in options.outputs:     # what the metadata cannot serve fails now, before calibrating
             check_product(raw, product, rectified=options.geometry is not None,
-                          **({"units": options.stack_units} if product == "focal-stack"
-                             else _image_product_options(product, options)))
+                          **_check_options(product, options))
         # the folder is staged under a temporary name and replaces ``target`` (checked above) only when complete
         with atomic_output(target, overwrite=True, folder=True) as staging:
             products = _write_products(raw, staging, options, threads=threads)
@@ -761,6 +781,15 @@ def _thumbnail(image: Any, path: Path, *, colour: str) -> Path:
     if scale < 1.0:
         img = cv2.resize(img, (max(1, round(w * scale)), max(1, round(h * scale))), interpolation=cv2.INTER_AREA)
     return write_image_file(path, np.clip(img, 0.0, 1.0), colour=colour, bit_depth=8)
+
+
+def _check_options(product: str, options: BatchOptions) -> dict[str, Any]:
+    """The options of ``product`` that :func:`plenodecode.pipeline.check_product` checks against a raw's metadata."""
+    if product == "focal-stack":
+        return {"units": options.stack_units}
+    if product == "depth":
+        return {"metric": options.metric, "points": options.ply, "focus_distance": options.depth_focus_distance}
+    return _image_product_options(product, options)
 
 
 def _image_product_options(product: str, options: BatchOptions) -> dict[str, Any]:
@@ -934,8 +963,10 @@ def _check_disparity_range(src: Any, options: BatchOptions) -> None:
 
 def depth_stem(rendered: Any) -> str:
     """File stem of a 'depth' output: 'virtual_depth' for a focused-plenoptic (Raytrix) raw's virtual depth,
-    else 'disparity'."""
-    return "virtual_depth" if rendered.data.get("method") == "focused" else "disparity"
+    'depth' for metric depth, else 'disparity'."""
+    if rendered.data.get("method") == "focused":
+        return "virtual_depth"
+    return "depth" if str(rendered.data.get("label", "")).startswith("depth") else "disparity"
 
 
 def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
@@ -1020,9 +1051,14 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
                 written.append((frames_dir, None))
         elif product == "depth":
             rendered = pipeline.render_product(src, "depth", method=options.depth_method,
-                                               disparity_range=options.disparity_range)
+                                               disparity_range=options.disparity_range,
+                                               **({"metric": True} if options.metric else {}),
+                                               **({"points": True} if options.ply else {}),
+                                               **({} if options.depth_focus_distance is None else
+                                                  {"focus_distance": options.depth_focus_distance}))
             stem = depth_stem(rendered)
-            dest, = pipeline.write_depth(rendered, folder / f"{stem}.pfm", full=False)
+            dest, *cloud = pipeline.write_depth(rendered, folder / f"{stem}.pfm", full=False,
+                                                ply=folder / f"{stem}.ply" if options.ply else None)
             dm = rendered.data["depthmap"]
             threshold = DEFAULT_MIN_CONFIDENCE if options.min_confidence is None else options.min_confidence
             masked = dm.confidence < np.float32(threshold) if threshold > 0 else None
@@ -1031,6 +1067,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
             colours = colour_map_image(rendered.data["values"], label=rendered.data["label"], masked=masked,
                                        near=rendered.data.get("near"), **THUMB_FIGURE)
             written.append((dest, _thumbnail(colours, thumbs / f"{stem}.png", colour="srgb")))
+            written.extend((p, None) for p in cloud)
         else:
             try:
                 rendered = pipeline.render_product(src, product, **_image_product_options(product, options))

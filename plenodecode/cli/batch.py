@@ -162,13 +162,22 @@ def _microscope_fields() -> dict:
               help="Write only the 'parallax' animation, not its frames (parallax_frames/frame_000.png ...).")
 @click.option("--interp", type=INTERP_CHOICE, default="linear", show_default=True,
               help="Interpolation between neighbouring views of the 'parallax' product.")
+@click.option("--metric", is_flag=True,
+              help="The 'depth' product in metres (depth.pfm; um for a light-field microscope) instead of disparity, "
+                   "from each raw's own focus distance (a raw whose metadata lacks it fails).")
+@click.option("--ply", is_flag=True,
+              help="The 'depth' product also writes a coloured point cloud beside its PFM (depth.ply or "
+                   "disparity.ply; needs what --metric needs).")
+@click.option("--depth-focus-distance", "depth_focus_distance", type=POSITIVE, default=None, metavar="METRES",
+              help="Distance of the plane in focus (m) for --metric/--ply of every raw, instead of its metadata's "
+                   "('plenodecode depth --focus-distance'; a batch's --focus-distance refocuses).")
 @views_anyway_option
 @click.option("--overwrite", is_flag=True, help="Redo raws a previous run finished and replace their outputs.")
 @click.pass_context
 def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calibration, database, self_calibrate,
             white, demosaic, resample, n_views, colour, no_hot_pixels, lf_format, bit_depth, exposure, slope, alpha,
             distance_m, aperture, disparity_range, depth_method, min_confidence, focal_stack, stack_units, frames,
-            radius, fps, no_frames, interp, views_anyway, overwrite) -> None:
+            radius, fps, no_frames, interp, metric, ply, depth_focus_distance, views_anyway, overwrite) -> None:
     """Decode every raw under INPUTS and write the chosen outputs per raw into OUTPUT/<name>/.
 
     Each raw is matched to its camera's calibration in the database (by serial, zoom and
@@ -242,6 +251,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
                            colour=colour, hot_pixels=not no_hot_pixels, aperture=aperture,
                            disparity_range=disparity_range, focal_stack=stack, stack_units=stack_units,
                            frames=frames, radius=radius, fps=fps, interp=interp, parallax_frames=not no_frames,
+                           metric=metric, ply=ply, depth_focus_distance=depth_focus_distance,
                            **_microscope_fields())
     if not overwrite:       # a second run with other options must not replace the first run's folders
         try:
