@@ -117,10 +117,12 @@ TABLE: dict[str, tuple[str | None, str | None, str]] = {
     # ---- depth (pipeline.render_depth / write_depth)
     "depth:--method": ("--depth-method", "pipeline.products.render_depth:method",
                        "batch: --depth-method, as a batch also refocuses"),
-    "depth:--focus-distance": (None, "pipeline.products.render_depth:focus_distance",
-                               "batch has no metric depth yet; Python 'focus_distance', refocus's is 'distance_m'"),
-    "--metric": (None, "pipeline.products.render_depth:metric", "batch has no metric depth yet"),
-    "--ply": (None, "pipeline.write_depth:ply", "batch has no point clouds yet; Python render_depth(points=True)"),
+    "depth:--focus-distance": ("--depth-focus-distance", "pipeline.products.render_depth:focus_distance",
+                               "batch: --depth-focus-distance, as its --focus-distance refocuses; Python "
+                               "'focus_distance' (BatchOptions.depth_focus_distance), refocus's is 'distance_m'"),
+    "--metric": ("--metric", "pipeline.products.render_depth:metric", ""),
+    "--ply": ("--ply", "pipeline.write_depth:ply",
+              "batch: a flag, <stem>.ply beside the PFM; Python render_depth(points=True), BatchOptions.ply"),
     "--disparity-range": ("--disparity-range", "pipeline.products.render_depth:disparity_range", ""),
     "--min-confidence": ("--min-confidence", "pipeline.write_depth:min_confidence", ""),
 }
