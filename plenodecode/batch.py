@@ -11,7 +11,7 @@ Layout of ``out_dir``::
 
     out_dir/<name>/           one folder per raw, <name> = the raw's file stem (made unique)
         refocus_s+0.00.png (or total_focus.png: 'photo'), centre.png, disparity.pfm (virtual_depth.pfm: a focused
-                              raw's 'depth'), lightfield.zarr, views/, focal_stack/, parallax.gif + parallax_frames/ ...
+                              raw's 'depth'; depth.pfm: metric, + .ply), lightfield.zarr, views/, focal_stack/, parallax.gif + parallax_frames/ ...
         thumbs/<product>.png  8-bit thumbnails (longest side <= THUMB_SIZE) for the index
         .done.json            the task key, the products and thumbnails (written last)
     out_dir/summary.json      every result of the last run
