@@ -51,7 +51,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
-from .errors import DecodeError, PlenodecodeError, one_line
+from .errors import DecodeError, MissingConstantsError, PlenodecodeError, one_line
 from .io.atomic import (OLD_MARK, TEMP_MARK, atomic_output, discard, is_temporary, remove_stale_temporaries,
                         write_text_atomic)
 from .registry import lookup
@@ -739,8 +739,15 @@ def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | Non
 
         raw = open_raw(src, mosaic=options.mosaic_options(), optics=MicroscopeOptics.from_dict(options.optics))
         for product in options.outputs:     # what the metadata cannot serve fails now, before calibrating
-            check_product(raw, product, rectified=options.geometry is not None,
-                          **_check_options(product, options))
+            try:
+                check_product(raw, product, rectified=options.geometry is not None,
+                              **_check_options(product, options))
+            except MissingConstantsError as exc:
+                if exc.keyword not in ("metric", "points") or exc.missing != ("focus_distance_m",):
+                    raise
+                raise MissingConstantsError(f"{exc}; pass --depth-focus-distance METRES (depth_focus_distance=) for "
+                                            "every raw", keyword=exc.keyword, missing=exc.missing, source=exc.source,
+                                            need=exc.need) from None
         # the folder is staged under a temporary name and replaces ``target`` (checked above) only when complete
         with atomic_output(target, overwrite=True, folder=True) as staging:
             products = _write_products(raw, staging, options, threads=threads)

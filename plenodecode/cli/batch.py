@@ -52,9 +52,10 @@ def _echo_table(summary) -> None:
 
 
 def _in_option_names(text: str) -> str:
-    """The library's advice about replacing outputs (``--overwrite (overwrite=True)``, 'output folder') in the
-    command's option names."""
-    return text.replace(" (overwrite=True)", "").replace("choose another output folder", "choose another -o folder")
+    """The library's advice (replacing outputs: ``--overwrite (overwrite=True)``, 'output folder'; a focus distance
+    for metric depth) in the command's option names."""
+    return text.replace(" (overwrite=True)", "").replace("choose another output folder", "choose another -o folder"
+                                                          ).replace(" (depth_focus_distance=)", "")
 
 
 def _refused(exc: FileExistsError) -> click.UsageError:

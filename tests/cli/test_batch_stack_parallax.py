@@ -153,6 +153,8 @@ def test_batch_metric_depth_and_point_cloud_are_the_depth_commands(tmp_path):
     res = CliRunner().invoke(cli, ["batch", str(RAW), "-o", str(tmp_path / "c"), "--outputs", "depth", "--metric",
                                    "-j", "1", *DB])
     assert res.exit_code == 1 and "metric depth needs the distance the camera was focused at" in res.output
+    error, = [r["error"] for r in json.loads((tmp_path / "c" / "summary.json").read_text())["results"]]
+    assert error.endswith("pass --depth-focus-distance METRES for every raw"), error
     assert not (tmp_path / "c" / "scene").exists()
 
 
