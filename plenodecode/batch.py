@@ -11,7 +11,7 @@ Layout of ``out_dir``::
 
     out_dir/<name>/           one folder per raw, <name> = the raw's file stem (made unique)
         refocus_s+0.00.png (or total_focus.png: 'photo'), centre.png, disparity.pfm (virtual_depth.pfm: a focused
-                              raw's 'depth'), lightfield.zarr, views/ ...
+                              raw's 'depth'; depth.pfm: metric, + .ply), lightfield.zarr, views/, focal_stack/, parallax.gif + parallax_frames/ ...
         thumbs/<product>.png  8-bit thumbnails (longest side <= THUMB_SIZE) for the index
         .done.json            the task key, the products and thumbnails (written last)
     out_dir/summary.json      every result of the last run
@@ -51,7 +51,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
-from .errors import DecodeError, PlenodecodeError, one_line
+from .errors import DecodeError, MissingConstantsError, PlenodecodeError, one_line
 from .io.atomic import (OLD_MARK, TEMP_MARK, atomic_output, discard, is_temporary, remove_stale_temporaries,
                         write_text_atomic)
 from .registry import lookup
@@ -63,7 +63,14 @@ Progress = Callable[[int, int], None] | None
 
 #: Outputs a batch can produce per raw (the CLI's --outputs choices): the decoded light field, and products of
 #: :data:`plenodecode.pipeline.PRODUCTS` under the same names (their options: :class:`BatchOptions`).
-BATCH_OUTPUTS = ("photo", "lightfield", "views", "centre", "refocus", "depth", "all-in-focus", "total-focus")
+BATCH_OUTPUTS = ("photo", "lightfield", "views", "centre", "refocus", "depth", "all-in-focus", "total-focus",
+                 "focal-stack", "parallax")
+#: Slices of a 'focal-stack' output without ``focal_stack``: over the raw's refocusable range.
+DEFAULT_STACK_SLICES = 9
+#: Files and folders of the 'focal-stack' and 'parallax' outputs in a raw's folder.
+FOCAL_STACK_DIR = "focal_stack"
+PARALLAX_NAME = "parallax.gif"
+PARALLAX_FRAMES_DIR = "parallax_frames"
 #: Light-field file formats of the 'lightfield' output -> name of the written file or folder.
 LIGHTFIELD_NAMES = {"zarr": "lightfield.zarr", "views": "lightfield_views", "mat": "lightfield.mat",
                     "npy": "lightfield.npy", "eslf": "lightfield.eslf.png"}
@@ -146,6 +153,31 @@ class BatchOptions:
         Geometric calibration that rectifies every light field (``--geometry``;
         ``GeometricCalibration.to_dict()``, so its values, not its path, are hashed); a raw whose decoded
         shape differs fails before decoding.
+    focal_stack : (start, stop, n) or None
+        Slices of the 'focal-stack' output (``--focal-stack START:STOP:N``, in ``stack_units``); None:
+        :data:`DEFAULT_STACK_SLICES` slopes over each raw's refocusable range
+        (:func:`plenodecode.render.alpha.refocus_range`).
+    stack_units : {'slope', 'alpha'}
+        Units of ``focal_stack`` (``--stack-units``; 'alpha' needs ``focal_stack``).
+    frames, radius, interp :
+        The 'parallax' output's viewpoints, circle radius (view steps; None: 3/4 of the view grid's half-size) and
+        interpolation (``--frames``, ``--radius``, ``--interp``, as ``plenodecode parallax``).
+    fps : float > 0
+        Frames per second of the 'parallax' animation (``--fps``).
+    parallax_frames : bool
+        Write the parallax frames (``parallax_frames/frame_000.png`` ...) beside the animation (``--no-frames``:
+        False); PNGs, so ``bit_depth=32`` needs False.
+    metric : bool
+        The 'depth' output is metric depth, ``depth.pfm`` (m; um for a light-field microscope), instead of
+        ``disparity.pfm`` (``--metric``), from each raw's own metadata (its focus distance: a raw without one fails
+        in one line; ``plenodecode depth --focus-distance`` supplies it for one raw).
+    ply : bool
+        The 'depth' output also writes a coloured point cloud ``<stem>.ply`` (``--ply``; needs the constants
+        ``metric`` needs).
+    depth_focus_distance : float > 0 or None
+        Distance (m) of the plane in focus for ``metric`` and ``ply`` of every raw, instead of its metadata's
+        (``--depth-focus-distance``: ``plenodecode depth --focus-distance``; a batch's ``--focus-distance`` is the
+        refocus distance, ``distance_m``).
     """
 
     outputs: tuple[str, ...] = ("photo",)
@@ -176,6 +208,16 @@ class BatchOptions:
     hot_pixels: bool = True
     aperture: float = 1.0
     disparity_range: tuple[float, float] | None = None
+    focal_stack: tuple[float, float, int] | None = None
+    stack_units: str = "slope"
+    frames: int = 24
+    radius: float | None = None
+    fps: float = 12.0
+    interp: str = "linear"
+    parallax_frames: bool = True
+    metric: bool = False
+    ply: bool = False
+    depth_focus_distance: float | None = None
 
     def __post_init__(self) -> None:
         outs = tuple(self.outputs) if not isinstance(self.outputs, str) else (self.outputs,)
@@ -203,6 +245,11 @@ class BatchOptions:
         object.__setattr__(self, "white_level", mosaic.white_level)
         if not math.isfinite(self.slope):
             raise ValueError(f"slope must be a finite number, got {self.slope}")
+        if self.depth_focus_distance is not None:
+            value = float(self.depth_focus_distance)
+            if not (value > 0 and math.isfinite(value)):
+                raise ValueError(f"depth_focus_distance must be a finite number > 0 (m), got {self.depth_focus_distance}")
+            object.__setattr__(self, "depth_focus_distance", value)
         if self.alpha is not None and self.distance_m is not None:
             raise ValueError("pass at most one of alpha and distance_m (they replace slope)")
         for name in ("alpha", "distance_m"):
@@ -233,6 +280,43 @@ class BatchOptions:
             object.__setattr__(self, "optics", None if optics.empty else optics.to_dict())
         if self.geometry is not None:
             object.__setattr__(self, "geometry", self.geometric_calibration().to_dict())
+        self._check_stack_and_parallax()
+
+    def _check_stack_and_parallax(self) -> None:
+        """ValueError naming the keyword of a bad 'focal-stack' or 'parallax' option."""
+        from .pipeline import STACK_UNITS
+        from .pipeline.products import stack_problem
+        from .render.viewpoints import PERSPECTIVE_INTERPOLATIONS
+
+        lookup(STACK_UNITS, self.stack_units, param="stack_units")
+        if self.focal_stack is not None:
+            try:
+                start, stop, n = self.focal_stack
+                start, stop = float(start), float(stop)
+                if isinstance(n, bool) or int(n) != n:
+                    raise ValueError
+            except (TypeError, ValueError):
+                raise ValueError(f"focal_stack must be (start, stop, n) with an integer n, got {self.focal_stack!r}"
+                                 ) from None
+            problem = stack_problem(start, stop, int(n), self.stack_units)
+            if problem is not None:
+                raise ValueError(f"focal_stack {problem}")
+            object.__setattr__(self, "focal_stack", (start, stop, int(n)))
+        elif self.stack_units != "slope":
+            raise ValueError(f"stack_units {self.stack_units!r} needs focal_stack (START and STOP in those units); "
+                             "without it a focal stack spans each raw's refocusable range in slopes")
+        if isinstance(self.frames, bool) or int(self.frames) != self.frames or self.frames < 1:
+            raise ValueError(f"frames must be a positive integer, got {self.frames!r}")
+        object.__setattr__(self, "frames", int(self.frames))
+        if self.radius is not None and not (float(self.radius) >= 0 and math.isfinite(float(self.radius))):
+            raise ValueError(f"radius must be a finite number >= 0 (view steps), got {self.radius!r}")
+        if not (float(self.fps) > 0 and math.isfinite(float(self.fps))):
+            raise ValueError(f"fps must be a finite number > 0, got {self.fps!r}")
+        object.__setattr__(self, "fps", float(self.fps))
+        lookup(dict.fromkeys(PERSPECTIVE_INTERPOLATIONS), self.interp, param="interp")
+        if "parallax" in self.outputs and self.parallax_frames and self.bit_depth == 32:
+            raise ValueError("bit_depth 32 (float EXR) cannot be held by the parallax frames (PNG): pass "
+                             "parallax_frames=False or bit_depth 8 or 16")
 
     def _check_decoding(self) -> None:
         """ValueError naming the keyword of a decoding option :func:`plenodecode.decode` would refuse."""
@@ -276,9 +360,20 @@ class BatchOptions:
                                 ("geometry", None), ("grid", None), ("self_calibrate", False),
                                 ("demosaic", "malvar"), ("resample", "cubic"), ("n_views", None),
                                 ("colour", "linear-srgb"), ("hot_pixels", True), ("aperture", 1.0),
-                                ("disparity_range", None)):
+                                ("disparity_range", None), ("focal_stack", None), ("stack_units", "slope"),
+                                ("frames", 24), ("radius", None), ("fps", 12.0), ("interp", "linear"),
+                                ("parallax_frames", True), ("metric", False), ("ply", False),
+                                ("depth_focus_distance", None)):
             if d[option] == default:     # keys of runs before these options existed stay valid
                 d.pop(option)
+        for option, product in (("focal_stack", "focal-stack"), ("stack_units", "focal-stack"),
+                                ("frames", "parallax"), ("radius", "parallax"), ("fps", "parallax"),
+                                ("interp", "parallax"), ("parallax_frames", "parallax"), ("metric", "depth"),
+                                ("ply", "depth"), ("depth_focus_distance", "depth")):
+            if product not in self.outputs:
+                d.pop(option, None)
+        if d.get("focal_stack") is not None:
+            d["focal_stack"] = list(d["focal_stack"])
         return d
 
     def geometric_calibration(self) -> Any:
@@ -644,8 +739,15 @@ def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | Non
 
         raw = open_raw(src, mosaic=options.mosaic_options(), optics=MicroscopeOptics.from_dict(options.optics))
         for product in options.outputs:     # what the metadata cannot serve fails now, before calibrating
-            check_product(raw, product, rectified=options.geometry is not None,
-                          **_image_product_options(product, options))
+            try:
+                check_product(raw, product, rectified=options.geometry is not None,
+                              **_check_options(product, options))
+            except MissingConstantsError as exc:
+                if exc.keyword not in ("metric", "points") or exc.missing != ("focus_distance_m",):
+                    raise
+                raise MissingConstantsError(f"{exc}; pass --depth-focus-distance METRES (depth_focus_distance=) for "
+                                            "every raw", keyword=exc.keyword, missing=exc.missing, source=exc.source,
+                                            need=exc.need) from None
         # the folder is staged under a temporary name and replaces ``target`` (checked above) only when complete
         with atomic_output(target, overwrite=True, folder=True) as staging:
             products = _write_products(raw, staging, options, threads=threads)
@@ -688,6 +790,15 @@ def _thumbnail(image: Any, path: Path, *, colour: str) -> Path:
     return write_image_file(path, np.clip(img, 0.0, 1.0), colour=colour, bit_depth=8)
 
 
+def _check_options(product: str, options: BatchOptions) -> dict[str, Any]:
+    """The options of ``product`` that :func:`plenodecode.pipeline.check_product` checks against a raw's metadata."""
+    if product == "focal-stack":
+        return {"units": options.stack_units}
+    if product == "depth":
+        return {"metric": options.metric, "points": options.ply, "focus_distance": options.depth_focus_distance}
+    return _image_product_options(product, options)
+
+
 def _image_product_options(product: str, options: BatchOptions) -> dict[str, Any]:
     """Options of an image product of :data:`plenodecode.pipeline.PRODUCTS` taken from ``options``."""
     if product not in ("refocus", "photo"):
@@ -701,7 +812,19 @@ def _image_product_options(product: str, options: BatchOptions) -> dict[str, Any
 
 
 #: Outputs cut from the decoded views; a focused-plenoptic raw's have one pixel per lens (:func:`_check_focused_views`).
-VIEW_OUTPUTS = ("lightfield", "views", "centre", "refocus", "all-in-focus")
+VIEW_OUTPUTS = ("lightfield", "views", "centre", "refocus", "all-in-focus", "focal-stack", "parallax")
+
+
+def _stack_options(src: Any, options: BatchOptions) -> dict[str, Any]:
+    """The keywords of the 'focal-stack' product for ``src``: ``options.focal_stack``, else
+    :data:`DEFAULT_STACK_SLICES` slopes over the raw's refocusable range (its decoded light field's geometry)."""
+    if options.focal_stack is not None:
+        start, stop, n = options.focal_stack
+        return {"start": start, "stop": stop, "n": n, "units": options.stack_units}
+    from .render.alpha import refocus_range
+
+    lo, hi = refocus_range(src.lightfield)
+    return {"start": lo, "stop": hi, "n": DEFAULT_STACK_SLICES, "units": "slope"}
 
 
 def _raw_name(raw: Any) -> str:
@@ -754,11 +877,20 @@ def _slope_reach_error(src: Any, options: BatchOptions) -> tuple[str, ValueError
 
 
 def _check_focus_reach(src: Any, options: BatchOptions) -> None:
-    """Refuse, before decoding, a slope, alpha or distance past the raw's picture (:func:`_slope_reach_error`): a
-    DecodeError naming the option."""
+    """Refuse, before decoding, a slope, alpha or distance past the raw's picture (:func:`_slope_reach_error`), and
+    a focal stack's (``options.focal_stack``): a DecodeError naming the option."""
     found = _slope_reach_error(src, options)
     if found is not None:
         raise _focus_option_error(found[0], options, src.raw, found[1])
+    if "focal-stack" in options.outputs and options.focal_stack is not None:
+        from .pipeline.products import check_focus_reach
+
+        start, stop, n = options.focal_stack
+        try:
+            check_focus_reach(src, "focal-stack", start=start, stop=stop, n=n, units=options.stack_units)
+        except ValueError as exc:
+            raise DecodeError(f"--focal-stack {start:g}:{stop:g}:{n} does not suit {_raw_name(src.raw)}: {exc}"
+                              ) from None
 
 
 def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
@@ -838,8 +970,10 @@ def _check_disparity_range(src: Any, options: BatchOptions) -> None:
 
 def depth_stem(rendered: Any) -> str:
     """File stem of a 'depth' output: 'virtual_depth' for a focused-plenoptic (Raytrix) raw's virtual depth,
-    else 'disparity'."""
-    return "virtual_depth" if rendered.data.get("method") == "focused" else "disparity"
+    'depth' for metric depth, else 'disparity'."""
+    if rendered.data.get("method") == "focused":
+        return "virtual_depth"
+    return "depth" if str(rendered.data.get("label", "")).startswith("depth") else "disparity"
 
 
 def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
@@ -898,11 +1032,40 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
                 lf = lf.replace(data=pipeline.expose(lf.data, lf.colour, gain))
             dest = pipeline.write_lightfield(lf, folder / "views", format="views", bit_depth=bits, display=True)
             written.append((dest, centre_thumbnail("views", lf)))
+        elif product == "focal-stack":
+            rendered = pipeline.render_product(src, "focal-stack", **_stack_options(src, options))
+            gain = pipeline.exposure_gain(rendered, options.exposure)      # one gain for the stack and thumbnail
+            pipeline.write_product(rendered, folder / FOCAL_STACK_DIR, bit_depth=bits, exposure=math.log2(gain))
+            (_, aif), = [item for item in rendered.images if item[0] == "all_in_focus"]
+            written.append((folder / FOCAL_STACK_DIR, _thumbnail(pipeline.expose(aif, rendered.colour, gain),
+                                                                 thumbs / "focal_stack.png", colour=rendered.colour)))
+        elif product == "parallax":
+            try:
+                rendered = pipeline.render_product(src, "parallax", frames=options.frames, radius=options.radius,
+                                                   interp=options.interp)
+            except ValueError as exc:       # a radius past this raw's view grid
+                if options.radius is None:
+                    raise
+                raise DecodeError(f"--radius {options.radius:g} does not suit {_raw_name(raw)}: {exc}") from None
+            gain = pipeline.exposure_gain(rendered, options.exposure)
+            frames_dir = folder / PARALLAX_FRAMES_DIR if options.parallax_frames else None
+            pipeline.write_parallax(rendered, folder / PARALLAX_NAME, fps=options.fps, frames_dir=frames_dir,
+                                    bit_depth=bits, exposure=math.log2(gain))
+            (_, first), *_ = rendered.images
+            written.append((folder / PARALLAX_NAME, _thumbnail(pipeline.expose(first, rendered.colour, gain),
+                                                               thumbs / "parallax.png", colour=rendered.colour)))
+            if frames_dir is not None:
+                written.append((frames_dir, None))
         elif product == "depth":
             rendered = pipeline.render_product(src, "depth", method=options.depth_method,
-                                               disparity_range=options.disparity_range)
+                                               disparity_range=options.disparity_range,
+                                               **({"metric": True} if options.metric else {}),
+                                               **({"points": True} if options.ply else {}),
+                                               **({} if options.depth_focus_distance is None else
+                                                  {"focus_distance": options.depth_focus_distance}))
             stem = depth_stem(rendered)
-            dest, = pipeline.write_depth(rendered, folder / f"{stem}.pfm", full=False)
+            dest, *cloud = pipeline.write_depth(rendered, folder / f"{stem}.pfm", full=False,
+                                                ply=folder / f"{stem}.ply" if options.ply else None)
             dm = rendered.data["depthmap"]
             threshold = DEFAULT_MIN_CONFIDENCE if options.min_confidence is None else options.min_confidence
             masked = dm.confidence < np.float32(threshold) if threshold > 0 else None
@@ -911,6 +1074,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
             colours = colour_map_image(rendered.data["values"], label=rendered.data["label"], masked=masked,
                                        near=rendered.data.get("near"), **THUMB_FIGURE)
             written.append((dest, _thumbnail(colours, thumbs / f"{stem}.png", colour="srgb")))
+            written.extend((p, None) for p in cloud)
         else:
             try:
                 rendered = pipeline.render_product(src, product, **_image_product_options(product, options))

@@ -7,15 +7,18 @@ from typing import Any
 
 import click
 
-from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES
+from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES, DEFAULT_STACK_SLICES
+from ..pipeline import STACK_UNITS
 from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
 from ..io.depthio import DEFAULT_MIN_CONFIDENCE
-from .common import (FINITE, POSITIVE, UNIT_INTERVAL, RegistryChoice, aperture_option, bit_depth_option,
+from .common import (FINITE, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, RegistryChoice, aperture_option, bit_depth_option,
                      calibration_option, current_geometry, current_microscope_inputs, current_mosaic_options,
                      database_option, decoding_options, exposure_option, geometry_option, jobs_option,
                      microscope_options, mosaic_options, progress_bar, refuse_database_with_grid,
                      self_calibrate_option, views_anyway_option)
 from .depth import parse_range
+from .refocus import parse_stack
+from .views import INTERP_CHOICE
 
 
 def _parse_outputs(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
@@ -49,9 +52,10 @@ def _echo_table(summary) -> None:
 
 
 def _in_option_names(text: str) -> str:
-    """The library's advice about replacing outputs (``--overwrite (overwrite=True)``, 'output folder') in the
-    command's option names."""
-    return text.replace(" (overwrite=True)", "").replace("choose another output folder", "choose another -o folder")
+    """The library's advice (replacing outputs: ``--overwrite (overwrite=True)``, 'output folder'; a focus distance
+    for metric depth) in the command's option names."""
+    return text.replace(" (overwrite=True)", "").replace("choose another output folder", "choose another -o folder"
+                                                          ).replace(" (depth_focus_distance=)", "")
 
 
 def _refused(exc: FileExistsError) -> click.UsageError:
@@ -143,12 +147,38 @@ def _microscope_fields() -> dict:
               default=DEFAULT_DEPTH_METHOD, show_default=True, help="Method of the 'depth' product.")
 @click.option("--min-confidence", "min_confidence", type=UNIT_INTERVAL, default=DEFAULT_MIN_CONFIDENCE,
               show_default=True, help="Grey out the pixels of the 'depth' thumbnails below this confidence (0 = none).")
+@click.option("--focal-stack", "focal_stack", metavar="START:STOP:N", default=None,
+              help="Slices of the 'focal-stack' product (slopes, or alphas with --stack-units alpha) "
+                   f"[default: {DEFAULT_STACK_SLICES} slopes over each raw's refocusable range].")
+@click.option("--stack-units", type=click.Choice(list(STACK_UNITS)), default="slope", show_default=True,
+              help="Units of --focal-stack's START and STOP.")
+@click.option("--frames", "frames", type=click.IntRange(min=1), default=24, show_default=True,
+              help="Viewpoints on the circle of the 'parallax' product.")
+@click.option("--radius", type=NON_NEGATIVE, default=None,
+              help="Circle radius of the 'parallax' product in view steps (default: 3/4 of the view grid's "
+                   "half-size).")
+@click.option("--fps", type=POSITIVE, default=12.0, show_default=True,
+              help="Frames per second of the 'parallax' animation (parallax.gif).")
+@click.option("--no-frames", is_flag=True,
+              help="Write only the 'parallax' animation, not its frames (parallax_frames/frame_000.png ...).")
+@click.option("--interp", type=INTERP_CHOICE, default="linear", show_default=True,
+              help="Interpolation between neighbouring views of the 'parallax' product.")
+@click.option("--metric", is_flag=True,
+              help="The 'depth' product in metres (depth.pfm; um for a light-field microscope) instead of disparity, "
+                   "from each raw's own focus distance (a raw whose metadata lacks it fails).")
+@click.option("--ply", is_flag=True,
+              help="The 'depth' product also writes a coloured point cloud beside its PFM (depth.ply or "
+                   "disparity.ply; needs what --metric needs).")
+@click.option("--depth-focus-distance", "depth_focus_distance", type=POSITIVE, default=None, metavar="METRES",
+              help="Distance of the plane in focus (m) for --metric/--ply of every raw, instead of its metadata's "
+                   "('plenodecode depth --focus-distance'; a batch's --focus-distance refocuses).")
 @views_anyway_option
 @click.option("--overwrite", is_flag=True, help="Redo raws a previous run finished and replace their outputs.")
 @click.pass_context
 def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calibration, database, self_calibrate,
             white, demosaic, resample, n_views, colour, no_hot_pixels, lf_format, bit_depth, exposure, slope, alpha,
-            distance_m, aperture, disparity_range, depth_method, min_confidence, views_anyway, overwrite) -> None:
+            distance_m, aperture, disparity_range, depth_method, min_confidence, focal_stack, stack_units, frames,
+            radius, fps, no_frames, interp, metric, ply, depth_focus_distance, views_anyway, overwrite) -> None:
     """Decode every raw under INPUTS and write the chosen outputs per raw into OUTPUT/<name>/.
 
     Each raw is matched to its camera's calibration in the database (by serial, zoom and
@@ -169,6 +199,13 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
 
     if alpha is not None and distance_m is not None:
         raise click.UsageError("pass at most one of --alpha and --focus-distance (each replaces --slope)")
+    stack = None if focal_stack is None else parse_stack(focal_stack, stack_units)
+    if stack is None and stack_units != "slope":
+        raise click.BadParameter(f"{stack_units} needs --focal-stack START:STOP:N in those units (without it a focal "
+                                 "stack spans each raw's refocusable range in slopes)", param_hint="--stack-units")
+    if "parallax" in outputs and not no_frames and bit_depth == "32":
+        raise click.BadParameter("32 (float EXR) cannot be held by the parallax frames (PNG): pass 8 or 16, or "
+                                 "--no-frames", param_hint="--bit-depth")
     refuse_database_with_grid(calibration, None, database)
     db_dir = database or Path(DEFAULT_DB)
     if not overwrite:
@@ -213,7 +250,10 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
                            views_anyway=views_anyway, grid=None if calibration is None else str(calibration),
                            self_calibrate=self_calibrate, demosaic=demosaic, resample=resample, n_views=n_views,
                            colour=colour, hot_pixels=not no_hot_pixels, aperture=aperture,
-                           disparity_range=disparity_range, **_microscope_fields())
+                           disparity_range=disparity_range, focal_stack=stack, stack_units=stack_units,
+                           frames=frames, radius=radius, fps=fps, interp=interp, parallax_frames=not no_frames,
+                           metric=metric, ply=ply, depth_focus_distance=depth_focus_distance,
+                           **_microscope_fields())
     if not overwrite:       # a second run with other options must not replace the first run's folders
         try:
             check_outputs_to_replace(files, out_dir, options)

@@ -7,9 +7,8 @@ from pathlib import Path
 
 import click
 
-import math
-
-from ..pipeline import IMAGE_EXTENSIONS, MAX_STACK_SLICES, STACK_UNITS, focal_stack_names
+from ..pipeline import IMAGE_EXTENSIONS, STACK_UNITS, focal_stack_names
+from ..pipeline.products import stack_problem
 from .common import (OneInputCommand, FINITE, FOCUSED_REFOCUS, POSITIVE, RegistryChoice, aperture_option,
                      bit_depth_option, calibration_kwargs, check_focus_options, check_folder_output, check_output,
                      describe_focus, exposure_option, focus_choices, focus_hint, focus_options, focus_point,
@@ -31,12 +30,10 @@ def parse_stack(text: str, units: str = "slope") -> tuple[float, float, int]:
     except ValueError:
         raise click.BadParameter(f"expected START:STOP:N (e.g. -1.5:1.5:30), got {text!r}",
                                  param_hint="--focal-stack") from None
-    if not 2 <= n <= MAX_STACK_SLICES:
-        raise click.BadParameter(f"N must be 2 to {MAX_STACK_SLICES}, got {n}", param_hint="--focal-stack")
-    if not (math.isfinite(start) and math.isfinite(stop)):
-        raise click.BadParameter(f"START and STOP must be finite, got {text!r}", param_hint="--focal-stack")
-    if units == "alpha" and not (start > 0 and stop > 0):
-        raise click.BadParameter(f"alphas must be > 0 (--stack-units alpha), got {text!r}", param_hint="--focal-stack")
+    problem = stack_problem(start, stop, n, units)
+    if problem is not None:
+        raise click.BadParameter(problem.replace("(units 'alpha')", "(--stack-units alpha)"),
+                                 param_hint="--focal-stack")
     return start, stop, n
 
 

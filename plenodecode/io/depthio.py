@@ -380,15 +380,23 @@ def write_depth_outputs(pfm_path: str | os.PathLike, values: np.ndarray, *, labe
                                             cmap=CONFIDENCE_CMAP, vmin=0.0, vmax=1.0, title=conf_title,
                                             mark=min_confidence if masked is not None else None, overwrite=overwrite))
     if ply is not None:
-        pts = np.asarray(points, np.float32).reshape(-1, 3)
-        keep = np.isfinite(pts).all(axis=1)
-        col = None if colours is None else np.asarray(colours, np.uint8).reshape(-1, 3)[keep]
-        written.append(write_ply(paths["ply"], pts[keep], col, overwrite=overwrite))
-        log.info("PLY: %d of %d points", int(keep.sum()), len(keep))
+        written.append(write_point_cloud(paths["ply"], points, colours, overwrite=overwrite))
     return written
 
 
-__all__ = ["write_ply", "read_ply", "write_colour_map_png", "colour_map_figure", "colour_map_image", "colour_range",
+def write_point_cloud(path: str | os.PathLike, points: np.ndarray, colours: np.ndarray | None = None, *,
+                      overwrite: bool = False) -> Path:
+    """PLY (:func:`write_ply`) of the finite points of a per-pixel point map ``points`` (Y, X, 3) and their
+    ``colours`` (Y, X, 3) uint8."""
+    pts = np.asarray(points, np.float32).reshape(-1, 3)
+    keep = np.isfinite(pts).all(axis=1)
+    col = None if colours is None else np.asarray(colours, np.uint8).reshape(-1, 3)[keep]
+    written = write_ply(path, pts[keep], col, overwrite=overwrite)
+    log.info("PLY: %d of %d points", int(keep.sum()), len(keep))
+    return written
+
+
+__all__ = ["write_ply", "write_point_cloud", "read_ply", "write_colour_map_png", "colour_map_figure", "colour_map_image", "colour_range",
            "colour_mapped", "DEFAULT_MIN_CONFIDENCE", "MASK_GREY", "CONFIDENCE_CMAP", "CONFIDENCE_MARK",
            "check_min_confidence",
            "DEPTH_CMAP", "DEPTH_PERCENTILES", "write_depth_outputs", "depth_output_paths", "display_colours"]

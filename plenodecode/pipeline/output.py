@@ -271,15 +271,20 @@ def write_depth(rendered: Rendered, pfm_path: str | os.PathLike, *, ply: str | o
     ``X.png`` whose pixels of confidence below ``min_confidence`` are grey (default
     :data:`plenodecode.io.depthio.DEFAULT_MIN_CONFIDENCE`) and the confidence map ``X_confidence.exr`` /
     ``X_confidence.png`` (:func:`plenodecode.io.depthio.write_depth_outputs`), plus a PLY point cloud with
-    ``ply``."""
+    ``ply`` (with ``full=False`` too: the PFM and the PLY)."""
     from ..io.depthio import DEFAULT_MIN_CONFIDENCE, check_min_confidence
 
     min_confidence = check_min_confidence(DEFAULT_MIN_CONFIDENCE if min_confidence is None else min_confidence)
     values = rendered.data["values"]
     if not full:
+        from ..io.depthio import write_point_cloud
         from ..io.pfm import write_pfm
 
-        return [write_pfm(pfm_path, values, overwrite=overwrite)]
+        if ply is not None and rendered.data.get("points") is None:
+            raise ValueError("ply needs points (3-D coordinates of every pixel): render the depth with points=True")
+        return [write_pfm(pfm_path, values, overwrite=overwrite)] + (
+            [] if ply is None else [write_point_cloud(ply, rendered.data["points"], rendered.data.get("colours"),
+                                                      overwrite=overwrite)])
     from ..io.depthio import write_depth_outputs
 
     return write_depth_outputs(pfm_path, values, label=rendered.data["label"],

@@ -216,6 +216,21 @@ def _slopes_as_given(values: Any, lf: LightField) -> Any:
 #: Most slices of one focal stack (a larger count is refused before any work).
 MAX_STACK_SLICES = 512
 
+def stack_problem(start: float, stop: float, n: int, units: str = "slope") -> str | None:
+    """What is wrong with a focal stack of ``n`` slices from ``start`` to ``stop`` (``units``), as a phrase for the
+    caller to name its option or keyword in, or None: N must be 2 to :data:`MAX_STACK_SLICES`, START and STOP
+    finite (and > 0 as alphas)."""
+    import math
+
+    if not 2 <= n <= MAX_STACK_SLICES:
+        return f"N must be 2 to {MAX_STACK_SLICES}, got {n}"
+    if not (math.isfinite(start) and math.isfinite(stop)):
+        return f"START and STOP must be finite, got {start:g}:{stop:g}"
+    if units == "alpha" and not (start > 0 and stop > 0):
+        return f"alphas must be > 0 (units 'alpha'), got {start:g}:{stop:g}"
+    return None
+
+
 #: Units of a focal stack's START and STOP -> ``fn(values, lf) -> slopes`` (px per view step).
 STACK_UNITS: dict[str, Callable[..., Any]] = {
     "slope": _slopes_as_given,
