@@ -11,7 +11,8 @@ Layout of ``out_dir``::
 
     out_dir/<name>/           one folder per raw, <name> = the raw's file stem (made unique)
         refocus_s+0.00.png (or total_focus.png: 'photo'), centre.png, disparity.pfm (virtual_depth.pfm: a focused
-                              raw's 'depth'; depth.pfm: metric, + .ply), lightfield.zarr, views/, focal_stack/, parallax.gif + parallax_frames/ ...
+                              raw's 'depth'; depth.pfm: metric, + .ply), lightfield.zarr, views/, focal_stack/,
+                              parallax.gif + parallax_frames/ ...
         thumbs/<product>.png  8-bit thumbnails (longest side <= THUMB_SIZE) for the index
         .done.json            the task key, the products and thumbnails (written last)
     out_dir/summary.json      every result of the last run
@@ -248,7 +249,8 @@ class BatchOptions:
         if self.depth_focus_distance is not None:
             value = float(self.depth_focus_distance)
             if not (value > 0 and math.isfinite(value)):
-                raise ValueError(f"depth_focus_distance must be a finite number > 0 (m), got {self.depth_focus_distance}")
+                raise ValueError("depth_focus_distance must be a finite number > 0 (m), got "
+                                 f"{self.depth_focus_distance}")
             object.__setattr__(self, "depth_focus_distance", value)
         if self.alpha is not None and self.distance_m is not None:
             raise ValueError("pass at most one of alpha and distance_m (they replace slope)")

@@ -139,7 +139,8 @@ BATCH_ONLY: dict[str, tuple[str, str]] = {
 #: The keyword of :class:`plenodecode.batch.BatchOptions` (or :func:`run_batch`) each batch option sets, where it is
 #: not the option's own name: a Python batch user's names.
 BATCH_KEYWORDS = {"--output": "run_batch:out_dir", "--calibration": "grid", "--database": "db_dir",
-                  "--format": "lightfield_format", "--no-hot-pixels": "hot_pixels", "--no-frames": "parallax_frames", "--views": "n_views",
+                  "--format": "lightfield_format", "--no-hot-pixels": "hot_pixels", "--no-frames": "parallax_frames",
+                  "--views": "n_views",
                   "--refocus": "alpha", "--focus-distance": "distance_m", "--jobs": "run_batch:jobs",
                   "--scheduler": "run_batch:scheduler", "--overwrite": "run_batch:overwrite",
                   "--optics": "optics", "--lens-pitch-um": "optics", "--pixel-um": "optics",
