@@ -397,6 +397,6 @@ def write_point_cloud(path: str | os.PathLike, points: np.ndarray, colours: np.n
 
 
 __all__ = ["write_ply", "write_point_cloud", "read_ply", "write_colour_map_png", "colour_map_figure",
-           "colour_map_image", "colour_range", "colour_mapped", "DEFAULT_MIN_CONFIDENCE", "MASK_GREY", "CONFIDENCE_CMAP", "CONFIDENCE_MARK",
-           "check_min_confidence",
-           "DEPTH_CMAP", "DEPTH_PERCENTILES", "write_depth_outputs", "depth_output_paths", "display_colours"]
+           "colour_map_image", "colour_range", "colour_mapped", "DEFAULT_MIN_CONFIDENCE", "MASK_GREY",
+           "CONFIDENCE_CMAP", "CONFIDENCE_MARK", "check_min_confidence", "DEPTH_CMAP", "DEPTH_PERCENTILES",
+           "write_depth_outputs", "depth_output_paths", "display_colours"]
