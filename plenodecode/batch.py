@@ -964,17 +964,19 @@ def _clean_stale(out: Path) -> None:
             discard(p)
 
 
-def run_batch(inputs: Sequence[str | os.PathLike], out_dir: str | os.PathLike, options: BatchOptions | None = None,
-              *, jobs: int | None = None, scheduler: str | Any | None = None, max_in_flight: int | None = None,
-              overwrite: bool = False, progress: Progress = None) -> BatchSummary:
-    """Process every raw under ``inputs`` into ``out_dir`` (see the module docstring).
+def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | None = None,
+              options: BatchOptions | None = None, *, jobs: int | None = None, scheduler: str | Any | None = None,
+              max_in_flight: int | None = None, overwrite: bool = False, progress: Progress = None,
+              **renamed: Any) -> BatchSummary:
+    """Process every raw under ``inputs`` into ``output`` (``out_dir`` of the module docstring).
 
     Parameters
     ----------
     inputs : sequence of path-like
-        Raw files and folders (searched by :func:`find_raws`; ``out_dir`` itself is excluded).
-    out_dir : path-like
-        Output folder (created).
+        Raw files and folders (searched by :func:`find_raws`; ``output`` itself is excluded).
+    output : path-like
+        Output folder (created; ``plenodecode batch -o/--output``).  Its old name ``out_dir=`` still works, with a
+        DeprecationWarning.
     options : BatchOptions, optional
     jobs : int, optional
         Local worker processes (default: all cores); ``jobs=1`` runs in this process.
@@ -994,6 +996,15 @@ def run_batch(inputs: Sequence[str | os.PathLike], out_dir: str | os.PathLike, o
     BatchSummary
         One result per raw in input order; failures carry their error, nothing is raised for bad files.
     """
+    from .deprecation import renamed_keywords
+
+    given = renamed_keywords({**renamed, **({} if output is None else {"output": output})}, {"out_dir": "output"},
+                             "run_batch")
+    out_dir = given.pop("output", None)
+    if given:
+        raise TypeError(f"run_batch() got an unexpected keyword argument {next(iter(given))!r}")
+    if out_dir is None:
+        raise TypeError("run_batch() missing the output folder: pass output=")
     if jobs is not None and jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     if max_in_flight is not None and max_in_flight < 1:

@@ -145,6 +145,21 @@ def test_old_option_names_still_work_with_a_deprecation_warning_and_keep_the_tas
         BatchOptions(format="npy", lightfield_format="npy")
 
 
+def test_run_batch_takes_output_as_batch_its_old_out_dir_with_a_warning(tmp_path):
+    """run_batch(out_dir=) became output= (``plenodecode batch -o/--output``); the old keyword still works."""
+    (tmp_path / "in").mkdir()
+    (tmp_path / "in" / "bad.lfr").write_bytes(b"xx")          # fails fast: the run reaches the raw, not its decoding
+    with pytest.warns(DeprecationWarning, match=r"run_batch\(out_dir=\) is deprecated: pass output="):
+        old, = run_batch([tmp_path / "in"], out_dir=tmp_path / "old", jobs=1).results
+    new, = run_batch([tmp_path / "in"], output=tmp_path / "new", jobs=1).results
+    assert old.source == new.source == str((tmp_path / "in" / "bad.lfr").resolve())
+    assert old.status == new.status == "failed" and old.error == new.error
+    with pytest.raises(TypeError, match="unexpected keyword argument 'outdir'"):
+        run_batch([tmp_path / "in"], outdir=tmp_path / "x")
+    with pytest.raises(ValueError, match="pass output, not both"):
+        run_batch([tmp_path / "in"], tmp_path / "a", out_dir=tmp_path / "b")
+
+
 def test_options_validate_arguments():
     with pytest.raises(ValueError, match="outputs"):
         BatchOptions(outputs=("centre", "thumbnail"))

@@ -131,7 +131,7 @@ BATCH_ONLY: dict[str, tuple[str, str]] = {
 
 #: The keyword of :class:`plenodecode.batch.BatchOptions` (or :func:`run_batch`) each batch option sets, where it is
 #: not the option's own name: a Python batch user's names.
-BATCH_KEYWORDS = {"--output": "run_batch:out_dir", "--calibration": "grid",
+BATCH_KEYWORDS = {"--output": "run_batch:output", "--calibration": "grid",
                   "--no-hot-pixels": "hot_pixels", "--views": "n_views",
                   "--refocus": "alpha", "--jobs": "run_batch:jobs",
                   "--scheduler": "run_batch:scheduler", "--overwrite": "run_batch:overwrite",
