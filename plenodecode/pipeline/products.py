@@ -118,6 +118,28 @@ def refocus_stem(*, slope: float | None = None, alpha: float | None = None) -> s
     return f"refocus_s{slope:+.2f}" if slope is not None else f"refocus_a{alpha:.3f}"
 
 
+def _one_focus(slope: Any, alpha: Any, focus_at: Any, focus_distance: Any) -> str:
+    """The one focus keyword given (ValueError, in the workflow's names, unless exactly one)."""
+    given = [k for k, v in (("slope", slope), ("alpha", alpha), ("focus_at", focus_at),
+                            ("focus_distance", focus_distance)) if v is not None]
+    if len(given) != 1:
+        raise ValueError(f"pass exactly one of slope, alpha, focus_at and focus_distance, got {given or 'none'}")
+    return given[0]
+
+
+def _focus_point(focus_at: Any, shape: Sequence[int]) -> tuple[float, float]:
+    """``focus_at = (x, y)`` as the ``at = (y, x)`` of :func:`~plenodecode.render.refocus_methods.focus_slope`
+    inside the centre view of a light field of ``shape`` (V, U, Y, X, C); ValueError naming ``focus_at``."""
+    from ..render.refocus_methods import check_point
+
+    try:
+        x, y = (float(v) for v in focus_at)
+        return check_point((y, x), shape[2:4])
+    except (TypeError, ValueError):
+        raise ValueError(f"focus_at must be an (x, y) pair inside the centre view (x: column 0 to {shape[3] - 1}, "
+                         f"y: row 0 to {shape[2] - 1}), got {focus_at!r}") from None
+
+
 def render_refocus(src: Source, *, slope: float | None = None, alpha: float | None = None,
                    focus_at: tuple[float, float] | None = None, focus_distance: float | None = None,
                    at_method: str = "depth", method: str = "shift-sum", aperture: float = 1.0, upsample: int = 1,
@@ -136,7 +158,7 @@ def render_refocus(src: Source, *, slope: float | None = None, alpha: float | No
     from ..render.refocus_methods import focus_slope
 
     lf = src.lightfield
-    at = None if focus_at is None else (focus_at[1], focus_at[0])
+    at = _focus_point(focus_at, lf.shape) if _one_focus(slope, alpha, focus_at, focus_distance) == "focus_at" else None
     chosen = focus_slope(lf, slope=slope, alpha=alpha, at=at, distance_m=focus_distance, at_method=at_method,
                          progress=progress)
     check_slope_reach(lf, chosen)       # a slope refused is refused without the out-of-range warning first

@@ -271,6 +271,12 @@ def test_python_focus_at_is_x_y_as_the_option_and_the_old_at_row_column_still_wo
     assert err.value.keyword == "focus_distance"
     with pytest.raises(ValueError, match="pass focus_at, not both"):
         pipeline.render_product(src, "refocus", at=(6, 8), focus_at=(8, 6))
+    with pytest.raises(ValueError, match=r"focus_at must be an \(x, y\) pair inside the centre view \(x: column 0 "
+                                         r"to 17, y: row 0 to 13\), got \(2, 16\)"):
+        pipeline.render_product(src, "refocus", focus_at=(2, 16))        # row 16 of 14; as (row, column) inside
+    with pytest.raises(ValueError, match=r"pass exactly one of slope, alpha, focus_at and focus_distance, got "
+                                         r"\['slope', 'focus_at'\]"):
+        pipeline.render_product(src, "refocus", slope=0.0, focus_at=(8, 6))
 
 
 def test_info_on_a_light_field_shows_the_refocusable_range(tmp_path):
