@@ -61,14 +61,14 @@ def refocus_modes() -> np.ndarray:
 
     src = open_source(ROOT / "sample_raws" / "illum-mini" / "scene.lfr", database=ROOT / "calib")
     shape = src.lightfield.shape
-    click = (0.5 * (shape[2] - 1), 0.25 * (shape[3] - 1))            # --focus-at 0.25,0.5: the slanted plane
+    click = (0.25 * (shape[3] - 1), 0.5 * (shape[2] - 1))            # --focus-at 0.25,0.5: the slanted plane
     panels = [render_product(src, "refocus", alpha=1.015).images[0][1],
               render_product(src, "refocus", alpha=0.992).images[0][1],
-              render_product(src, "refocus", at=click).images[0][1],
+              render_product(src, "refocus", focus_at=click).images[0][1],
               render_product(src, "all-in-focus").images[0][1]]
     scale = 1.0 / max(float(np.percentile(np.stack(panels), 99.5)), 1e-9)
     panels = [np.clip(p * scale, 0, 1).repeat(3, 0).repeat(3, 1) for p in panels]
-    y, x = int(round(click[0] * 3)), int(round(click[1] * 3))
+    x, y = int(round(click[0] * 3)), int(round(click[1] * 3))
     panels[2][y - 4:y + 5, x - 1:x + 2] = panels[2][y - 1:y + 2, x - 4:x + 5] = (1.0, 1.0, 0.0)   # the click
     gap = np.ones((panels[0].shape[0], 4, 3), np.float32)
     return np.concatenate([panels[0], gap, panels[1], gap, panels[2], gap, panels[3]], axis=1)

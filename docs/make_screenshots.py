@@ -76,7 +76,7 @@ def batch_index(tmp: Path, *, overwrite: bool) -> Path:
     shutil.copy(ROOT / "sample_raws" / "illum-mini" / "scene.lfr", raws / "illum_scene.lfr")
     shutil.copy(ROOT / "sample_raws" / "f01-mini" / "scene.lfp", raws / "f01_scene.lfp")
     (raws / "corrupt.lfr").write_bytes(b"\x89LFP\r\n\x1a\n" + bytes(64))
-    opts = BatchOptions(outputs=("centre", "refocus", "depth"), db_dir=str(ROOT / "calib"), bit_depth=8)
+    opts = BatchOptions(outputs=("centre", "refocus", "depth"), database=str(ROOT / "calib"), bit_depth=8)
     out = tmp / "batch"
     _, index = write_summary(run_batch([raws], out, opts, jobs=1), out)
     shot = tmp / "batch_index.png"

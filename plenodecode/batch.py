@@ -52,6 +52,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
+from .deprecation import renamed_fields
 from .errors import DecodeError, MissingConstantsError, PlenodecodeError, one_line
 from .io.atomic import (OLD_MARK, TEMP_MARK, atomic_output, discard, is_temporary, remove_stale_temporaries,
                         write_text_atomic)
@@ -90,6 +91,13 @@ THUMB_FIGURE = {"width_in": 1.9, "dpi": 100, "fontsize": 6}
 
 
 # ---------------------------------------------------------------------------------- data
+#: Fields of :class:`BatchOptions` renamed to their ``plenodecode batch`` option -> their old name: the old
+#: keyword and attribute still work for one release (DeprecationWarning), and the task key keeps the old names so
+#: the outputs of earlier runs stay done (:meth:`BatchOptions.as_key_dict`).
+RENAMED_FIELDS = {"database": "db_dir", "format": "lightfield_format", "focus_distance": "distance_m"}
+
+
+@renamed_fields({old: new for new, old in RENAMED_FIELDS.items()})
 @dataclass(frozen=True)
 class BatchOptions:
     """What to produce for every raw (all of it is hashed into each task's key).
@@ -99,10 +107,10 @@ class BatchOptions:
     outputs : tuple of str
         Non-empty subset of :data:`BATCH_OUTPUTS`; default 'photo', the camera's photograph
         (:func:`plenodecode.pipeline.products.render_photo`, as the one-liner writes it).
-    db_dir : str or None
-        Calibration database folder (default :data:`plenodecode.calib.store.DEFAULT_DB`).
-    lightfield_format : str
-        Format of the 'lightfield' output, a key of :data:`LIGHTFIELD_NAMES`.
+    database : str or None
+        Calibration database folder (``--database``; default :data:`plenodecode.calib.store.DEFAULT_DB`).
+    format : str
+        Format of the 'lightfield' output (``--format``), a key of :data:`LIGHTFIELD_NAMES`.
     bit_depth : {8, 16, 32}
         Image outputs: 8/16-bit sRGB-encoded PNG, or 32 = linear float EXR.
     exposure : float or 'auto'
@@ -111,13 +119,13 @@ class BatchOptions:
         :func:`plenodecode.pipeline.exposure_gain`).
     slope : float
         Refocus slope of the 'refocus' and 'photo' outputs (px per view step, design.md), unless ``alpha`` or
-        ``distance_m``.
+        ``focus_distance``.
     alpha : float or None
         Ng's relative film depth of the 'refocus' and 'photo' outputs instead of ``slope`` (the same name as
         :func:`plenodecode.render.refocus` and ``--alpha``).
-    distance_m : float or None
-        Focus distance (m) of the 'refocus' and 'photo' outputs instead of ``slope`` (needs the focus distance in
-        the metadata).
+    focus_distance : float or None
+        Focus distance (m) of the 'refocus' and 'photo' outputs instead of ``slope`` (``--focus-distance``; needs
+        the focus distance in the metadata).
     depth_method : str or None
         Method of the 'depth' output (None: the library's default).
     aperture : float in (0, 1]
@@ -150,6 +158,9 @@ class BatchOptions:
     demosaic, resample, n_views, colour, hot_pixels :
         How every raw is decoded: the keywords of :func:`plenodecode.decode` (``--demosaic``, ``--resample``,
         ``--views``, ``--colour``, ``--no-hot-pixels``, as ``plenodecode decode`` takes them).
+
+    The old names of :data:`RENAMED_FIELDS` (``db_dir``, ``lightfield_format``, ``distance_m``) still work, with a
+    DeprecationWarning.
     geometry : dict or None
         Geometric calibration that rectifies every light field (``--geometry``;
         ``GeometricCalibration.to_dict()``, so its values, not its path, are hashed); a raw whose decoded
@@ -178,12 +189,12 @@ class BatchOptions:
     depth_focus_distance : float > 0 or None
         Distance (m) of the plane in focus for ``metric`` and ``ply`` of every raw, instead of its metadata's
         (``--depth-focus-distance``: ``plenodecode depth --focus-distance``; a batch's ``--focus-distance`` is the
-        refocus distance, ``distance_m``).
+        refocus distance, ``focus_distance``).
     """
 
     outputs: tuple[str, ...] = ("photo",)
-    db_dir: str | None = None
-    lightfield_format: str = "zarr"
+    database: str | None = None
+    format: str = "zarr"
     bit_depth: int = 16
     exposure: float | str = 0.0
     slope: float = 0.0
@@ -193,7 +204,7 @@ class BatchOptions:
     white_level: float | None = None
     input_encoding: str = "linear"
     alpha: float | None = None
-    distance_m: float | None = None
+    focus_distance: float | None = None
     white: str | None = None
     dark: str | None = None
     optics: Mapping[str, float | None] | None = None
@@ -226,7 +237,7 @@ class BatchOptions:
         if bad or not outs:
             raise ValueError(f"outputs must be a non-empty subset of {BATCH_OUTPUTS}, got {self.outputs!r}")
         object.__setattr__(self, "outputs", tuple(dict.fromkeys(outs)))
-        lookup(LIGHTFIELD_NAMES, self.lightfield_format, param="lightfield_format")
+        lookup(LIGHTFIELD_NAMES, self.format, param="format")
         if self.bit_depth not in (8, 16, 32):
             raise ValueError(f"bit_depth must be 8, 16 or 32, got {self.bit_depth!r}")
         from .pipeline.output import check_exposure
@@ -252,17 +263,17 @@ class BatchOptions:
                 raise ValueError("depth_focus_distance must be a finite number > 0 (m), got "
                                  f"{self.depth_focus_distance}")
             object.__setattr__(self, "depth_focus_distance", value)
-        if self.alpha is not None and self.distance_m is not None:
-            raise ValueError("pass at most one of alpha and distance_m (they replace slope)")
-        for name in ("alpha", "distance_m"):
+        if self.alpha is not None and self.focus_distance is not None:
+            raise ValueError("pass at most one of alpha and focus_distance (they replace slope)")
+        for name in ("alpha", "focus_distance"):
             value = getattr(self, name)
             if value is not None and not (float(value) > 0 and math.isfinite(float(value))):
                 raise ValueError(f"{name} must be a finite number > 0, got {value}")
-        if self.db_dir is None:
+        if self.database is None:
             from .calib.store import DEFAULT_DB
 
-            object.__setattr__(self, "db_dir", DEFAULT_DB)
-        object.__setattr__(self, "db_dir", str(self.db_dir))
+            object.__setattr__(self, "database", DEFAULT_DB)
+        object.__setattr__(self, "database", str(self.database))
         self._check_decoding()
         if not (0 < float(self.aperture) <= 1):
             raise ValueError(f"aperture must be in (0, 1] (a fraction of the view grid), got {self.aperture!r}")
@@ -341,11 +352,11 @@ class BatchOptions:
         """The options as hashed into the task key.
 
         The database folder is made absolute; options of products not asked for are left out, so
-        changing them does not redo finished raws.
+        changing them does not redo finished raws; renamed fields keep their old names (:data:`RENAMED_FIELDS`).
         """
-        d = asdict(self)
+        d = {RENAMED_FIELDS.get(k, k): v for k, v in asdict(self).items()}
         d["outputs"] = list(self.outputs)
-        d["db_dir"] = str(Path(self.db_dir).resolve())
+        d["db_dir"] = str(Path(self.database).resolve())
         from .io.depthio import DEFAULT_MIN_CONFIDENCE
 
         if d["min_confidence"] == DEFAULT_MIN_CONFIDENCE:
@@ -808,8 +819,8 @@ def _image_product_options(product: str, options: BatchOptions) -> dict[str, Any
     aperture = {} if options.aperture == 1.0 else {"aperture": options.aperture}
     if options.alpha is not None:
         return {"alpha": options.alpha, **aperture}
-    if options.distance_m is not None:
-        return {"distance_m": options.distance_m, **aperture}
+    if options.focus_distance is not None:
+        return {"focus_distance": options.focus_distance, **aperture}
     return {"slope": options.slope, **aperture}
 
 
@@ -847,7 +858,7 @@ def _check_focused_views(src: Any, options: BatchOptions) -> None:
 
 
 #: A refocus keyword of :func:`_image_product_options` -> the ``plenodecode batch`` option that set it.
-FOCUS_OPTIONS = {"slope": "--slope", "alpha": "--alpha", "distance_m": "--focus-distance"}
+FOCUS_OPTIONS = {"slope": "--slope", "alpha": "--alpha", "focus_distance": "--focus-distance"}
 
 
 def _focus_option_error(product: str, options: BatchOptions, raw: Any, exc: ValueError) -> DecodeError:
@@ -859,7 +870,7 @@ def _focus_option_error(product: str, options: BatchOptions, raw: Any, exc: Valu
 
 def _slope_reach_error(src: Any, options: BatchOptions) -> tuple[str, ValueError, float] | None:
     """(product, error, largest |slope| the raw allows) of the first refocused product whose slope (``slope``,
-    or ``alpha`` or ``distance_m`` turned into one with the camera constants) moves the outermost views of the
+    or ``alpha`` or ``focus_distance`` turned into one with the camera constants) moves the outermost views of the
     raw's light field past its whole picture (:func:`plenodecode.pipeline.products.check_focus_reach` on the
     decoded shape and geometry the calibration gives), else None."""
     from .decoding.rectify import decoded_shape
@@ -896,7 +907,7 @@ def _check_focus_reach(src: Any, options: BatchOptions) -> None:
 
 
 def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
-    """Raise ValueError when ``options.slope`` (or the slope of ``options.alpha`` or ``options.distance_m``) is
+    """Raise ValueError when ``options.slope`` (or the slope of ``options.alpha`` or ``options.focus_distance``) is
     past the picture of every raw of ``files`` it applies to (a batch would fail them all), before any is decoded:
     the error :func:`~plenodecode.render._common.check_slope_reach` gives for the raw allowing the largest slope.
 
@@ -906,7 +917,7 @@ def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOption
     without a white image) ends the check without an error, as that costs a scene's fit; its task checks it.
     The library's log is held back to errors meanwhile, so the tasks' warnings are not said twice.
     """
-    if options.slope == 0 and options.alpha is None and options.distance_m is None or not any(
+    if options.slope == 0 and options.alpha is None and options.focus_distance is None or not any(
             p in ("refocus", "photo") for p in options.outputs):
         return
     from . import pipeline
@@ -924,7 +935,7 @@ def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOption
                 raw = pipeline.open_raw(f, mosaic=mosaic, optics=MicroscopeOptics.from_dict(options.optics))
                 if options.white is None and is_bare_mosaic(raw):
                     return
-                cal = pipeline.choose_calibration(raw, grid=options.grid, database=options.db_dir,
+                cal = pipeline.choose_calibration(raw, grid=options.grid, database=options.database,
                                                   white=options.white, mosaic=mosaic)
                 found = _slope_reach_error(pipeline.Source(raw=raw, calibration=cal,
                                                            geometry=options.geometric_calibration(),
@@ -1000,7 +1011,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
 
     mosaic = options.mosaic_options()
     dark = pipeline.read_dark_frame(options.dark, mosaic, raw=raw)     # its size checked before the calibration
-    calibration = pipeline.choose_calibration(raw, grid=options.grid, database=options.db_dir, white=options.white,
+    calibration = pipeline.choose_calibration(raw, grid=options.grid, database=options.database, white=options.white,
                                               self_calibrate=options.self_calibrate, mosaic=mosaic)
     _check_views(calibration.grid, options.n_views, raw)
     src = pipeline.Source(raw=raw, calibration=calibration, decode_options={
@@ -1022,8 +1033,8 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
 
     for product in options.outputs:
         if product == "lightfield":
-            dest = pipeline.write_lightfield(src.lightfield, folder / LIGHTFIELD_NAMES[options.lightfield_format],
-                                             format=options.lightfield_format, bit_depth=bits)
+            dest = pipeline.write_lightfield(src.lightfield, folder / LIGHTFIELD_NAMES[options.format],
+                                             format=options.format, bit_depth=bits)
             written.append((dest, centre_thumbnail("lightfield")))
         elif product == "views":
             # image outputs for viewing: --exposure as 'plenodecode views' applies it (one gain, from the centre
@@ -1119,17 +1130,19 @@ def _clean_stale(out: Path) -> None:
             discard(p)
 
 
-def run_batch(inputs: Sequence[str | os.PathLike], out_dir: str | os.PathLike, options: BatchOptions | None = None,
-              *, jobs: int | None = None, scheduler: str | Any | None = None, max_in_flight: int | None = None,
-              overwrite: bool = False, progress: Progress = None) -> BatchSummary:
-    """Process every raw under ``inputs`` into ``out_dir`` (see the module docstring).
+def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | None = None,
+              options: BatchOptions | None = None, *, jobs: int | None = None, scheduler: str | Any | None = None,
+              max_in_flight: int | None = None, overwrite: bool = False, progress: Progress = None,
+              **renamed: Any) -> BatchSummary:
+    """Process every raw under ``inputs`` into ``output`` (``out_dir`` of the module docstring).
 
     Parameters
     ----------
     inputs : sequence of path-like
-        Raw files and folders (searched by :func:`find_raws`; ``out_dir`` itself is excluded).
-    out_dir : path-like
-        Output folder (created).
+        Raw files and folders (searched by :func:`find_raws`; ``output`` itself is excluded).
+    output : path-like
+        Output folder (created; ``plenodecode batch -o/--output``).  Its old name ``out_dir=`` still works, with a
+        DeprecationWarning.
     options : BatchOptions, optional
     jobs : int, optional
         Local worker processes (default: all cores); ``jobs=1`` runs in this process.
@@ -1149,13 +1162,22 @@ def run_batch(inputs: Sequence[str | os.PathLike], out_dir: str | os.PathLike, o
     BatchSummary
         One result per raw in input order; failures carry their error, nothing is raised for bad files.
     """
+    from .deprecation import renamed_keywords
+
+    given = renamed_keywords({**renamed, **({} if output is None else {"output": output})}, {"out_dir": "output"},
+                             "run_batch")
+    out_dir = given.pop("output", None)
+    if given:
+        raise TypeError(f"run_batch() got an unexpected keyword argument {next(iter(given))!r}")
+    if out_dir is None:
+        raise TypeError("run_batch() missing the output folder: pass output=")
     if jobs is not None and jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     if max_in_flight is not None and max_in_flight < 1:
         raise ValueError(f"max_in_flight must be >= 1, got {max_in_flight}")
     options = options or BatchOptions()
     # an absolute database path: forked workers keep the working directory of their fork server's start
-    options = replace(options, db_dir=str(Path(options.db_dir).resolve()))
+    options = replace(options, database=str(Path(options.database).resolve()))
     out = Path(out_dir).resolve()
     files = [f.resolve() for f in find_raws(inputs, exclude=[out])]
     if not overwrite:

@@ -35,7 +35,7 @@ class MissingConstantsError(MetadataError):
     Attributes
     ----------
     keyword : str
-        The option that asked: 'alpha' (a refocus), 'units' (a focal stack in alpha units), 'distance_m' (a
+        The option that asked: 'alpha' (a refocus), 'units' (a focal stack in alpha units), 'focus_distance' (a
         refocus at a distance), 'metric' or 'points' (metric depth).
     missing : tuple of str
         The constants not found (names of :data:`plenodecode.render.alpha.REFOCUS_CONSTANTS`, or

@@ -93,9 +93,9 @@ def test_output_names_are_unique(tmp_path):
 def test_task_key_depends_on_bytes_and_options(tmp_path):
     a = tmp_path / "a.lfr"
     a.write_bytes(b"123")
-    opt = BatchOptions(outputs=("centre",), db_dir=str(tmp_path))
+    opt = BatchOptions(outputs=("centre",), database=str(tmp_path))
     k = task_key(a, opt)
-    assert len(k) == 64 and k == task_key(a, BatchOptions(outputs=("centre",), db_dir=str(tmp_path)))
+    assert len(k) == 64 and k == task_key(a, BatchOptions(outputs=("centre",), database=str(tmp_path)))
     assert k == task_key(a, replace(opt, slope=0.5))                  # no refocus product: slope is irrelevant
     with_refocus = replace(opt, outputs=("centre", "refocus"))
     assert task_key(a, with_refocus) != task_key(a, replace(with_refocus, slope=0.5))
@@ -109,15 +109,55 @@ def test_refocus_by_alpha_or_distance_replaces_the_slope(tmp_path):
 
     raw = tmp_path / "a.lfr"
     raw.write_bytes(b"123")
-    opt = BatchOptions(outputs=("refocus",), db_dir=str(tmp_path))
+    opt = BatchOptions(outputs=("refocus",), database=str(tmp_path))
     assert "alpha" not in opt.as_key_dict() and "distance_m" not in opt.as_key_dict()   # earlier keys unchanged
     assert task_key(raw, opt) != task_key(raw, replace(opt, alpha=1.01))
     assert _image_product_options("refocus", opt) == {"slope": 0.0}
     assert _image_product_options("refocus", replace(opt, alpha=1.01)) == {"alpha": 1.01}
-    assert _image_product_options("refocus", replace(opt, distance_m=2.0)) == {"distance_m": 2.0}
-    for bad in ({"alpha": 0.0}, {"distance_m": float("inf")}, {"slope": float("nan")}, {"alpha": 1.0, "distance_m": 2.0}):
+    assert _image_product_options("refocus", replace(opt, focus_distance=2.0)) == {"focus_distance": 2.0}
+    for bad in ({"alpha": 0.0}, {"focus_distance": float("inf")}, {"slope": float("nan")},
+                {"alpha": 1.0, "focus_distance": 2.0}):
         with pytest.raises(ValueError):
             BatchOptions(outputs=("refocus",), **bad)
+
+
+def test_old_option_names_still_work_with_a_deprecation_warning_and_keep_the_task_key(tmp_path):
+    """BatchOptions(db_dir=, lightfield_format=, distance_m=) became database=, format=, focus_distance= (the
+    --database, --format, --focus-distance of 'plenodecode batch'); the old keywords and attributes warn naming the
+    new one, and the task key keeps the old names, so an earlier run's outputs are still done."""
+    raw = tmp_path / "a.lfr"
+    raw.write_bytes(b"123")
+    new = BatchOptions(outputs=("refocus", "lightfield"), database=str(tmp_path), format="npy", focus_distance=2.0)
+    with pytest.warns(DeprecationWarning) as caught:
+        old = BatchOptions(outputs=("refocus", "lightfield"), db_dir=str(tmp_path), lightfield_format="npy",
+                           distance_m=2.0)
+    assert [str(w.message) for w in caught] == [
+        "BatchOptions(db_dir=) is deprecated: pass database=",
+        "BatchOptions(lightfield_format=) is deprecated: pass format=",
+        "BatchOptions(distance_m=) is deprecated: pass focus_distance="]
+    assert old == new and task_key(raw, old) == task_key(raw, new)
+    with pytest.warns(DeprecationWarning, match="read database"):
+        assert old.db_dir == str(tmp_path)
+    key = new.as_key_dict()         # the names of the keys written by earlier versions
+    assert key["db_dir"] == str(tmp_path.resolve()) and key["lightfield_format"] == "npy"
+    assert key["distance_m"] == 2.0 and not {"database", "format", "focus_distance"} & set(key)
+    with pytest.raises(ValueError, match="pass format, not both format and lightfield_format"):
+        BatchOptions(format="npy", lightfield_format="npy")
+
+
+def test_run_batch_takes_output_as_batch_its_old_out_dir_with_a_warning(tmp_path):
+    """run_batch(out_dir=) became output= (``plenodecode batch -o/--output``); the old keyword still works."""
+    (tmp_path / "in").mkdir()
+    (tmp_path / "in" / "bad.lfr").write_bytes(b"xx")          # fails fast: the run reaches the raw, not its decoding
+    with pytest.warns(DeprecationWarning, match=r"run_batch\(out_dir=\) is deprecated: pass output="):
+        old, = run_batch([tmp_path / "in"], out_dir=tmp_path / "old", jobs=1).results
+    new, = run_batch([tmp_path / "in"], output=tmp_path / "new", jobs=1).results
+    assert old.source == new.source == str((tmp_path / "in" / "bad.lfr").resolve())
+    assert old.status == new.status == "failed" and old.error == new.error
+    with pytest.raises(TypeError, match="unexpected keyword argument 'outdir'"):
+        run_batch([tmp_path / "in"], outdir=tmp_path / "x")
+    with pytest.raises(ValueError, match="pass output, not both"):
+        run_batch([tmp_path / "in"], tmp_path / "a", out_dir=tmp_path / "b")
 
 
 def test_options_validate_arguments():
@@ -127,8 +167,8 @@ def test_options_validate_arguments():
         BatchOptions(outputs=())
     with pytest.raises(ValueError, match="bit_depth"):
         BatchOptions(bit_depth=12)
-    with pytest.raises(ValueError, match="lightfield_format"):
-        BatchOptions(lightfield_format="hdf5")
+    with pytest.raises(ValueError, match="format"):
+        BatchOptions(format="hdf5")
     assert set(BATCH_OUTPUTS) >= {"centre", "refocus", "depth", "views", "lightfield"}
 
 
@@ -137,8 +177,8 @@ def test_options_validate_arguments():
 def local_run(data, tmp_path_factory):
     """One in-process run over good and bad raws; products: centre, refocus, depth, lightfield (npy)."""
     out = tmp_path_factory.mktemp("local")
-    opts = BatchOptions(outputs=("centre", "refocus", "depth", "lightfield"), db_dir=str(data["db"]), slope=0.3,
-                        lightfield_format="npy", depth_method="fast")
+    opts = BatchOptions(outputs=("centre", "refocus", "depth", "lightfield"), database=str(data["db"]), slope=0.3,
+                        format="npy", depth_method="fast")
     calls = []
     summary = run_batch([data["shoot"], data["bad"]], out, opts, jobs=1, progress=lambda d, t: calls.append((d, t)))
     write_summary(summary, out)
@@ -266,7 +306,7 @@ def test_depth_thumbnail_has_a_colour_bar_and_greys_low_confidence(local_run):
 def test_min_confidence_option(tmp_path):
     from plenodecode.io.depthio import DEFAULT_MIN_CONFIDENCE
 
-    opt = BatchOptions(outputs=("depth",), db_dir=str(tmp_path))
+    opt = BatchOptions(outputs=("depth",), database=str(tmp_path))
     assert "min_confidence" not in opt.as_key_dict()          # the default keeps the keys of earlier runs
     assert "min_confidence" not in replace(opt, min_confidence=DEFAULT_MIN_CONFIDENCE).as_key_dict()
     assert replace(opt, min_confidence=0.5).as_key_dict()["min_confidence"] == 0.5
@@ -308,7 +348,7 @@ def test_changed_input_reruns(data, tmp_path):
     src = tmp_path / "in"
     src.mkdir()
     shutil.copy(data["shoot"] / "take1" / "scene1.lfr", src / "a.LFR")
-    opts = BatchOptions(outputs=("centre",), db_dir=str(data["db"]))
+    opts = BatchOptions(outputs=("centre",), database=str(data["db"]))
     out = tmp_path / "out"
     assert run_batch([src], out, opts, jobs=1).results[0].status == "done"
     assert run_batch([src], out, opts, jobs=1).results[0].status == "skipped"
@@ -322,7 +362,7 @@ def test_refuses_a_foreign_folder_without_overwrite(data, tmp_path):
     out = tmp_path / "out"
     (out / "scene1").mkdir(parents=True)
     (out / "scene1" / "mine.txt").write_text("keep me")
-    opts = BatchOptions(outputs=("centre",), db_dir=str(data["db"]))
+    opts = BatchOptions(outputs=("centre",), database=str(data["db"]))
     with pytest.raises(FileExistsError, match="not from a batch; pass --overwrite"):
         run_batch([data["shoot"] / "take1"], out, opts, jobs=1)
     assert (out / "scene1" / "mine.txt").read_text() == "keep me"
@@ -356,7 +396,7 @@ def test_writer_failing_mid_write_leaves_nothing_under_final_names(data, tmp_pat
 
     monkeypatch.setattr(images, "write_image", failing)
     out = tmp_path / "out"
-    opts = BatchOptions(outputs=("centre", "refocus"), db_dir=str(data["db"]))
+    opts = BatchOptions(outputs=("centre", "refocus"), database=str(data["db"]))
     summary = run_batch([data["shoot"]], out, opts, jobs=1)
     assert [r.status for r in summary.results] == ["done", "failed", "done"]
     assert "No space left" in summary.results[1].error
@@ -382,7 +422,7 @@ def test_killed_run_leaves_no_partial_output_and_resumes(data, tmp_path):
             return real(path, image, **kw)
         images.write_image = dying
         run_batch([{str(data["shoot"])!r}], {str(out)!r},
-                  BatchOptions(outputs=("centre", "refocus"), db_dir={str(data["db"])!r}), jobs=1)
+                  BatchOptions(outputs=("centre", "refocus"), database={str(data["db"])!r}), jobs=1)
     """)
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
     assert proc.returncode == -9, proc.stderr
@@ -392,7 +432,7 @@ def test_killed_run_leaves_no_partial_output_and_resumes(data, tmp_path):
     assert len(staging) == 1 and staging[0].name.startswith(".scene2.")   # the half-written files are here only
     assert _final_files(out) == {f"scene1/{n}" for n in ("centre.png", "refocus_s+0.00.png", DONE_MARKER,
                                                           "thumbs/centre.png", "thumbs/refocus_s+0.00.png")}
-    again = run_batch([data["shoot"]], out, BatchOptions(outputs=("centre", "refocus"), db_dir=str(data["db"])),
+    again = run_batch([data["shoot"]], out, BatchOptions(outputs=("centre", "refocus"), database=str(data["db"])),
                       jobs=1)
     assert [r.status for r in again.results] == ["skipped", "done", "done"]
     assert not [p for p in out.iterdir() if p.name.startswith(".")]
@@ -416,7 +456,7 @@ def test_a_new_run_removes_leftovers_of_dead_runs_only(data, tmp_path):
     for p in legacy:
         p.mkdir()
     (out / ".summary.json.tmp").write_text("{}")
-    opts = BatchOptions(outputs=("centre",), db_dir=str(data["db"]))
+    opts = BatchOptions(outputs=("centre",), database=str(data["db"]))
     assert run_batch([data["shoot"] / "take1"], out, opts, jobs=1).results[0].status == "done"
     assert sorted(p for p in out.iterdir() if p.name.startswith(".")) == sorted(live)
 
@@ -1004,15 +1044,15 @@ def test_a_slope_past_the_picture_fails_before_decoding(tmp_path, monkeypatch):
     monkeypatch.setattr(pipeline.source, "decode_raw", lambda *a, **k: decoded.append(a) or real(*a, **k))
     (tmp_path / "a").mkdir()
     result = process_raw(illum, tmp_path / "a", BatchOptions(outputs=("refocus",), slope=18.0,
-                                                             db_dir=str(root / "calib")))
+                                                             database=str(root / "calib")))
     assert result.status == "failed" and decoded == [] and list((tmp_path / "a").iterdir()) == []
     assert result.error.startswith("DecodeError: --slope 18 does not suit scene.lfr: slope 18 px/view"), result.error
     (tmp_path / "b").mkdir()
     result = process_raw(illum, tmp_path / "b", BatchOptions(outputs=("refocus",), alpha=1.5,
-                                                             db_dir=str(root / "calib")))
+                                                             database=str(root / "calib")))
     assert result.status == "failed" and decoded == [], result
     assert result.error.startswith("DecodeError: --alpha 1.5 does not suit scene.lfr: slope 20.27 px/view"), result
-    ok = process_raw(illum, tmp_path / "b", BatchOptions(outputs=("refocus",), slope=17.5, db_dir=str(root / "calib")))
+    ok = process_raw(illum, tmp_path / "b", BatchOptions(outputs=("refocus",), slope=17.5, database=str(root / "calib")))
     assert ok.status == "done", ok
 
 

@@ -121,6 +121,6 @@ def test_pool_workers_find_a_relative_database_after_a_chdir(data, tmp_path, mon
     worker_pool(2, max(1, (os.cpu_count() or 1) // 2)).shutdown()   # the server runs, started here if not before
     monkeypatch.chdir(data["db"].parent)
     summary = run_batch([data["shoot"] / "take1", data["shoot"] / "take2"], tmp_path / "out",
-                        BatchOptions(outputs=("centre",), db_dir="db"), jobs=2)
+                        BatchOptions(outputs=("centre",), database="db"), jobs=2)
     assert [r.status for r in summary.results] == ["done", "done"], [r.error for r in summary.results]
     assert len({r.worker for r in summary.results}) == 2

@@ -136,7 +136,7 @@ def _microscope_fields() -> dict:
 @click.option("--alpha", "--refocus", "alpha", type=POSITIVE, default=None,
               help="Refocus the 'refocus' and 'photo' products at Ng's relative film depth ALPHA instead of "
                    "--slope.")
-@click.option("--focus-distance", "distance_m", type=POSITIVE, default=None, metavar="METRES",
+@click.option("--focus-distance", "focus_distance", type=POSITIVE, default=None, metavar="METRES",
               help="Refocus the 'refocus' and 'photo' products at this distance (m) instead of --slope (cameras "
                    "with geometry).")
 @aperture_option("Synthetic aperture radius of the 'refocus' and 'photo' products (1 = all views).")
@@ -177,7 +177,7 @@ def _microscope_fields() -> dict:
 @click.pass_context
 def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calibration, database, self_calibrate,
             white, demosaic, resample, n_views, colour, no_hot_pixels, lf_format, bit_depth, exposure, slope, alpha,
-            distance_m, aperture, disparity_range, depth_method, min_confidence, focal_stack, stack_units, frames,
+            focus_distance, aperture, disparity_range, depth_method, min_confidence, focal_stack, stack_units, frames,
             radius, fps, no_frames, interp, metric, ply, depth_focus_distance, views_anyway, overwrite) -> None:
     """Decode every raw under INPUTS and write the chosen outputs per raw into OUTPUT/<name>/.
 
@@ -197,7 +197,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
     from ..io.discovery import images_not_taken, needs_no_database
     from ..calib.store import DEFAULT_DB
 
-    if alpha is not None and distance_m is not None:
+    if alpha is not None and focus_distance is not None:
         raise click.UsageError("pass at most one of --alpha and --focus-distance (each replaces --slope)")
     stack = None if focal_stack is None else parse_stack(focal_stack, stack_units)
     if stack is None and stack_units != "slope":
@@ -241,8 +241,8 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
             or database is None and not any(needs_no_database(f) for f in files)):
         raise click.BadParameter(_no_database(db_dir, database is None, inputs), param_hint="--database")
     mosaic = current_mosaic_options()
-    options = BatchOptions(outputs=outputs, db_dir=str(db_dir), lightfield_format=lf_format,
-                           bit_depth=int(bit_depth), exposure=exposure, slope=slope, alpha=alpha, distance_m=distance_m,
+    options = BatchOptions(outputs=outputs, database=str(db_dir), format=lf_format, bit_depth=int(bit_depth),
+                           exposure=exposure, slope=slope, alpha=alpha, focus_distance=focus_distance,
                            depth_method=depth_method, min_confidence=min_confidence, cfa=mosaic.cfa,
                            black_level=mosaic.black_level, white_level=mosaic.white_level,
                            input_encoding=mosaic.input_encoding, white=None if white is None else str(white),
@@ -262,7 +262,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
     try:        # a slope past every raw's picture: refused as 'plenodecode refocus' refuses it, before decoding
         check_slope_for_any(files, options)
     except ValueError as exc:
-        hint = "--alpha" if alpha is not None else "--focus-distance" if distance_m is not None else "--slope"
+        hint = "--alpha" if alpha is not None else "--focus-distance" if focus_distance is not None else "--slope"
         raise click.BadParameter(str(exc), param_hint=hint) from None
     try:
         summary = run_batch(files, out_dir, options, jobs=jobs, scheduler=scheduler, overwrite=overwrite,

@@ -720,8 +720,9 @@ def parse_focus_at(text: str | None) -> tuple[float, float, bool] | None:
 
 
 def focus_point(at: tuple[float, float, bool] | None, shape: tuple[int, ...]) -> tuple[float, float] | None:
-    """A parsed ``--focus-at`` as ``(y, x)`` samples of a light field of ``shape`` (V, U, Y, X, C): fractions
-    ``f`` map to ``f (size - 1)``; a point outside the picture is a usage error naming ``--focus-at``."""
+    """A parsed ``--focus-at`` as the ``focus_at = (x, y)`` samples of the workflow
+    (:func:`plenodecode.pipeline.products.render_refocus`) for a light field of ``shape`` (V, U, Y, X, C):
+    fractions ``f`` map to ``f (size - 1)``; a point outside the picture is a usage error naming ``--focus-at``."""
     from ..render.refocus_methods import check_point
 
     if at is None:
@@ -729,17 +730,18 @@ def focus_point(at: tuple[float, float, bool] | None, shape: tuple[int, ...]) ->
     x, y, fractional = at
     point = (y * (shape[2] - 1), x * (shape[3] - 1)) if fractional else (y, x)
     try:
-        return check_point(point, shape[2:4])
+        row, column = check_point(point, shape[2:4])
+        return column, row
     except ValueError:      # the library's message names its keyword 'at' and (row, column): say it as typed
         raise click.BadParameter(f"X,Y = {x:g},{y:g} lies outside the centre view: X (column) 0 to {shape[3] - 1}, "
                                  f"Y (row) 0 to {shape[2] - 1}, or fractions 0.0-1.0",
                                  param_hint="--focus-at") from None
 
 
-def focus_hint(*, alpha: Any = None, distance_m: Any = None, focus_at: Any = None, stack: Any = None) -> str:
+def focus_hint(*, alpha: Any = None, focus_distance: Any = None, focus_at: Any = None, stack: Any = None) -> str:
     """The option a photograph's focus came from, as a usage error about it names it (``--slope`` when none of
     the others, which covers the default, slope 0)."""
-    given = [(alpha, "--refocus / --alpha"), (distance_m, "--focus-distance"), (focus_at, "--focus-at"),
+    given = [(alpha, "--refocus / --alpha"), (focus_distance, "--focus-distance"), (focus_at, "--focus-at"),
              (stack, "--focal-stack")]
     return next((hint for value, hint in given if value is not None), "--slope")
 
@@ -747,7 +749,7 @@ def focus_hint(*, alpha: Any = None, distance_m: Any = None, focus_at: Any = Non
 def focus_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     """``--focus-at X,Y``, ``--no-depth`` and ``--focus-distance METRES``: the ways besides slope and alpha of
     saying where a photograph is focused (:func:`plenodecode.render.refocus_methods.focus_slope`)."""
-    fn = click.option("--focus-distance", "distance_m", type=POSITIVE, default=None, metavar="METRES",
+    fn = click.option("--focus-distance", "focus_distance", type=POSITIVE, default=None, metavar="METRES",
                       help="Focus at this distance (needs the focus distance in the metadata: Lytro, HCI "
                            "parameters.cfg, generated scenes).")(fn)
     fn = click.option("--no-depth", "no_depth", is_flag=True,
@@ -788,6 +790,6 @@ def describe_focus(rendered_data: Mapping[str, Any]) -> str:
     what = f"slope {rendered_data['slope']:+.3f} px/view"
     if rendered_data.get("alpha") is not None:
         what = f"alpha {rendered_data['alpha']:g} = {what}"
-    elif rendered_data.get("distance_m") is not None:
-        what = f"focus distance {rendered_data['distance_m']:g} m = {what}"
+    elif rendered_data.get("focus_distance") is not None:
+        what = f"focus distance {rendered_data['focus_distance']:g} m = {what}"
     return f"{what}; refocusable {rendered_data['range'].describe()}"

@@ -49,7 +49,7 @@ _PLAIN_DISPARITY = ("plain disparity (without --metric and --ply), or for a ligh
 #: type instead).
 CONSTANTS_OPTIONS = {"alpha": ("alpha", "--slope S (px per view step)"),
                      "units": ("stack_units", "--stack-units slope (START and STOP as slopes)"),
-                     "distance_m": ("distance_m", "--slope S (px per view step)"),
+                     "focus_distance": ("focus_distance", "--slope S (px per view step)"),
                      "metric": ("metric", _PLAIN_DISPARITY),
                      "points": ("ply", _PLAIN_DISPARITY)}
 

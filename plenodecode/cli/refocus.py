@@ -108,7 +108,7 @@ def refocus_at_virtual_depth(ctx: click.Context, input_path: Path, output: Path,
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, output: Path, slope: float | None, alpha: float | None,
-            focus_at: tuple[float, float, bool] | None, no_depth: bool, distance_m: float | None,
+            focus_at: tuple[float, float, bool] | None, no_depth: bool, focus_distance: float | None,
             stack: str | None, stack_units: str, method: str, aperture: float, upsample: int, ext: str,
             bit_depth: str, exposure: float | str, calibration: Path | None, white: Path | None,
             database: Path | None, self_calibrate: bool, overwrite: bool, virtual_depth: float | None = None,
@@ -133,9 +133,10 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
     from ..pipeline import open_source, render_product, write_product
     from ..pipeline.products import check_focus_reach
 
-    check_focus_options({"--slope": slope, "--alpha": alpha, "--focus-at": focus_at, "--focus-distance": distance_m,
-                         "--focal-stack": stack, "--virtual-depth": virtual_depth}, no_depth, optional=True)
-    as_captured = all(v is None for v in (slope, alpha, focus_at, distance_m, stack, virtual_depth))
+    check_focus_options({"--slope": slope, "--alpha": alpha, "--focus-at": focus_at,
+                         "--focus-distance": focus_distance, "--focal-stack": stack, "--virtual-depth": virtual_depth},
+                        no_depth, optional=True)
+    as_captured = all(v is None for v in (slope, alpha, focus_at, focus_distance, stack, virtual_depth))
     if as_captured:             # no focus option: the photograph focused as captured, as batch's 'refocus' product
         slope = 0.0
     if virtual_depth is not None:
@@ -153,22 +154,23 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
         refuse_writing_over_command_inputs([output / name for name in names], input_path, calibration, white)
         bits = image_bit_depth(ctx, bit_depth, ext, param_hint="--ext")
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
-                      check={"refocus": {"alpha": alpha, "distance_m": distance_m}} if stack is None
+                      check={"refocus": {"alpha": alpha, "focus_distance": focus_distance}} if stack is None
                       else {"focal-stack": {"units": stack_units}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     refuse_focused_views(src.focused, input_path, views_anyway, instead=FOCUSED_REFOCUS.format(raw=input_path))
     with usage_errors(param_hint="--focal-stack" if stack is not None else
-                      focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
+                      focus_hint(alpha=alpha, focus_distance=focus_distance, focus_at=focus_at)):
         if stack is None:       # a slope past the picture, known from the calibration: refused before decoding
-            check_focus_reach(src, "refocus", slope=slope, alpha=alpha, distance_m=distance_m)
+            check_focus_reach(src, "refocus", slope=slope, alpha=alpha, focus_distance=focus_distance)
         else:
             check_focus_reach(src, "focal-stack", start=start, stop=stop, n=n, units=stack_units)
     if stack is None:
-        at = focus_point(focus_at, src.lightfield.shape)
-        with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
-            photo = render_product(src, "refocus", slope=slope, alpha=alpha, distance_m=distance_m, at=at,
-                                   at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture,
-                                   upsample=upsample, progress=progress_bar("depth at --focus-at (fast)", ctx))
+        point = focus_point(focus_at, src.lightfield.shape)
+        with usage_errors(param_hint=focus_hint(alpha=alpha, focus_distance=focus_distance, focus_at=focus_at)):
+            photo = render_product(src, "refocus", slope=slope, alpha=alpha, focus_distance=focus_distance,
+                                   focus_at=point, at_method="sharpness" if no_depth else "depth", method=method,
+                                   aperture=aperture, upsample=upsample,
+                                   progress=progress_bar("depth at --focus-at (fast)", ctx))
         with usage_errors():
             write_product(photo, output, bit_depth=bits, overwrite=overwrite, exposure=exposure)
         note_if_dark(ctx, photo, exposure)

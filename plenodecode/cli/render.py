@@ -32,7 +32,7 @@ def _given(ctx: click.Context, name: str) -> bool:
 
 def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float | None, slope: float | None,
                          total_focus: bool, patch: float | None, focus_at: object = None,
-                         distance_m: float | None = None, no_depth: bool = False) -> None:
+                         focus_distance: float | None = None, no_depth: bool = False) -> None:
     """Usage errors (exit 2, one line naming the option) for option combinations that make no sense, before
     any work: at most one of ``--refocus`` / ``--slope`` / ``--focus-at`` / ``--focus-distance`` /
     ``--total-focus`` (none: :func:`plenodecode.pipeline.products.photo_focus`); ``--patch`` only with
@@ -40,7 +40,7 @@ def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float |
     from ..pipeline import input_kind
 
     check_focus_options({"--refocus ALPHA": alpha, "--slope S": slope, "--focus-at X,Y": focus_at,
-                         "--focus-distance M": distance_m, "--total-focus": total_focus or None}, no_depth,
+                         "--focus-distance M": focus_distance, "--total-focus": total_focus or None}, no_depth,
                         optional=True)
     if patch is not None and not total_focus:
         raise click.UsageError("--patch applies to --total-focus only")
@@ -76,7 +76,7 @@ def check_render_options(ctx: click.Context, input_path: Path, *, alpha: float |
 @overwrite_option
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: float | None,
-            focus_at: tuple[float, float, bool] | None, no_depth: bool, distance_m: float | None, total_focus: bool,
+            focus_at: tuple[float, float, bool] | None, no_depth: bool, focus_distance: float | None, total_focus: bool,
             patch: float | None, output: Path, method: str, aperture: float, bit_depth: str, exposure: float | str,
             calibration: Path | None, white: Path | None, database: Path | None, self_calibrate: bool,
             views_anyway: bool, overwrite: bool) -> None:
@@ -99,17 +99,17 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
     from ..pipeline.products import check_focus_reach, photo_focus
 
     check_render_options(ctx, input_path, alpha=alpha, slope=slope, total_focus=total_focus, patch=patch,
-                         focus_at=focus_at, distance_m=distance_m, no_depth=no_depth)
+                         focus_at=focus_at, focus_distance=focus_distance, no_depth=no_depth)
     refuse_writing_over_command_inputs([output], input_path, calibration, white)
     check_output(output, overwrite)
     bits = image_bit_depth(ctx, bit_depth, output.suffix)
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
-                      check=None if total_focus else {"refocus": {"alpha": alpha, "distance_m": distance_m}},
+                      check=None if total_focus else {"refocus": {"alpha": alpha, "focus_distance": focus_distance}},
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     chosen = None
     # --method / --aperture / --views-anyway ask for a refocus of the decoded light field, even of a Raytrix raw
     asks_refocus = any(_given(ctx, name) for name in REFOCUS_ONLY)
-    if not (total_focus or focus_at) and alpha is None and slope is None and distance_m is None:
+    if not (total_focus or focus_at) and alpha is None and slope is None and focus_distance is None:
         chosen = photo_focus(src.focused, refocus=asks_refocus)
         total_focus, slope = chosen.get("total_focus", False), chosen.get("slope")
     if not total_focus and (chosen is None or asks_refocus):     # what was typed; photo_focus's own choice stands
@@ -119,13 +119,14 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
             check_total_focus_patch(src.calibration.grid, patch)       # its upper bound is the camera's
         photo = render_product(src, "total-focus", patch=patch, progress=progress_bar("rendering", ctx))
     else:
-        with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
-            check_focus_reach(src, "refocus", slope=slope, alpha=alpha, distance_m=distance_m)  # before decoding
-        at = focus_point(focus_at, src.lightfield.shape)
-        with usage_errors(param_hint=focus_hint(alpha=alpha, distance_m=distance_m, focus_at=focus_at)):
-            photo = render_product(src, "refocus", alpha=alpha, slope=slope, distance_m=distance_m, at=at,
-                                   at_method="sharpness" if no_depth else "depth", method=method, aperture=aperture,
-                                   progress=progress_bar("depth at --focus-at (fast)", ctx))
+        with usage_errors(param_hint=focus_hint(alpha=alpha, focus_distance=focus_distance, focus_at=focus_at)):
+            # before decoding
+            check_focus_reach(src, "refocus", slope=slope, alpha=alpha, focus_distance=focus_distance)
+        point = focus_point(focus_at, src.lightfield.shape)
+        with usage_errors(param_hint=focus_hint(alpha=alpha, focus_distance=focus_distance, focus_at=focus_at)):
+            photo = render_product(src, "refocus", alpha=alpha, slope=slope, focus_distance=focus_distance,
+                                   focus_at=point, at_method="sharpness" if no_depth else "depth", method=method,
+                                   aperture=aperture, progress=progress_bar("depth at --focus-at (fast)", ctx))
     with usage_errors():
         write_product(photo, output, bit_depth=bits, overwrite=overwrite, exposure=exposure)
     note_if_dark(ctx, photo, exposure)

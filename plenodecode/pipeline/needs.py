@@ -12,7 +12,7 @@ Three requests need metadata (:data:`REQUESTS`):
   with the camera constants of :data:`~plenodecode.render.alpha.REFOCUS_CONSTANTS` ('refocus' with
   ``alpha=``, 'focal-stack' with ``units='alpha'``);
 * 'distance': a focus distance in metres, turned into a slope by
-  :func:`~plenodecode.render.alpha.distance_to_slope` ('refocus' with ``distance_m=``): the same constants and
+  :func:`~plenodecode.render.alpha.distance_to_slope` ('refocus' with ``focus_distance=``): the same constants and
   the camera's own focus distance; it does not apply to a light-field microscope;
 * 'metric': metric depth (:func:`plenodecode.depth.metric.depth_constants`; 'depth' with ``metric`` or
   ``points``, ``focus_distance`` standing in for the camera's); never for a focused-plenoptic (Raytrix) raw,
@@ -35,7 +35,7 @@ from ..types import LightField, RawCapture
 def _refocus_request(options: Mapping[str, Any]) -> tuple[str, str] | None:
     if options.get("alpha") is not None:
         return "alpha", "alpha"
-    return ("distance_m", "distance") if options.get("distance_m") is not None else None
+    return ("focus_distance", "distance") if options.get("focus_distance") is not None else None
 
 
 def _stack_request(options: Mapping[str, Any]) -> tuple[str, str] | None:
@@ -63,7 +63,7 @@ REQUESTS: dict[str, Callable[[Mapping[str, Any]], tuple[str, str] | None]] = {
 #: What to use instead, per keyword that asks for a conversion to a slope (library spelling; the CLI names its
 #: own options).
 INSTEAD = {"alpha": "refocus by slope instead", "units": "give START and STOP as slopes (units='slope')",
-           "distance_m": "refocus by slope instead"}
+           "focus_distance": "refocus by slope instead"}
 
 
 def _name(item: LightField | RawCapture) -> str:

@@ -118,21 +118,48 @@ def refocus_stem(*, slope: float | None = None, alpha: float | None = None) -> s
     return f"refocus_s{slope:+.2f}" if slope is not None else f"refocus_a{alpha:.3f}"
 
 
+def _one_focus(slope: Any, alpha: Any, focus_at: Any, focus_distance: Any) -> str:
+    """The one focus keyword given (ValueError, in the workflow's names, unless exactly one)."""
+    given = [k for k, v in (("slope", slope), ("alpha", alpha), ("focus_at", focus_at),
+                            ("focus_distance", focus_distance)) if v is not None]
+    if len(given) != 1:
+        raise ValueError(f"pass exactly one of slope, alpha, focus_at and focus_distance, got {given or 'none'}")
+    return given[0]
+
+
+def _focus_point(focus_at: Any, shape: Sequence[int]) -> tuple[float, float]:
+    """``focus_at = (x, y)`` as the ``at = (y, x)`` of :func:`~plenodecode.render.refocus_methods.focus_slope`
+    inside the centre view of a light field of ``shape`` (V, U, Y, X, C); ValueError naming ``focus_at``."""
+    from ..render.refocus_methods import check_point
+
+    try:
+        x, y = (float(v) for v in focus_at)
+        return check_point((y, x), shape[2:4])
+    except (TypeError, ValueError):
+        raise ValueError(f"focus_at must be an (x, y) pair inside the centre view (x: column 0 to {shape[3] - 1}, "
+                         f"y: row 0 to {shape[2] - 1}), got {focus_at!r}") from None
+
+
 def render_refocus(src: Source, *, slope: float | None = None, alpha: float | None = None,
-                   at: tuple[float, float] | None = None, distance_m: float | None = None, at_method: str = "depth",
-                   method: str = "shift-sum", aperture: float = 1.0, upsample: int = 1,
+                   focus_at: tuple[float, float] | None = None, focus_distance: float | None = None,
+                   at_method: str = "depth", method: str = "shift-sum", aperture: float = 1.0, upsample: int = 1,
                    progress: Progress = None) -> Rendered:
-    """One photograph focused by one of ``slope``, ``alpha``, ``at = (y, x)``, ``distance_m`` (:func:`~plenodecode.
-    render.refocus_methods.focus_slope`); outside :func:`~plenodecode.render.alpha.refocus_range_units` it is
-    still rendered, with a one-line warning (ValueError, without it, beyond :func:`~plenodecode.render._common.
-    check_slope_reach`).  ``progress``: of the depth map a point ``at`` is focused by (seconds on a large light
-    field).  ``data``: 'slope' (chosen), 'alpha', 'distance_m', 'method', 'aperture', 'range'."""
+    """One photograph focused by one of ``slope``, ``alpha``, ``focus_at``, ``focus_distance`` (metres)
+    (:func:`~plenodecode.render.refocus_methods.focus_slope`); outside
+    :func:`~plenodecode.render.alpha.refocus_range_units` it is still rendered, with a one-line warning
+    (ValueError, without it, beyond :func:`~plenodecode.render._common.check_slope_reach`).
+
+    ``focus_at = (x, y)``: column then row, in samples of the centre view, the order of ``--focus-at X,Y`` (not
+    the (row, column) of :func:`plenodecode.refocus`'s ``at``).  ``progress``: of the depth map a point is focused
+    by (seconds on a large light field).  ``data``: 'slope' (chosen), 'alpha', 'focus_distance', 'method',
+    'aperture', 'range'."""
     from ..render import refocus, refocus_range_units
     from ..render._common import check_slope_reach
     from ..render.refocus_methods import focus_slope
 
     lf = src.lightfield
-    chosen = focus_slope(lf, slope=slope, alpha=alpha, at=at, distance_m=distance_m, at_method=at_method,
+    at = _focus_point(focus_at, lf.shape) if _one_focus(slope, alpha, focus_at, focus_distance) == "focus_at" else None
+    chosen = focus_slope(lf, slope=slope, alpha=alpha, at=at, distance_m=focus_distance, at_method=at_method,
                          progress=progress)
     check_slope_reach(lf, chosen)       # a slope refused is refused without the out-of-range warning first
     span = refocus_range_units(lf)
@@ -142,17 +169,17 @@ def render_refocus(src: Source, *, slope: float | None = None, alpha: float | No
     img = refocus(lf, slope=chosen, method=method, aperture=aperture, upsample=upsample)
     stem = refocus_stem(alpha=alpha) if alpha is not None else refocus_stem(slope=chosen)
     return Rendered("refocus", ((stem, img),), lf.colour,
-                    data={"slope": chosen, "alpha": alpha, "distance_m": distance_m, "method": method,
+                    data={"slope": chosen, "alpha": alpha, "focus_distance": focus_distance, "method": method,
                           "aperture": aperture, "range": span})
 
 
 def check_focus_reach(src: Source, product: str, **options: Any) -> None:
-    """Refuse, before a raw is decoded, a 'refocus' (``slope``, ``alpha`` or ``distance_m``) or 'focal-stack'
+    """Refuse, before a raw is decoded, a 'refocus' (``slope``, ``alpha`` or ``focus_distance``) or 'focal-stack'
     (``start``, ``stop``, ``n``, ``units``) whose slope moves the outermost views past the whole picture: the
     ValueError :func:`~plenodecode.render._common.check_slope_reach` gives after decoding, found from the shape
     and camera constants the calibration gives (:func:`~plenodecode.decoding.rectify.decoded_shape`,
     :func:`~plenodecode.decoding.rectify.decoded_geometry`).  Passes whatever needs the decoded light field
-    (a light-field input, a point ``at``, an alpha or distance of a rectified light field, a conversion the
+    (a light-field input, a point ``focus_at``, an alpha or distance of a rectified light field, a conversion the
     metadata cannot make): rendering checks those."""
     import numpy as np
 
@@ -176,8 +203,8 @@ def check_focus_reach(src: Source, product: str, **options: Any) -> None:
             slopes = float(options["slope"])
         elif options.get("alpha") is not None and geometry is not None:
             slopes = alpha_to_slope(float(options["alpha"]), geometry)
-        elif options.get("distance_m") is not None and geometry is not None:
-            slopes = distance_to_slope(float(options["distance_m"]), geometry)
+        elif options.get("focus_distance") is not None and geometry is not None:
+            slopes = distance_to_slope(float(options["focus_distance"]), geometry)
         else:
             return
     except (PlenodecodeError, ValueError):
@@ -560,17 +587,17 @@ def photo_focus(focused: bool, *, refocus: bool = False) -> dict[str, Any]:
 
 
 def render_photo(src: Source, *, slope: float | None = None, alpha: float | None = None,
-                 distance_m: float | None = None, aperture: float = 1.0) -> Rendered:
+                 focus_distance: float | None = None, aperture: float = 1.0) -> Rendered:
     """The camera's photograph, as ``plenodecode RAW -o photo.png`` writes it without a focus option
     (:func:`photo_focus`): a focused-plenoptic (Raytrix) raw's total focus (:func:`render_total_focus`), else the
     photograph refocused (:func:`render_refocus`, through the synthetic ``aperture``) at ``slope``, ``alpha`` or
-    ``distance_m``, by default as captured.  The rendered product says which ('total-focus' or 'refocus')."""
+    ``focus_distance`` (metres), by default as captured.  The rendered product says which ('total-focus' or 'refocus')."""
     chosen = photo_focus(src.focused)
     if chosen.get("total_focus"):
         return render_total_focus(src)
-    if slope is None and alpha is None and distance_m is None:
+    if slope is None and alpha is None and focus_distance is None:
         slope = chosen["slope"]
-    return render_refocus(src, slope=slope, alpha=alpha, distance_m=distance_m, aperture=aperture)
+    return render_refocus(src, slope=slope, alpha=alpha, focus_distance=focus_distance, aperture=aperture)
 
 
 #: Product name -> ``fn(source, **options) -> Rendered``; the same names in the CLI, batch and Python.
@@ -588,10 +615,20 @@ PRODUCTS: dict[str, Callable[..., Rendered]] = {
 }
 
 
+#: Keywords of the products renamed to their CLI option's name -> the new name (still accepted, with a
+#: DeprecationWarning, by :func:`render_product`); ``at`` was (row, column), ``focus_at`` is (x, y).
+RENAMED_OPTIONS = {"distance_m": "focus_distance", "at": "focus_at"}
+_CONVERT_OPTIONS = {"at": (lambda rc: (rc[1], rc[0]), "(x, y), the column first as --focus-at X,Y")}
+
+
 def render_product(src: Source, name: str, **options: Any) -> Rendered:
-    """Render the product ``name`` (a key of :data:`PRODUCTS`) of ``src`` with its ``options``; the options are
-    first checked against the input's metadata (:func:`~plenodecode.pipeline.needs.check_product`), before ``src``
-    is decoded."""
+    """Render the product ``name`` (a key of :data:`PRODUCTS`) of ``src`` with its ``options`` (the keywords of its
+    ``render_*`` function, named as the CLI options); the options are first checked against the input's metadata
+    (:func:`~plenodecode.pipeline.needs.check_product`), before ``src`` is decoded.  The old names of
+    :data:`RENAMED_OPTIONS` still work, with a DeprecationWarning."""
+    from ..deprecation import renamed_keywords
+
+    options = renamed_keywords(options, RENAMED_OPTIONS, "render_product", convert=_CONVERT_OPTIONS)
     render = lookup(PRODUCTS, name, param="product")
     check_product(src.input, name, rectified=src.geometry is not None, focused=src.focused, **options)
     return render(src, **options)

@@ -68,11 +68,11 @@ TABLE: dict[str, tuple[str | None, str | None, str]] = {
                        "Python: the workflow renders what it is asked; the refusal is the front ends' guard"),
     "--overwrite": ("--overwrite", "pipeline.write_product:overwrite", ""),
     # ---- decoding (pipeline.decode_raw -> plenodecode.decode)
-    "decode:--format": ("--format", "pipeline.write_lightfield:format",
-                        "batch: the format of its 'lightfield' output (BatchOptions.lightfield_format)"),
+    "decode:--format": ("--format", "pipeline.write_lightfield:format", ""),
     "--demosaic": ("--demosaic", "decoding.decode:demosaic", ""),
     "--resample": ("--resample", "decoding.decode:resample", ""),
-    "--views": ("--views", "decoding.decode:n_views", "Python 'n_views', as plenodecode.decode"),
+    "--views": ("--views", "decoding.decode:n_views",
+                "Python 'n_views': the keyword of plenodecode.decode, decode_options and ~100 library call sites"),
     "--colour": ("--colour", "decoding.decode:colour", ""),
     "--no-hot-pixels": ("--no-hot-pixels", "decoding.decode:hot_pixels", "Python: hot_pixels=False"),
     # ---- writing images (pipeline.write_product)
@@ -83,10 +83,9 @@ TABLE: dict[str, tuple[str | None, str | None, str]] = {
     "--slope": ("--slope", "pipeline.products.render_refocus:slope", ""),
     "--alpha": ("--alpha", "pipeline.products.render_refocus:alpha", ""),
     "--refocus": ("--refocus", "pipeline.products.render_refocus:alpha", "the one-liner's spelling of --alpha"),
-    "--focus-distance": ("--focus-distance", "pipeline.products.render_refocus:distance_m",
-                         "Python: metres in the name"),
-    "--focus-at": (None, "pipeline.products.render_refocus:at",
-                   "batch: one X,Y for many pictures is rarely meant; Python 'at' = (row, column), the option X,Y"),
+    "--focus-distance": ("--focus-distance", "pipeline.products.render_refocus:focus_distance", ""),
+    "--focus-at": (None, "pipeline.products.render_refocus:focus_at",
+                   "batch: one X,Y for many pictures is rarely meant"),
     "--no-depth": (None, "pipeline.products.render_refocus:at_method",
                    "with --focus-at only; Python at_method='sharpness'"),
     "--virtual-depth": (None, "pipeline.products.render_focused_refocus:virtual_depth",
@@ -118,8 +117,8 @@ TABLE: dict[str, tuple[str | None, str | None, str]] = {
     "depth:--method": ("--depth-method", "pipeline.products.render_depth:method",
                        "batch: --depth-method, as a batch also refocuses"),
     "depth:--focus-distance": ("--depth-focus-distance", "pipeline.products.render_depth:focus_distance",
-                               "batch: --depth-focus-distance, as its --focus-distance refocuses; Python "
-                               "'focus_distance' (BatchOptions.depth_focus_distance), refocus's is 'distance_m'"),
+                               "batch: --depth-focus-distance, as its --focus-distance refocuses "
+                               "(BatchOptions.depth_focus_distance)"),
     "--metric": ("--metric", "pipeline.products.render_depth:metric", ""),
     "--ply": ("--ply", "pipeline.write_depth:ply",
               "batch: a flag, <stem>.ply beside the PFM; Python render_depth(points=True), BatchOptions.ply"),
@@ -132,16 +131,15 @@ BATCH_ONLY: dict[str, tuple[str, str]] = {
     "--jobs": ("batch.run_batch:jobs", ""),
     "--scheduler": ("batch.run_batch:scheduler", ""),
     "--outputs": ("batch.BatchOptions:outputs", ""),
-    "--format": ("batch.BatchOptions:lightfield_format", "the format of the 'lightfield' output"),
+    "--format": ("batch.BatchOptions:format", ""),
     "--depth-method": ("batch.BatchOptions:depth_method", "see depth:--method"),
 }
 
 #: The keyword of :class:`plenodecode.batch.BatchOptions` (or :func:`run_batch`) each batch option sets, where it is
 #: not the option's own name: a Python batch user's names.
-BATCH_KEYWORDS = {"--output": "run_batch:out_dir", "--calibration": "grid", "--database": "db_dir",
-                  "--format": "lightfield_format", "--no-hot-pixels": "hot_pixels", "--no-frames": "parallax_frames",
-                  "--views": "n_views",
-                  "--refocus": "alpha", "--focus-distance": "distance_m", "--jobs": "run_batch:jobs",
+BATCH_KEYWORDS = {"--output": "run_batch:output", "--calibration": "grid",
+                  "--no-hot-pixels": "hot_pixels", "--no-frames": "parallax_frames", "--views": "n_views",
+                  "--refocus": "alpha", "--jobs": "run_batch:jobs",
                   "--scheduler": "run_batch:scheduler", "--overwrite": "run_batch:overwrite",
                   "--optics": "optics", "--lens-pitch-um": "optics", "--pixel-um": "optics",
                   "--magnification": "optics", "--na": "optics", "--tube-lens-mm": "optics",
@@ -190,6 +188,13 @@ def test_every_batch_option_is_accounted_for():
     used = {e[0] for e in TABLE.values() if e[0]}
     missing = [o for o in _options("batch") if o not in used and o not in BATCH_ONLY]
     assert not missing, f"enter batch {missing} in TABLE or BATCH_ONLY"
+
+
+@pytest.mark.parametrize("option", sorted(BATCH_ONLY))
+def test_batch_only_options_name_real_keywords_and_say_why_they_differ(option):
+    keyword, why = BATCH_ONLY[option]
+    assert _keyword_exists(keyword), f"batch {option}: {keyword} is no workflow keyword"
+    assert _same(option, keyword.split(":")[1]) or why, f"batch {option}: the keyword differs; say why in BATCH_ONLY"
 
 
 @pytest.mark.parametrize("key", sorted(TABLE))

@@ -245,6 +245,40 @@ def test_focus_at_pixels_and_fractions(tmp_path):
     assert res.exit_code == 2 and "--no-depth" in res.output
 
 
+def test_python_focus_at_is_x_y_as_the_option_and_the_old_at_row_column_still_works(tmp_path):
+    """'--focus-at 8,6' (column 8, row 6) is render_product(src, 'refocus', focus_at=(8, 6)) in Python, the same
+    order; the keyword was 'at' = (row, column), which still works with a DeprecationWarning."""
+    import pytest
+
+    from plenodecode import pipeline
+    from plenodecode.errors import MissingConstantsError
+
+    lf = small_lf(colour="linear-srgb")
+    out = tmp_path / "cli.exr"
+    assert run("refocus", save_npy(tmp_path, lf), "--focus-at", "8,6", "--bit-depth", 32, "-o", out).exit_code == 0
+    src = pipeline.Source(lightfield=lf)
+    py = pipeline.render_product(src, "refocus", focus_at=(8, 6))
+    (_, image), = py.images
+    np.testing.assert_allclose(image, read_image(out), atol=1e-6)
+    swapped = pipeline.render_product(src, "refocus", focus_at=(6, 8)).data["slope"]
+    assert abs(swapped - py.data["slope"]) > 0.05            # the order matters here
+    with pytest.warns(DeprecationWarning, match=r"render_product\(at=\) is deprecated: pass focus_at=\(x, y\)"):
+        old = pipeline.render_product(src, "refocus", at=(6, 8))
+    assert old.data["slope"] == py.data["slope"]
+    with pytest.warns(DeprecationWarning, match="pass focus_distance="), \
+            pytest.raises(MissingConstantsError) as err:        # this light field has no focus distance
+        pipeline.render_product(src, "refocus", distance_m=2.0)
+    assert err.value.keyword == "focus_distance"
+    with pytest.raises(ValueError, match="pass focus_at, not both"):
+        pipeline.render_product(src, "refocus", at=(6, 8), focus_at=(8, 6))
+    with pytest.raises(ValueError, match=r"focus_at must be an \(x, y\) pair inside the centre view \(x: column 0 "
+                                         r"to 17, y: row 0 to 13\), got \(2, 16\)"):
+        pipeline.render_product(src, "refocus", focus_at=(2, 16))        # row 16 of 14; as (row, column) inside
+    with pytest.raises(ValueError, match=r"pass exactly one of slope, alpha, focus_at and focus_distance, got "
+                                         r"\['slope', 'focus_at'\]"):
+        pipeline.render_product(src, "refocus", slope=0.0, focus_at=(8, 6))
+
+
 def test_info_on_a_light_field_shows_the_refocusable_range(tmp_path):
     src = save_npy(tmp_path, small_lf())
     res = run("info", src)
