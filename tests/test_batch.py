@@ -1052,7 +1052,8 @@ def test_a_slope_past_the_picture_fails_before_decoding(tmp_path, monkeypatch):
                                                              database=str(root / "calib")))
     assert result.status == "failed" and decoded == [], result
     assert result.error.startswith("DecodeError: --alpha 1.5 does not suit scene.lfr: slope 20.27 px/view"), result
-    ok = process_raw(illum, tmp_path / "b", BatchOptions(outputs=("refocus",), slope=17.5, database=str(root / "calib")))
+    ok = process_raw(illum, tmp_path / "b",
+                     BatchOptions(outputs=("refocus",), slope=17.5, database=str(root / "calib")))
     assert ok.status == "done", ok
 
 

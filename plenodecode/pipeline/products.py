@@ -591,7 +591,8 @@ def render_photo(src: Source, *, slope: float | None = None, alpha: float | None
     """The camera's photograph, as ``plenodecode RAW -o photo.png`` writes it without a focus option
     (:func:`photo_focus`): a focused-plenoptic (Raytrix) raw's total focus (:func:`render_total_focus`), else the
     photograph refocused (:func:`render_refocus`, through the synthetic ``aperture``) at ``slope``, ``alpha`` or
-    ``focus_distance`` (metres), by default as captured.  The rendered product says which ('total-focus' or 'refocus')."""
+    ``focus_distance`` (metres), by default as captured.  The rendered product says which ('total-focus' or
+    'refocus')."""
     chosen = photo_focus(src.focused)
     if chosen.get("total_focus"):
         return render_total_focus(src)
