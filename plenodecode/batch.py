@@ -418,6 +418,9 @@ class TaskResult:
         8-bit PNG thumbnail of each output (same order), None where there is none.
     error : str or None
         One line: the exception's class and message.
+    left_out : tuple of str
+        Outputs asked for that this raw cannot serve and were not written, one line per reason
+        ('centre: not for a focused-plenoptic (Raytrix) raw (...)'); the others were.
     seconds : float
         Wall time of the task on the worker.
     worker : str
@@ -434,6 +437,7 @@ class TaskResult:
     outputs: tuple[str, ...] = ()
     thumbnails: tuple[str | None, ...] = ()
     error: str | None = None
+    left_out: tuple[str, ...] = ()
     seconds: float = 0.0
     worker: str = ""
     worker_peak_mb: float | None = None
@@ -450,6 +454,11 @@ class BatchSummary:
     def count(self, status: str) -> int:
         """Number of results with ``status``."""
         return sum(r.status == status for r in self.results)
+
+    @property
+    def partial(self) -> tuple[TaskResult, ...]:
+        """The done or skipped results that left out outputs asked for (:attr:`TaskResult.left_out`)."""
+        return tuple(r for r in self.results if r.status != "failed" and r.left_out)
 
     @property
     def failed(self) -> tuple[TaskResult, ...]:
@@ -504,7 +513,8 @@ class BatchSummary:
         """JSON-serialisable form (what ``summary.json`` holds)."""
         return {"format": SUMMARY_FORMAT, "version": 1, "seconds": self.seconds,
                 "total": len(self.results), "done": self.count("done"), "skipped": self.count("skipped"),
-                "failed": self.count("failed"), **self.latency(), "results": [asdict(r) for r in self.results]}
+                "failed": self.count("failed"), "left_out": len(self.partial), **self.latency(),
+                "results": [asdict(r) for r in self.results]}
 
 
 # ---------------------------------------------------------------------------- discovery
@@ -646,7 +656,8 @@ def _skip_result(src: Path, target: Path, key: str, t0: float, started: float) -
         return None
     thumbs = tuple(None if t is None else str(target / t) for t in done.get("thumbnails", [None] * len(outs)))
     return TaskResult(str(src), "skipped", tuple(str(o) for o in outs), thumbs,
-                      seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb(),
+                      left_out=tuple(str(n) for n in done.get("left_out", [])), seconds=time.perf_counter() - t0,
+                      worker=_worker_id(), worker_peak_mb=_peak_mb(),
                       started=started)
 
 
@@ -763,14 +774,14 @@ def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | Non
                                             need=exc.need) from None
         # the folder is staged under a temporary name and replaces ``target`` (checked above) only when complete
         with atomic_output(target, overwrite=True, folder=True) as staging:
-            products = _write_products(raw, staging, options, threads=threads)
+            products, left_out = _write_products(raw, staging, options, threads=threads)
             rel_out = [str(p.relative_to(staging)) for p, _ in products]
             rel_thumb = [None if t is None else str(t.relative_to(staging)) for _, t in products]
             marker = {"key": key, "source": str(src.resolve()), "outputs": rel_out, "thumbnails": rel_thumb,
-                      "options": options.as_key_dict()}
+                      "left_out": list(left_out), "options": options.as_key_dict()}
             (staging / DONE_MARKER).write_text(json.dumps(marker, indent=1), encoding="utf-8")
         return TaskResult(str(src), "done", tuple(str(target / o) for o in rel_out),
-                          tuple(None if t is None else str(target / t) for t in rel_thumb),
+                          tuple(None if t is None else str(target / t) for t in rel_thumb), left_out=left_out,
                           seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb(),
                           started=started)
     except (PlenodecodeError, OSError) as exc:
@@ -824,7 +835,8 @@ def _image_product_options(product: str, options: BatchOptions) -> dict[str, Any
     return {"slope": options.slope, **aperture}
 
 
-#: Outputs cut from the decoded views; a focused-plenoptic raw's have one pixel per lens (:func:`_check_focused_views`).
+#: Outputs cut from the decoded views; a focused-plenoptic raw's have one pixel per lens
+#: (:func:`_focused_views_left_out`).
 VIEW_OUTPUTS = ("lightfield", "views", "centre", "refocus", "all-in-focus", "focal-stack", "parallax")
 
 
@@ -845,16 +857,24 @@ def _raw_name(raw: Any) -> str:
     return Path(raw.path).name if raw.path else "this raw"
 
 
-def _check_focused_views(src: Any, options: BatchOptions) -> None:
-    """Refuse, before decoding, the :data:`VIEW_OUTPUTS` of a focused-plenoptic (Raytrix) raw unless
-    ``options.views_anyway``: its decoded views have one pixel per lens (the real R42 crop: 22 x 31 px), as the
-    commands refuse them (:func:`plenodecode.cli.common.refuse_focused_views`)."""
-    cut = [o for o in options.outputs if o in VIEW_OUTPUTS]
+#: Why a focused-plenoptic (Raytrix) raw's batch leaves out its :data:`VIEW_OUTPUTS` (a note of its result).
+FOCUSED_LEFT_OUT = ("not for a focused-plenoptic (Raytrix) raw (its views have one pixel per lens; --views-anyway "
+                    "cuts them)")
+
+
+def _focused_views_left_out(src: Any, options: BatchOptions) -> tuple[str, ...]:
+    """The :data:`VIEW_OUTPUTS` of ``options.outputs`` a focused-plenoptic (Raytrix) raw leaves out, known before
+    decoding: its decoded views have one pixel per lens (the real R42 crop: 22 x 31 px), as the commands refuse them
+    (:func:`plenodecode.cli.common.refuse_focused_views`); none with ``options.views_anyway``.  When that is every
+    output asked for, the raw fails in one line (DecodeError): it has nothing to write."""
+    cut = tuple(o for o in options.outputs if o in VIEW_OUTPUTS)
     if not src.focused or not cut or options.views_anyway:
-        return
-    raise DecodeError(f"{_raw_name(src.raw)} is a focused-plenoptic (Raytrix) raw: --outputs {','.join(cut)} would "
-                      "cut its views, one pixel per lens; ask for photo (its total focus), total-focus or depth "
-                      "(virtual depth), or pass --views-anyway")
+        return ()
+    if len(cut) == len(options.outputs):
+        raise DecodeError(f"{_raw_name(src.raw)} is a focused-plenoptic (Raytrix) raw: --outputs {','.join(cut)} "
+                          "would cut its views, one pixel per lens; ask for photo (its total focus), total-focus or "
+                          "depth (virtual depth), or pass --views-anyway")
+    return cut
 
 
 #: A refocus keyword of :func:`_image_product_options` -> the ``plenodecode batch`` option that set it.
@@ -990,7 +1010,7 @@ def depth_stem(rendered: Any) -> str:
 
 
 def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
-                    threads: int | None = None) -> list[tuple[Path, Path | None]]:
+                    threads: int | None = None) -> tuple[list[tuple[Path, Path | None]], tuple[str, ...]]:
     """Calibrate and decode ``raw`` and write ``options.outputs`` into ``folder``, all through
     :mod:`plenodecode.pipeline` (the same calibration policy, products, display encoding and writers as the
     single-purpose commands).
@@ -1000,9 +1020,12 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
 
     Returns
     -------
-    list of (product path, thumbnail path or None), in the order of ``options.outputs``; a product that is the
-    same image as an earlier one ('photo' and 'refocus' at the same focus, 'photo' and 'total-focus' of a
-    focused raw) is written once.
+    written : list of (product path, thumbnail path or None)
+        In the order of ``options.outputs``; a product that is the same image as an earlier one ('photo' and
+        'refocus' at the same focus, 'photo' and 'total-focus' of a focused raw) is written once.
+    left_out : tuple of str
+        One line per reason an output asked for was not written ('centre,parallax: not for a focused-plenoptic
+        (Raytrix) raw (...)'; :func:`_focused_views_left_out`), or empty.
     """
     import numpy as np
 
@@ -1017,8 +1040,10 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     src = pipeline.Source(raw=raw, calibration=calibration, decode_options={
         "workers": threads, "dark": dark, **options.decode_options()},
         geometry=options.geometric_calibration())
-    _check_focus_reach(src, options)        # all three before the (lazy) decoding
-    _check_focused_views(src, options)
+    left_out = _focused_views_left_out(src, options)      # all three before the (lazy) decoding
+    if left_out:
+        options = replace(options, outputs=tuple(o for o in options.outputs if o not in left_out))
+    _check_focus_reach(src, options)
     _check_disparity_range(src, options)
     bits = options.bit_depth
     thumbs = folder / THUMB_DIR
@@ -1106,7 +1131,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
             dest, = pipeline.write_product(rendered, folder / name, bit_depth=bits, exposure=math.log2(gain))
             shown = pipeline.expose(image, rendered.colour, gain)
             written.append((dest, _thumbnail(shown, thumbs / f"{stem}.png", colour=rendered.colour)))
-    return written
+    return written, ((f"{','.join(left_out)}: {FOCUSED_LEFT_OUT}",) if left_out else ())
 
 
 # ------------------------------------------------------------------------------ runners

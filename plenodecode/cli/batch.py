@@ -40,14 +40,15 @@ def _latency_note(summary) -> str:
 
 
 def _echo_table(summary) -> None:
-    """The summary table: one line per raw (its error when it failed)."""
+    """The summary table: one line per raw (its error when it failed; the outputs it left out)."""
     from ..report.batch import display_names
 
     names = display_names([r.source for r in summary.results])
     width = max([len("raw"), *map(len, names)])
     click.echo(f"{'raw':{width}s}  {'status':8s} {'seconds':>8s}  detail")
     for name, r in zip(names, summary.results):
-        detail = r.error if r.error else f"{len(r.outputs)} output{'s' * (len(r.outputs) != 1)}"
+        detail = r.error if r.error else "; ".join((f"{len(r.outputs)} output{'s' * (len(r.outputs) != 1)}",
+                                                    *r.left_out))
         click.echo(f"{name:{width}s}  {r.status:8s} {r.seconds:8.1f}  {detail}")
 
 
@@ -279,10 +280,15 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
     quiet = bool((ctx.obj or {}).get("quiet"))
     if not quiet:
         _echo_table(summary)
+        partial = f" ({len(summary.partial)} leaving out outputs)" if summary.partial else ""
         click.echo(f"{summary.count('done')} done, {summary.count('skipped')} skipped, "
-                   f"{summary.count('failed')} failed in {summary.seconds:.1f} s{_latency_note(summary)}; "
+                   f"{summary.count('failed')} failed{partial} in {summary.seconds:.1f} s{_latency_note(summary)}; "
                    f"summary: {js}; index: {index}")
     n_failed = summary.count("failed")
     if n_failed:
         click.echo(f"error: {n_failed} of {len(summary.results)} raws failed; see {index}", err=True)
+    if summary.partial:         # outputs asked for and not written: the run did not give all it was asked for
+        click.echo(f"error: {len(summary.partial)} of {len(summary.results)} raws left out outputs they cannot "
+                   f"serve (said on their rows); see {index}", err=True)
+    if n_failed or summary.partial:
         ctx.exit(1)
