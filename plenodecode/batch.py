@@ -926,20 +926,18 @@ def _check_focus_reach(src: Any, options: BatchOptions) -> None:
                               ) from None
 
 
-def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
-    """Raise ValueError when ``options.slope`` (or the slope of ``options.alpha`` or ``options.focus_distance``) is
-    past the picture of every raw of ``files`` it applies to (a batch would fail them all), before any is decoded:
-    the error :func:`~plenodecode.render._common.check_slope_reach` gives for the raw allowing the largest slope.
+#: What a check of :func:`_first_suiting` says of one raw: (reach, error) refused, None suits, False not applying.
+Refusal = tuple[float, ValueError] | None | bool
 
-    Each raw is read and its calibration chosen (nothing decoded) until one suits the slope or has no slope to
-    suit (a Raytrix raw's total-focus photograph).  A raw that cannot be read or calibrated is passed over (its
-    task fails for that reason); one whose grid would come from self-calibrating the scene (an image mosaic
-    without a white image) ends the check without an error, as that costs a scene's fit; its task checks it.
-    The library's log is held back to errors meanwhile, so the tasks' warnings are not said twice.
-    """
-    if options.slope == 0 and options.alpha is None and options.focus_distance is None or not any(
-            p in ("refocus", "photo") for p in options.outputs):
-        return
+
+def _first_suiting(files: Sequence[str | os.PathLike], options: BatchOptions,
+                   refusal: Callable[[Any], Refusal]) -> list[tuple[float, str, ValueError]]:
+    """Read each raw of ``files`` and choose its calibration (nothing decoded) until ``refusal(source)`` of one is
+    None (it suits); ``refusal`` gives (reach, error) for a raw refused, False for one it does not apply to.  A raw
+    that cannot be read or calibrated is passed over (its task fails for that reason); one whose grid would come
+    from self-calibrating the scene (an image mosaic without a white image) ends the check as suiting, as that
+    costs a scene's fit; its task checks it.  The library's log is held back to errors meanwhile, so the tasks'
+    warnings are not said twice.  Returns the refusals ([] when a raw suits)."""
     from . import pipeline
     from .io.generic import is_bare_mosaic
     from .optics import MicroscopeOptics
@@ -954,23 +952,109 @@ def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOption
             try:
                 raw = pipeline.open_raw(f, mosaic=mosaic, optics=MicroscopeOptics.from_dict(options.optics))
                 if options.white is None and is_bare_mosaic(raw):
-                    return
+                    return []
                 cal = pipeline.choose_calibration(raw, grid=options.grid, database=options.database,
                                                   white=options.white, mosaic=mosaic)
-                found = _slope_reach_error(pipeline.Source(raw=raw, calibration=cal,
-                                                           geometry=options.geometric_calibration(),
-                                                           decode_options=options.decode_options()), options)
+                found = refusal(pipeline.Source(raw=raw, calibration=cal, geometry=options.geometric_calibration(),
+                                                decode_options=options.decode_options()))
             except (PlenodecodeError, OSError, ValueError):
                 continue
             if found is None:
-                return
-            refused.append((found[2], Path(f).name, found[1]))
+                return []
+            if found is not False:
+                refused.append((found[0], Path(f).name, found[1]))
     finally:
         logger.setLevel(level)
+    return refused
+
+
+def _worst(refused: list[tuple[float, str, ValueError]]) -> str:
+    """The error of the raw allowing the most of :func:`_first_suiting`'s refusals, saying how many there were."""
+    reach, name, exc = max(refused, key=lambda r: r[0])
+    return str(exc) if len(refused) == 1 else f"{exc} (every one of the {len(refused)} raws; {name} allows the most)"
+
+
+def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
+    """Raise ValueError when ``options.slope`` (or the slope of ``options.alpha`` or ``options.focus_distance``) is
+    past the picture of every raw of ``files`` it applies to (a batch would fail them all), before any is decoded:
+    the error :func:`~plenodecode.render._common.check_slope_reach` gives for the raw allowing the largest slope.
+    A raw with no slope to suit (a Raytrix raw's total-focus photograph) suits; how the raws are read:
+    :func:`_first_suiting`.
+    """
+    if options.slope == 0 and options.alpha is None and options.focus_distance is None or not any(
+            p in ("refocus", "photo") for p in options.outputs):
+        return
+
+    def refusal(src: Any) -> tuple[float, ValueError] | None:
+        found = _slope_reach_error(src, options)
+        return None if found is None else (found[2], found[1])
+
+    refused = _first_suiting(files, options, refusal)
     if refused:
-        reach, name, exc = max(refused, key=lambda r: r[0])
-        raise ValueError(str(exc) if len(refused) == 1 else f"{exc} (every one of the {len(refused)} raws; {name} "
-                                                             "allows the most)")
+        raise ValueError(_worst(refused))
+
+
+def check_stack_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
+    """Raise ValueError when ``options.focal_stack`` is past the picture of every raw of ``files`` that writes a
+    focal stack (:func:`plenodecode.pipeline.products.check_focus_reach`), before any is decoded: the error of the
+    raw allowing the largest slope.  A focused-plenoptic raw that leaves the stack out
+    (:func:`_focused_views_left_out`) is not counted; how the raws are read: :func:`_first_suiting`."""
+    if options.focal_stack is None or "focal-stack" not in options.outputs:
+        return
+    from .decoding.rectify import decoded_shape
+    from .pipeline.products import check_focus_reach
+    from .render._common import slope_reach
+
+    start, stop, n = options.focal_stack
+
+    def refusal(src: Any) -> Refusal:
+        if src.focused and not options.views_anyway:
+            return False
+        try:
+            check_focus_reach(src, "focal-stack", start=start, stop=stop, n=n, units=options.stack_units)
+        except ValueError as exc:
+            return slope_reach(decoded_shape(src.calibration.grid, src.decode_options.get("n_views"))), exc
+        return None
+
+    refused = _first_suiting(files, options, refusal)
+    if refused:
+        raise ValueError(_worst(refused))
+
+
+def check_outputs_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
+    """Raise ValueError when no raw of ``files`` can serve the view outputs asked for (:data:`VIEW_OUTPUTS`): every
+    readable one is a focused-plenoptic (Raytrix) raw, whose views have one pixel per lens, and
+    ``options.views_anyway`` is off.  A raw's metadata tells (:func:`plenodecode.pipeline.needs.is_focused_raw`;
+    with ``options.grid`` given by hand nothing is checked); raws that cannot be read are passed over."""
+    cut = [o for o in options.outputs if o in VIEW_OUTPUTS]
+    if not cut or options.views_anyway or options.grid is not None:
+        return
+    from . import pipeline
+    from .optics import MicroscopeOptics
+    from .pipeline.needs import is_focused_raw
+
+    mosaic = options.mosaic_options()
+    focused = []
+    logger = logging.getLogger(__name__.split(".")[0])
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        for f in files:
+            try:
+                raw = pipeline.open_raw(f, mosaic=mosaic, optics=MicroscopeOptics.from_dict(options.optics))
+            except (PlenodecodeError, OSError, ValueError):
+                continue
+            if not is_focused_raw(raw):
+                return
+            focused.append(Path(f).name)
+    finally:
+        logger.setLevel(level)
+    if focused:
+        which = focused[0] if len(focused) == 1 else f"all {len(focused)} raws here"
+        raise ValueError(f"{','.join(cut)}: no raw here can serve {'it' if len(cut) == 1 else 'them'}: {which} "
+                         f"{'is a' if len(focused) == 1 else 'are'} focused-plenoptic (Raytrix) "
+                         f"raw{'s' * (len(focused) != 1)}, whose views have one pixel per lens; ask for photo (total "
+                         "focus), total-focus or depth (virtual depth), or pass --views-anyway")
 
 
 def _check_views(grid: Any, n_views: int | None, raw: Any) -> None:
@@ -1312,5 +1396,6 @@ def write_summary(summary: BatchSummary, out_dir: str | os.PathLike, *, overwrit
 
 
 __all__ = ["BATCH_OUTPUTS", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
-           "task_key", "outputs_to_replace", "check_outputs_to_replace", "check_slope_for_any", "process_raw",
+           "task_key", "outputs_to_replace", "check_outputs_to_replace", "check_slope_for_any", "check_stack_for_any",
+           "check_outputs_for_any", "process_raw",
            "run_batch", "write_summary", "check_summary_files"]

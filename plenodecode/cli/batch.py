@@ -193,8 +193,9 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
       plenodecode batch shoot/ -o decoded/ --outputs centre,refocus,depth --jobs 2
       plenodecode batch shoot/ -o decoded/ --scheduler tcp://10.0.0.5:8786
     """
-    from ..batch import (DONE_MARKER, BatchOptions, check_outputs_to_replace, check_slope_for_any,
-                         check_summary_files, find_raws, run_batch, write_summary)
+    from ..batch import (DONE_MARKER, BatchOptions, check_outputs_for_any, check_outputs_to_replace,
+                         check_slope_for_any, check_stack_for_any, check_summary_files, find_raws, run_batch,
+                         write_summary)
     from ..io.discovery import images_not_taken, needs_no_database
     from ..calib.store import DEFAULT_DB
 
@@ -265,6 +266,11 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
     except ValueError as exc:
         hint = "--alpha" if alpha is not None else "--focus-distance" if focus_distance is not None else "--slope"
         raise click.BadParameter(str(exc), param_hint=hint) from None
+    for check, hint in ((check_outputs_for_any, "--outputs"), (check_stack_for_any, "--focal-stack")):
+        try:    # an output no raw can serve, a focal stack past every raw's picture: refused before decoding
+            check(files, options)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint=hint) from None
     try:
         summary = run_batch(files, out_dir, options, jobs=jobs, scheduler=scheduler, overwrite=overwrite,
                             progress=progress_bar(f"decoding {len(files)} raw{'s' * (len(files) != 1)}", ctx))
