@@ -28,6 +28,7 @@ figure{margin:0;text-align:center;font-size:.8em}
 figure img{display:block;width:160px;height:auto;background:#eee;border:1px solid #ccc}
 figure img.legend{width:240px}
 figcaption{margin-top:2px;word-break:break-all}
+.files{font-size:.85em;margin-top:6px;word-break:break-all}
 .left{color:#850;font-size:.85em;margin-top:6px;max-width:520px}
 .err{color:#a00;font-family:ui-monospace,monospace;font-size:.85em;white-space:pre-wrap;max-width:520px}
 table{border-collapse:collapse;margin-top:1.2em;font-size:.85em}
@@ -44,21 +45,23 @@ def _rel(path: str, base: Path) -> str:
 def _card(r: Any, base: Path, shown: str) -> str:
     name = html.escape(shown)
     meta = f"{html.escape(r.status)} &middot; {r.seconds:.1f} s"
-    figs = []
+    figs, files = [], []
     thumbs = tuple(r.thumbnails) + (None,) * max(0, len(r.outputs) - len(r.thumbnails))
     for out, thumb in zip(r.outputs, thumbs):
-        label = html.escape(Path(out).name)
-        if thumb and Path(thumb).is_file():
-            # depth thumbnails carry a colour bar with its unit: shown larger so the text stays legible
-            wide = ' class="legend"' if Path(out).suffix.lower() == ".pfm" else ""
-            img = f'<img{wide} alt="{label}" src="{_rel(thumb, base)}">'
-        else:
-            img = ""
+        label = html.escape(Path(out).name + ("/" if Path(out).is_dir() else ""))
+        if not (thumb and Path(thumb).is_file()):
+            # outputs with no picture of their own (parallax frames, a point cloud): file links under the pictures
+            files.append(f'<a href="{_rel(out, base)}">{label}</a>')
+            continue
+        # depth thumbnails carry a colour bar with its unit: shown larger so the text stays legible
+        wide = ' class="legend"' if Path(out).suffix.lower() == ".pfm" else ""
+        img = f'<img{wide} alt="{label}" src="{_rel(thumb, base)}">'
         figs.append(f'<figure><a href="{_rel(out, base)}">{img}</a><figcaption>{label}</figcaption></figure>')
+    more = f'<div class="files">also: {" &middot; ".join(files)}</div>' if files else ""
     err = f'<div class="err">{html.escape(r.error)}</div>' if r.error else ""
     err += "".join(f'<div class="left">left out: {html.escape(note)}</div>' for note in getattr(r, "left_out", ()))
     return (f'<div class="card {html.escape(r.status)}"><div class="name" title="{html.escape(r.source)}">{name}</div>'
-            f'<div class="meta">{meta}</div><div class="thumbs">{"".join(figs)}</div>{err}</div>')
+            f'<div class="meta">{meta}</div><div class="thumbs">{"".join(figs)}</div>{more}{err}</div>')
 
 
 def display_names(files: Sequence[str | os.PathLike]) -> list[str]:
