@@ -418,6 +418,9 @@ class TaskResult:
         8-bit PNG thumbnail of each output (same order), None where there is none.
     error : str or None
         One line: the exception's class and message.
+    left_out : tuple of str
+        Outputs asked for that this raw cannot serve and were not written, one line per reason
+        ('centre: not for a focused-plenoptic (Raytrix) raw (...)'); the others were.
     seconds : float
         Wall time of the task on the worker.
     worker : str
@@ -434,6 +437,7 @@ class TaskResult:
     outputs: tuple[str, ...] = ()
     thumbnails: tuple[str | None, ...] = ()
     error: str | None = None
+    left_out: tuple[str, ...] = ()
     seconds: float = 0.0
     worker: str = ""
     worker_peak_mb: float | None = None
@@ -450,6 +454,11 @@ class BatchSummary:
     def count(self, status: str) -> int:
         """Number of results with ``status``."""
         return sum(r.status == status for r in self.results)
+
+    @property
+    def partial(self) -> tuple[TaskResult, ...]:
+        """The done or skipped results that left out outputs asked for (:attr:`TaskResult.left_out`)."""
+        return tuple(r for r in self.results if r.status != "failed" and r.left_out)
 
     @property
     def failed(self) -> tuple[TaskResult, ...]:
@@ -504,7 +513,8 @@ class BatchSummary:
         """JSON-serialisable form (what ``summary.json`` holds)."""
         return {"format": SUMMARY_FORMAT, "version": 1, "seconds": self.seconds,
                 "total": len(self.results), "done": self.count("done"), "skipped": self.count("skipped"),
-                "failed": self.count("failed"), **self.latency(), "results": [asdict(r) for r in self.results]}
+                "failed": self.count("failed"), "left_out": len(self.partial), **self.latency(),
+                "results": [asdict(r) for r in self.results]}
 
 
 # ---------------------------------------------------------------------------- discovery
@@ -646,7 +656,8 @@ def _skip_result(src: Path, target: Path, key: str, t0: float, started: float) -
         return None
     thumbs = tuple(None if t is None else str(target / t) for t in done.get("thumbnails", [None] * len(outs)))
     return TaskResult(str(src), "skipped", tuple(str(o) for o in outs), thumbs,
-                      seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb(),
+                      left_out=tuple(str(n) for n in done.get("left_out", [])), seconds=time.perf_counter() - t0,
+                      worker=_worker_id(), worker_peak_mb=_peak_mb(),
                       started=started)
 
 
@@ -763,14 +774,14 @@ def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | Non
                                             need=exc.need) from None
         # the folder is staged under a temporary name and replaces ``target`` (checked above) only when complete
         with atomic_output(target, overwrite=True, folder=True) as staging:
-            products = _write_products(raw, staging, options, threads=threads)
+            products, left_out = _write_products(raw, staging, options, threads=threads)
             rel_out = [str(p.relative_to(staging)) for p, _ in products]
             rel_thumb = [None if t is None else str(t.relative_to(staging)) for _, t in products]
             marker = {"key": key, "source": str(src.resolve()), "outputs": rel_out, "thumbnails": rel_thumb,
-                      "options": options.as_key_dict()}
+                      "left_out": list(left_out), "options": options.as_key_dict()}
             (staging / DONE_MARKER).write_text(json.dumps(marker, indent=1), encoding="utf-8")
         return TaskResult(str(src), "done", tuple(str(target / o) for o in rel_out),
-                          tuple(None if t is None else str(target / t) for t in rel_thumb),
+                          tuple(None if t is None else str(target / t) for t in rel_thumb), left_out=left_out,
                           seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb(),
                           started=started)
     except (PlenodecodeError, OSError) as exc:
@@ -824,7 +835,8 @@ def _image_product_options(product: str, options: BatchOptions) -> dict[str, Any
     return {"slope": options.slope, **aperture}
 
 
-#: Outputs cut from the decoded views; a focused-plenoptic raw's have one pixel per lens (:func:`_check_focused_views`).
+#: Outputs cut from the decoded views; a focused-plenoptic raw's have one pixel per lens
+#: (:func:`_focused_views_left_out`).
 VIEW_OUTPUTS = ("lightfield", "views", "centre", "refocus", "all-in-focus", "focal-stack", "parallax")
 
 
@@ -845,16 +857,24 @@ def _raw_name(raw: Any) -> str:
     return Path(raw.path).name if raw.path else "this raw"
 
 
-def _check_focused_views(src: Any, options: BatchOptions) -> None:
-    """Refuse, before decoding, the :data:`VIEW_OUTPUTS` of a focused-plenoptic (Raytrix) raw unless
-    ``options.views_anyway``: its decoded views have one pixel per lens (the real R42 crop: 22 x 31 px), as the
-    commands refuse them (:func:`plenodecode.cli.common.refuse_focused_views`)."""
-    cut = [o for o in options.outputs if o in VIEW_OUTPUTS]
+#: Why a focused-plenoptic (Raytrix) raw's batch leaves out its :data:`VIEW_OUTPUTS` (a note of its result).
+FOCUSED_LEFT_OUT = ("not for a focused-plenoptic (Raytrix) raw (its views have one pixel per lens; --views-anyway "
+                    "cuts them)")
+
+
+def _focused_views_left_out(src: Any, options: BatchOptions) -> tuple[str, ...]:
+    """The :data:`VIEW_OUTPUTS` of ``options.outputs`` a focused-plenoptic (Raytrix) raw leaves out, known before
+    decoding: its decoded views have one pixel per lens (the real R42 crop: 22 x 31 px), as the commands refuse them
+    (:func:`plenodecode.cli.common.refuse_focused_views`); none with ``options.views_anyway``.  When that is every
+    output asked for, the raw fails in one line (DecodeError): it has nothing to write."""
+    cut = tuple(o for o in options.outputs if o in VIEW_OUTPUTS)
     if not src.focused or not cut or options.views_anyway:
-        return
-    raise DecodeError(f"{_raw_name(src.raw)} is a focused-plenoptic (Raytrix) raw: --outputs {','.join(cut)} would "
-                      "cut its views, one pixel per lens; ask for photo (its total focus), total-focus or depth "
-                      "(virtual depth), or pass --views-anyway")
+        return ()
+    if len(cut) == len(options.outputs):
+        raise DecodeError(f"{_raw_name(src.raw)} is a focused-plenoptic (Raytrix) raw: --outputs {','.join(cut)} "
+                          "would cut its views, one pixel per lens; ask for photo (its total focus), total-focus or "
+                          "depth (virtual depth), or pass --views-anyway")
+    return cut
 
 
 #: A refocus keyword of :func:`_image_product_options` -> the ``plenodecode batch`` option that set it.
@@ -906,20 +926,18 @@ def _check_focus_reach(src: Any, options: BatchOptions) -> None:
                               ) from None
 
 
-def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
-    """Raise ValueError when ``options.slope`` (or the slope of ``options.alpha`` or ``options.focus_distance``) is
-    past the picture of every raw of ``files`` it applies to (a batch would fail them all), before any is decoded:
-    the error :func:`~plenodecode.render._common.check_slope_reach` gives for the raw allowing the largest slope.
+#: What a check of :func:`_first_suiting` says of one raw: (reach, error) refused, None suits, False not applying.
+Refusal = tuple[float, ValueError] | None | bool
 
-    Each raw is read and its calibration chosen (nothing decoded) until one suits the slope or has no slope to
-    suit (a Raytrix raw's total-focus photograph).  A raw that cannot be read or calibrated is passed over (its
-    task fails for that reason); one whose grid would come from self-calibrating the scene (an image mosaic
-    without a white image) ends the check without an error, as that costs a scene's fit; its task checks it.
-    The library's log is held back to errors meanwhile, so the tasks' warnings are not said twice.
-    """
-    if options.slope == 0 and options.alpha is None and options.focus_distance is None or not any(
-            p in ("refocus", "photo") for p in options.outputs):
-        return
+
+def _first_suiting(files: Sequence[str | os.PathLike], options: BatchOptions,
+                   refusal: Callable[[Any], Refusal]) -> list[tuple[float, str, ValueError]]:
+    """Read each raw of ``files`` and choose its calibration (nothing decoded) until ``refusal(source)`` of one is
+    None (it suits); ``refusal`` gives (reach, error) for a raw refused, False for one it does not apply to.  A raw
+    that cannot be read or calibrated is passed over (its task fails for that reason); one whose grid would come
+    from self-calibrating the scene (an image mosaic without a white image) ends the check as suiting, as that
+    costs a scene's fit; its task checks it.  The library's log is held back to errors meanwhile, so the tasks'
+    warnings are not said twice.  Returns the refusals ([] when a raw suits)."""
     from . import pipeline
     from .io.generic import is_bare_mosaic
     from .optics import MicroscopeOptics
@@ -934,23 +952,109 @@ def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOption
             try:
                 raw = pipeline.open_raw(f, mosaic=mosaic, optics=MicroscopeOptics.from_dict(options.optics))
                 if options.white is None and is_bare_mosaic(raw):
-                    return
+                    return []
                 cal = pipeline.choose_calibration(raw, grid=options.grid, database=options.database,
                                                   white=options.white, mosaic=mosaic)
-                found = _slope_reach_error(pipeline.Source(raw=raw, calibration=cal,
-                                                           geometry=options.geometric_calibration(),
-                                                           decode_options=options.decode_options()), options)
+                found = refusal(pipeline.Source(raw=raw, calibration=cal, geometry=options.geometric_calibration(),
+                                                decode_options=options.decode_options()))
             except (PlenodecodeError, OSError, ValueError):
                 continue
             if found is None:
-                return
-            refused.append((found[2], Path(f).name, found[1]))
+                return []
+            if found is not False:
+                refused.append((found[0], Path(f).name, found[1]))
     finally:
         logger.setLevel(level)
+    return refused
+
+
+def _worst(refused: list[tuple[float, str, ValueError]]) -> str:
+    """The error of the raw allowing the most of :func:`_first_suiting`'s refusals, saying how many there were."""
+    reach, name, exc = max(refused, key=lambda r: r[0])
+    return str(exc) if len(refused) == 1 else f"{exc} (every one of the {len(refused)} raws; {name} allows the most)"
+
+
+def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
+    """Raise ValueError when ``options.slope`` (or the slope of ``options.alpha`` or ``options.focus_distance``) is
+    past the picture of every raw of ``files`` it applies to (a batch would fail them all), before any is decoded:
+    the error :func:`~plenodecode.render._common.check_slope_reach` gives for the raw allowing the largest slope.
+    A raw with no slope to suit (a Raytrix raw's total-focus photograph) suits; how the raws are read:
+    :func:`_first_suiting`.
+    """
+    if options.slope == 0 and options.alpha is None and options.focus_distance is None or not any(
+            p in ("refocus", "photo") for p in options.outputs):
+        return
+
+    def refusal(src: Any) -> tuple[float, ValueError] | None:
+        found = _slope_reach_error(src, options)
+        return None if found is None else (found[2], found[1])
+
+    refused = _first_suiting(files, options, refusal)
     if refused:
-        reach, name, exc = max(refused, key=lambda r: r[0])
-        raise ValueError(str(exc) if len(refused) == 1 else f"{exc} (every one of the {len(refused)} raws; {name} "
-                                                             "allows the most)")
+        raise ValueError(_worst(refused))
+
+
+def check_stack_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
+    """Raise ValueError when ``options.focal_stack`` is past the picture of every raw of ``files`` that writes a
+    focal stack (:func:`plenodecode.pipeline.products.check_focus_reach`), before any is decoded: the error of the
+    raw allowing the largest slope.  A focused-plenoptic raw that leaves the stack out
+    (:func:`_focused_views_left_out`) is not counted; how the raws are read: :func:`_first_suiting`."""
+    if options.focal_stack is None or "focal-stack" not in options.outputs:
+        return
+    from .decoding.rectify import decoded_shape
+    from .pipeline.products import check_focus_reach
+    from .render._common import slope_reach
+
+    start, stop, n = options.focal_stack
+
+    def refusal(src: Any) -> Refusal:
+        if src.focused and not options.views_anyway:
+            return False
+        try:
+            check_focus_reach(src, "focal-stack", start=start, stop=stop, n=n, units=options.stack_units)
+        except ValueError as exc:
+            return slope_reach(decoded_shape(src.calibration.grid, src.decode_options.get("n_views"))), exc
+        return None
+
+    refused = _first_suiting(files, options, refusal)
+    if refused:
+        raise ValueError(_worst(refused))
+
+
+def check_outputs_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
+    """Raise ValueError when no raw of ``files`` can serve the view outputs asked for (:data:`VIEW_OUTPUTS`): every
+    readable one is a focused-plenoptic (Raytrix) raw, whose views have one pixel per lens, and
+    ``options.views_anyway`` is off.  A raw's metadata tells (:func:`plenodecode.pipeline.needs.is_focused_raw`;
+    with ``options.grid`` given by hand nothing is checked); raws that cannot be read are passed over."""
+    cut = [o for o in options.outputs if o in VIEW_OUTPUTS]
+    if not cut or options.views_anyway or options.grid is not None:
+        return
+    from . import pipeline
+    from .optics import MicroscopeOptics
+    from .pipeline.needs import is_focused_raw
+
+    mosaic = options.mosaic_options()
+    focused = []
+    logger = logging.getLogger(__name__.split(".")[0])
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        for f in files:
+            try:
+                raw = pipeline.open_raw(f, mosaic=mosaic, optics=MicroscopeOptics.from_dict(options.optics))
+            except (PlenodecodeError, OSError, ValueError):
+                continue
+            if not is_focused_raw(raw):
+                return
+            focused.append(Path(f).name)
+    finally:
+        logger.setLevel(level)
+    if focused:
+        which = focused[0] if len(focused) == 1 else f"all {len(focused)} raws here"
+        raise ValueError(f"{','.join(cut)}: no raw here can serve {'it' if len(cut) == 1 else 'them'}: {which} "
+                         f"{'is a' if len(focused) == 1 else 'are'} focused-plenoptic (Raytrix) "
+                         f"raw{'s' * (len(focused) != 1)}, whose views have one pixel per lens; ask for photo (total "
+                         "focus), total-focus or depth (virtual depth), or pass --views-anyway")
 
 
 def _check_views(grid: Any, n_views: int | None, raw: Any) -> None:
@@ -990,7 +1094,7 @@ def depth_stem(rendered: Any) -> str:
 
 
 def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
-                    threads: int | None = None) -> list[tuple[Path, Path | None]]:
+                    threads: int | None = None) -> tuple[list[tuple[Path, Path | None]], tuple[str, ...]]:
     """Calibrate and decode ``raw`` and write ``options.outputs`` into ``folder``, all through
     :mod:`plenodecode.pipeline` (the same calibration policy, products, display encoding and writers as the
     single-purpose commands).
@@ -1000,9 +1104,12 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
 
     Returns
     -------
-    list of (product path, thumbnail path or None), in the order of ``options.outputs``; a product that is the
-    same image as an earlier one ('photo' and 'refocus' at the same focus, 'photo' and 'total-focus' of a
-    focused raw) is written once.
+    written : list of (product path, thumbnail path or None)
+        In the order of ``options.outputs``; a product that is the same image as an earlier one ('photo' and
+        'refocus' at the same focus, 'photo' and 'total-focus' of a focused raw) is written once.
+    left_out : tuple of str
+        One line per reason an output asked for was not written ('centre,parallax: not for a focused-plenoptic
+        (Raytrix) raw (...)'; :func:`_focused_views_left_out`), or empty.
     """
     import numpy as np
 
@@ -1017,8 +1124,10 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     src = pipeline.Source(raw=raw, calibration=calibration, decode_options={
         "workers": threads, "dark": dark, **options.decode_options()},
         geometry=options.geometric_calibration())
-    _check_focus_reach(src, options)        # all three before the (lazy) decoding
-    _check_focused_views(src, options)
+    left_out = _focused_views_left_out(src, options)      # all three before the (lazy) decoding
+    if left_out:
+        options = replace(options, outputs=tuple(o for o in options.outputs if o not in left_out))
+    _check_focus_reach(src, options)
     _check_disparity_range(src, options)
     bits = options.bit_depth
     thumbs = folder / THUMB_DIR
@@ -1106,7 +1215,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
             dest, = pipeline.write_product(rendered, folder / name, bit_depth=bits, exposure=math.log2(gain))
             shown = pipeline.expose(image, rendered.colour, gain)
             written.append((dest, _thumbnail(shown, thumbs / f"{stem}.png", colour=rendered.colour)))
-    return written
+    return written, ((f"{','.join(left_out)}: {FOCUSED_LEFT_OUT}",) if left_out else ())
 
 
 # ------------------------------------------------------------------------------ runners
@@ -1287,5 +1396,6 @@ def write_summary(summary: BatchSummary, out_dir: str | os.PathLike, *, overwrit
 
 
 __all__ = ["BATCH_OUTPUTS", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
-           "task_key", "outputs_to_replace", "check_outputs_to_replace", "check_slope_for_any", "process_raw",
+           "task_key", "outputs_to_replace", "check_outputs_to_replace", "check_slope_for_any", "check_stack_for_any",
+           "check_outputs_for_any", "process_raw",
            "run_batch", "write_summary", "check_summary_files"]

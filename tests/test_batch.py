@@ -1241,3 +1241,44 @@ def test_cli_compile_notice_of_the_workers_appears_once(tmp_path):
     assert notices.count("compiling depth kernels (first run only, ~4 s)...") == 1, res.stderr
     assert len(notices) == len(set(notices)), notices
     assert len(json.loads((tmp_path / "out" / "summary.json").read_text())["results"]) == 2
+
+
+def test_cli_a_focal_stack_no_raw_can_use_is_refused_before_any_work(tmp_path):
+    """'batch --outputs focal-stack --focal-stack 30:40:3' over the Illum sample (|slope| <= 17.9) failed each raw
+    after reading and calibrating it.  A stack past every raw's picture is now refused up front, in one line naming
+    --focal-stack, as --slope is; nothing is written.  A stack one raw can use goes on."""
+    root = Path(__file__).resolve().parents[1]
+    illum = root / "sample_raws" / "illum-mini" / "scene.lfr"
+    base = ["batch", str(illum), "--outputs", "focal-stack", "--database", str(root / "calib"), "--jobs", "1"]
+    res = CliRunner().invoke(cli, [*base, "--focal-stack", "30:40:3", "-o", str(tmp_path / "bad")])
+    assert res.exit_code == 2, res.output
+    err = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert len(err) == 1 and "--focal-stack" in err[0] and "(|slope| <= 17.9 here)" in err[0], res.output
+    assert not (tmp_path / "bad").exists()
+    res = CliRunner().invoke(cli, [*base, "--focal-stack", "-2:2:3", "-o", str(tmp_path / "ok")])
+    assert res.exit_code == 0, res.output
+    assert len(list((tmp_path / "ok" / "scene" / "focal_stack").glob("*.png"))) >= 3
+
+
+def test_cli_a_synthetic_raytrix_raw_beside_a_lytro_one_leaves_out_only_its_views(tmp_path):
+    """The sample raws: a synthetic Raytrix raw beside the Illum sample, --outputs photo,centre: the Raytrix raw is
+    done with its total focus, 'centre' left out on its row; alone, 'centre' is refused before any work."""
+    from plenodecode import synthetic
+    from tests.cli.test_total_focus import COLOUR_RAYTRIX
+
+    root = Path(__file__).resolve().parents[1]
+    synthetic.write_simulation(synthetic.simulate(COLOUR_RAYTRIX, seed=2, shape=(210, 300), noise=False),
+                               tmp_path / "rx", name="rtx")
+    illum = root / "sample_raws" / "illum-mini" / "scene.lfr"
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["batch", str(tmp_path / "rx"), str(illum), "-o", str(out), "--outputs",
+                                   "photo,centre", "--database", str(root / "calib"), "--jobs", "1"])
+    assert res.exit_code == 1, res.output
+    row = [line for line in res.output.splitlines() if line.startswith("rtx.png")]
+    assert len(row) == 1 and " done " in row[0] and "1 output; centre: not for a focused-plenoptic" in row[0], row
+    assert [p.name for p in (out / "rtx").glob("*.png")] == ["total_focus.png"]
+    assert sorted(p.name for p in (out / "scene").glob("*.png")) == ["centre.png", "refocus_s+0.00.png"]
+    res = CliRunner().invoke(cli, ["batch", str(tmp_path / "rx"), "-o", str(tmp_path / "none"), "--outputs",
+                                   "photo,centre"])
+    assert res.exit_code == 2 and "Invalid value for --outputs: centre: no raw here can serve it" in res.output
+    assert not (tmp_path / "none").exists()

@@ -40,14 +40,15 @@ def _latency_note(summary) -> str:
 
 
 def _echo_table(summary) -> None:
-    """The summary table: one line per raw (its error when it failed)."""
+    """The summary table: one line per raw (its error when it failed; the outputs it left out)."""
     from ..report.batch import display_names
 
     names = display_names([r.source for r in summary.results])
     width = max([len("raw"), *map(len, names)])
     click.echo(f"{'raw':{width}s}  {'status':8s} {'seconds':>8s}  detail")
     for name, r in zip(names, summary.results):
-        detail = r.error if r.error else f"{len(r.outputs)} output{'s' * (len(r.outputs) != 1)}"
+        detail = r.error if r.error else "; ".join((f"{len(r.outputs)} output{'s' * (len(r.outputs) != 1)}",
+                                                    *r.left_out))
         click.echo(f"{name:{width}s}  {r.status:8s} {r.seconds:8.1f}  {detail}")
 
 
@@ -192,8 +193,9 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
       plenodecode batch shoot/ -o decoded/ --outputs centre,refocus,depth --jobs 2
       plenodecode batch shoot/ -o decoded/ --scheduler tcp://10.0.0.5:8786
     """
-    from ..batch import (DONE_MARKER, BatchOptions, check_outputs_to_replace, check_slope_for_any,
-                         check_summary_files, find_raws, run_batch, write_summary)
+    from ..batch import (DONE_MARKER, BatchOptions, check_outputs_for_any, check_outputs_to_replace,
+                         check_slope_for_any, check_stack_for_any, check_summary_files, find_raws, run_batch,
+                         write_summary)
     from ..io.discovery import images_not_taken, needs_no_database
     from ..calib.store import DEFAULT_DB
 
@@ -264,6 +266,11 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
     except ValueError as exc:
         hint = "--alpha" if alpha is not None else "--focus-distance" if focus_distance is not None else "--slope"
         raise click.BadParameter(str(exc), param_hint=hint) from None
+    for check, hint in ((check_outputs_for_any, "--outputs"), (check_stack_for_any, "--focal-stack")):
+        try:    # an output no raw can serve, a focal stack past every raw's picture: refused before decoding
+            check(files, options)
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint=hint) from None
     try:
         summary = run_batch(files, out_dir, options, jobs=jobs, scheduler=scheduler, overwrite=overwrite,
                             progress=progress_bar(f"decoding {len(files)} raw{'s' * (len(files) != 1)}", ctx))
@@ -279,10 +286,15 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
     quiet = bool((ctx.obj or {}).get("quiet"))
     if not quiet:
         _echo_table(summary)
+        partial = f" ({len(summary.partial)} leaving out outputs)" if summary.partial else ""
         click.echo(f"{summary.count('done')} done, {summary.count('skipped')} skipped, "
-                   f"{summary.count('failed')} failed in {summary.seconds:.1f} s{_latency_note(summary)}; "
+                   f"{summary.count('failed')} failed{partial} in {summary.seconds:.1f} s{_latency_note(summary)}; "
                    f"summary: {js}; index: {index}")
     n_failed = summary.count("failed")
     if n_failed:
         click.echo(f"error: {n_failed} of {len(summary.results)} raws failed; see {index}", err=True)
+    if summary.partial:         # outputs asked for and not written: the run did not give all it was asked for
+        click.echo(f"error: {len(summary.partial)} of {len(summary.results)} raws left out outputs they cannot "
+                   f"serve (said on their rows); see {index}", err=True)
+    if n_failed or summary.partial:
         ctx.exit(1)

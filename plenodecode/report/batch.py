@@ -28,6 +28,8 @@ figure{margin:0;text-align:center;font-size:.8em}
 figure img{display:block;width:160px;height:auto;background:#eee;border:1px solid #ccc}
 figure img.legend{width:240px}
 figcaption{margin-top:2px;word-break:break-all}
+.files{font-size:.85em;margin-top:6px;word-break:break-all}
+.left{color:#850;font-size:.85em;margin-top:6px;max-width:520px}
 .err{color:#a00;font-family:ui-monospace,monospace;font-size:.85em;white-space:pre-wrap;max-width:520px}
 table{border-collapse:collapse;margin-top:1.2em;font-size:.85em}
 td,th{border:1px solid #ddd;padding:3px 8px;text-align:left}
@@ -43,20 +45,23 @@ def _rel(path: str, base: Path) -> str:
 def _card(r: Any, base: Path, shown: str) -> str:
     name = html.escape(shown)
     meta = f"{html.escape(r.status)} &middot; {r.seconds:.1f} s"
-    figs = []
+    figs, files = [], []
     thumbs = tuple(r.thumbnails) + (None,) * max(0, len(r.outputs) - len(r.thumbnails))
     for out, thumb in zip(r.outputs, thumbs):
-        label = html.escape(Path(out).name)
-        if thumb and Path(thumb).is_file():
-            # depth thumbnails carry a colour bar with its unit: shown larger so the text stays legible
-            wide = ' class="legend"' if Path(out).suffix.lower() == ".pfm" else ""
-            img = f'<img{wide} alt="{label}" src="{_rel(thumb, base)}">'
-        else:
-            img = ""
+        label = html.escape(Path(out).name + ("/" if Path(out).is_dir() else ""))
+        if not (thumb and Path(thumb).is_file()):
+            # outputs with no picture of their own (parallax frames, a point cloud): file links under the pictures
+            files.append(f'<a href="{_rel(out, base)}">{label}</a>')
+            continue
+        # depth thumbnails carry a colour bar with its unit: shown larger so the text stays legible
+        wide = ' class="legend"' if Path(out).suffix.lower() == ".pfm" else ""
+        img = f'<img{wide} alt="{label}" src="{_rel(thumb, base)}">'
         figs.append(f'<figure><a href="{_rel(out, base)}">{img}</a><figcaption>{label}</figcaption></figure>')
+    more = f'<div class="files">also: {" &middot; ".join(files)}</div>' if files else ""
     err = f'<div class="err">{html.escape(r.error)}</div>' if r.error else ""
+    err += "".join(f'<div class="left">left out: {html.escape(note)}</div>' for note in getattr(r, "left_out", ()))
     return (f'<div class="card {html.escape(r.status)}"><div class="name" title="{html.escape(r.source)}">{name}</div>'
-            f'<div class="meta">{meta}</div><div class="thumbs">{"".join(figs)}</div>{err}</div>')
+            f'<div class="meta">{meta}</div><div class="thumbs">{"".join(figs)}</div>{more}{err}</div>')
 
 
 def display_names(files: Sequence[str | os.PathLike]) -> list[str]:
@@ -97,9 +102,12 @@ def render_batch_index(summary: Any, base: str | os.PathLike = ".") -> str:
     rows = "".join(f"<tr><td>{html.escape(n)}</td><td class='err'>{html.escape(r.error or '')}"
                    f"</td></tr>" for r, n in failed)
     table = (f"<h2>Failures</h2><table><tr><th>raw</th><th>error</th></tr>{rows}</table>" if failed else "")
+    n_partial = len(getattr(summary, "partial", ()))
+    partial = (f'; <b>{n_partial}</b> left out outputs {"it" if n_partial == 1 else "they"} cannot serve'
+               if n_partial else "")
     head = (f'<div class="sum"><b>{len(summary.results)}</b> raws: <b>{summary.count("done")}</b> decoded, '
             f'<b>{summary.count("skipped")}</b> skipped (already done), <b>{summary.count("failed")}</b> failed, '
-            f'in {summary.seconds:.1f} s</div>')
+            f'in {summary.seconds:.1f} s{partial}</div>')
     return ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
             f"<meta name='generator' content='{GENERATOR}'>"
             "<meta name='viewport' content='width=device-width, initial-scale=1'>"

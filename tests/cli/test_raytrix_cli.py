@@ -459,22 +459,44 @@ def test_the_one_liner_on_the_r42_points_to_its_virtual_depth_not_to_the_refused
     assert decoded == []
 
 
-def test_batch_refuses_a_focused_raws_view_outputs_unless_asked(tmp_path):
+def test_batch_leaves_out_a_focused_raws_view_outputs_unless_asked(tmp_path):
     """'batch --outputs centre,photo,depth' over the real R42 wrote its centre view as a 31 x 22 px thumbnail
-    (the commands refuse such views). The R42 now fails in one line, before decoding, naming the outputs and
-    what to ask for instead, while the Illum sample beside it is done; with --views-anyway the old outputs."""
+    (the commands refuse such views); then the R42 failed whole, though its photo (total focus) and depth (virtual
+    depth) can be written.  It is now done with those two, the centre view left out and said on its row, in
+    summary.json and on the index page; the exit status and the last line still say something was left out.  With
+    only focused raws no raw can serve 'centre': refused in one line before any work.  --views-anyway: as before."""
+    import json
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[2]
     r42, illum = shared_path("raytrix-r42", "sc2_klein.png"), root / "sample_raws" / "illum-mini" / "scene.lfr"
     base = ["batch", r42, illum, "--outputs", "centre,photo,depth", "--database", root / "calib", "--jobs", 1]
-    res = run(*base, "-o", tmp_path / "out")
+    out = tmp_path / "out"
+    res = run(*base, "-o", out)
     assert res.exit_code == 1, res.output
     row = [line for line in res.output.splitlines() if line.startswith("sc2_klein.png")]
-    assert len(row) == 1 and " failed " in row[0] and "--outputs centre would cut its views" in row[0], res.output
-    assert "--views-anyway" in row[0] and "Traceback" not in res.output
-    assert not (tmp_path / "out" / "sc2_klein").exists()
-    assert sorted(p.name for p in (tmp_path / "out" / "scene").glob("*.png")) == ["centre.png", "refocus_s+0.00.png"]
+    note = "centre: not for a focused-plenoptic (Raytrix) raw (its views have one pixel per lens; --views-anyway"
+    assert len(row) == 1 and " done " in row[0] and f"2 outputs; {note}" in row[0], res.output
+    assert "2 done, 0 skipped, 0 failed (1 leaving out outputs) in " in res.output, res.output
+    assert "error: 1 of 2 raws left out outputs they cannot serve" in res.output and "Traceback" not in res.output
+    assert sorted(p.name for p in (out / "sc2_klein").iterdir() if p.is_file() and p.name != ".done.json") == [
+        "total_focus.png", "virtual_depth.pfm"]
+    assert read_image(out / "sc2_klein" / "total_focus.png").std() > 0
+    assert sorted(p.name for p in (out / "scene").glob("*.png")) == ["centre.png", "refocus_s+0.00.png"]
+    summary = json.loads((out / "summary.json").read_text())
+    rows = {Path(r["source"]).name: r for r in summary["results"]}
+    assert summary["left_out"] == 1 and rows["scene.lfr"]["left_out"] == []
+    assert rows["sc2_klein.png"]["status"] == "done" and rows["sc2_klein.png"]["left_out"][0].startswith(note)
+    assert [Path(o).name for o in rows["sc2_klein.png"]["outputs"]] == ["total_focus.png", "virtual_depth.pfm"]
+    page = (out / "index.html").read_text()
+    assert "left out: centre: not for a focused-plenoptic" in page and "<b>1</b> left out outputs" in page
+    # the same run again: skipped, still saying what it left out
+    res = run(*base, "-o", out)
+    assert res.exit_code == 1 and "0 done, 2 skipped, 0 failed (1 leaving out outputs)" in res.output, res.output
+    # no raw that can serve 'centre': refused before any work, naming --outputs
+    res = run("batch", r42, "--outputs", "centre,photo", "-o", tmp_path / "none")
+    assert res.exit_code == 2 and "--outputs" in res.output and "no raw here can serve it" in res.output, res.output
+    assert "--views-anyway" in res.output and not (tmp_path / "none").exists()
     res = run(*base, "-o", tmp_path / "anyway", "--views-anyway")
     assert res.exit_code == 0, res.output
     assert read_image(tmp_path / "anyway" / "sc2_klein" / "centre.png").shape[:2] == (22, 31)

@@ -86,3 +86,31 @@ def test_batch_index_renders_in_chromium(tmp_path):
     # every thumbnail is loaded through its relative link and drawn (160 px wide, aspect kept: ~120 rows)
     for prod, c in colours.items():
         assert _count(rgb, c, tol=2) > 0.8 * 160 * 120, prod
+
+
+def test_batch_index_lists_outputs_without_a_picture_as_file_links_under_the_thumbnails(tmp_path):
+    """The parallax frames folder and a point cloud were empty figures (a bare caption beside the pictures).  They are
+    now file links on one 'also:' line under the thumbnails (a folder with a trailing '/'); a raw's left-out outputs
+    are said on its card and in the page's head line."""
+    import re
+
+    from plenodecode.batch import BatchSummary, TaskResult
+    from plenodecode.report.batch import write_batch_index
+
+    out = tmp_path / "out"
+    folder = out / "scene"
+    (folder / "parallax_frames").mkdir(parents=True)
+    gif, ply = folder / "parallax.gif", folder / "depth.ply"
+    gif.write_bytes(b"GIF89a")
+    ply.write_text("ply\n")
+    thumb = _thumbnail(folder / "thumbs" / "parallax.png", (200, 120, 30))
+    r = TaskResult(source=str(tmp_path / "scene.lfr"), status="done", outputs=(str(gif), str(folder /
+                   "parallax_frames"), str(ply)), thumbnails=(str(thumb), None, None), seconds=1.0,
+                   left_out=("centre: not for a focused-plenoptic (Raytrix) raw (...)",))
+    html = write_batch_index(BatchSummary(results=(r,), seconds=1.0), out / "index.html")
+    page = html.read_text()
+    assert page.count("<figure>") == 1 and "<figcaption>parallax.gif</figcaption>" in page
+    assert re.search(r'class="files">also: <a href="scene/parallax_frames">parallax_frames/</a> &middot; '
+                     r'<a href="scene/depth.ply">depth.ply</a></div>', page), page
+    assert "left out: centre: not for a focused-plenoptic" in page and "<b>1</b> left out outputs it" in page
+    assert browser_screenshot(html, tmp_path / "index.png", size=SIZE) == []
