@@ -96,7 +96,7 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
                     progress=progress_bar("decoding", ctx), geometry=geometry)
     encoded = stores_display_encoded(name, lf.colour, depth)
     with usage_errors():
-        out = write_lightfield(lf, output, format=name, bit_depth=depth, overwrite=overwrite, display=encoded,
+        out = write_lightfield(lf, output, format=name, bit_depth=depth, overwrite=overwrite,
                                progress=progress_bar(f"writing {name}", ctx))
     if not quiet(ctx):
         rectified = ", rectified" if lf.geometry.ray_model else ""
