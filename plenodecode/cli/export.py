@@ -88,7 +88,7 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
     \b
     Formats:
       zarr   OUT.zarr   Zarr v3, one chunk per view, float32 (lossless)
-      views  OUT/       input_Cam000.png ... (HCI naming) + lightfield.json
+      views  OUT/       input_Cam000.png ... (HCI naming, v * U + u) + lightfield.json
       mat    OUT.mat    LFToolbox LF (j,i,l,k,c) uint16 with the weight channel
       npy    OUT.npy    float32 array (+ OUT.weight.npy, OUT.json)
       eslf   OUT.png    Stanford ESLF mosaic (+ OUT.json with the view counts)
