@@ -53,6 +53,10 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
             views_anyway: bool, overwrite: bool) -> None:
     """Decode RAW into a 4D light field (V, U, Y, X, C) and write it to OUTPUT.
 
+    --format views writes the light field as a folder of input_Cam000.png ... (the HCI benchmark's naming, index
+    v * U + u) + lightfield.json, which every command loads back; 'plenodecode views' writes pictures for viewing
+    instead (edge gaps filled, view_VV_UU.png).
+
     The lenslet grid comes from --calibration, from --white (calibrated on the fly), from the camera's
     own calibration (Raytrix XML), or from the calibration database (--database, default ./calib) by
     camera serial, zoom and focus; an image mosaic without a sidecar is self-calibrated.  With --geometry the
@@ -96,7 +100,7 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
                     progress=progress_bar("decoding", ctx), geometry=geometry)
     encoded = stores_display_encoded(name, lf.colour, depth)
     with usage_errors():
-        out = write_lightfield(lf, output, format=name, bit_depth=depth, overwrite=overwrite, display=encoded,
+        out = write_lightfield(lf, output, format=name, bit_depth=depth, overwrite=overwrite,
                                progress=progress_bar(f"writing {name}", ctx))
     if not quiet(ctx):
         rectified = ", rectified" if lf.geometry.ray_model else ""

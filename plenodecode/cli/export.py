@@ -88,7 +88,7 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
     \b
     Formats:
       zarr   OUT.zarr   Zarr v3, one chunk per view, float32 (lossless)
-      views  OUT/       input_Cam000.png ... (HCI naming) + lightfield.json
+      views  OUT/       input_Cam000.png ... (HCI naming, v * U + u) + lightfield.json
       mat    OUT.mat    LFToolbox LF (j,i,l,k,c) uint16 with the weight channel
       npy    OUT.npy    float32 array (+ OUT.weight.npy, OUT.json)
       eslf   OUT.png    Stanford ESLF mosaic (+ OUT.json with the view counts)
@@ -119,19 +119,18 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
         raise click.BadParameter(f"{lf_in.name} is sRGB-encoded already (colour 'srgb'); leave --srgb out",
                                  param_hint="--srgb")
     encoded = page is None and stores_display_encoded(name, lf.colour, int(bit_depth))
-    srgb = srgb or encoded
     try:
         if page is not None:
             out = PAGE_FORMATS[page](lf, output, overwrite=overwrite, progress=progress_bar(f"writing {page}", ctx))
         else:
             out = save_lightfield(lf, output, format=name, bit_depth=int(bit_depth), overwrite=overwrite,
-                                  progress=progress_bar(f"writing {name}", ctx), encode_srgb=srgb,
+                                  progress=progress_bar(f"writing {name}", ctx), encode_srgb=True if srgb else None,
                                   image_ext=f".{image_type}" if image_type else None)
     except FileExistsError as exc:
         raise click.UsageError(f"{exc}; pass --overwrite") from exc
     except ValueError as exc:
         raise click.UsageError(str(exc)) from exc
     if not (ctx.obj or {}).get("quiet"):
-        colour = "srgb" if srgb or page is not None else lf.colour
+        colour = "srgb" if srgb or encoded or page is not None else lf.colour
         click.echo(f"wrote {out} ({name}: {lightfield_summary(lf.shape, colour)})"
                    f"{encoded_note(name) if encoded else ''}" + empty_views_note(lf, name))

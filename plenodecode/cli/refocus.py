@@ -168,7 +168,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
         point = focus_point(focus_at, src.lightfield.shape)
         with usage_errors(param_hint=focus_hint(alpha=alpha, focus_distance=focus_distance, focus_at=focus_at)):
             photo = render_product(src, "refocus", slope=slope, alpha=alpha, focus_distance=focus_distance,
-                                   focus_at=point, at_method="sharpness" if no_depth else "depth", method=method,
+                                   focus_at=point, focus_at_method="sharpness" if no_depth else "depth",
+                                   method=method,
                                    aperture=aperture, upsample=upsample,
                                    progress=progress_bar("depth at --focus-at (fast)", ctx))
         with usage_errors():

@@ -39,6 +39,10 @@ def command(ctx: click.Context, input_path: Path, output: Path, view: tuple[floa
     """Write the sub-aperture views of RAW_OR_LF into the folder OUTPUT (view_VV_UU.png),
     or with --view V U the perspective view at that position into the file OUTPUT.
 
+    These are pictures (edge gaps filled, empty corner views black), named by position; they do not load back.  A
+    light field saved as a views folder, which does, is 'plenodecode decode RAW -o DIR --format views'
+    (input_Cam000.png ..., the HCI naming, + lightfield.json).
+
     A focused-plenoptic (Raytrix) raw is refused (exit 2) unless --views-anyway: its views have one pixel per lens.
 
     \b

@@ -35,7 +35,8 @@ Metadata schema (the document every format stores), ``version`` :data:`FORMAT_VE
   still load with the same geometry.
 
 Integer formats clip to [0, 1].  ``encode_srgb=True`` applies the sRGB transfer function
-before quantising and records the colour state 'srgb'.  Every output is written under a
+before quantising and records the colour state 'srgb'; by default 8-bit views and ESLF of a linear
+light field are encoded so (:func:`stores_display_encoded`), by every front end alike.  Every output is written under a
 temporary name in the destination folder and renamed; nothing is replaced without
 ``overwrite=True``.
 """
@@ -54,7 +55,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from ..errors import FormatError, MetadataError
-from ..types import LightField, LightFieldGeometry
+from ..types import LINEAR_COLOUR_STATES, LightField, LightFieldGeometry
 from .atomic import atomic_output, atomic_outputs, refuse_existing
 from .generic import json_safe
 from .images import quantise, read_image, srgb_encode, to_unit_float, write_image
@@ -104,6 +105,18 @@ def _check_version(doc: Mapping[str, Any], src: Path) -> None:
     if int(doc.get("version", 0) or 0) > FORMAT_VERSION:
         raise FormatError(f"{src}: light-field format version {doc.get('version')} is newer than this plenodecode "
                           f"reads ({FORMAT_VERSION}); upgrade plenodecode")
+
+
+#: Light-field formats stored as image files (a views folder, an ESLF mosaic): at 8 bits they are sRGB-encoded.
+IMAGE_LIGHTFIELD_FORMATS = ("views", "eslf")
+
+
+def stores_display_encoded(format: str, colour: str, bit_depth: int) -> bool:
+    """Whether a light field of colour state ``colour`` saved as ``format`` at ``bit_depth`` is sRGB-encoded by
+    default (:func:`save_lightfield`, every front end): the 8-bit image formats (views, eslf) of a linear one are,
+    as every photograph is (8-bit linear views look dark and keep 1/255 steps in the shadows); the data then load
+    back as colour 'srgb'.  Every other format and depth stores linear light."""
+    return format in IMAGE_LIGHTFIELD_FORMATS and int(bit_depth) == 8 and colour in LINEAR_COLOUR_STATES
 
 
 def _encoded(lf: LightField, encode_srgb: bool) -> LightField:
@@ -541,7 +554,7 @@ def _check_depth(name: str, path: Path, bit_depth: int, image_ext: str | None) -
 
 
 def save_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | None = None, bit_depth: int = 16,
-                    overwrite: bool = False, progress: Progress = None, encode_srgb: bool = False,
+                    overwrite: bool = False, progress: Progress = None, encode_srgb: bool | None = None,
                     image_ext: str | None = None) -> Path:
     """Write a light field in one of :data:`LIGHTFIELD_FORMATS` (see the module docstring).
 
@@ -560,8 +573,10 @@ def save_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | No
         Replace an existing output (otherwise :class:`FileExistsError`).
     progress : callable(done, total), optional
         Called after each view (zarr, views) or once at the end.
-    encode_srgb : bool
-        Apply the sRGB transfer function first (display export); the saved colour state is 'srgb'.
+    encode_srgb : bool, optional
+        Apply the sRGB transfer function first (display export); the saved colour state is 'srgb'.  Default
+        (None): :func:`stores_display_encoded`, so 8-bit views and ESLF of a linear light field are encoded, as
+        the CLI writes them; False keeps linear light.
     image_ext : str, optional
         Image type of the ``views`` format: '.png', '.tif' or '.exr' (default by bit depth).
 
@@ -581,6 +596,8 @@ def save_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | No
         raise ValueError(f"image_ext must be '.png', '.tif' or '.exr', got {image_ext!r}")
     _check_depth(name, p, bit_depth, image_ext)
     refuse_foreign_folder(p)
+    if encode_srgb is None:
+        encode_srgb = stores_display_encoded(name, lf.colour, bit_depth)
     lf = _encoded(lf, encode_srgb)
     outputs = [p]
     if name == "npy":

@@ -26,16 +26,12 @@ def display_encoding(colour: str, bit_depth: int) -> bool:
     return colour in LINEAR_COLOURS and int(bit_depth) != 32
 
 
-#: Light-field formats stored as image files (a views folder, an ESLF mosaic): at 8 bits they are sRGB-encoded.
-IMAGE_LIGHTFIELD_FORMATS = ("views", "eslf")
-
-
 def stores_display_encoded(format: str, colour: str, bit_depth: int) -> bool:
-    """Whether a light field of colour state ``colour`` saved as ``format`` at ``bit_depth`` is sRGB-encoded: the
-    8-bit image formats (views, eslf) of a linear one are, as 'views' and every photograph are (8-bit linear views
-    look dark and keep 1/255 steps in the shadows); the data then load back as colour 'srgb'.  Every other format
-    and depth stores linear light."""
-    return format in IMAGE_LIGHTFIELD_FORMATS and int(bit_depth) == 8 and colour in LINEAR_COLOURS
+    """Whether a light field saved as ``format`` at ``bit_depth`` is sRGB-encoded: the rule
+    :func:`plenodecode.io.lightfield.save_lightfield` applies by default (8-bit views and ESLF of linear light)."""
+    from ..io.lightfield import stores_display_encoded as rule
+
+    return rule(format, colour, bit_depth)
 
 
 def default_extension(bit_depth: int) -> str:
@@ -294,13 +290,15 @@ def write_depth(rendered: Rendered, pfm_path: str | os.PathLike, *, ply: str | o
 
 
 def write_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | None = None, bit_depth: int = 16,
-                     display: bool = False, overwrite: bool = False, progress: Progress = None) -> Path:
+                     display: bool | None = None, overwrite: bool = False, progress: Progress = None) -> Path:
     """Save a light field (:func:`plenodecode.io.lightfield.save_lightfield`, atomic).
 
     ``display=True`` applies :func:`display_encoding` (for image formats meant for viewing, e.g. the views of a
-    batch); otherwise the data are stored as they are (linear).
+    batch), False stores the data as they are (linear); the default is save_lightfield's,
+    :func:`stores_display_encoded` (8-bit views and ESLF encoded).
     """
     from ..io.lightfield import save_lightfield
 
+    encode = None if display is None else display and display_encoding(lf.colour, bit_depth)
     return Path(save_lightfield(lf, path, format=format, bit_depth=int(bit_depth), overwrite=overwrite,
-                                progress=progress, encode_srgb=display and display_encoding(lf.colour, bit_depth)))
+                                progress=progress, encode_srgb=encode))

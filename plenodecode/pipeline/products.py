@@ -142,25 +142,27 @@ def _focus_point(focus_at: Any, shape: Sequence[int]) -> tuple[float, float]:
 
 def render_refocus(src: Source, *, slope: float | None = None, alpha: float | None = None,
                    focus_at: tuple[float, float] | None = None, focus_distance: float | None = None,
-                   at_method: str = "depth", method: str = "shift-sum", aperture: float = 1.0, upsample: int = 1,
-                   progress: Progress = None) -> Rendered:
+                   focus_at_method: str = "depth", method: str = "shift-sum", aperture: float = 1.0,
+                   upsample: int = 1, progress: Progress = None) -> Rendered:
     """One photograph focused by one of ``slope``, ``alpha``, ``focus_at``, ``focus_distance`` (metres)
     (:func:`~plenodecode.render.refocus_methods.focus_slope`); outside
     :func:`~plenodecode.render.alpha.refocus_range_units` it is still rendered, with a one-line warning
     (ValueError, without it, beyond :func:`~plenodecode.render._common.check_slope_reach`).
 
     ``focus_at = (x, y)``: column then row, in samples of the centre view, the order of ``--focus-at X,Y`` (not
-    the (row, column) of :func:`plenodecode.refocus`'s ``at``).  ``progress``: of the depth map a point is focused
+    the (row, column) of :func:`plenodecode.refocus`'s ``at``); ``focus_at_method`` how the slope there is found:
+    'depth' (the depth map) or 'sharpness' (``--no-depth``).  ``progress``: of the depth map a point is focused
     by (seconds on a large light field).  ``data``: 'slope' (chosen), 'alpha', 'focus_distance', 'method',
     'aperture', 'range'."""
     from ..render import refocus, refocus_range_units
     from ..render._common import check_slope_reach
-    from ..render.refocus_methods import focus_slope
+    from ..render.refocus_methods import FOCUS_AT_METHODS, focus_slope
 
+    lookup(FOCUS_AT_METHODS, focus_at_method, param="focus_at_method")
     lf = src.lightfield
     at = _focus_point(focus_at, lf.shape) if _one_focus(slope, alpha, focus_at, focus_distance) == "focus_at" else None
-    chosen = focus_slope(lf, slope=slope, alpha=alpha, at=at, distance_m=focus_distance, at_method=at_method,
-                         progress=progress)
+    chosen = focus_slope(lf, slope=slope, alpha=alpha, at=at, distance_m=focus_distance,
+                         at_method=focus_at_method, progress=progress)
     check_slope_reach(lf, chosen)       # a slope refused is refused without the out-of-range warning first
     span = refocus_range_units(lf)
     if not span.contains(chosen):
@@ -617,8 +619,9 @@ PRODUCTS: dict[str, Callable[..., Rendered]] = {
 
 
 #: Keywords of the products renamed to their CLI option's name -> the new name (still accepted, with a
-#: DeprecationWarning, by :func:`render_product`); ``at`` was (row, column), ``focus_at`` is (x, y).
-RENAMED_OPTIONS = {"distance_m": "focus_distance", "at": "focus_at"}
+#: DeprecationWarning, by :func:`render_product`); ``at`` was (row, column), ``focus_at`` is (x, y); ``at_method``
+#: (``--no-depth``: 'sharpness') is the method of ``focus_at``.
+RENAMED_OPTIONS = {"distance_m": "focus_distance", "at": "focus_at", "at_method": "focus_at_method"}
 _CONVERT_OPTIONS = {"at": (lambda rc: (rc[1], rc[0]), "(x, y), the column first as --focus-at X,Y")}
 
 

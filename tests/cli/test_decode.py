@@ -332,3 +332,49 @@ def test_8_bit_views_are_written_for_viewing_and_16_bit_ones_stay_linear(files, 
     assert res.exit_code == 0 and "an 8-bit ESLF mosaic is sRGB-encoded" in res.output, res.output
     e = load_lightfield(tmp_path / "e.png")
     assert e.colour == "srgb" and np.abs(e.centre_view() - srgb_encode(centre)).max() <= 0.5 / 255 + 1e-3
+
+
+def test_python_save_lightfield_writes_the_8_bit_views_the_cli_writes(tmp_path):
+    """'decode scene.lfr --format views --bit-depth 8' wrote sRGB-encoded views, while pd.save_lightfield(lf, path,
+    bit_depth=8) of the same light field wrote linear ones (median about a third as bright): the encoding was
+    chosen in the CLI.  It is save_lightfield's default now, so both write the same bytes; encode_srgb=False still
+    keeps linear light."""
+    from pathlib import Path
+
+    import plenodecode as pd
+    from plenodecode.io.lightfield import load_lightfield
+
+    folder = Path(__file__).resolve().parents[2] / "sample_raws" / "illum-mini"
+    raw, white = folder / "scene.lfr", folder / "MOD_0000.RAW"
+    res = run(["decode", str(raw), "--white", str(white), "--format", "views", "--bit-depth", "8",
+               "-o", str(tmp_path / "cli_views")])
+    assert res.exit_code == 0, res.output
+    lf = pd.open_source(raw, white=white).lightfield
+    pd.save_lightfield(lf, tmp_path / "py_views", bit_depth=8)
+    cli_files = {p.name: p.read_bytes() for p in (tmp_path / "cli_views").iterdir()}
+    py_files = {p.name: p.read_bytes() for p in (tmp_path / "py_views").iterdir()}
+    assert len(cli_files) > 1 and cli_files == py_files
+    pd.save_lightfield(lf, tmp_path / "linear_views", bit_depth=8, encode_srgb=False)
+    encoded, linear = load_lightfield(tmp_path / "py_views"), load_lightfield(tmp_path / "linear_views")
+    assert encoded.colour == "srgb" and linear.colour == lf.colour
+    assert np.median(encoded.centre_view()) > 1.5 * np.median(linear.centre_view()) > 0
+
+
+def test_views_folder_of_decode_is_a_loadable_light_field_and_views_writes_named_pictures(files, tmp_path):
+    """'decode --format views' names its files input_CamNNN.png and 'views' view_VV_UU.png: two things (a light field
+    that loads back, HCI-named; pictures named by position).  Each command's help now says which it writes."""
+    sim, raw, white, grid = files
+    lf_dir, pics = tmp_path / "lf_views", tmp_path / "pictures"
+    res = run(["decode", str(raw), "-g", str(grid), "-w", str(white), "--format", "views", "-o", str(lf_dir)])
+    assert res.exit_code == 0, res.output
+    names = sorted(p.name for p in lf_dir.iterdir())
+    assert "lightfield.json" in names and "input_Cam000.png" in names
+    assert run(["views", str(lf_dir), "-o", str(pics)]).exit_code == 0       # the folder loads back
+    pictures = sorted(p.name for p in pics.iterdir())
+    assert pictures[0] == "view_00_00.png" and len(pictures) == len([n for n in names if n.startswith("input_Cam")])
+    res = run(["views", str(pics), "-o", str(tmp_path / "again")])            # pictures are not a light field
+    assert res.exit_code != 0 and not (tmp_path / "again").exists()
+    decode_help = " ".join(run(["decode", "--help"]).output.split())
+    views_help = " ".join(run(["views", "--help"]).output.split())
+    assert "input_Cam000.png" in decode_help and "view_VV_UU.png" in decode_help
+    assert "view_VV_UU.png" in views_help and "input_Cam000.png" in views_help and "do not load back" in views_help

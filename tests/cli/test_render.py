@@ -392,3 +392,25 @@ def test_a_slope_past_the_picture_of_a_raw_is_refused_before_decoding_it(tmp_pat
         assert "decoding" not in res.output and not decoded and not out.exists(), (args, res.output)
     res = run("refocus", raw, "--database", root / "calib", "--slope", 1, "-o", tmp_path / "ok.png")
     assert res.exit_code == 0 and decoded == [1], res.output       # a slope in reach is decoded as before
+
+
+def test_no_depth_is_python_focus_at_method_sharpness_and_the_old_at_method_still_works(tmp_path):
+    """'--focus-at 8,6 --no-depth' is render_product(..., focus_at_method='sharpness'), the same image; the keyword
+    was 'at_method', which still works with a DeprecationWarning."""
+    import pytest
+
+    from plenodecode import pipeline
+
+    lf = small_lf(colour="linear-srgb")
+    out = tmp_path / "cli.exr"
+    args = ("refocus", save_npy(tmp_path, lf), "--focus-at", "8,6", "--no-depth", "--bit-depth", 32, "-o", out)
+    assert run(*args).exit_code == 0
+    src = pipeline.Source(lightfield=lf)
+    py = pipeline.render_product(src, "refocus", focus_at=(8, 6), focus_at_method="sharpness")
+    (_, image), = py.images
+    np.testing.assert_allclose(image, read_image(out), atol=1e-6)
+    with pytest.warns(DeprecationWarning, match=r"render_product\(at_method=\) is deprecated: pass focus_at_method="):
+        old = pipeline.render_product(src, "refocus", focus_at=(8, 6), at_method="sharpness")
+    assert old.data["slope"] == py.data["slope"]
+    with pytest.raises(ValueError, match="focus_at_method"):
+        pipeline.render_product(src, "refocus", focus_at=(8, 6), focus_at_method="guess")
