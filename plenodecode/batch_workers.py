@@ -98,7 +98,8 @@ def start_pool(jobs: int, outputs: Sequence[str]) -> tuple[ProcessPoolExecutor, 
 
     threads = max(1, (os.cpu_count() or 1) // jobs)
     # a kernel group the workers compile is said once, here (the CLI: one line on stderr), not once per worker
-    return worker_pool(jobs, threads, preload=preload_modules(outputs), compile_notices=_numba.announce), threads
+    return worker_pool(jobs, threads, preload=preload_modules(outputs), compile_notices=_numba.announce,
+                       log_level=logging.getLogger().getEffectiveLevel()), threads
 
 
 def run_pool(pool: ProcessPoolExecutor, tasks: list[tuple[Path, str]], task: Task, lost: Lost,

@@ -7,6 +7,9 @@ raise :class:`ValueError` naming the parameter.
 
 from __future__ import annotations
 
+#: How the command line shows a log line (warnings and notes on stderr), in the command and in its batch workers.
+LOG_FORMAT = "%(levelname)s %(name)s: %(message)s"
+
 
 class PlenodecodeError(Exception):
     """Base class of every data error raised by plenodecode."""
@@ -75,5 +78,6 @@ def one_line(exc: BaseException) -> str:
     return text.splitlines()[0] if text else type(exc).__name__
 
 
-__all__ = ["PlenodecodeError", "FormatError", "MetadataError", "CalibrationError", "GeometryMismatchError",
-           "MissingConstantsError", "DecodeError", "DarkFrameMismatchError", "LevelOptionError", "one_line"]
+__all__ = ["LOG_FORMAT", "PlenodecodeError", "FormatError", "MetadataError", "CalibrationError",
+           "GeometryMismatchError", "MissingConstantsError", "DecodeError", "DarkFrameMismatchError",
+           "LevelOptionError", "one_line"]

@@ -140,11 +140,11 @@ class _CappedPool(ProcessPoolExecutor):
     """
 
     def __init__(self, jobs: int, threads: int, context: multiprocessing.context.BaseContext,
-                 compile_notices: Callable[[str], None] | None = None) -> None:
+                 compile_notices: Callable[[str], None] | None = None, log_level: int | None = None) -> None:
         # a SimpleQueue writes to its pipe at once: a worker leaves without flushing a feeder thread
         self._notices = None if compile_notices is None else context.SimpleQueue()
         super().__init__(max_workers=jobs, mp_context=context, initializer=_start_worker,
-                         initargs=(threads, self._notices))
+                         initargs=(threads, self._notices, log_level))
         self._thread_env = _capped_environment(threads)
         self._relay = None
         if compile_notices is not None:
@@ -167,7 +167,8 @@ class _CappedPool(ProcessPoolExecutor):
 
 
 def worker_pool(jobs: int, threads: int, *, preload: Iterable[str] = (),
-                compile_notices: Callable[[str], None] | None = None) -> ProcessPoolExecutor:
+                compile_notices: Callable[[str], None] | None = None,
+                log_level: int | None = None) -> ProcessPoolExecutor:
     """``jobs`` worker processes, each with its numba, OpenCV and BLAS pools capped at ``threads``.
 
     Where the platform has a fork server (Linux, macOS), the workers are forked from it: the server is
@@ -188,14 +189,24 @@ def worker_pool(jobs: int, threads: int, *, preload: Iterable[str] = (),
         Called in this process (from a thread) with each numba kernel group a worker starts compiling
         (:func:`plenodecode._numba.relay_compile_notices`), e.g. :func:`plenodecode._numba.announce`: said once
         for the pool, not once per worker; without it each worker logs its own.
+    log_level : int, optional
+        The workers' logging level and the command's line format (``-q``: errors only); without it a worker, which
+        starts with no logging set up, prints its warnings bare, whatever the command's level.
     """
     context = _fork_server_context(threads, tuple(preload)) or multiprocessing.get_context("spawn")
-    return _CappedPool(jobs, threads, context, compile_notices)
+    return _CappedPool(jobs, threads, context, compile_notices, log_level)
 
 
-def _start_worker(threads: int, notices: Any) -> None:
-    """A pool worker's initializer: :func:`limit_threads`; relay compile notices to ``notices`` (a queue)."""
+def _start_worker(threads: int, notices: Any, log_level: int | None = None) -> None:
+    """A pool worker's initializer: :func:`limit_threads`; relay compile notices to ``notices`` (a queue); log at
+    ``log_level`` in the command's format."""
     limit_threads(threads)
+    if log_level is not None:
+        import logging
+
+        from .errors import LOG_FORMAT
+
+        logging.basicConfig(level=log_level, format=LOG_FORMAT, force=True)
     if notices is not None:
         from . import _numba
 

@@ -1282,3 +1282,24 @@ def test_cli_a_synthetic_raytrix_raw_beside_a_lytro_one_leaves_out_only_its_view
                                    "photo,centre"])
     assert res.exit_code == 2 and "Invalid value for --outputs: centre: no raw here can serve it" in res.output
     assert not (tmp_path / "none").exists()
+
+
+def test_cli_quiet_batch_workers_keep_their_warnings(tmp_path):
+    """'plenodecode batch F01_JPEGS -o out --jobs 2 -q' printed every worker's warnings ('IMG_1.jpg: no JSON
+    sidecar ...'): the workers start with no logging set up, and Python's last-resort handler prints warnings whatever
+    the command's level.  They now log at the command's level and in its format: nothing with -q; without it the
+    command's 'WARNING plenodecode.<module>: <raw>: ...' lines."""
+    from tests.conftest import shared_path
+
+    folder = shared_path("lytro-f01-lenslet-jpg")
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    base = [sys.executable, "-m", "plenodecode", "batch", str(folder), "--outputs", "centre", "--jobs", "2"]
+    quiet = subprocess.run([*base, "-o", str(tmp_path / "q"), "-q"], capture_output=True, text=True, env=env,
+                           timeout=600)
+    assert quiet.returncode == 0 and quiet.stderr == "" and quiet.stdout == "", quiet.stderr
+    assert (tmp_path / "q" / "IMG_1" / "centre.png").is_file() and (tmp_path / "q" / "IMG_2" / "centre.png").is_file()
+    loud = subprocess.run([*base, "-o", str(tmp_path / "l")], capture_output=True, text=True, env=env, timeout=600)
+    warnings = [line for line in loud.stderr.splitlines() if "no JSON sidecar" in line]
+    assert loud.returncode == 0 and len(warnings) == 2, loud.stderr
+    assert all(line.startswith("WARNING plenodecode.io.generic: IMG_") for line in warnings), warnings

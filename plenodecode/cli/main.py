@@ -19,8 +19,8 @@ from pathlib import Path
 import click
 
 from .. import __version__, _numba
-from ..errors import (DarkFrameMismatchError, GeometryMismatchError, LevelOptionError, MissingConstantsError,
-                      PlenodecodeError)
+from ..errors import (LOG_FORMAT, DarkFrameMismatchError, GeometryMismatchError, LevelOptionError,
+                      MissingConstantsError, PlenodecodeError)
 
 #: command name -> (module, one-line description shown by --help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -148,7 +148,7 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
     ctx.obj["verbose"] = verbose
     ctx.obj["quiet"] = quiet
     level = logging.ERROR if quiet else (logging.DEBUG if verbose > 1 else logging.INFO if verbose else logging.WARNING)
-    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+    logging.basicConfig(level=level, format=LOG_FORMAT, stream=sys.stderr)
     # a command that meets kernels missing from the cache says so on stderr, one line per group
     _numba.set_compile_notice(None if quiet else lambda message: click.echo(message, err=True))
 
