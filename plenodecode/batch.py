@@ -926,6 +926,19 @@ def _check_focus_reach(src: Any, options: BatchOptions) -> None:
                               ) from None
 
 
+@contextlib.contextmanager
+def _library_log_errors_only():
+    """Within: the library's log holds back all but errors (up-front checks that read raws the tasks read again, so
+    their warnings are not said twice)."""
+    logger = logging.getLogger(__name__.split(".")[0])
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
+
+
 #: What a check of :func:`_first_suiting` says of one raw: (reach, error) refused, None suits, False not applying.
 Refusal = tuple[float, ValueError] | None | bool
 
@@ -944,10 +957,7 @@ def _first_suiting(files: Sequence[str | os.PathLike], options: BatchOptions,
 
     mosaic = options.mosaic_options()
     refused: list[tuple[float, str, ValueError]] = []
-    logger = logging.getLogger(__name__.split(".")[0])
-    level = logger.level
-    logger.setLevel(logging.ERROR)
-    try:
+    with _library_log_errors_only():
         for f in files:
             try:
                 raw = pipeline.open_raw(f, mosaic=mosaic, optics=MicroscopeOptics.from_dict(options.optics))
@@ -963,8 +973,6 @@ def _first_suiting(files: Sequence[str | os.PathLike], options: BatchOptions,
                 return []
             if found is not False:
                 refused.append((found[0], Path(f).name, found[1]))
-    finally:
-        logger.setLevel(level)
     return refused
 
 
@@ -1035,10 +1043,7 @@ def check_outputs_for_any(files: Sequence[str | os.PathLike], options: BatchOpti
 
     mosaic = options.mosaic_options()
     focused = []
-    logger = logging.getLogger(__name__.split(".")[0])
-    level = logger.level
-    logger.setLevel(logging.ERROR)
-    try:
+    with _library_log_errors_only():
         for f in files:
             try:
                 raw = pipeline.open_raw(f, mosaic=mosaic, optics=MicroscopeOptics.from_dict(options.optics))
@@ -1047,8 +1052,6 @@ def check_outputs_for_any(files: Sequence[str | os.PathLike], options: BatchOpti
             if not is_focused_raw(raw):
                 return
             focused.append(Path(f).name)
-    finally:
-        logger.setLevel(level)
     if focused:
         which = focused[0] if len(focused) == 1 else f"all {len(focused)} raws here"
         raise ValueError(f"{','.join(cut)}: no raw here can serve {'it' if len(cut) == 1 else 'them'}: {which} "

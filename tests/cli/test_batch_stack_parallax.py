@@ -100,12 +100,15 @@ def test_batch_refuses_bad_stack_and_parallax_values_naming_the_option(tmp_path,
 
 
 def test_batch_fails_a_raw_whose_view_grid_the_radius_or_stack_does_not_suit(tmp_path):
-    for args, text in ((["--radius", "50"], "--radius 50 does not suit scene.lfr: radius must be within [0, 7]"),
-                       (["--focal-stack", "-100:100:3"], "--focal-stack -100:100:3 does not suit scene.lfr: slope")):
+    """A --radius past the raw's view grid fails that raw (known once decoded); a --focal-stack past every raw's
+    picture is refused before any work (usage error), as --slope is."""
+    for args, code, text in (
+            (["--radius", "50"], 1, "--radius 50 does not suit scene.lfr: radius must be within [0, 7]"),
+            (["--focal-stack", "-100:100:3"], 2, "Invalid value for --focal-stack: slope 100 px/view")):
         out = tmp_path / args[0].strip("-")
         res = CliRunner().invoke(cli, ["batch", str(RAW), "-o", str(out), "--outputs", "focal-stack,parallax", *args,
                                        "-j", "1", *DB])
-        assert res.exit_code == 1 and text in res.output, res.output
+        assert res.exit_code == code and text in res.output, res.output
         assert not (out / "scene").exists()
 
 
