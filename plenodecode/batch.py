@@ -1149,14 +1149,15 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
                                              format=options.format, bit_depth=bits)
             written.append((dest, centre_thumbnail("lightfield")))
         elif product == "views":
-            # image outputs for viewing: --exposure as 'plenodecode views' applies it (one gain, from the centre
-            # view); the 'lightfield' output stays the data as decoded
+            # the pictures 'plenodecode views' writes (view_VV_UU, views outside the micro-images black), with its
+            # --exposure (one gain, from the centre view); the 'lightfield' output is the data as decoded
+            rendered = pipeline.render_product(src, "views")
+            gain = pipeline.exposure_gain(rendered, options.exposure)
+            pipeline.write_product(rendered, folder / "views", bit_depth=bits, exposure=math.log2(gain))
             lf = src.lightfield
-            gain = pipeline.exposure_gain(pipeline.render_product(src, "views"), options.exposure)
             if gain != 1.0:
                 lf = lf.replace(data=pipeline.expose(lf.data, lf.colour, gain))
-            dest = pipeline.write_lightfield(lf, folder / "views", format="views", bit_depth=bits, display=True)
-            written.append((dest, centre_thumbnail("views", lf)))
+            written.append((folder / "views", centre_thumbnail("views", lf)))
         elif product == "focal-stack":
             rendered = pipeline.render_product(src, "focal-stack", **_stack_options(src, options))
             gain = pipeline.exposure_gain(rendered, options.exposure)      # one gain for the stack and thumbnail

@@ -483,8 +483,8 @@ def test_cli_runs_reports_and_exits_1_on_failures(data, tmp_path):
             f"peak {lat['worker_peak_mb']:.0f} MB per worker)") in res.stdout
     assert res.stderr.strip().splitlines()[-1].startswith("error: 3 of 6 raws failed")
     assert (out / "scene1" / "refocus_s+0.25.png").is_file() and (out / "index.html").is_file()
-    views = sorted((out / "scene1" / "views").glob("input_Cam*.png"))
-    assert len(views) == 15 * 15
+    views = sorted((out / "scene1" / "views").glob("view_*.png"))      # the pictures 'plenodecode views' writes
+    assert len(views) == 15 * 15 and views[0].name == "view_00_00.png"
     from plenodecode.io.images import read_image
     assert read_image(views[0]).dtype == np.uint8 and read_image(out / "scene1" / "centre.png").shape == (17, 22, 3)
     # again, only the good ones: all skipped, exit 0
@@ -1099,9 +1099,9 @@ def test_cli_exposure_brightens_the_views_folder_as_the_views_command_does(tmp_p
         out = tmp_path / exposure / "light_field"
         res = CliRunner().invoke(cli, base + ["-o", str(out.parent), "--exposure", exposure])
         assert res.exit_code == 0, res.output
-        views = json.loads((out / "views" / "lightfield.json").read_text())
-        v, u = (n // 2 for n in views["shape"][:2])
-        centre_view = out / "views" / f"input_Cam{v * views['shape'][1] + u:03d}.png"
+        names = sorted(p.name for p in (out / "views").glob("view_*.png"))
+        v, u = (int(n) // 2 for n in names[-1][5:-4].split("_"))      # view_VV_UU of the last one: V-1, U-1
+        centre_view = out / "views" / f"view_{v:02d}_{u:02d}.png"
         level[exposure] = [float(np.percentile(srgb_decode(to_unit_float(read_image(p))), 99.5))
                            for p in (centre_view, out / "centre.png", out / "thumbs" / "views.png")]
     assert max(level["0"]) < 0.25 and min(level["auto"]) > 0.9, level

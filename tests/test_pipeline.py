@@ -56,7 +56,7 @@ def commands_and_batch(shoot, out: Path) -> tuple[Path, Path]:
     run("-q", "views", raw, "--database", db, "-o", single / "views")
     run("-q", "depth", raw, "--method", "fast", "--database", db, "-o", single / "disparity.pfm")
     run("-q", "batch", raw, "-o", out / "batch", "--jobs", 1, "--database", db, "--slope", SLOPE,
-        "--outputs", "lightfield,centre,refocus,depth", "--depth-method", "fast")
+        "--outputs", "lightfield,centre,refocus,depth,views", "--depth-method", "fast")
     return single, out / "batch" / raw.stem
 
 
@@ -70,6 +70,10 @@ def test_commands_and_batch_write_the_same_bytes(shoot, tmp_path):
     np.testing.assert_array_equal(lf.data, load_lightfield(batch / "lightfield.zarr").data)
     vc, uc = lf.shape[0] // 2, lf.shape[1] // 2
     assert (single / "views" / f"view_{vc:02d}_{uc:02d}.png").read_bytes() == (batch / "centre.png").read_bytes()
+    # batch's 'views' are the views command's pictures (they were a views light field, input_CamNNN.png)
+    names = sorted(p.name for p in (single / "views").iterdir())
+    assert names == sorted(p.name for p in (batch / "views").iterdir()) and len(names) == lf.shape[0] * lf.shape[1]
+    assert all((single / "views" / n).read_bytes() == (batch / "views" / n).read_bytes() for n in names)
 
 
 def test_float_outputs_are_the_same_bytes_too(shoot, tmp_path):
