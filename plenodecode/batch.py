@@ -926,19 +926,6 @@ def _check_focus_reach(src: Any, options: BatchOptions) -> None:
                               ) from None
 
 
-@contextlib.contextmanager
-def _library_log_errors_only():
-    """Within: the library's log holds back all but errors (up-front checks that read raws the tasks read again, so
-    their warnings are not said twice)."""
-    logger = logging.getLogger(__name__.split(".")[0])
-    level = logger.level
-    logger.setLevel(logging.ERROR)
-    try:
-        yield
-    finally:
-        logger.setLevel(level)
-
-
 #: What a check of :func:`_first_suiting` says of one raw: (reach, error) refused, None suits, False not applying.
 Refusal = tuple[float, ValueError] | None | bool
 
@@ -952,12 +939,13 @@ def _first_suiting(files: Sequence[str | os.PathLike], options: BatchOptions,
     costs a scene's fit; its task checks it.  The library's log is held back to errors meanwhile, so the tasks'
     warnings are not said twice.  Returns the refusals ([] when a raw suits)."""
     from . import pipeline
+    from .pipeline.inputs import quieted
     from .io.generic import is_bare_mosaic
     from .optics import MicroscopeOptics
 
     mosaic = options.mosaic_options()
     refused: list[tuple[float, str, ValueError]] = []
-    with _library_log_errors_only():
+    with quieted(__name__.split(".")[0]):     # the tasks read these raws again and say their warnings
         for f in files:
             try:
                 raw = pipeline.open_raw(f, mosaic=mosaic, optics=MicroscopeOptics.from_dict(options.optics))
@@ -1038,12 +1026,13 @@ def check_outputs_for_any(files: Sequence[str | os.PathLike], options: BatchOpti
     if not cut or options.views_anyway or options.grid is not None:
         return
     from . import pipeline
+    from .pipeline.inputs import quieted
     from .optics import MicroscopeOptics
     from .pipeline.needs import is_focused_raw
 
     mosaic = options.mosaic_options()
     focused = []
-    with _library_log_errors_only():
+    with quieted(__name__.split(".")[0]):     # the tasks read these raws again and say their warnings
         for f in files:
             try:
                 raw = pipeline.open_raw(f, mosaic=mosaic, optics=MicroscopeOptics.from_dict(options.optics))
