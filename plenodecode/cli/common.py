@@ -68,7 +68,6 @@ database_option = click.option("--database", "--white-dir", "database", cls=Data
                                help="Calibration database of raws (white images and fitted grids).")
 
 
-#: ``ctx.meta`` key of the checked :class:`~plenodecode.io.mosaic_levels.MosaicOptions` of a command.
 class OneInputCommand(click.Command):
     """A command that reads one input.  Several files typed (``plenodecode IMG_1.jpg IMG_2.jpg -o x.png``, a
     shell glob) got click's 'Got unexpected extra argument (IMG_2.jpg)'; they now get one line that says the
@@ -97,6 +96,7 @@ class OneInputCommand(click.Command):
         return rest
 
 
+#: ``ctx.meta`` key of the checked :class:`~plenodecode.io.mosaic_levels.MosaicOptions` of a command.
 MOSAIC_META = "plenodecode.mosaic_options"
 
 

@@ -169,8 +169,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
         with usage_errors(param_hint=focus_hint(alpha=alpha, focus_distance=focus_distance, focus_at=focus_at)):
             photo = render_product(src, "refocus", slope=slope, alpha=alpha, focus_distance=focus_distance,
                                    focus_at=point, focus_at_method="sharpness" if no_depth else "depth",
-                                   method=method,
-                                   aperture=aperture, upsample=upsample,
+                                   method=method, aperture=aperture, upsample=upsample,
                                    progress=progress_bar("depth at --focus-at (fast)", ctx))
         with usage_errors():
             write_product(photo, output, bit_depth=bits, overwrite=overwrite, exposure=exposure)

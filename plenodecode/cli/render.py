@@ -120,14 +120,13 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
         photo = render_product(src, "total-focus", patch=patch, progress=progress_bar("rendering", ctx))
     else:
         with usage_errors(param_hint=focus_hint(alpha=alpha, focus_distance=focus_distance, focus_at=focus_at)):
-            # before decoding
-            check_focus_reach(src, "refocus", slope=slope, alpha=alpha, focus_distance=focus_distance)
+            check_focus_reach(src, "refocus", slope=slope, alpha=alpha, focus_distance=focus_distance)  # undecoded
         point = focus_point(focus_at, src.lightfield.shape)
         with usage_errors(param_hint=focus_hint(alpha=alpha, focus_distance=focus_distance, focus_at=focus_at)):
             photo = render_product(src, "refocus", alpha=alpha, slope=slope, focus_distance=focus_distance,
                                    focus_at=point, focus_at_method="sharpness" if no_depth else "depth",
-                                   method=method,
-                                   aperture=aperture, progress=progress_bar("depth at --focus-at (fast)", ctx))
+                                   method=method, aperture=aperture,
+                                   progress=progress_bar("depth at --focus-at (fast)", ctx))
     with usage_errors():
         write_product(photo, output, bit_depth=bits, overwrite=overwrite, exposure=exposure)
     note_if_dark(ctx, photo, exposure)

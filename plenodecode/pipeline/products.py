@@ -245,6 +245,7 @@ def _slopes_as_given(values: Any, lf: LightField) -> Any:
 #: Most slices of one focal stack (a larger count is refused before any work).
 MAX_STACK_SLICES = 512
 
+
 def stack_problem(start: float, stop: float, n: int, units: str = "slope") -> str | None:
     """What is wrong with a focal stack of ``n`` slices from ``start`` to ``stop`` (``units``), as a phrase for the
     caller to name its option or keyword in, or None: N must be 2 to :data:`MAX_STACK_SLICES`, START and STOP
