@@ -53,6 +53,26 @@ def check_focused_options(ctx: click.Context) -> None:
                                      param_hint=opt)
 
 
+def _shown_range(values, confidence, min_confidence: float, percentiles: tuple[float, float], unit: str,
+                 label: str = "") -> str:
+    """'LO .. HI UNIT LABEL' of ``values`` (Y, X) at ``percentiles`` over the pixels the PNG colours (confidence at
+    least ``min_confidence``), then ' where confidence >= 0.1 (all pixels: LO .. HI)' when some are greyed out: the
+    greyed-out ones (a microscope's featureless background) are noise and widened the range past the map's."""
+    import numpy as np
+
+    def span(v) -> str:
+        v = v[np.isfinite(v)]
+        lo, hi = np.percentile(v, percentiles) if v.size else (np.nan, np.nan)
+        return f"{lo:.4g} .. {hi:.4g}"
+
+    v = np.asarray(values, np.float64)
+    shown = np.asarray(confidence) >= np.float32(min_confidence)
+    text = f"{span(v[shown] if min_confidence > 0 else v)}{' ' * bool(unit)}{unit}{label}"
+    if min_confidence <= 0 or shown.all():
+        return text
+    return f"{text} where confidence >= {min_confidence:g} (all pixels: {span(v)})"
+
+
 def _below_note(confidence, min_confidence: float) -> str:
     """' (12 % below 0.1)': the share of pixels the PNG greys out, or '' with --min-confidence 0 (none are)."""
     import numpy as np
@@ -147,8 +167,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
                               min_confidence=min_confidence, overwrite=overwrite)
     if not quiet(ctx) and src.focused:
         v, conf = rendered.data["values"], rendered.data["depthmap"].confidence
-        lo, hi = np.nanpercentile(v, [2, 98]) if np.isfinite(v).any() else (np.nan, np.nan)
-        click.echo(f"focused-plenoptic raw: virtual depth {lo:.2f} .. {hi:.2f} (2nd..98th percentile) on the "
+        click.echo(f"focused-plenoptic raw: virtual depth "
+                   f"{_shown_range(v, conf, min_confidence, (2, 98), '', ' (2nd..98th percentile)')} on the "
                    f"{v.shape[1]} x {v.shape[0]} total-focus grid, mean confidence {float(conf.mean()):.2f}"
                    f"{_below_note(conf, min_confidence)}, "
                    f"{rendered.data['depthmap'].params['seconds']:.1f} s")
@@ -157,13 +177,13 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
     elif not quiet(ctx):
         dm = rendered.data["depthmap"]
         d = dm.disparity
-        click.echo(f"{method}: disparity {float(np.nanmin(d)):.3f} .. {float(np.nanmax(d)):.3f} px/view, "
+        click.echo(f"{method}: disparity {_shown_range(d, dm.confidence, min_confidence, (0, 100), 'px/view')}, "
                    f"mean confidence {float(dm.confidence.mean()):.2f}"
                    f"{_below_note(dm.confidence, min_confidence)}, "
                    f"{dm.params['seconds']:.1f} s")
         if metric:
-            z = rendered.data["values"]
-            lo, hi = np.nanpercentile(z, [2, 98]) if np.isfinite(z).any() else (np.nan, np.nan)
-            click.echo(f"depth {lo:.4g} .. {hi:.4g} {rendered.data['unit']} (2nd..98th percentile)")
+            span = _shown_range(rendered.data["values"], dm.confidence, min_confidence, (2, 98), rendered.data["unit"],
+                                " (2nd..98th percentile)")
+            click.echo(f"depth {span}")
         for p in written:
             click.echo(f"wrote {p}")

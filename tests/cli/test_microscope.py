@@ -8,6 +8,7 @@ and plane depths, and the real LFAnalyze ant-leg capture (radiometry + dark fram
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -211,6 +212,22 @@ def test_antleg_parallax_and_metric_depth(antleg, tmp_path):
     lo, hi = np.nanpercentile(z, [2, 98])
     # an ant leg: a few hundred um of relief at most, tens at least
     assert -200.0 < lo < 0.0 < hi < 400.0 and 30.0 < hi - lo < 500.0
+    # the range the command prints is the one of the pixels its PNG colours (confidence >= 0.1: the leg), not of
+    # the 64 % greyed-out background, whose noise made it 'depth -65.06 .. 243.7 um' against -71 .. 141 um shown
+    from plenodecode.io.depthio import DEFAULT_MIN_CONFIDENCE
+    from plenodecode.io.images import read_image
+
+    conf = np.asarray(read_image(tmp_path / "z_confidence.exr"), np.float64)
+    conf = conf[..., 0] if conf.ndim == 3 else conf
+    shown = z[(conf >= DEFAULT_MIN_CONFIDENCE) & np.isfinite(z)]
+    assert 0.2 < shown.size / z.size < 0.6                                 # measured 36 %
+    found = re.search(r"^depth (\S+) \.\. (\S+) um \(2nd\.\.98th percentile\) where confidence >= 0\.1 "
+                      r"\(all pixels: (\S+) \.\. (\S+)\)$", r.output, flags=re.MULTILINE)
+    assert found, r.output
+    printed = [float(x) for x in found.groups()]
+    np.testing.assert_allclose(printed[:2], np.percentile(shown, [2, 98]), rtol=1e-3, atol=0.01)
+    np.testing.assert_allclose(printed[2:], [lo, hi], rtol=1e-3, atol=0.01)
+    assert printed[1] < 0.7 * hi                                          # measured 141 against 244 um
 
 
 def test_antleg_refocus_by_slope_and_no_focus_distance(antleg, tmp_path):
