@@ -659,17 +659,17 @@ exposure_option = click.option(
          "picture (a views folder's centre view, a stack's middle slice) at full scale.")
 
 
-def note_if_dark(ctx: click.Context, rendered: Any, exposure: float | str) -> None:
-    """After writing a photograph at the default exposure: say on stderr when it is dark (its brightest 0.5 %
-    below :data:`~plenodecode.pipeline.DARK_LEVEL` of full scale, e.g. a dim microscope sample over a bright
-    white frame) and name ``--exposure``."""
+def note_if_dark(ctx: click.Context, rendered: Any, exposure: float | str, what: str = "the picture") -> None:
+    """After writing a photograph (views, parallax frames: ``what`` names the one measured) at the default exposure:
+    say on stderr when it is dark (its brightest 0.5 % below :data:`~plenodecode.pipeline.DARK_LEVEL` of full
+    scale, e.g. a dim microscope sample over a bright white frame) and name ``--exposure``."""
     from ..pipeline import DARK_LEVEL, image_level
 
     if quiet(ctx) or exposure != 0.0:
         return
     level = image_level(rendered)
     if level < DARK_LEVEL:
-        click.echo(f"note: the picture is dark (its brightest 0.5 % reach {100 * level:.0f} % of full scale, in linear "
+        click.echo(f"note: {what} is dark (its brightest 0.5 % reach {100 * level:.0f} % of full scale, in linear "
                    f"light); --exposure auto brightens it to full scale, --exposure 2 by two stops", err=True)
 
 

@@ -8,9 +8,9 @@ import click
 
 from ..pipeline import parallax_frame_names
 from .common import (OneInputCommand, FOCUSED_PHOTO, NON_NEGATIVE, POSITIVE, bit_depth_option, calibration_kwargs,
-                     check_folder_output, check_output, exposure_option, image_bit_depth, input_options, output_option,
-                     overwrite_option, progress_bar, quiet, refuse_focused_views, refuse_writing_over_command_inputs,
-                     usage_errors, views_anyway_option)
+                     check_folder_output, check_output, exposure_option, image_bit_depth, input_options, note_if_dark,
+                     output_option, overwrite_option, progress_bar, quiet, refuse_focused_views,
+                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
 from .views import INTERP_CHOICE
 
 
@@ -71,6 +71,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, n_frames: int, r
     with usage_errors():
         write_parallax(rendered, output, fps=fps, frames_dir=folder, bit_depth=bits, overwrite=overwrite,
                        exposure=exposure)
+    note_if_dark(ctx, rendered, exposure, "the middle frame")
     if not quiet(ctx):
         click.echo(f"wrote {output} ({n_frames} frame{'s' * (n_frames != 1)})"
                    + ("" if folder is None else f" and frames in {folder}"))

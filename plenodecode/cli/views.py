@@ -10,9 +10,9 @@ import click
 from ..imaging import MIN_VIEW_DATA
 from ..pipeline import IMAGE_EXTENSIONS
 from .common import (OneInputCommand, FOCUSED_PHOTO, NON_NEGATIVE, RegistryChoice, bit_depth_option, calibration_kwargs,
-                     check_folder_output, check_output, exposure_option, image_bit_depth, input_options, output_option,
-                     overwrite_option, progress_bar, quiet, refuse_focused_views, refuse_writing_over_command_inputs,
-                     usage_errors, views_anyway_option)
+                     check_folder_output, check_output, exposure_option, image_bit_depth, input_options, note_if_dark,
+                     output_option, overwrite_option, progress_bar, quiet, refuse_focused_views,
+                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
 
 #: Angular interpolation kernels of perspective views, for ``--interp``.
 INTERP_CHOICE = RegistryChoice("plenodecode.render.viewpoints", "PERSPECTIVE_INTERPOLATIONS")
@@ -77,6 +77,7 @@ def command(ctx: click.Context, input_path: Path, output: Path, view: tuple[floa
     with usage_errors():
         written = write_product(rendered, output, bit_depth=bits, ext=ext, overwrite=overwrite, exposure=exposure,
                                 progress=progress_bar("writing views", ctx))
+    note_if_dark(ctx, rendered, exposure, "the view" if view is not None else "the centre view")
     if not quiet(ctx):
         if view is not None:
             click.echo(f"wrote {output} (view {view[0]:g}, {view[1]:g})")

@@ -295,6 +295,29 @@ def test_antleg_dark_photo_is_named_and_auto_exposure_brightens_it(antleg, tmp_p
         assert float(np.percentile(img, 99.5)) > 0.95, written              # 0.47 at the default exposure
 
 
+def test_antleg_dark_views_and_parallax_are_named(antleg, tmp_path):
+    """'plenodecode views' and 'parallax' of the ant leg wrote pictures as dark as the one-liner's photograph (its
+    centre view's brightest 0.5 % at 17 % of full scale) without the note the photograph gets; they now say so on
+    stderr and name --exposure, measured on the view they wrote, and say nothing at --exposure auto."""
+    from plenodecode.io.images import read_image, srgb_decode, to_unit_float
+
+    _, saved, lf = antleg
+    vc, uc = (n // 2 for n in lf.shape[:2])
+    r = CliRunner().invoke(cli, ["views", str(saved), "-o", str(tmp_path / "views")], obj={})
+    assert r.exit_code == 0, r.output
+    found = re.search(r"note: the centre view is dark \(its brightest 0\.5 % reach (\d+) % of full scale, in linear "
+                      r"light\); --exposure auto", r.output)
+    assert found, r.output
+    centre = srgb_decode(to_unit_float(read_image(tmp_path / "views" / f"view_{vc:02d}_{uc:02d}.png")))
+    level = float(np.percentile(centre, 99.5))
+    assert 0.05 < level < 0.25 and int(found.group(1)) == pytest.approx(100 * level, abs=1.0)     # measured 17 %
+    r = CliRunner().invoke(cli, ["views", str(saved), "-o", str(tmp_path / "bright"), "--exposure", "auto"], obj={})
+    assert r.exit_code == 0 and "is dark" not in r.output, r.output
+    r = CliRunner().invoke(cli, ["parallax", str(saved), "-o", str(tmp_path / "p.gif"), "--frames", "4"], obj={})
+    assert r.exit_code == 0 and "note: the middle frame is dark" in r.output and "--exposure auto" in r.output, \
+        r.output
+
+
 def test_dark_frame_of_another_size_is_refused_before_any_work(tmp_path, monkeypatch):
     """'--dark' with a frame of another camera was reported as 'dark image must have the raw's size ...' (no
     option named) after the white image had been calibrated (~1.4 s); it is now a usage error naming --dark,
