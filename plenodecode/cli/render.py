@@ -137,7 +137,8 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
 
             lo, hi = shown_virtual_depth_range(src.calibration.grid)
             how = (f"the camera's total focus; refocus it at a virtual depth V of {lo:g} .. {hi:g} with "
-                   f"'plenodecode refocus {input_path} --virtual-depth V -o photo.png'")
+                   f"'plenodecode refocus {input_path} --virtual-depth V -o "
+                   f"{output.with_name(f'{output.stem}_vV{output.suffix}')}'")
         elif chosen is not None:
             ways = focus_choices(photo.data, ("--refocus", "--slope", "--focus-at", "--focus-distance"))
             how = f"focused as captured: {how}; choose the focus with {ways}"

@@ -4,6 +4,7 @@ refocus at a virtual depth, decode's one-line refusal of a focused raw, batch; a
 
 from __future__ import annotations
 
+import re
 import shutil
 
 import numpy as np
@@ -437,6 +438,14 @@ def test_the_one_liner_on_the_r42_points_to_its_virtual_depth_not_to_the_refused
     assert "--slope" not in line and "--refocus" not in line and "--focus-at" not in line, line
     assert "virtual depth V of 1.07 .. 100" in line and f"'plenodecode refocus {r42} --virtual-depth V" in line
     assert read_image(out).shape == (122, 176, 3)                   # the total focus
+    # the command it suggests, V filled in, runs as given and leaves the photograph alone (it said '-o photo.png',
+    # the file just written: refused without --overwrite, and replaced with it)
+    suggested = re.search(r"'plenodecode (refocus .*)'\)$", line).group(1)
+    suggested = suggested.replace(" V ", " 3.5 ").replace("_vV.", "_v3.5.")
+    before = out.read_bytes()
+    res = run(*suggested.split())
+    assert res.exit_code == 0, res.output
+    assert out.read_bytes() == before and read_image(tmp_path / "photo_v3.5.png").shape == (192, 276, 3)
     # the range it names is the one --virtual-depth accepts: its ends render, past them is refused
     for v, code in ((1.07, 0), (100, 0), (1.06, 2), (100.5, 2)):
         res = run("refocus", r42, "--virtual-depth", v, "-o", tmp_path / f"v{v}.png")
