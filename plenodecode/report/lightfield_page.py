@@ -3,9 +3,10 @@
 ``plenodecode export LF -o page.html --format html`` writes it (:func:`write_lightfield_page`).  The page holds
 
 * a focal stack: ``n_slices`` photographs refocused (:func:`plenodecode.render.focal_stack`, shift-sum) at
-  slopes spanning the scene's disparity range (:func:`stack_slopes`);
-* the disparity map of the centre view (:func:`plenodecode.depth.estimate_depth`), shown colour-mapped and
-  embedded as float32 values;
+  slopes spanning the scene's disparity range (:func:`stack_slopes`; of the confident pixels, below);
+* the disparity map of the centre view (:func:`plenodecode.depth.estimate_depth`), shown colour-mapped (the
+  pixels below :data:`~plenodecode.io.depthio.DEFAULT_MIN_CONFIDENCE` grey, as in the depth PNGs, the colours
+  spanning the others) and embedded as float32 values (all of them: a click reads them);
 * a ``k x k`` subset of the views (:func:`view_subset`);
 
 every image inlined as a ``data:`` URI (8-bit sRGB JPEG; the depth map PNG), and a small hand-written script:
@@ -43,7 +44,8 @@ import numpy as np
 
 from ..errors import MetadataError
 from ..io.atomic import refuse_existing
-from ..io.depthio import DEPTH_CMAP, colour_mapped, colour_range, display_colours
+from ..io.depthio import (DEFAULT_MIN_CONFIDENCE, DEPTH_CMAP, MASK_GREY, colour_mapped, colour_range,
+                          display_colours)
 from ..io.images import quantise
 from ..types import LightField
 from .html import escape, page, write_html
@@ -239,13 +241,19 @@ def lightfield_page_data(lf: LightField, *, n_slices: int = DEFAULT_SLICES, view
     depth = estimate_depth(lf, method=depth_method,
                            progress=None if progress is None else lambda d, t: tick(min(8, 8 * d // max(t, 1))))
     tick(8)
-    slopes = stack_slopes(lf, depth.disparity, int(n_slices))
+    # the pixels below the confidence the depth PNGs grey out (a microscope's featureless background: 64 % of
+    # the ant leg) are grey here too, and neither their noise nor its range sets the colours or the slopes
+    confident = depth.confidence >= np.float32(DEFAULT_MIN_CONFIDENCE)
+    shown = np.where(confident, depth.disparity, np.nan) if confident.any() else depth.disparity
+    slopes = stack_slopes(lf, shown, int(n_slices))
     stack = focal_stack(lf, slopes)
     tick(9)
     vc, uc = lf.centre_index
-    vmin, vmax = colour_range(depth.disparity)
+    vmin, vmax = colour_range(shown)
     disparity = _reduced(depth.disparity, int(max_side), nearest=True)
-    depth_rgb = quantise(colour_mapped(disparity, vmin=vmin, vmax=vmax), 8)
+    rgb = colour_mapped(disparity, vmin=vmin, vmax=vmax)
+    rgb[~_reduced(confident.astype(np.uint8), int(max_side), nearest=True).astype(bool)] = MASK_GREY
+    depth_rgb = quantise(rgb, 8)
     data = {
         "shape": list(lf.shape),
         "slopes": [round(float(s), 5) for s in slopes],
@@ -257,7 +265,8 @@ def lightfield_page_data(lf: LightField, *, n_slices: int = DEFAULT_SLICES, view
                    "src": _photo_uri(lf.data[v, u], lf.colour, max_side, jpeg_quality)} for v, u in subset],
         "depth": {"width": int(disparity.shape[1]), "height": int(disparity.shape[0]), "window": int(depth_window),
                   "values": _float32_base64(disparity), "src": _data_uri(depth_rgb, ".png", 0),
-                  "vmin": float(vmin), "vmax": float(vmax), "cmap": DEPTH_CMAP, "method": depth.method},
+                  "vmin": float(vmin), "vmax": float(vmax), "cmap": DEPTH_CMAP, "method": depth.method,
+                  "min_confidence": DEFAULT_MIN_CONFIDENCE},
     }
     tick(steps)
     return data
@@ -444,9 +453,11 @@ def lightfield_page_html(lf: LightField, *, title: str | None = None, **kw: Any)
         f'another viewpoint ({len(data["views"])} of the {V}&times;{U} views).</p></div>'
         f'<div class="lf-side"><img id="lf-depth" alt="disparity map" src="{depth["src"]}">'
         f'<div class="lf-legend"><span>far&nbsp;{depth["vmin"]:.3f}</span><span>disparity (px/view, '
-        f'{escape(depth["cmap"])}; {escape(depth["method"])})</span><span>{depth["vmax"]:.3f}&nbsp;near</span></div>'
+        f'{escape(depth["cmap"])}; {escape(depth["method"])}; grey: confidence &lt; {depth["min_confidence"]:g})'
+        f'</span><span>{depth["vmax"]:.3f}&nbsp;near</span></div>'
         f'<p class="muted">Slopes {data["slopes"][0]:.3f} to {data["slopes"][-1]:.3f} px per view step in '
-        f'{last + 1} slices; {Y}&times;{X} px, {C} channel(s), colour {escape(lf.colour)}.</p></div></div>'
+        f'{last + 1} slices; {Y}&times;{X} px, '
+        f'{"monochrome" if C == 1 else f"{C} channels, colour {escape(lf.colour)}"}.</p></div></div>'
         f'<script type="application/json" id="lf-data">{_json_for_script(data)}</script>'
         f'<script>{_SCRIPT}</script>'
     )

@@ -341,6 +341,38 @@ def test_antleg_focal_stack_all_in_focus_has_no_bright_edge_column(antleg, tmp_p
         assert float(np.max(img[5:-5, 1] / beside)) < 1.5, name      # 2.74 before, 1.2 now; the slices 1.1
 
 
+def test_antleg_page_greys_the_unconfident_background_and_says_monochrome(antleg, tmp_path):
+    """'export --format html' of the ant leg coloured its whole disparity panel, the featureless background's noise
+    (64 % of the pixels, which 'depth' greys out) included, with a legend and a focal stack spanning that noise
+    (-1.108 .. 0.330 px/view), and called the monochrome light field '1 channel(s), colour camera'.  The panel now
+    greys the pixels below the depth PNGs' confidence, its colours and slopes span the others, and it says
+    'monochrome'."""
+    import base64
+    import json
+
+    import cv2
+
+    from plenodecode.io.depthio import MASK_GREY
+
+    _, saved, _ = antleg
+    out = tmp_path / "page.html"
+    r = CliRunner().invoke(cli, ["export", str(saved), "-o", str(out), "--format", "html"], obj={})
+    assert r.exit_code == 0, r.output
+    html = out.read_text(encoding="utf-8")
+    assert "monochrome" in html and "colour camera" not in html and "channel(s)" not in html
+    data = json.loads(re.search(r'<script type="application/json" id="lf-data">(.*?)</script>', html,
+                                flags=re.DOTALL).group(1))
+    depth = data["depth"]
+    png = base64.b64decode(depth["src"].split(",", 1)[1])
+    rgb = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)[..., ::-1].astype(int)
+    grey = np.all(np.abs(rgb - np.rint(255 * np.array(MASK_GREY))) <= 1, axis=-1)
+    assert 0.4 < grey.mean() < 0.85, grey.mean()                               # measured 64 %
+    values = np.frombuffer(base64.b64decode(depth["values"]), "<f4").reshape(depth["height"], depth["width"])
+    np.testing.assert_allclose([depth["vmin"], depth["vmax"]], np.percentile(values[~grey], [1, 99]), atol=0.02)
+    noise_low = np.percentile(values, 1)                                      # -1.108, of the background's noise
+    assert depth["vmin"] > noise_low + 0.25 and data["slopes"][0] > noise_low + 0.15    # -0.646 and -0.795 now
+
+
 def test_dark_frame_of_another_size_is_refused_before_any_work(tmp_path, monkeypatch):
     """'--dark' with a frame of another camera was reported as 'dark image must have the raw's size ...' (no
     option named) after the white image had been calibrated (~1.4 s); it is now a usage error naming --dark,
