@@ -86,6 +86,11 @@ def _decoded_geometry(item: LightField | RawCapture) -> Any:
 NEEDS = {"alpha": "alpha (Ng's film depth -> slope)", "distance": "a focus distance (metres -> slope)",
          "metric": "metric depth"}
 
+#: Why a light-field microscope (its optics known) has no alpha, as a focus distance does not apply to it
+#: (:func:`plenodecode.render.alpha.distance_to_slope`); the command line adds its option to use instead.
+MICROSCOPE_NO_ALPHA = (f"{NEEDS['alpha']} does not apply to a light-field microscope (no main lens focused at a "
+                       "distance: its depth is measured from the native object plane)")
+
 
 def _missing(item: LightField | RawCapture, need: str, options: Mapping[str, Any]) -> tuple[str, tuple[str, ...]] | None:
     """Why ``item`` cannot serve the request ``need`` of :data:`NEEDS`, and the constants missing (empty when
@@ -102,7 +107,10 @@ def _missing(item: LightField | RawCapture, need: str, options: Mapping[str, Any
 
     stand_in = _decoded_geometry(item)
     overrides = {} if options.get("focus_distance") is None else {"focus_distance_m": options["focus_distance"]}
-    camera = need == "alpha" or depth_model(stand_in, overrides) == "plenoptic"
+    model = depth_model(stand_in, overrides)
+    if need == "alpha" and model == "microscope":      # its constants would not help: there is no main lens
+        return MICROSCOPE_NO_ALPHA, ()
+    camera = need == "alpha" or model == "plenoptic"
     missing = missing_refocus_constants(stand_in.geometry) if camera else ()
     if missing:
         return (f"{NEEDS[need]} needs the camera constant{'s' * (len(missing) > 1)} {', '.join(missing)}, which its "
@@ -210,4 +218,4 @@ def check_product(item: LightField | RawCapture, name: str, *, rectified: bool =
                                     keyword=keyword, missing=missing, source=source, need=NEEDS[need])
 
 
-__all__ = ["NEEDS", "REQUESTS", "FOCUSED_NOT_METRIC", "FOCUSED_NO_FOCUS_CONSTANTS", "check_product", "is_focused_raw"]
+__all__ = ["NEEDS", "MICROSCOPE_NO_ALPHA", "REQUESTS", "FOCUSED_NOT_METRIC", "FOCUSED_NO_FOCUS_CONSTANTS", "check_product", "is_focused_raw"]

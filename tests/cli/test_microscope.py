@@ -373,6 +373,27 @@ def test_antleg_page_greys_the_unconfident_background_and_says_monochrome(antleg
     assert depth["vmin"] > noise_low + 0.25 and data["slopes"][0] > noise_low + 0.15    # -0.646 and -0.795 now
 
 
+def test_antleg_alpha_is_refused_as_not_applying_to_a_microscope(antleg, tmp_path):
+    """'--refocus 1.02' on the ant leg with its optics said it 'has no focal_length_m, f_number, lens_pitch_m in its
+    metadata', as if giving them (its lens pitch is known: 125 um) would do, where '--focus-distance' says a
+    microscope has none; alpha now says so too, naming the option to use, before any decoding."""
+    folder, saved, _ = antleg
+    raw = [str(folder / "light_field.png"), "-w", str(folder / "radiometry_frame.png"), "--optics",
+           str(folder / "README")]
+    for args, option, instead in (
+            (["refocus", str(saved), "--alpha", "1.02"], "--alpha / --refocus", "use --slope S (px per view step)"),
+            (raw + ["--refocus", "1.02"], "--refocus / --alpha", "use --slope S (px per view step)"),
+            (["refocus", str(saved), "--focal-stack", "0.98:1.02:5", "--stack-units", "alpha"], "--stack-units",
+             "use --stack-units slope")):
+        out = tmp_path / "out.png" if "--focal-stack" not in args else tmp_path / "stack"
+        r = CliRunner().invoke(cli, args + ["-o", str(out)], obj={})
+        errors = [line for line in r.output.splitlines() if line.startswith("Error:")]
+        assert r.exit_code == 2 and len(errors) == 1, r.output
+        assert errors[0].startswith(f"Error: Invalid value for {option}: light_field.png: alpha (Ng's film depth -> "
+                                    "slope) does not apply to a light-field microscope"), errors
+        assert instead in errors[0] and "focal_length_m" not in errors[0] and not out.exists(), errors
+
+
 def test_dark_frame_of_another_size_is_refused_before_any_work(tmp_path, monkeypatch):
     """'--dark' with a frame of another camera was reported as 'dark image must have the raw's size ...' (no
     option named) after the white image had been calibrated (~1.4 s); it is now a usage error naming --dark,
