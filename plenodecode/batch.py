@@ -399,7 +399,8 @@ class BatchOptions:
         """The mosaic options as :class:`plenodecode.io.mosaic_levels.MosaicOptions` (ValueError naming a bad one)."""
         from .io.mosaic_levels import MosaicOptions
 
-        return MosaicOptions(self.cfa, self.black_level, self.white_level, self.input_encoding)
+        return MosaicOptions(self.cfa, self.black_level, self.white_level, self.input_encoding,
+                             dark_frame=None if self.dark is None else Path(self.dark).name)
 
 
 @dataclass(frozen=True)

@@ -296,8 +296,11 @@ def _bare_mosaic(p: Path, mosaic: np.ndarray, bits: int, full_scale: float, opti
     """A mosaic without a sidecar, read by the rules of :mod:`.mosaic_levels`; each choice logged in one line."""
     cfa, cfa_from = bare_mosaic_cfa(mosaic.shape, options)
     black, white, levels_from = bare_mosaic_levels(mosaic, bits, full_scale, options)
-    log.warning("%s: no JSON sidecar; CFA %s (%s)", p.name, cfa or "none, monochrome", cfa_from)
-    log.warning("%s: black %.5g, white %.5g of %g (%s)", p.name, black, white, full_scale, levels_from)  # 65535 whole
+    # one line per file; with a dark frame its pixels replace the black level, which is then not worth a guess
+    levels = (f"black from the dark frame {options.dark_frame}, pixel by pixel; white {white:.5g} of {full_scale:g}"
+              if options.dark_frame and options.black_level is None
+              else f"black {black:.5g}, white {white:.5g} of {full_scale:g} ({levels_from})")   # 65535 whole
+    log.warning("%s: no JSON sidecar; CFA %s (%s); %s", p.name, cfa or "none, monochrome", cfa_from, levels)
     if white <= black:
         typed = "--black-level" if options.black_level is not None else "--white-level" \
             if options.white_level is not None else None

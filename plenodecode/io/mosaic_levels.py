@@ -20,7 +20,7 @@ sRGB transfer function (:func:`plenodecode.io.images.srgb_decode`) before decodi
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -56,6 +56,9 @@ class MosaicOptions:
         Levels in the units of the stored samples (before any sRGB decoding); ``white > black >= 0``.
     input_encoding : {'linear', 'srgb'}
         'srgb': the samples are display-encoded and get the inverse sRGB transfer function.
+    dark_frame : str or None
+        Name of the dark frame (``--dark``) the decoder subtracts pixel by pixel instead of the black level: the
+        reader's log line then names it rather than a black level the decoding will not use.
 
     The names are those of the CLI options (``--black-level``) and of :class:`plenodecode.batch.BatchOptions`.
 
@@ -69,6 +72,7 @@ class MosaicOptions:
     black_level: float | None = None
     white_level: float | None = None
     input_encoding: str = "linear"
+    dark_frame: str | None = None
 
     def __post_init__(self) -> None:
         if self.cfa is not None and self.cfa not in CFA_CHOICES:
@@ -87,8 +91,8 @@ class MosaicOptions:
 
     @property
     def given(self) -> bool:
-        """True when anything differs from the defaults."""
-        return self != MosaicOptions()
+        """True when any of the mosaic options (not ``dark_frame``) differs from its default."""
+        return replace(self, dark_frame=None) != MosaicOptions()
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,9 @@ import contextlib
 import functools
 import logging
 import os
+from dataclasses import replace
 from functools import cached_property
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Hashable, Mapping
 
 from ..types import LightField, RawCapture
@@ -180,6 +182,11 @@ def open_source(path: str | os.PathLike, *, grid: str | os.PathLike | None = Non
     the decoding) options apply to raws only; ``optics`` to every input (:func:`open_input`); ``geometry`` (a
     geometric calibration: rectify) to raws and light fields, its shape checked here (:func:`check_geometry`).
     """
+    if dark is not None:        # the readers name it instead of a black level the decoding will not use
+        from ..io.mosaic_levels import MosaicOptions
+
+        dark_path = dark.path if isinstance(dark, RawCapture) else dark
+        mosaic = replace(mosaic or MosaicOptions(), dark_frame=Path(dark_path).name if dark_path else "given")
     item = open_input(path, mosaic=mosaic, raytrix_xml=raytrix_xml, optics=optics)
     for name, options in (check or {}).items():
         check_product(item, name, rectified=geometry is not None, **options)

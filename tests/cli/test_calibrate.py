@@ -346,5 +346,5 @@ def test_the_levels_warning_of_a_16_bit_mosaic_prints_its_white_level_whole(tmp_
     proc = subprocess.run([sys.executable, "-m", "plenodecode", "info", str(tmp_path / "white.png")],
                           capture_output=True, text=True, env=env, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
-    line = next(s for s in proc.stderr.splitlines() if "white.png: black" in s)
+    line = next(s for s in proc.stderr.splitlines() if "white.png: no JSON sidecar" in s)
     assert ", white 65535 of 65535 (" in line and "e+" not in line, line

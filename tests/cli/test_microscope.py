@@ -8,6 +8,7 @@ and plane depths, and the real LFAnalyze ant-leg capture (radiometry + dark fram
 from __future__ import annotations
 
 import math
+from pathlib import Path
 import re
 
 import numpy as np
@@ -449,3 +450,39 @@ def test_a_bright_frame_given_as_the_dark_is_refused_before_any_work(tmp_path, m
     assert res.exit_code == 0, res.output
     centre = load_lightfield(tmp_path / "lf.zarr").centre_view()
     assert float(np.percentile(centre, 99.5)) > 0.1 and calibrated        # the specimen, not black
+
+
+def test_antleg_reader_lines_name_the_dark_frame_not_an_unused_black(tmp_path):
+    """With --dark the decoder subtracts the dark frame pixel by pixel, yet every microscope command printed four
+    warnings, two of them 'black 92 ... estimated from the gaps between micro-images' for the raw and the white:
+    a level the decoding does not use.  Each mosaic without a sidecar now gets one line, which names the dark
+    frame when one is given (the one-liner and a batch alike) and the estimated black otherwise."""
+    import os
+    import subprocess
+    import sys
+
+    folder = shared_path(*ANTLEG)
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+
+    def reader_lines(args: list[str]) -> list[str]:
+        proc = subprocess.run([sys.executable, "-m", "plenodecode", *args], capture_output=True, text=True, env=env,
+                              cwd=tmp_path, timeout=600)
+        assert proc.returncode == 0, proc.stderr
+        return [line for line in proc.stderr.splitlines() if "plenodecode.io.generic" in line]
+
+    white = ["-w", str(folder / "radiometry_frame.png")]
+    dark = ["--dark", str(folder / "dark_frame.tif")]
+    lines = reader_lines([str(folder / "light_field.png"), *white, *dark, "-o", str(tmp_path / "a.png")])
+    assert len(lines) == 2 and all("no JSON sidecar" in x and "black from the dark frame dark_frame.tif" in x
+                                   and "estimated" not in x for x in lines), lines
+    assert sorted(x.split(": ")[1] for x in lines) == ["light_field.png", "radiometry_frame.png"]
+    lines = reader_lines([str(folder / "light_field.png"), *white, "-o", str(tmp_path / "b.png")])
+    # without a dark frame: the estimated black, in the same one line per file
+    assert lines and all(re.search(r"black 9\d, white 65535 of 65535 \(black estimated from the gaps", x)
+                         for x in lines), lines
+    lines = reader_lines(["batch", str(folder / "light_field.png"), *white, *dark, "--outputs", "photo", "-o",
+                          str(tmp_path / "out")])
+    assert lines and all("black from the dark frame dark_frame.tif" in x and "estimated" not in x
+                         for x in lines), lines
+    assert len(list((tmp_path / "out" / "light_field").glob("*.png"))) == 1       # the photograph
