@@ -556,21 +556,49 @@ def test_cli_folder_of_unrecognised_images_says_to_name_the_raw(tmp_path):
 
 
 def test_cli_real_desktop_exports_fail_for_their_reason_and_passed_over_images_are_named(tmp_path):
-    """``batch`` over the real Lytro Desktop exports and the ant-leg folder, with no calibration database: each
-    export is reported as holding no raw (before: the whole batch refused, '--database: calib is not a
-    folder'), and the images the folders held without a sidecar are named (before: not a word)."""
+    """``batch`` over the real Lytro Desktop exports and the ant-leg folder, with no calibration database: a
+    folder of exports yields no raw and the refusal names them and 'plenodecode extract' (before: the whole
+    batch refused, '--database: calib is not a folder'); an export named as a file fails for its own reason;
+    the images the folders held without a sidecar are named (before: not a word)."""
     from tests.conftest import shared_path
 
     containers, scope = shared_path("lytro-containers"), shared_path("lf-microscopy-antleg")
-    res = CliRunner().invoke(cli, ["batch", str(containers), str(scope), "-o", str(tmp_path / "o"), "--database",
-                                   str(tmp_path / "no_db")])
-    assert "--database" in res.output                       # a --database typed that is no folder is refused
     res = CliRunner().invoke(cli, ["batch", str(containers), str(scope), "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2, res.output
+    flat = " ".join(res.output.split())
+    assert "no raws found" in flat and "4 Lytro Desktop export(s)" in flat and "plenodecode extract" in flat
+    assert "3 image(s) (dark_frame.tif, light_field.png, radiometry_frame.png) were not taken" in flat
+    assert not (tmp_path / "o").exists()
+    res = CliRunner().invoke(cli, ["batch", str(containers / "IMG_0002-dm.lfp"), "-o", str(tmp_path / "o")])
     assert res.exit_code == 1, res.output
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
-    assert summary["total"] == 4 and summary["failed"] == 4
-    assert all("holds no raw image" in r["error"] for r in summary["results"])
-    assert "note: 3 image(s) (dark_frame.tif, light_field.png, radiometry_frame.png) were not taken" in res.output
+    assert summary["total"] == 1 and summary["failed"] == 1
+    assert "holds no raw image" in summary["results"][0]["error"]
+
+
+def test_cli_lytro_library_folder_takes_the_raws_and_names_the_desktop_exports(tmp_path):
+    """A Lytro library keeps IMG_0001-stk.lfp and -dm.lfp (Lytro Desktop exports, no raw inside) beside the raw
+    IMG_0001.lfp. ``batch LIBRARY`` decodes the raw, passes over the real exports with one note naming them and
+    'plenodecode extract', and exits 0 (before: 1 done, 4 failed in red in index.html, exit code 1)."""
+    from tests.conftest import ROOT, shared_path
+
+    containers = shared_path("lytro-containers")
+    lib = tmp_path / "Lytro Library"
+    lib.mkdir()
+    for f in sorted(containers.iterdir()):
+        if f.suffix.lower() == ".lfp":
+            shutil.copy(f, lib / f.name)
+    shutil.copy(ROOT / "sample_raws" / "f01-mini" / "scene.lfp", lib / "IMG_0003.lfp")
+    res = CliRunner().invoke(cli, ["batch", str(lib), "-o", str(tmp_path / "o"), "--database", str(ROOT / "calib"),
+                                   "--jobs", "1"])
+    assert res.exit_code == 0, res.output
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert (summary["total"], summary["done"], summary["failed"]) == (1, 1, 0)
+    assert Path(summary["results"][0]["source"]).name == "IMG_0003.lfp"
+    flat = " ".join(res.output.split())
+    assert "note: 4 Lytro Desktop export(s) (IMG_0001-stk.lfp, IMG_0002-dm.lfp, IMG_0002-stk.lfp and 1 more)" in flat
+    assert "plenodecode extract" in flat
+    assert "holds no raw" not in (tmp_path / "o" / "index.html").read_text()
 
 
 def test_cli_exposure_brightens_the_photo_and_its_thumbnail(tmp_path, monkeypatch):
