@@ -194,9 +194,11 @@ def test_local_run_decodes_good_raws_and_reports_bad_ones(data, local_run):
         r = by_name[f"scene{seed}.lfr"]
         assert r.status == "done", r.error
         names = [Path(o).name for o in r.outputs]
-        assert names == ["centre.png", "refocus_s+0.30.png", "disparity.pfm", "lightfield.npy"]
+        assert names == ["centre.png", "refocus_s+0.30.png", "disparity.pfm", "disparity.png",
+                         "disparity_confidence.png", "disparity_confidence.exr", "disparity.exr", "lightfield.npy"]
         assert all(Path(o).parent == out / f"scene{seed}" for o in r.outputs)
-        assert all(t is not None and Path(t).is_file() for t in r.thumbnails)
+        # a thumbnail per product; the depth map's other files are links under it
+        assert [t is not None and Path(t).is_file() for t in r.thumbnails] == [True] * 3 + [False] * 4 + [True]
         assert r.worker_peak_mb and r.worker_peak_mb > 10 and ":" in r.worker
     assert by_name["corrupt.lfr"].status == "failed" and "FormatError" in by_name["corrupt.lfr"].error
     assert by_name["stranger.LFR"].status == "failed" and "CalibrationError" in by_name["stranger.LFR"].error
@@ -263,7 +265,7 @@ def test_summary_json_and_index(local_run):
     page = (out / "index.html").read_text()
     for r in summary.results:
         if r.status == "done":
-            for t in r.thumbnails:
+            for t in filter(None, r.thumbnails):
                 rel = Path(t).relative_to(out).as_posix()
                 assert f'src="{rel}"' in page
         else:
@@ -331,7 +333,8 @@ def test_second_run_skips_finished_raws_and_keeps_files(data, local_run, tmp_pat
     assert {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()} == stamps
     skipped = next(r for r in again.results if r.status == "skipped")
     assert [Path(o).name for o in skipped.outputs] == ["centre.png", "refocus_s+0.30.png", "disparity.pfm",
-                                                        "lightfield.npy"]
+                                                        "disparity.png", "disparity_confidence.png",
+                                                        "disparity_confidence.exr", "disparity.exr", "lightfield.npy"]
     # a changed option would replace the folders: refused before any work, the files untouched
     changed = replace(local_run["opts"], slope=-0.2)
     with pytest.raises(FileExistsError, match=r"^3 of 3 raws already have an output folder in .*overwrite"):
@@ -936,6 +939,34 @@ def test_cli_without_the_default_database_says_how_to_build_it_from_the_whites_b
 
     photo = read_image(next((tmp_path / "other" / "out" / "scene").glob("*.png")))
     assert res.exit_code == 0 and photo.ndim == 3 and photo.std() > 0, res.output
+
+
+def test_cli_batch_depth_writes_the_depth_commands_pictures_on_a_real_f01_capture(tmp_path):
+    """'batch --outputs depth' wrote only disparity.pfm per raw, which no picture viewer opens, and the index linked
+    its thumbnail to that PFM; now the folder holds what 'plenodecode depth' writes (PFM, EXR, colour-mapped PNG and
+    the confidence map), pixel for pixel, and the thumbnail opens the PNG. On the real F01 JPEG IMG_2.jpg."""
+    from tests.conftest import shared_path
+
+    from plenodecode.io.images import read_image
+
+    jpeg = shared_path("lytro-f01-lenslet-jpg", "IMG_2.jpg")
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["-q", "batch", str(jpeg), "-o", str(out), "--jobs", "1", "--outputs", "depth"])
+    assert res.exit_code == 0, res.output
+    folder = out / "IMG_2"
+    assert sorted(p.name for p in folder.iterdir() if p.is_file() and p.name != ".done.json") == [
+        "disparity.exr", "disparity.pfm", "disparity.png", "disparity_confidence.exr", "disparity_confidence.png"]
+    res = CliRunner().invoke(cli, ["-q", "depth", str(jpeg), "-o", str(tmp_path / "d.pfm")])
+    assert res.exit_code == 0, res.output
+    for name, single in (("disparity.png", "d.png"), ("disparity_confidence.exr", "d_confidence.exr")):
+        np.testing.assert_array_equal(read_image(folder / name), read_image(tmp_path / single))
+    # the confidence figure's title names its depth PNG (disparity.png, d.png): the same below it
+    np.testing.assert_array_equal(read_image(folder / "disparity_confidence.png")[40:],
+                                  read_image(tmp_path / "d_confidence.png")[40:])
+    png = read_image(folder / "disparity.png")
+    assert png.dtype == np.uint8 and png.shape[2] >= 3 and len(np.unique(png.reshape(-1, png.shape[2]), axis=0)) > 200
+    page = (out / "index.html").read_text()
+    assert '<a href="IMG_2/disparity.png"><img class="legend"' in page
 
 
 def test_batch_depth_of_a_raytrix_raw_is_the_depth_commands_virtual_depth(tmp_path):
