@@ -226,8 +226,8 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
     # the views of an HCI scene or a saved light field are no raws to name: the folder is a light field
     lf_dirs = sorted({p.parent for p in images if _is_lightfield_folder(p.parent)})
     images = [p for p in images if p.parent not in lf_dirs]
-    not_taken = (f"{len(images)} image(s) ({_some_names(images)}) were not taken: a folder yields an image only with a sidecar"
-                 f" or at a known lenslet sensor's size: name the raw image itself") if images else ""
+    not_taken = (f"{len(images)} image(s) ({_some_names(images)}) were not taken: a folder yields an image only with "
+                 f"a sidecar or at a known lenslet sensor's size: name the raw image itself") if images else ""
     one = len(lf_dirs) == 1
     lf_note = (f"{', '.join(map(str, lf_dirs))} {'is a light field' if one else 'are light fields'} (views), not "
                f"{'a raw' if one else 'raws'}: batch decodes raws; give {'it' if one else 'them'} to 'plenodecode "

@@ -10,7 +10,7 @@ from ..pipeline import parallax_frame_names
 from .common import (OneInputCommand, FOCUSED_PHOTO, NON_NEGATIVE, POSITIVE, bit_depth_option, calibration_kwargs,
                      check_folder_output, check_output, exposure_option, image_bit_depth, input_options, output_option,
                      overwrite_option, progress_bar, quiet, refuse_focused_views, refuse_writing_over_command_inputs,
-                     usage_errors, views_anyway_option)
+                     usage_errors, views_anyway_option, picture_size)
 from .views import INTERP_CHOICE
 
 
@@ -72,5 +72,5 @@ def command(ctx: click.Context, input_path: Path, output: Path, n_frames: int, r
         write_parallax(rendered, output, fps=fps, frames_dir=folder, bit_depth=bits, overwrite=overwrite,
                        exposure=exposure)
     if not quiet(ctx):
-        click.echo(f"wrote {output} ({n_frames} frame{'s' * (n_frames != 1)})"
+        click.echo(f"wrote {output} ({n_frames} frame{'s' * (n_frames != 1)} of {picture_size(rendered.images[0][1])})"
                    + ("" if folder is None else f" and frames in {folder}"))
