@@ -11,7 +11,8 @@ Layout of ``out_dir``::
 
     out_dir/<name>/           one folder per raw, <name> = the raw's file stem (made unique)
         refocus_s+0.00.png (or total_focus.png: 'photo'), centre.png, disparity.pfm (virtual_depth.pfm: a focused
-                              raw's 'depth'; depth.pfm: metric, + .ply), lightfield.zarr, views/, focal_stack/,
+                              raw's 'depth'; depth.pfm: metric, + .ply; + .exr, .png, _confidence.exr/.png as
+                              'plenodecode depth' writes them), lightfield.zarr, views/, focal_stack/,
                               parallax.gif + parallax_frames/ ...
         thumbs/<product>.png  8-bit thumbnails (longest side <= THUMB_SIZE) for the index
         .done.json            the task key, the products and thumbnails (written last)
@@ -1180,17 +1181,20 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
                                                **({} if options.depth_focus_distance is None else
                                                   {"focus_distance": options.depth_focus_distance}))
             stem = depth_stem(rendered)
-            dest, *cloud = pipeline.write_depth(rendered, folder / f"{stem}.pfm", full=False,
-                                                ply=folder / f"{stem}.ply" if options.ply else None)
-            dm = rendered.data["depthmap"]
             threshold = DEFAULT_MIN_CONFIDENCE if options.min_confidence is None else options.min_confidence
+            # the files 'plenodecode depth' writes: the PFM, EXR, colour-mapped PNG and confidence map, so the folder
+            # holds a depth picture a viewer opens (a PFM alone does not); the PNGs first among the index's links
+            dest, exr, *pictures = pipeline.write_depth(
+                rendered, folder / f"{stem}.pfm", title=f"{_raw_name(raw)}: {rendered.data['method']}",
+                min_confidence=threshold, ply=folder / f"{stem}.ply" if options.ply else None)
+            dm = rendered.data["depthmap"]
             masked = dm.confidence < np.float32(threshold) if threshold > 0 else None
             # the colour map and range of the depth PNG ``plenodecode depth`` writes, with a colour bar; pixels
             # below min_confidence grey
             colours = colour_map_image(rendered.data["values"], label=rendered.data["label"], masked=masked,
                                        near=rendered.data.get("near"), **THUMB_FIGURE)
             written.append((dest, _thumbnail(colours, thumbs / f"{stem}.png", colour="srgb")))
-            written.extend((p, None) for p in cloud)
+            written.extend((p, None) for p in sorted(pictures + [exr], key=lambda p: p.suffix.lower() != ".png"))
         else:
             try:
                 rendered = pipeline.render_product(src, product, **_image_product_options(product, options))

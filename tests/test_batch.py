@@ -194,9 +194,11 @@ def test_local_run_decodes_good_raws_and_reports_bad_ones(data, local_run):
         r = by_name[f"scene{seed}.lfr"]
         assert r.status == "done", r.error
         names = [Path(o).name for o in r.outputs]
-        assert names == ["centre.png", "refocus_s+0.30.png", "disparity.pfm", "lightfield.npy"]
+        assert names == ["centre.png", "refocus_s+0.30.png", "disparity.pfm", "disparity.png",
+                         "disparity_confidence.png", "disparity_confidence.exr", "disparity.exr", "lightfield.npy"]
         assert all(Path(o).parent == out / f"scene{seed}" for o in r.outputs)
-        assert all(t is not None and Path(t).is_file() for t in r.thumbnails)
+        # a thumbnail per product; the depth map's other files are links under it
+        assert [t is not None and Path(t).is_file() for t in r.thumbnails] == [True] * 3 + [False] * 4 + [True]
         assert r.worker_peak_mb and r.worker_peak_mb > 10 and ":" in r.worker
     assert by_name["corrupt.lfr"].status == "failed" and "FormatError" in by_name["corrupt.lfr"].error
     assert by_name["stranger.LFR"].status == "failed" and "CalibrationError" in by_name["stranger.LFR"].error
@@ -263,7 +265,7 @@ def test_summary_json_and_index(local_run):
     page = (out / "index.html").read_text()
     for r in summary.results:
         if r.status == "done":
-            for t in r.thumbnails:
+            for t in filter(None, r.thumbnails):
                 rel = Path(t).relative_to(out).as_posix()
                 assert f'src="{rel}"' in page
         else:
@@ -331,7 +333,8 @@ def test_second_run_skips_finished_raws_and_keeps_files(data, local_run, tmp_pat
     assert {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()} == stamps
     skipped = next(r for r in again.results if r.status == "skipped")
     assert [Path(o).name for o in skipped.outputs] == ["centre.png", "refocus_s+0.30.png", "disparity.pfm",
-                                                        "lightfield.npy"]
+                                                        "disparity.png", "disparity_confidence.png",
+                                                        "disparity_confidence.exr", "disparity.exr", "lightfield.npy"]
     # a changed option would replace the folders: refused before any work, the files untouched
     changed = replace(local_run["opts"], slope=-0.2)
     with pytest.raises(FileExistsError, match=r"^3 of 3 raws already have an output folder in .*overwrite"):
@@ -556,21 +559,49 @@ def test_cli_folder_of_unrecognised_images_says_to_name_the_raw(tmp_path):
 
 
 def test_cli_real_desktop_exports_fail_for_their_reason_and_passed_over_images_are_named(tmp_path):
-    """``batch`` over the real Lytro Desktop exports and the ant-leg folder, with no calibration database: each
-    export is reported as holding no raw (before: the whole batch refused, '--database: calib is not a
-    folder'), and the images the folders held without a sidecar are named (before: not a word)."""
+    """``batch`` over the real Lytro Desktop exports and the ant-leg folder, with no calibration database: a
+    folder of exports yields no raw and the refusal names them and 'plenodecode extract' (before: the whole
+    batch refused, '--database: calib is not a folder'); an export named as a file fails for its own reason;
+    the images the folders held without a sidecar are named (before: not a word)."""
     from tests.conftest import shared_path
 
     containers, scope = shared_path("lytro-containers"), shared_path("lf-microscopy-antleg")
-    res = CliRunner().invoke(cli, ["batch", str(containers), str(scope), "-o", str(tmp_path / "o"), "--database",
-                                   str(tmp_path / "no_db")])
-    assert "--database" in res.output                       # a --database typed that is no folder is refused
     res = CliRunner().invoke(cli, ["batch", str(containers), str(scope), "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2, res.output
+    flat = " ".join(res.output.split())
+    assert "no raws found" in flat and "4 Lytro Desktop export(s)" in flat and "plenodecode extract" in flat
+    assert "3 image(s) (dark_frame.tif, light_field.png, radiometry_frame.png) were not taken" in flat
+    assert not (tmp_path / "o").exists()
+    res = CliRunner().invoke(cli, ["batch", str(containers / "IMG_0002-dm.lfp"), "-o", str(tmp_path / "o")])
     assert res.exit_code == 1, res.output
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
-    assert summary["total"] == 4 and summary["failed"] == 4
-    assert all("holds no raw image" in r["error"] for r in summary["results"])
-    assert "note: 3 image(s) (dark_frame.tif, light_field.png, radiometry_frame.png) were not taken" in res.output
+    assert summary["total"] == 1 and summary["failed"] == 1
+    assert "holds no raw image" in summary["results"][0]["error"]
+
+
+def test_cli_lytro_library_folder_takes_the_raws_and_names_the_desktop_exports(tmp_path):
+    """A Lytro library keeps IMG_0001-stk.lfp and -dm.lfp (Lytro Desktop exports, no raw inside) beside the raw
+    IMG_0001.lfp. ``batch LIBRARY`` decodes the raw, passes over the real exports with one note naming them and
+    'plenodecode extract', and exits 0 (before: 1 done, 4 failed in red in index.html, exit code 1)."""
+    from tests.conftest import ROOT, shared_path
+
+    containers = shared_path("lytro-containers")
+    lib = tmp_path / "Lytro Library"
+    lib.mkdir()
+    for f in sorted(containers.iterdir()):
+        if f.suffix.lower() == ".lfp":
+            shutil.copy(f, lib / f.name)
+    shutil.copy(ROOT / "sample_raws" / "f01-mini" / "scene.lfp", lib / "IMG_0003.lfp")
+    res = CliRunner().invoke(cli, ["batch", str(lib), "-o", str(tmp_path / "o"), "--database", str(ROOT / "calib"),
+                                   "--jobs", "1"])
+    assert res.exit_code == 0, res.output
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert (summary["total"], summary["done"], summary["failed"]) == (1, 1, 0)
+    assert Path(summary["results"][0]["source"]).name == "IMG_0003.lfp"
+    flat = " ".join(res.output.split())
+    assert "note: 4 Lytro Desktop export(s) (IMG_0001-stk.lfp, IMG_0002-dm.lfp, IMG_0002-stk.lfp and 1 more)" in flat
+    assert "plenodecode extract" in flat
+    assert "holds no raw" not in (tmp_path / "o" / "index.html").read_text()
 
 
 def test_cli_exposure_brightens_the_photo_and_its_thumbnail(tmp_path, monkeypatch):
@@ -908,6 +939,34 @@ def test_cli_without_the_default_database_says_how_to_build_it_from_the_whites_b
 
     photo = read_image(next((tmp_path / "other" / "out" / "scene").glob("*.png")))
     assert res.exit_code == 0 and photo.ndim == 3 and photo.std() > 0, res.output
+
+
+def test_cli_batch_depth_writes_the_depth_commands_pictures_on_a_real_f01_capture(tmp_path):
+    """'batch --outputs depth' wrote only disparity.pfm per raw, which no picture viewer opens, and the index linked
+    its thumbnail to that PFM; now the folder holds what 'plenodecode depth' writes (PFM, EXR, colour-mapped PNG and
+    the confidence map), pixel for pixel, and the thumbnail opens the PNG. On the real F01 JPEG IMG_2.jpg."""
+    from tests.conftest import shared_path
+
+    from plenodecode.io.images import read_image
+
+    jpeg = shared_path("lytro-f01-lenslet-jpg", "IMG_2.jpg")
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["-q", "batch", str(jpeg), "-o", str(out), "--jobs", "1", "--outputs", "depth"])
+    assert res.exit_code == 0, res.output
+    folder = out / "IMG_2"
+    assert sorted(p.name for p in folder.iterdir() if p.is_file() and p.name != ".done.json") == [
+        "disparity.exr", "disparity.pfm", "disparity.png", "disparity_confidence.exr", "disparity_confidence.png"]
+    res = CliRunner().invoke(cli, ["-q", "depth", str(jpeg), "-o", str(tmp_path / "d.pfm")])
+    assert res.exit_code == 0, res.output
+    for name, single in (("disparity.png", "d.png"), ("disparity_confidence.exr", "d_confidence.exr")):
+        np.testing.assert_array_equal(read_image(folder / name), read_image(tmp_path / single))
+    # the confidence figure's title names its depth PNG (disparity.png, d.png): the same below it
+    np.testing.assert_array_equal(read_image(folder / "disparity_confidence.png")[40:],
+                                  read_image(tmp_path / "d_confidence.png")[40:])
+    png = read_image(folder / "disparity.png")
+    assert png.dtype == np.uint8 and png.shape[2] >= 3 and len(np.unique(png.reshape(-1, png.shape[2]), axis=0)) > 200
+    page = (out / "index.html").read_text()
+    assert '<a href="IMG_2/disparity.png"><img class="legend"' in page
 
 
 def test_batch_depth_of_a_raytrix_raw_is_the_depth_commands_virtual_depth(tmp_path):

@@ -92,6 +92,11 @@ def _no_database(db_dir: Path, default: bool, inputs: tuple[Path, ...]) -> str:
             "or --self-calibrate")
 
 
+def _some_names(paths: list[Path]) -> str:
+    """The first three file names, and how many more: 'a.png, b.png, c.png and 2 more'."""
+    return ", ".join(p.name for p in paths[:3]) + (f" and {len(paths) - 3} more" if len(paths) > 3 else "")
+
+
 def _is_lightfield_folder(folder: Path) -> bool:
     """An HCI scene folder or a light field saved as a folder of views (its ``lightfield.json``)."""
     from ..pipeline import input_kind
@@ -196,7 +201,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
     from ..batch import (DONE_MARKER, BatchOptions, check_outputs_for_any, check_outputs_to_replace,
                          check_slope_for_any, check_stack_for_any, check_summary_files, find_raws, run_batch,
                          write_summary)
-    from ..io.discovery import images_not_taken, needs_no_database
+    from ..io.discovery import desktop_exports_not_taken, images_not_taken, needs_no_database
     from ..calib.store import DEFAULT_DB
 
     if alpha is not None and focus_distance is not None:
@@ -221,19 +226,23 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
     # the views of an HCI scene or a saved light field are no raws to name: the folder is a light field
     lf_dirs = sorted({p.parent for p in images if _is_lightfield_folder(p.parent)})
     images = [p for p in images if p.parent not in lf_dirs]
-    names = ", ".join(p.name for p in images[:3]) + (f" and {len(images) - 3} more" if len(images) > 3 else "")
-    not_taken = (f"{len(images)} image(s) ({names}) were not taken: a folder yields an image only with a sidecar"
-                 f" or at a known lenslet sensor's size: name the raw image itself") if images else ""
+    not_taken = (f"{len(images)} image(s) ({_some_names(images)}) were not taken: a folder yields an image only with "
+                 f"a sidecar or at a known lenslet sensor's size: name the raw image itself") if images else ""
     one = len(lf_dirs) == 1
     lf_note = (f"{', '.join(map(str, lf_dirs))} {'is a light field' if one else 'are light fields'} (views), not "
                f"{'a raw' if one else 'raws'}: batch decodes raws; give {'it' if one else 'them'} to 'plenodecode "
                f"refocus', 'views' or 'depth' instead") if lf_dirs else ""
+    # a Lytro library's IMG_0001-stk.lfp / -dm.lfp beside the raw IMG_0001.lfp: named once, not failed one by one
+    exports = desktop_exports_not_taken(inputs, exclude=[out_dir], stop_marker=DONE_MARKER)
+    export_note = (f"{len(exports)} Lytro Desktop export(s) ({_some_names(exports)}) hold no raw and were not taken: "
+                   f"'plenodecode extract {exports[0]} -o DIR' writes out their pictures and depth maps"
+                   ) if exports else ""
     if not files:
         hint = (f"; {not_taken}, 'plenodecode batch {images[0].parent}/RAW_IMAGE -o OUT' (a microscope's with "
                 f"-w WHITE_IMAGE)") if images else ""
         raise click.UsageError(f"no raws found under {', '.join(map(str, inputs))}{hint}"
-                               + (f"; {lf_note}" if lf_note else ""))
-    for note in (not_taken, lf_note):
+                               + "".join(f"; {n}" for n in (lf_note, export_note) if n))
+    for note in (not_taken, lf_note, export_note):
         if note and not (ctx.obj or {}).get("quiet"):
             click.echo(f"note: {note}", err=True)
     # a --database typed that is no folder is refused; the default one missing only when no raw can do without it

@@ -784,6 +784,14 @@ def focus_choices(rendered_data: Mapping[str, Any], options: tuple[str, ...]) ->
     return ", ".join(served[:-1]) + f" or {served[-1]}"
 
 
+def picture_size(image: Any, bits: int | None = None) -> str:
+    """``'382 x 383 px, 16-bit'``: width x height of an (H, W[, C]) image and the bits per sample it is written with
+    (32: float), for the 'wrote ...' line of a picture."""
+    h, w = image.shape[:2]
+    depth = "" if bits is None else f", {'32-bit float' if int(bits) == 32 else f'{int(bits)}-bit'}"
+    return f"{w} x {h} px{depth}"
+
+
 def describe_focus(rendered_data: Mapping[str, Any]) -> str:
     """``'alpha 1.015 = slope +0.90 px/view; refocusable alpha 0.9814-1.0194 = ...'`` for the report line of a
     refocused photograph (``Rendered.data`` of the 'refocus' product)."""

@@ -10,7 +10,7 @@ from ..pipeline import parallax_frame_names
 from .common import (OneInputCommand, FOCUSED_PHOTO, NON_NEGATIVE, POSITIVE, bit_depth_option, calibration_kwargs,
                      check_folder_output, check_output, exposure_option, image_bit_depth, input_options, note_if_dark,
                      output_option, overwrite_option, progress_bar, quiet, refuse_focused_views,
-                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
+                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option, picture_size)
 from .views import INTERP_CHOICE
 
 
@@ -73,5 +73,5 @@ def command(ctx: click.Context, input_path: Path, output: Path, n_frames: int, r
                        exposure=exposure)
     note_if_dark(ctx, rendered, exposure, "the middle frame")
     if not quiet(ctx):
-        click.echo(f"wrote {output} ({n_frames} frame{'s' * (n_frames != 1)})"
+        click.echo(f"wrote {output} ({n_frames} frame{'s' * (n_frames != 1)} of {picture_size(rendered.images[0][1])})"
                    + ("" if folder is None else f" and frames in {folder}"))

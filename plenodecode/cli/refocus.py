@@ -13,7 +13,8 @@ from .common import (OneInputCommand, FINITE, FOCUSED_REFOCUS, POSITIVE, Registr
                      bit_depth_option, calibration_kwargs, check_focus_options, check_folder_output, check_output,
                      describe_focus, exposure_option, focus_choices, focus_hint, focus_options, focus_point,
                      image_bit_depth, input_options, note_if_dark, output_option, overwrite_option, progress_bar, quiet,
-                     refuse_focused_views, refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
+                     refuse_focused_views, refuse_writing_over_command_inputs, usage_errors, views_anyway_option,
+                     picture_size)
 
 #: The refocus methods of the library, for ``--method`` (imported when the command needs them).
 REFOCUS_METHOD_CHOICE = RegistryChoice("plenodecode.render", "REFOCUS_METHODS")
@@ -179,7 +180,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
             if as_captured:
                 ways = focus_choices(photo.data, ("--slope", "--alpha", "--focus-at", "--focus-distance"))
                 how = f"focused as captured: {how}; choose the focus with {ways}"
-            click.echo(f"wrote {output} ({how}; {method}, aperture {aperture:g})")
+            click.echo(f"wrote {output} ({picture_size(photo.images[0][1], bits)}; {how}; {method}, aperture "
+                       f"{aperture:g})")
         return
     with usage_errors(param_hint="--focal-stack"):
         rendered = render_product(src, "focal-stack", start=start, stop=stop, n=n, units=stack_units, method=method,
@@ -188,4 +190,5 @@ def command(ctx: click.Context, input_path: Path, output: Path, slope: float | N
         write_product(rendered, output, bit_depth=bits, ext=ext, overwrite=overwrite, exposure=exposure)
     note_if_dark(ctx, rendered, exposure)
     if not quiet(ctx):
-        click.echo(f"wrote {n} slices, {names[n]} and {names[n + 1]} to {output}")
+        click.echo(f"wrote {n} slices ({picture_size(rendered.images[0][1], bits)}), {names[n]} and {names[n + 1]} "
+                   f"to {output}")

@@ -17,7 +17,7 @@ from .common import (OneInputCommand, FINITE, FOCUSED_REFOCUS, POSITIVE, apertur
                      calibration_kwargs, check_focus_options, check_output, describe_focus, exposure_option,
                      focus_choices, focus_hint, focus_options, focus_point, image_bit_depth, input_options,
                      note_if_dark, output_option, overwrite_option, progress_bar, quiet, refuse_focused_views,
-                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
+                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option, picture_size)
 from .refocus import REFOCUS_METHOD_CHOICE
 
 #: The refocusing options that mean nothing to --total-focus (parameter name -> option); each asks for a refocus of
@@ -142,4 +142,4 @@ def command(ctx: click.Context, input_path: Path, alpha: float | None, slope: fl
         elif chosen is not None:
             ways = focus_choices(photo.data, ("--refocus", "--slope", "--focus-at", "--focus-distance"))
             how = f"focused as captured: {how}; choose the focus with {ways}"
-        click.echo(f"wrote {output} ({how})")
+        click.echo(f"wrote {output} ({picture_size(photo.images[0][1], bits)}; {how})")

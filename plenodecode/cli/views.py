@@ -12,7 +12,7 @@ from ..pipeline import IMAGE_EXTENSIONS
 from .common import (OneInputCommand, FOCUSED_PHOTO, NON_NEGATIVE, RegistryChoice, bit_depth_option, calibration_kwargs,
                      check_folder_output, check_output, exposure_option, image_bit_depth, input_options, note_if_dark,
                      output_option, overwrite_option, progress_bar, quiet, refuse_focused_views,
-                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option)
+                     refuse_writing_over_command_inputs, usage_errors, views_anyway_option, picture_size)
 
 #: Angular interpolation kernels of perspective views, for ``--interp``.
 INTERP_CHOICE = RegistryChoice("plenodecode.render.viewpoints", "PERSPECTIVE_INTERPOLATIONS")
@@ -80,11 +80,12 @@ def command(ctx: click.Context, input_path: Path, output: Path, view: tuple[floa
     note_if_dark(ctx, rendered, exposure, "the view" if view is not None else "the centre view")
     if not quiet(ctx):
         if view is not None:
-            click.echo(f"wrote {output} (view {view[0]:g}, {view[1]:g})")
+            click.echo(f"wrote {output} (view {view[0]:g}, {view[1]:g}; {picture_size(rendered.images[0][1], bits)})")
         else:
             nv, nu = lf.shape[:2]
             dark = rendered.images.dark
             names = ", ".join(f"view_{v:02d}_{u:02d}" for v, u in dark[:4]) + (", ..." if len(dark) > 4 else "")
             note = "" if not dark else (f"; {len(dark)} partly outside the micro-images (data in under "
                                         f"{MIN_VIEW_DATA:.0%} of their samples) written black: {names}")
-            click.echo(f"wrote {len(written)} views ({nv}x{nu}) to {output}{note}")
+            click.echo(f"wrote {len(written)} views ({nv}x{nu}, each {picture_size(rendered.images[0][1], bits)}) to "
+                       f"{output}{note}")

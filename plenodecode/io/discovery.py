@@ -48,13 +48,29 @@ def _is_mosaic_with_sidecar(p: Path) -> bool:
     return raytrix.find_calibration_xml(p) is not None
 
 
+def is_desktop_export(p: Path) -> bool:
+    """True for a Lytro container (.lfp/.lfr) that holds no raw: a Lytro Desktop export (focal stack ``-stk.lfp``,
+    depth map ``-dm.lfp``, living picture), whose items 'plenodecode extract' writes out.  Reads the section
+    headers only; a file that is no container is not one (it fails for its own reason when decoded)."""
+    if p.suffix.lower() not in (".lfp", ".lfr"):
+        return False
+    from ..errors import PlenodecodeError
+    from .lytro.container import read_container
+
+    try:
+        return read_container(p, verify=False).kind == "processed"
+    except (PlenodecodeError, OSError, ValueError):
+        return False
+
+
 def _is_raw_candidate(p: Path) -> bool:
     name = p.name
     if name.startswith(".") or name.upper().startswith("MOD_") or ".truth." in name.lower():
         return False      # hidden / staging files, white images, generator ground truth
     suffix = p.suffix.lower()
     if suffix in RAW_SUFFIXES:
-        return True
+        # a Lytro library keeps IMG_0001-stk.lfp and -dm.lfp beside the raw IMG_0001.lfp: not raws
+        return not is_desktop_export(p)
     if suffix in PAIR_SUFFIXES:
         from . import lytro
 
@@ -109,7 +125,8 @@ def find_raws(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os
     image mosaics with a plenodecode sidecar or a Raytrix XML, and images without a sidecar only when
     their size is that of a known lenslet sensor (3280 x 3280 Lytro F01, 7728 x 5368 Illum; read from the
     header), so a folder of ordinary pictures yields nothing; any other sidecar-less mosaic is decoded
-    when named as a file.  Skipped: white images
+    when named as a file.  Skipped: Lytro Desktop exports (:func:`is_desktop_export`; one named as a file
+    is taken and fails, naming 'plenodecode extract'), white images
     (``MOD_*``, or a mosaic whose sidecar says ``is_white_image``), the synthetic generator's ground
     truth (``*.truth.*``), sidecars, hidden files and folders, folders in ``exclude`` (e.g. the
     batch's own output folder) and folders holding ``stop_marker``.
@@ -166,4 +183,15 @@ def images_not_taken(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[s
             for f in _walk(Path(item), skip, stop_marker, take=not_taken)]
 
 
-__all__ = ["RAW_SUFFIXES", "PAIR_SUFFIXES", "MOSAIC_SUFFIXES", "find_raws", "needs_no_database", "images_not_taken"]
+def desktop_exports_not_taken(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os.PathLike] = (),
+                              stop_marker: str | None = None) -> list[Path]:
+    """The Lytro Desktop exports (:func:`is_desktop_export`) in the folders among ``inputs`` that :func:`find_raws`
+    with the same ``exclude`` and ``stop_marker`` passes over; each folder's files sorted."""
+    skip = {Path(e).resolve() for e in exclude}
+    return [f for item in inputs if Path(item).is_dir() and Path(item).resolve() not in skip
+            for f in _walk(Path(item), skip, stop_marker,
+                           take=lambda p: not p.name.startswith(".") and is_desktop_export(p))]
+
+
+__all__ = ["RAW_SUFFIXES", "PAIR_SUFFIXES", "MOSAIC_SUFFIXES", "find_raws", "needs_no_database", "images_not_taken",
+           "is_desktop_export", "desktop_exports_not_taken"]

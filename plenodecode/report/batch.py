@@ -56,7 +56,10 @@ def _card(r: Any, base: Path, shown: str) -> str:
         # depth thumbnails carry a colour bar with its unit: shown larger so the text stays legible
         wide = ' class="legend"' if Path(out).suffix.lower() == ".pfm" else ""
         img = f'<img{wide} alt="{label}" src="{_rel(thumb, base)}">'
-        figs.append(f'<figure><a href="{_rel(out, base)}">{img}</a><figcaption>{label}</figcaption></figure>')
+        # a depth map's picture opens its colour-mapped PNG (a browser cannot show the PFM), when written
+        shown_file = str(Path(out).with_suffix(".png")) if wide and str(Path(out).with_suffix(".png")) in r.outputs \
+            else out
+        figs.append(f'<figure><a href="{_rel(shown_file, base)}">{img}</a><figcaption>{label}</figcaption></figure>')
     more = f'<div class="files">also: {" &middot; ".join(files)}</div>' if files else ""
     err = f'<div class="err">{html.escape(r.error)}</div>' if r.error else ""
     err += "".join(f'<div class="left">left out: {html.escape(note)}</div>' for note in getattr(r, "left_out", ()))

@@ -151,7 +151,8 @@ def test_batch_metric_depth_and_point_cloud_are_the_depth_commands(tmp_path):
     np.testing.assert_array_equal(points, ref_points)
     np.testing.assert_array_equal(colours, ref_colours)
     assert len(points) > 0.5 * z.size
-    assert json.loads((out / ".done.json").read_text())["outputs"] == ["depth.pfm", "depth.ply"]
+    assert json.loads((out / ".done.json").read_text())["outputs"] == [
+        "depth.pfm", "depth.png", "depth_confidence.png", "depth_confidence.exr", "depth.ply", "depth.exr"]
     assert (out / "thumbs" / "depth.png").is_file()
     res = CliRunner().invoke(cli, ["batch", str(RAW), "-o", str(tmp_path / "c"), "--outputs", "depth", "--metric",
                                    "-j", "1", *DB])

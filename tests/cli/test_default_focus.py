@@ -39,7 +39,8 @@ def test_real_raytrix_without_a_focus_option_is_its_total_focus(tmp_path):
     res = run(r42, "-o", tmp_path / "photo.png")
     assert res.exit_code == 0, res.output
     # its focus is chosen by virtual depth, not by the options of a light field, which it refuses
-    assert "(the camera's total focus; refocus it at a virtual depth" in res.output and CHOOSE not in res.output
+    assert " px, 16-bit; the camera's total focus; refocus it at a virtual depth" in res.output
+    assert CHOOSE not in res.output
     total = run(r42, "--total-focus", "-o", tmp_path / "total.png")
     assert total.exit_code == 0, total.output
     photo = read_image(tmp_path / "photo.png")

@@ -220,7 +220,7 @@ def test_real_r42_rgb_export_decodes_with_one_progress_and_one_warning(tmp_path,
     res = run("views", shared_path("raytrix-r42", "sc2_klein.png"), "--views-anyway", "-o", tmp_path / "views")
     assert res.exit_code == 0, res.output
     assert res.output.count("decoding") == 1, res.output
-    assert "wrote 1225 views (35x35)" in res.output      # asked for with --views-anyway: one pixel per lens
+    assert "wrote 1225 views (35x35, each " in res.output      # asked for with --views-anyway: one pixel per lens
     assert read_image(tmp_path / "views" / "view_17_17.png").shape == (22, 31, 3)
 
 
@@ -349,8 +349,9 @@ def test_batch_photo_total_focus_and_depth_of_a_focused_raw_render_the_total_foc
     assert res.exit_code == 0, res.output
     assert len(calls) == 1
     folder = tmp_path / "out" / "scene"
-    assert sorted(p.name for p in folder.iterdir() if p.is_file()) == [".done.json", "total_focus.png",
-                                                                       "virtual_depth.pfm"]
+    assert sorted(p.name for p in folder.iterdir() if p.is_file()) == [
+        ".done.json", "total_focus.png", "virtual_depth.exr", "virtual_depth.pfm", "virtual_depth.png",
+        "virtual_depth_confidence.exr", "virtual_depth_confidence.png"]
     depth = read_pfm(folder / "virtual_depth.pfm")
     depth = depth[0] if isinstance(depth, tuple) else depth
     reference = read_pfm(single)
@@ -485,18 +486,20 @@ def test_batch_leaves_out_a_focused_raws_view_outputs_unless_asked(tmp_path):
     assert res.exit_code == 1, res.output
     row = [line for line in res.output.splitlines() if line.startswith("sc2_klein.png")]
     note = "centre: not for a focused-plenoptic (Raytrix) raw (its views have one pixel per lens; --views-anyway"
-    assert len(row) == 1 and " done " in row[0] and f"2 outputs; {note}" in row[0], res.output
+    assert len(row) == 1 and " done " in row[0] and f"6 outputs; {note}" in row[0], res.output
     assert "2 done, 0 skipped, 0 failed (1 leaving out outputs) in " in res.output, res.output
     assert "error: 1 of 2 raws left out outputs they cannot serve" in res.output and "Traceback" not in res.output
     assert sorted(p.name for p in (out / "sc2_klein").iterdir() if p.is_file() and p.name != ".done.json") == [
-        "total_focus.png", "virtual_depth.pfm"]
+        "total_focus.png", "virtual_depth.exr", "virtual_depth.pfm", "virtual_depth.png",
+        "virtual_depth_confidence.exr", "virtual_depth_confidence.png"]
     assert read_image(out / "sc2_klein" / "total_focus.png").std() > 0
-    assert sorted(p.name for p in (out / "scene").glob("*.png")) == ["centre.png", "refocus_s+0.00.png"]
+    assert sorted(p.name for p in (out / "scene").glob("*.png")) == ["centre.png", "disparity.png",
+                                                                     "disparity_confidence.png", "refocus_s+0.00.png"]
     summary = json.loads((out / "summary.json").read_text())
     rows = {Path(r["source"]).name: r for r in summary["results"]}
     assert summary["left_out"] == 1 and rows["scene.lfr"]["left_out"] == []
     assert rows["sc2_klein.png"]["status"] == "done" and rows["sc2_klein.png"]["left_out"][0].startswith(note)
-    assert [Path(o).name for o in rows["sc2_klein.png"]["outputs"]] == ["total_focus.png", "virtual_depth.pfm"]
+    assert [Path(o).name for o in rows["sc2_klein.png"]["outputs"]][:2] == ["total_focus.png", "virtual_depth.pfm"]
     page = (out / "index.html").read_text()
     assert "left out: centre: not for a focused-plenoptic" in page and "<b>1</b> left out outputs" in page
     # the same run again: skipped, still saying what it left out

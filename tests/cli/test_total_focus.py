@@ -146,7 +146,7 @@ def test_without_a_focus_option_a_focused_raw_gets_its_total_focus(shoot, tmp_pa
     decoded light field has a few lenses' worth of pixels), as close to the ground truth as ``--total-focus``."""
     res = run(shoot["raw"], "--white", shoot["white"], "-o", tmp_path / "photo.png")
     assert res.exit_code == 0, res.output
-    assert "(the camera's total focus; refocus it at a virtual depth" in res.output
+    assert " px, 16-bit; the camera's total focus; refocus it at a virtual depth" in res.output
     explicit = run(shoot["raw"], "--white", shoot["white"], "--total-focus", "-o", tmp_path / "tf.png")
     assert explicit.exit_code == 0, explicit.output
     np.testing.assert_array_equal(read_image(tmp_path / "photo.png"), read_image(tmp_path / "tf.png"))
