@@ -7,14 +7,14 @@ from typing import Any
 
 import click
 
-from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES, DEFAULT_STACK_SLICES
+from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES, DEFAULT_STACK_SLICES, SUMMARY_JSON
 from ..pipeline import STACK_UNITS
 from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
 from ..io.depthio import DEFAULT_MIN_CONFIDENCE
 from .common import (FINITE, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, RegistryChoice, aperture_option, bit_depth_option,
-                     calibration_option, current_geometry, current_microscope_inputs, current_mosaic_options,
-                     database_option, decoding_options, exposure_option, geometry_option, jobs_option,
-                     microscope_options, mosaic_options, progress_bar, refuse_database_with_grid,
+                     calibration_option, check_writable, current_geometry, current_microscope_inputs,
+                     current_mosaic_options, database_option, decoding_options, exposure_option, geometry_option,
+                     jobs_option, microscope_options, mosaic_options, progress_bar, refuse_database_with_grid,
                      self_calibrate_option, views_anyway_option)
 from .depth import parse_range
 from .refocus import parse_stack
@@ -209,6 +209,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
         raise click.BadParameter("32 (float EXR) cannot be held by the parallax frames (PNG): pass 8 or 16, or "
                                  "--no-frames", param_hint="--bit-depth")
     refuse_database_with_grid(calibration, None, database)
+    check_writable(out_dir / SUMMARY_JSON)
     db_dir = database or Path(DEFAULT_DB)
     if not overwrite:
         try:

@@ -76,7 +76,7 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
     if output is not None:
         check_output(output, overwrite)
     if report is not None:
-        check_output(report, overwrite)
+        check_output(report, overwrite, "--report")
     if database is not None and for_raw is None:
         for folder in inputs:
             if not folder.is_dir() and archive_kind(folder) is None:

@@ -53,7 +53,7 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], board, output: Path, r
             refuse_writing_over_inputs([path], [*read, calibration, white], param_hint=option)
     check_output(output, overwrite)
     if report is not None:
-        check_output(report, overwrite)
+        check_output(report, overwrite, "--report")
         if report.resolve() == output.resolve():
             raise click.BadParameter("must differ from -o/--output", param_hint="--report")
     options = calibration_kwargs(calibration, white, database, False)

@@ -18,7 +18,7 @@ from typing import Any, Callable, Iterator, Mapping
 import click
 from click.core import ParameterSource
 
-from ..io.atomic import refuse_folder
+from ..io.atomic import refuse_folder, refuse_unwritable
 from ..pipeline import BIT_DEPTHS
 
 
@@ -403,7 +403,7 @@ def usage_errors(param_hint: str | None = None) -> Iterator[None]:
     with ``param_hint`` a ValueError names that option."""
     try:
         yield
-    except IsADirectoryError as exc:        # an output file named like a folder that exists: never replaced
+    except (IsADirectoryError, NotADirectoryError) as exc:     # a file never replaces a folder, nor a folder a file
         raise click.UsageError(str(exc)) from exc
     except FileExistsError as exc:
         text = str(exc).replace("overwrite=True", "--overwrite")       # the library's keyword, as the CLI spells it
@@ -539,9 +539,20 @@ def refuse_writing_over_command_inputs(written: list[Path], input_path: Path, ca
                                param_hint=param_hint)
 
 
-def check_output(path: Path, overwrite: bool) -> None:
-    """Refuse an output file that is an existing folder, even with ``--overwrite``, and to replace an existing
-    output unless ``--overwrite`` was given (usage errors, exit 2)."""
+def check_writable(path: Path, param_hint: str = "-o / --output") -> None:
+    """Refuse, before any work, an output that cannot be created: under a file, or in a folder that cannot be
+    written (usage error naming ``param_hint``, exit 2)."""
+    try:
+        refuse_unwritable(path)
+    except OSError as exc:
+        raise click.BadParameter(str(exc), param_hint=param_hint) from None
+
+
+def check_output(path: Path, overwrite: bool, param_hint: str = "-o / --output") -> None:
+    """Refuse an output file that is an existing folder, even with ``--overwrite``, one that cannot be created
+    (:func:`check_writable`), and to replace an existing output unless ``--overwrite`` was given (usage errors,
+    exit 2)."""
+    check_writable(path, param_hint)
     with usage_errors():
         refuse_folder(path)
     if path.exists() and not overwrite:
@@ -558,6 +569,7 @@ def check_folder_output(folder: Path, names: list[str], overwrite: bool, *, what
     if not folder.is_dir() and folder.suffix.lower() in (*IMAGE_FORMATS, *ANIMATION_FORMATS):
         raise click.BadParameter(f"{what} goes into a folder, and {folder.name} names an image file; give a "
                                  f"folder, e.g. {folder.with_suffix('')}/", param_hint="-o / --output")
+    check_writable(folder / "-" if folder.is_dir() else folder)
     with usage_errors():
         refuse_folder_clash(folder, names, overwrite)
 
@@ -572,6 +584,7 @@ def lightfield_output_format(output: Path, fmt: str | None, overwrite: bool) -> 
         name = fmt or detect_format(output, option="--format")
     except ValueError as exc:
         raise click.UsageError(str(exc)) from None
+    check_writable(output)
     if name not in FOLDER_FORMATS:
         with usage_errors():
             refuse_folder(output)       # '-o lf.npy' naming a folder: a file never replaces a folder

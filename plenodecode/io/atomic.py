@@ -83,11 +83,27 @@ def check_destination(path: str | os.PathLike, overwrite: bool) -> Path:
     ------
     FileExistsError
         ``path`` exists (or is a dangling symlink) and ``overwrite`` is False.
+    OSError
+        ``path`` cannot be created (:func:`refuse_unwritable`).
     """
     p = Path(path)
     _refuse_existing(p, overwrite)
+    refuse_unwritable(p)
     p.parent.mkdir(parents=True, exist_ok=True)
     return p
+
+
+def refuse_unwritable(path: str | os.PathLike) -> None:
+    """Raise when the output ``path`` cannot be created: :class:`NotADirectoryError` when the nearest existing
+    path above it is a file, :class:`PermissionError` when that folder is not writable (permissions, a read-only
+    disk).  For checks before any work; creates nothing."""
+    folder = Path(os.path.abspath(path)).parent
+    while not os.path.lexists(folder):
+        folder = folder.parent
+    if not folder.is_dir():
+        raise NotADirectoryError(f"cannot write {path}: {folder} is a file, not a folder")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise PermissionError(f"cannot write {path}: no permission to write in {folder} (or a read-only disk)")
 
 
 def _refuse_existing(p: Path, overwrite: bool) -> None:
@@ -116,6 +132,14 @@ def refuse_existing(paths: Iterable[str | os.PathLike], overwrite: bool) -> None
 def is_temporary(path: str | os.PathLike) -> bool:
     """True for the name of a temporary output or a replaced folder that this module creates."""
     return bool(_LEFTOVER.match(Path(path).name))
+
+
+def destination_of(path: str | os.PathLike) -> Path:
+    """The output a temporary name of this module stands for (``dir/.x.png.<token>.tmp.png`` -> ``dir/x.png``);
+    any other path unchanged."""
+    p = Path(path)
+    m = _LEFTOVER.match(p.name)
+    return p.with_name(m.group("name")) if m else p
 
 
 def temporary_sibling(path: str | os.PathLike, *, folder: bool = False, suffix: str | None = None) -> Path:
