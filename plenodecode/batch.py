@@ -1263,6 +1263,13 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
     -------
     BatchSummary
         One result per raw in input order; failures carry their error, nothing is raised for bad files.
+
+    Raises
+    ------
+    ValueError
+        ``jobs``, ``max_in_flight`` or a malformed ``scheduler`` address.
+    OSError
+        The scheduler cannot be reached; before the output folder is made.
     """
     from .deprecation import renamed_keywords
 
@@ -1286,6 +1293,11 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
         check_outputs_to_replace(files, out, options)
     if scheduler is None:
         jobs = min(jobs or os.cpu_count() or 1, max(1, len(files)))
+    client = None
+    if scheduler is not None:   # reached (or refused) before the output folder is made: a typo leaves nothing
+        from .batch_workers import connect_scheduler
+
+        client, own_client = connect_scheduler(scheduler)
     pool = None
     if scheduler is None and jobs > 1:     # the workers' modules load while this process prepares the batch
         from .batch_workers import start_pool
@@ -1298,6 +1310,8 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
     except BaseException:
         if pool is not None:
             pool.shutdown(wait=False, cancel_futures=True)
+        if client is not None and own_client:
+            client.close()
         raise
     t0 = time.perf_counter()
     if progress is not None:
@@ -1307,7 +1321,11 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
     if scheduler is not None:
         from .batch_workers import run_dask
 
-        results = run_dask(tasks, task, _lost_result, options.outputs, scheduler, max_in_flight, progress)
+        try:
+            results = run_dask(tasks, task, _lost_result, options.outputs, client, max_in_flight, progress)
+        finally:
+            if own_client:
+                client.close()
     elif pool is not None:
         from .batch_workers import run_pool
 

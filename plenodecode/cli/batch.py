@@ -29,6 +29,19 @@ def _parse_outputs(ctx: click.Context, param: click.Parameter, value: str) -> tu
     return items
 
 
+def _check_scheduler(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+    """The --scheduler address, checked while the command line is parsed (Dask refuses a malformed one only after
+    a minute, with a traceback)."""
+    if value is None:
+        return None
+    from ..batch_workers import check_scheduler_address
+
+    try:
+        return check_scheduler_address(value)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc).removeprefix("scheduler: "), ctx, param) from None
+
+
 def _latency_note(summary) -> str:
     """' (first task 4.4 s, then 0.8 s per raw; peak 420 MB per worker)', or '' when nothing was decoded."""
     lat = summary.latency()
@@ -111,7 +124,7 @@ def _microscope_fields() -> dict:
 @click.option("-o", "--output", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True,
               help="Output folder: one sub-folder per raw, summary.json and index.html.")
 @jobs_option
-@click.option("--scheduler", default=None, metavar="ADDRESS",
+@click.option("--scheduler", default=None, metavar="ADDRESS", callback=_check_scheduler,
               help="Dask scheduler address (tcp://host:8786): run the tasks on that cluster (--jobs is ignored).")
 @click.option("--outputs", default="photo", show_default=True, callback=_parse_outputs,
               help=f"Comma-separated products per raw: {', '.join(OUTPUT_CHOICES)}. 'photo': the camera's "
