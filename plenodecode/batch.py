@@ -55,7 +55,7 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 from .deprecation import renamed_fields
 from .errors import DecodeError, MissingConstantsError, PlenodecodeError, one_line
 from .io.atomic import (OLD_MARK, TEMP_MARK, atomic_output, discard, is_temporary, remove_stale_temporaries,
-                        write_text_atomic)
+                        refuse_unwritable, write_text_atomic)
 from .registry import lookup
 from .threads import limit_threads
 
@@ -1268,8 +1268,11 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
     ------
     ValueError
         ``jobs``, ``max_in_flight`` or a malformed ``scheduler`` address.
+    TypeError
+        ``options`` is not a :class:`BatchOptions`.
     OSError
-        The scheduler cannot be reached; before the output folder is made.
+        ``output`` cannot be created (under a file, not writable), or the scheduler cannot be reached; before
+        any raw is read and before the output folder is made.
     """
     from .deprecation import renamed_keywords
 
@@ -1285,9 +1288,12 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
     if max_in_flight is not None and max_in_flight < 1:
         raise ValueError(f"max_in_flight must be >= 1, got {max_in_flight}")
     options = options or BatchOptions()
+    if not isinstance(options, BatchOptions):
+        raise TypeError(f"options must be a BatchOptions, got {type(options).__name__} (BatchOptions(**it))")
     # an absolute database path: forked workers keep the working directory of their fork server's start
     options = replace(options, database=str(Path(options.database).resolve()))
     out = Path(out_dir).resolve()
+    refuse_unwritable(out / SUMMARY_JSON)      # before any work (NotADirectoryError, PermissionError)
     files = [f.resolve() for f in find_raws(inputs, exclude=[out])]
     if not overwrite:
         check_outputs_to_replace(files, out, options)
