@@ -42,6 +42,23 @@ def _check_scheduler(ctx: click.Context, param: click.Parameter, value: str | No
         raise click.BadParameter(str(exc).removeprefix("scheduler: "), ctx, param) from None
 
 
+def _check_frames(white: Path | None, mosaic: Any) -> None:
+    """--white and --dark, read once before the batch: a file that is no raw is a usage error naming the option,
+    not one identical failure per raw."""
+    from ..errors import PlenodecodeError
+    from ..pipeline.inputs import open_raw, quieted, read_dark_frame
+
+    for path, hint, read in ((white, "--white", open_raw), (current_microscope_inputs()["dark"], "--dark",
+                                                            read_dark_frame)):
+        if path is None:
+            continue
+        try:
+            with quieted("plenodecode.io.generic"):      # its level notes come again with each raw
+                read(path, mosaic=mosaic)
+        except PlenodecodeError as exc:
+            raise click.BadParameter(str(exc), param_hint=hint) from None
+
+
 def _latency_note(summary) -> str:
     """' (first task 4.4 s, then 0.8 s per raw; peak 420 MB per worker)', or '' when nothing was decoded."""
     lat = summary.latency()
@@ -270,6 +287,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
                            frames=frames, radius=radius, fps=fps, interp=interp, parallax_frames=not no_frames,
                            metric=metric, ply=ply, depth_focus_distance=depth_focus_distance,
                            **_microscope_fields())
+    _check_frames(white, mosaic)
     if not overwrite:       # a second run with other options must not replace the first run's folders
         try:
             check_outputs_to_replace(files, out_dir, options)

@@ -308,9 +308,24 @@ def input_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     return calibration_option(fn)
 
 
+def check_grid_file(ctx: click.Context, param: click.Parameter, value: Path | None) -> Path | None:
+    """--calibration read while the command line is parsed (a small JSON file): a file that is not a lenslet grid
+    is a usage error naming the option, before any raw is read (in a batch: not one failure per raw)."""
+    if value is not None:
+        from ..errors import PlenodecodeError
+        from ..pipeline.calibration import _grid_from_file
+
+        try:
+            _grid_from_file(value)
+        except PlenodecodeError as exc:
+            raise click.BadParameter(str(exc), ctx, param) from None
+    return value
+
+
 #: ``--calibration/-g GRID.json``: the ``grid`` of :func:`plenodecode.pipeline.choose_calibration`.
 calibration_option = click.option("--calibration", "-g", "calibration",
                                   type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
+                                  callback=check_grid_file,
                                   help="Lenslet grid JSON written by 'plenodecode calibrate'.")
 #: ``--self-calibrate``: the ``self_calibrate`` of :func:`plenodecode.pipeline.choose_calibration`.
 self_calibrate_option = click.option("--self-calibrate", "self_calibrate", is_flag=True,
