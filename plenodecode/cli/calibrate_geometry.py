@@ -37,7 +37,8 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], board, output: Path, r
     Every raw is decoded with the same lenslet calibration (--calibration / --white / --database, as
     'plenodecode decode'; never rectified), the board's corners are found in each sub-aperture view,
     and H, the distortion and the board poses are fitted by ray reprojection (Dansereau et al. 2013).
-    A capture without the whole board is reported and skipped; at least 3 must remain.
+    A capture without the whole board, or a file that cannot be read, is reported and
+    skipped; at least 3 must remain.
 
     \b
     Examples:
