@@ -505,6 +505,9 @@ def lightfield_bit_depth(ctx: click.Context, name: str, output: Path, bit_depth:
     from ..io.lightfield import ESLF_EXTENSIONS, ESLF_NAMES
 
     typed = ctx.get_parameter_source("bit_depth") is ParameterSource.COMMANDLINE
+    if image_type is not None and name != "views":
+        raise click.BadParameter(f"is the image type of a views folder; {name} has none (leave it out, or write "
+                                 "--format views)", param_hint="--image-type")
     if name in ("zarr", "npy"):
         if typed and bit_depth != "32":
             raise click.BadParameter(f"{name} stores float32 samples (lossless), not {bit_depth}-bit ones; leave it "
@@ -593,12 +596,18 @@ def lightfield_output_format(output: Path, fmt: str | None, overwrite: bool) -> 
     """The light-field format to write ``output`` in: ``fmt``, else detected from its name (usage errors for an
     existing output without ``--overwrite``, for a name that says no format, for a file format over a folder and
     for a folder of other files)."""
-    from ..io.lightfield import FOLDER_FORMATS, detect_format, refuse_foreign_folder
+    from ..io.lightfield import FOLDER_FORMATS, detect_format, format_of_extension, refuse_foreign_folder
 
     try:
         name = fmt or detect_format(output, option="--format")
     except ValueError as exc:
         raise click.UsageError(str(exc)) from None
+    said = format_of_extension(output)
+    if fmt is not None and said is not None and said != fmt and not output.is_dir():   # a file no loader reads back
+        right = output.with_suffix(".png" if fmt == "eslf" else "" if fmt == "views" else f".{fmt}")
+        raise click.BadParameter(f"-o {output.name} says {said} by its extension, and --format {fmt} would write "
+                                 f"{fmt} under that name; name it {right.name}, or leave --format out",
+                                 param_hint="--format")
     check_writable(output)
     if name not in FOLDER_FORMATS:
         with usage_errors():

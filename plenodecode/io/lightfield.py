@@ -479,6 +479,11 @@ def _check_format(name: str) -> LightFieldFormat:
     return LIGHTFIELD_FORMATS[name]
 
 
+def format_of_extension(path: str | os.PathLike) -> str | None:
+    """The light-field format the extension of ``path`` names ('.mat' -> 'mat', '.png' -> 'eslf', ...), or None."""
+    return _FILE_FORMATS.get(Path(path).suffix.lower())
+
+
 def detect_format(path: str | os.PathLike, *, option: str = "format=") -> str:
     """Format name of an existing light field, or of one to write at ``path``; ``option`` is how the error names
     the way to choose the format (the keyword ``format=``, or the CLI's ``--format``).
@@ -500,8 +505,8 @@ def detect_format(path: str | os.PathLike, *, option: str = "format=") -> str:
         if (p / VIEWS_JSON).is_file() or _view_files(p):
             return "views"
     ext = p.suffix.lower()
-    if ext in _FILE_FORMATS:
-        return _FILE_FORMATS[ext]
+    if format_of_extension(p) is not None:
+        return format_of_extension(p)
     if ext in PAGE_EXTENSIONS:
         raise ValueError(_page_error(p))
     if ext == "" and not p.is_file():
