@@ -45,11 +45,13 @@ import os
 import hashlib
 import re
 import shutil
+import signal
 import socket
+import threading
 import time
 import uuid
 from pathlib import Path
-from typing import Iterable, Iterator, Sequence
+from typing import Callable, Iterable, Iterator, Sequence
 
 log = logging.getLogger(__name__)
 
@@ -283,6 +285,31 @@ def commit(tmp: str | os.PathLike, dest: str | os.PathLike) -> None:
     else:
         os.replace(t, d)
     log.debug("committed %s", d)
+
+
+@contextlib.contextmanager
+def interrupts_between_steps() -> Iterator[Callable[[], None]]:
+    """Context manager for a writer whose steps run on another thread (zarr's I/O loop): Ctrl-C (SIGINT) is held
+    back until the yielded ``check()``, called between steps, raises it as KeyboardInterrupt (or until the block
+    ends).  An interrupt in the middle of a step would leave that thread writing into the temporary output after
+    :func:`atomic_output` removed it, and print its tasks' tracebacks at exit.  Outside the main thread, or under a
+    SIGINT handler of the caller's own, nothing changes."""
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+        yield lambda: None
+        return
+    caught: list[int] = []
+
+    def check() -> None:
+        if caught:
+            raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    try:
+        yield check
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    check()
 
 
 @contextlib.contextmanager

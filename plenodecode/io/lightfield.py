@@ -56,7 +56,7 @@ import numpy as np
 
 from ..errors import FormatError, MetadataError
 from ..types import LINEAR_COLOUR_STATES, LightField, LightFieldGeometry
-from .atomic import atomic_output, atomic_outputs, refuse_existing
+from .atomic import atomic_output, atomic_outputs, interrupts_between_steps, refuse_existing
 from .generic import json_safe
 from .images import quantise, read_image, srgb_encode, to_unit_float, write_image
 
@@ -147,19 +147,21 @@ def _save_zarr(lf: LightField, path: Path, *, progress: Progress, **_: Any) -> N
     import zarr
 
     V, U, Y, X, C = lf.shape
-    group = zarr.open_group(str(path), mode="w", attributes=_attrs(lf), zarr_format=3)
-    data = group.create_array("data", shape=lf.shape, dtype="float32", chunks=(1, 1, Y, X, C), fill_value=0.0,
-                              dimension_names=("v", "u", "y", "x", "c"))
-    weight = None
-    if lf.weight is not None:
-        weight = group.create_array("weight", shape=lf.shape[:4], dtype="float32", chunks=(1, 1, Y, X),
-                                    fill_value=0.0, dimension_names=("v", "u", "y", "x"))
-    for k in range(V * U):
-        v, u = divmod(k, U)
-        data[v, u] = lf.data[v, u]
-        if weight is not None:
-            weight[v, u] = np.asarray(lf.weight[v, u], np.float32)
-        _tick(progress, k + 1, V * U)
+    with interrupts_between_steps() as check:       # zarr writes on its own thread: Ctrl-C between views only
+        group = zarr.open_group(str(path), mode="w", attributes=_attrs(lf), zarr_format=3)
+        data = group.create_array("data", shape=lf.shape, dtype="float32", chunks=(1, 1, Y, X, C), fill_value=0.0,
+                                  dimension_names=("v", "u", "y", "x", "c"))
+        weight = None
+        if lf.weight is not None:
+            weight = group.create_array("weight", shape=lf.shape[:4], dtype="float32", chunks=(1, 1, Y, X),
+                                        fill_value=0.0, dimension_names=("v", "u", "y", "x"))
+        for k in range(V * U):
+            check()
+            v, u = divmod(k, U)
+            data[v, u] = lf.data[v, u]
+            if weight is not None:
+                weight[v, u] = np.asarray(lf.weight[v, u], np.float32)
+            _tick(progress, k + 1, V * U)
 
 
 def _load_zarr(path: Path, *, view: tuple[int, int] | None = None) -> LightField | np.ndarray:
