@@ -56,7 +56,7 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 from .deprecation import renamed_fields
 from .errors import DecodeError, MissingConstantsError, PlenodecodeError, one_line
 from .io.atomic import (OLD_MARK, TEMP_MARK, atomic_output, discard, is_temporary, remove_stale_temporaries,
-                        write_text_atomic)
+                        refuse_unwritable, write_text_atomic)
 from .registry import lookup
 from .threads import limit_threads
 
@@ -1268,6 +1268,16 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
     -------
     BatchSummary
         One result per raw in input order; failures carry their error, nothing is raised for bad files.
+
+    Raises
+    ------
+    ValueError
+        ``jobs``, ``max_in_flight`` or a malformed ``scheduler`` address.
+    TypeError
+        ``options`` is not a :class:`BatchOptions`.
+    OSError
+        ``output`` cannot be created (under a file, not writable), or the scheduler cannot be reached; before
+        any raw is read and before the output folder is made.
     """
     from .deprecation import renamed_keywords
 
@@ -1283,14 +1293,22 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
     if max_in_flight is not None and max_in_flight < 1:
         raise ValueError(f"max_in_flight must be >= 1, got {max_in_flight}")
     options = options or BatchOptions()
+    if not isinstance(options, BatchOptions):
+        raise TypeError(f"options must be a BatchOptions, got {type(options).__name__} (BatchOptions(**it))")
     # an absolute database path: forked workers keep the working directory of their fork server's start
     options = replace(options, database=str(Path(options.database).resolve()))
     out = Path(out_dir).resolve()
+    refuse_unwritable(out / SUMMARY_JSON)      # before any work (NotADirectoryError, PermissionError)
     files = [f.resolve() for f in find_raws(inputs, exclude=[out])]
     if not overwrite:
         check_outputs_to_replace(files, out, options)
     if scheduler is None:
         jobs = min(jobs or os.cpu_count() or 1, max(1, len(files)))
+    client = None
+    if scheduler is not None:   # reached (or refused) before the output folder is made: a typo leaves nothing
+        from .batch_workers import connect_scheduler
+
+        client, own_client = connect_scheduler(scheduler)
     pool = None
     if scheduler is None and jobs > 1:     # the workers' modules load while this process prepares the batch
         from .batch_workers import start_pool
@@ -1303,6 +1321,8 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
     except BaseException:
         if pool is not None:
             pool.shutdown(wait=False, cancel_futures=True)
+        if client is not None and own_client:
+            client.close()
         raise
     t0 = time.perf_counter()
     if progress is not None:
@@ -1312,7 +1332,11 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
     if scheduler is not None:
         from .batch_workers import run_dask
 
-        results = run_dask(tasks, task, _lost_result, options.outputs, scheduler, max_in_flight, progress)
+        try:
+            results = run_dask(tasks, task, _lost_result, options.outputs, client, max_in_flight, progress)
+        finally:
+            if own_client:
+                client.close()
     elif pool is not None:
         from .batch_workers import run_pool
 

@@ -26,6 +26,7 @@ import ctypes
 import ctypes.util
 import logging
 import os
+import re
 import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -189,6 +190,46 @@ def release_dask_worker() -> bool:
     return _mallopt(_M_MMAP_THRESHOLD, mmap) and _mallopt(_M_TRIM_THRESHOLD, trim)
 
 
+#: ``[scheme://]host:port`` of a Dask scheduler (an IPv6 host in brackets); 'inproc://' addresses as they are.
+_SCHEDULER_ADDRESS = re.compile(r"^(?:(?:tcp|tls|ws|wss|ucx)://)?(?:\[[0-9A-Fa-f:.]+\]|[^\s:/\[\]]+):(?P<port>[0-9]{1,5})/?$")
+
+
+def check_scheduler_address(address: str) -> str:
+    """``address`` if it has the shape of a Dask scheduler address (``tcp://10.0.0.5:8786``, ``host:8786``).
+
+    Raises
+    ------
+    ValueError
+        No port, a port outside 1-65535, another scheme, spaces (a typo that Dask would only refuse after a minute).
+    """
+    text = str(address).strip()
+    if text.startswith("inproc://"):
+        return text
+    m = _SCHEDULER_ADDRESS.match(text)
+    if m is None or not 1 <= int(m.group("port")) <= 65535:
+        raise ValueError(f"scheduler: expected a Dask scheduler address tcp://HOST:PORT (e.g. tcp://10.0.0.5:8786), "
+                         f"got {address!r}")
+    return text
+
+
+def connect_scheduler(scheduler: Any) -> tuple[Any, bool]:
+    """A Dask ``Client`` of ``scheduler`` (an address, checked by :func:`check_scheduler_address`, or a Client)
+    and whether it is our own to close.
+
+    Raises
+    ------
+    ValueError
+        A malformed address.
+    OSError
+        The scheduler cannot be reached (Dask's connect timeout).
+    """
+    from distributed import Client
+
+    if isinstance(scheduler, Client):
+        return scheduler, False
+    return Client(check_scheduler_address(scheduler), set_as_default=False), True
+
+
 def run_dask(tasks: list[tuple[Path, str]], task: Task, lost: Lost, outputs: Sequence[str], scheduler: Any,
              max_in_flight: int | None, progress: Progress) -> list[Any]:
     """The same tasks as :func:`run_pool` (one thread each) on a Dask distributed cluster, largest first, results
@@ -197,10 +238,9 @@ def run_dask(tasks: list[tuple[Path, str]], task: Task, lost: Lost, outputs: Seq
     Every worker is set up once (:func:`prepare_dask_worker`) before the first task and released
     (:func:`release_dask_worker`) at the end.
     """
-    from distributed import Client, as_completed
+    from distributed import as_completed
 
-    own = not isinstance(scheduler, Client)
-    client = Client(scheduler, set_as_default=False) if own else scheduler
+    client, own = connect_scheduler(scheduler)
     try:
         try:
             setup = client.run(prepare_dask_worker, preload_modules(outputs))

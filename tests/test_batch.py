@@ -773,6 +773,7 @@ def test_cli_unreachable_scheduler_exits_1_with_one_line(data, tmp_path):
     err = res.stderr.strip().splitlines()
     assert err[-1].startswith("error: cannot use the Dask scheduler tcp://127.0.0.1:9")
     assert "Traceback" not in res.output
+    assert not (tmp_path / "o").exists()        # the scheduler is reached before the output folder is made
 
 
 def test_output_folders_follow_the_umask(local_run):

@@ -46,3 +46,33 @@ def test_python_centre_view_of_a_real_f01_raw_is_the_cli_file(tmp_path):
     cli_img, py_img = read_image(cli_png), read_image(py_png)
     assert cli_img.shape == (383, 382, 3) and float(cli_img.std()) > 0.005
     np.testing.assert_array_equal(py_img, cli_img)
+
+
+def test_run_batch_takes_one_folder_as_a_string(tmp_path, monkeypatch):
+    """``pd.run_batch("shoot", ...)``: the old code searched each character of the string as a path ('/' the whole
+    disk; here, in a folder without 's', 'h', 'o', 't', nothing at all)."""
+    import shutil
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "shoot").mkdir()
+    shutil.copy(SCENE, tmp_path / "shoot" / "scene.lfr")
+    summary = pd.run_batch("shoot", "out", pd.BatchOptions(database=str(ROOT / "calib")), jobs=1)
+    assert [r.status for r in summary.results] == ["done"]
+    assert summary.results[0].source == str(tmp_path / "shoot" / "scene.lfr")
+    assert (tmp_path / "out" / "scene").is_dir()
+
+
+def test_run_batch_refuses_bad_arguments_before_any_work(tmp_path):
+    """An options dict (AttributeError 'dict' object has no attribute 'database' before) and an output under a
+    file (a bare '[Errno 20] Not a directory') are refused in words naming the keyword, with nothing created."""
+    import pytest
+
+    blocker = tmp_path / "notes.txt"
+    blocker.write_text("keep me")
+    with pytest.raises(TypeError, match="options must be a BatchOptions"):
+        pd.run_batch([SCENE], tmp_path / "out", {"outputs": ("photo",)}, jobs=1)
+    with pytest.raises(NotADirectoryError, match="notes.txt is a file, not a folder"):
+        pd.run_batch([SCENE], blocker / "out", jobs=1)
+    with pytest.raises(ValueError, match="scheduler"):
+        pd.run_batch([SCENE], tmp_path / "out", scheduler="bogus")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]

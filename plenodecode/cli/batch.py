@@ -7,14 +7,14 @@ from typing import Any
 
 import click
 
-from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES, DEFAULT_STACK_SLICES
+from ..batch import BATCH_OUTPUTS as OUTPUT_CHOICES, DEFAULT_STACK_SLICES, SUMMARY_JSON
 from ..pipeline import STACK_UNITS
 from ..depth import DEFAULT_METHOD as DEFAULT_DEPTH_METHOD
 from ..io.depthio import DEFAULT_MIN_CONFIDENCE
 from .common import (FINITE, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, RegistryChoice, aperture_option, bit_depth_option,
-                     calibration_option, current_geometry, current_microscope_inputs, current_mosaic_options,
-                     database_option, decoding_options, exposure_option, geometry_option, jobs_option,
-                     microscope_options, mosaic_options, progress_bar, refuse_database_with_grid,
+                     calibration_option, check_writable, current_geometry, current_microscope_inputs,
+                     current_mosaic_options, database_option, decoding_options, exposure_option, geometry_option,
+                     jobs_option, microscope_options, mosaic_options, progress_bar, refuse_database_with_grid,
                      self_calibrate_option, views_anyway_option)
 from .depth import parse_range
 from .refocus import parse_stack
@@ -27,6 +27,36 @@ def _parse_outputs(ctx: click.Context, param: click.Parameter, value: str) -> tu
     if bad or not items:
         raise click.BadParameter(f"{', '.join(bad) or 'nothing given'}; choose from {', '.join(OUTPUT_CHOICES)}")
     return items
+
+
+def _check_scheduler(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+    """The --scheduler address, checked while the command line is parsed (Dask refuses a malformed one only after
+    a minute, with a traceback)."""
+    if value is None:
+        return None
+    from ..batch_workers import check_scheduler_address
+
+    try:
+        return check_scheduler_address(value)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc).removeprefix("scheduler: "), ctx, param) from None
+
+
+def _check_frames(white: Path | None, mosaic: Any) -> None:
+    """--white and --dark, read once before the batch: a file that is no raw is a usage error naming the option,
+    not one identical failure per raw."""
+    from ..errors import PlenodecodeError
+    from ..pipeline.inputs import open_raw, quieted, read_dark_frame
+
+    for path, hint, read in ((white, "--white", open_raw), (current_microscope_inputs()["dark"], "--dark",
+                                                            read_dark_frame)):
+        if path is None:
+            continue
+        try:
+            with quieted("plenodecode.io.generic"):      # its level notes come again with each raw
+                read(path, mosaic=mosaic)
+        except PlenodecodeError as exc:
+            raise click.BadParameter(str(exc), param_hint=hint) from None
 
 
 def _latency_note(summary) -> str:
@@ -116,7 +146,7 @@ def _microscope_fields() -> dict:
 @click.option("-o", "--output", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True,
               help="Output folder: one sub-folder per raw, summary.json and index.html.")
 @jobs_option
-@click.option("--scheduler", default=None, metavar="ADDRESS",
+@click.option("--scheduler", default=None, metavar="ADDRESS", callback=_check_scheduler,
               help="Dask scheduler address (tcp://host:8786): run the tasks on that cluster (--jobs is ignored).")
 @click.option("--outputs", default="photo", show_default=True, callback=_parse_outputs,
               help=f"Comma-separated products per raw: {', '.join(OUTPUT_CHOICES)}. 'photo': the camera's "
@@ -214,6 +244,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
         raise click.BadParameter("32 (float EXR) cannot be held by the parallax frames (PNG): pass 8 or 16, or "
                                  "--no-frames", param_hint="--bit-depth")
     refuse_database_with_grid(calibration, None, database)
+    check_writable(out_dir / SUMMARY_JSON)
     db_dir = database or Path(DEFAULT_DB)
     if not overwrite:
         try:
@@ -265,6 +296,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
                            frames=frames, radius=radius, fps=fps, interp=interp, parallax_frames=not no_frames,
                            metric=metric, ply=ply, depth_focus_distance=depth_focus_distance,
                            **_microscope_fields())
+    _check_frames(white, mosaic)
     if not overwrite:       # a second run with other options must not replace the first run's folders
         try:
             check_outputs_to_replace(files, out_dir, options)

@@ -9,7 +9,7 @@ import click
 
 from ..errors import CalibrationError
 from ..io.atomic import write_text_atomic
-from .common import (POSITIVE, RegistryChoice, check_output, overwrite_option, progress_bar,
+from .common import (FiniteFloat, RegistryChoice, check_output, overwrite_option, progress_bar,
                      refuse_writing_over_inputs)
 
 
@@ -26,7 +26,7 @@ def _write_text(path: Path, text: str) -> None:
               help="Also write a self-contained HTML calibration report.")
 @click.option("--lattice", type=RegistryChoice("plenodecode.calib", "LATTICES"), default="auto", show_default=True,
               help="Lenslet lattice type.")
-@click.option("--pitch", "pitch_hint", type=POSITIVE, default=None,
+@click.option("--pitch", "pitch_hint", type=FiniteFloat(min=2, min_open=True), default=None,
               help="Approximate lens pitch in px (a hint; default from metadata or the image).")
 @click.option("--database", type=click.Path(path_type=Path, file_okay=False), default=None,
               help="Calibration database folder: WHITE folders of MOD_NNNN.RAW/.TXT pairs, Illum "
@@ -76,7 +76,7 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
     if output is not None:
         check_output(output, overwrite)
     if report is not None:
-        check_output(report, overwrite)
+        check_output(report, overwrite, "--report")
     if database is not None and for_raw is None:
         for folder in inputs:
             if not folder.is_dir() and archive_kind(folder) is None:

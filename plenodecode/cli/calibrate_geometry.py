@@ -6,8 +6,9 @@ from pathlib import Path
 
 import click
 
-from .common import (BOARD, calibration_kwargs, check_output, database_option, mosaic_options, overwrite_option,
-                     progress_bar, quiet, refuse_database_with_grid, refuse_writing_over_inputs, usage_errors)
+from .common import (BOARD, calibration_kwargs, check_grid_file, check_output, database_option, mosaic_options,
+                     overwrite_option, progress_bar, quiet, refuse_database_with_grid, refuse_writing_over_inputs,
+                     usage_errors)
 
 
 @click.command("calibrate-geometry")
@@ -21,7 +22,7 @@ from .common import (BOARD, calibration_kwargs, check_output, database_option, m
 @click.option("--toolbox", is_flag=True, help="Write the Light Field Toolbox's CalInfo.json layout (1-based H).")
 @click.option("--no-distortion", is_flag=True, help="Keep the distortion at zero (H and poses only).")
 @click.option("--calibration", "-g", "calibration", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              default=None, help="Lenslet grid JSON the raws are decoded with.")
+              default=None, callback=check_grid_file, help="Lenslet grid JSON the raws are decoded with.")
 @click.option("--white", "-w", "white", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
               help="White image of the same zoom/focus the raws are decoded with.")
 @database_option
@@ -36,7 +37,8 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], board, output: Path, r
     Every raw is decoded with the same lenslet calibration (--calibration / --white / --database, as
     'plenodecode decode'; never rectified), the board's corners are found in each sub-aperture view,
     and H, the distortion and the board poses are fitted by ray reprojection (Dansereau et al. 2013).
-    A capture without the whole board is reported and skipped; at least 3 must remain.
+    A capture without the whole board, or a file that cannot be read, is reported and
+    skipped; at least 3 must remain.
 
     \b
     Examples:
@@ -53,7 +55,7 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], board, output: Path, r
             refuse_writing_over_inputs([path], [*read, calibration, white], param_hint=option)
     check_output(output, overwrite)
     if report is not None:
-        check_output(report, overwrite)
+        check_output(report, overwrite, "--report")
         if report.resolve() == output.resolve():
             raise click.BadParameter("must differ from -o/--output", param_hint="--report")
     options = calibration_kwargs(calibration, white, database, False)

@@ -18,7 +18,7 @@ from typing import Any, Callable, Iterator, Mapping
 import click
 from click.core import ParameterSource
 
-from ..io.atomic import refuse_folder
+from ..io.atomic import refuse_folder, refuse_unwritable
 from ..pipeline import BIT_DEPTHS
 
 
@@ -308,9 +308,24 @@ def input_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     return calibration_option(fn)
 
 
+def check_grid_file(ctx: click.Context, param: click.Parameter, value: Path | None) -> Path | None:
+    """--calibration read while the command line is parsed (a small JSON file): a file that is not a lenslet grid
+    is a usage error naming the option, before any raw is read (in a batch: not one failure per raw)."""
+    if value is not None:
+        from ..errors import PlenodecodeError
+        from ..pipeline.calibration import _grid_from_file
+
+        try:
+            _grid_from_file(value)
+        except PlenodecodeError as exc:
+            raise click.BadParameter(str(exc), ctx, param) from None
+    return value
+
+
 #: ``--calibration/-g GRID.json``: the ``grid`` of :func:`plenodecode.pipeline.choose_calibration`.
 calibration_option = click.option("--calibration", "-g", "calibration",
                                   type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
+                                  callback=check_grid_file,
                                   help="Lenslet grid JSON written by 'plenodecode calibrate'.")
 #: ``--self-calibrate``: the ``self_calibrate`` of :func:`plenodecode.pipeline.choose_calibration`.
 self_calibrate_option = click.option("--self-calibrate", "self_calibrate", is_flag=True,
@@ -403,7 +418,7 @@ def usage_errors(param_hint: str | None = None) -> Iterator[None]:
     with ``param_hint`` a ValueError names that option."""
     try:
         yield
-    except IsADirectoryError as exc:        # an output file named like a folder that exists: never replaced
+    except (IsADirectoryError, NotADirectoryError) as exc:     # a file never replaces a folder, nor a folder a file
         raise click.UsageError(str(exc)) from exc
     except FileExistsError as exc:
         text = str(exc).replace("overwrite=True", "--overwrite")       # the library's keyword, as the CLI spells it
@@ -490,6 +505,9 @@ def lightfield_bit_depth(ctx: click.Context, name: str, output: Path, bit_depth:
     from ..io.lightfield import ESLF_EXTENSIONS, ESLF_NAMES
 
     typed = ctx.get_parameter_source("bit_depth") is ParameterSource.COMMANDLINE
+    if image_type is not None and name != "views":
+        raise click.BadParameter(f"is the image type of a views folder; {name} has none (leave it out, or write "
+                                 "--format views)", param_hint="--image-type")
     if name in ("zarr", "npy"):
         if typed and bit_depth != "32":
             raise click.BadParameter(f"{name} stores float32 samples (lossless), not {bit_depth}-bit ones; leave it "
@@ -539,9 +557,20 @@ def refuse_writing_over_command_inputs(written: list[Path], input_path: Path, ca
                                param_hint=param_hint)
 
 
-def check_output(path: Path, overwrite: bool) -> None:
-    """Refuse an output file that is an existing folder, even with ``--overwrite``, and to replace an existing
-    output unless ``--overwrite`` was given (usage errors, exit 2)."""
+def check_writable(path: Path, param_hint: str = "-o / --output") -> None:
+    """Refuse, before any work, an output that cannot be created: under a file, or in a folder that cannot be
+    written (usage error naming ``param_hint``, exit 2)."""
+    try:
+        refuse_unwritable(path)
+    except OSError as exc:
+        raise click.BadParameter(str(exc), param_hint=param_hint) from None
+
+
+def check_output(path: Path, overwrite: bool, param_hint: str = "-o / --output") -> None:
+    """Refuse an output file that is an existing folder, even with ``--overwrite``, one that cannot be created
+    (:func:`check_writable`), and to replace an existing output unless ``--overwrite`` was given (usage errors,
+    exit 2)."""
+    check_writable(path, param_hint)
     with usage_errors():
         refuse_folder(path)
     if path.exists() and not overwrite:
@@ -558,6 +587,7 @@ def check_folder_output(folder: Path, names: list[str], overwrite: bool, *, what
     if not folder.is_dir() and folder.suffix.lower() in (*IMAGE_FORMATS, *ANIMATION_FORMATS):
         raise click.BadParameter(f"{what} goes into a folder, and {folder.name} names an image file; give a "
                                  f"folder, e.g. {folder.with_suffix('')}/", param_hint="-o / --output")
+    check_writable(folder / "-" if folder.is_dir() else folder)
     with usage_errors():
         refuse_folder_clash(folder, names, overwrite)
 
@@ -566,12 +596,19 @@ def lightfield_output_format(output: Path, fmt: str | None, overwrite: bool) -> 
     """The light-field format to write ``output`` in: ``fmt``, else detected from its name (usage errors for an
     existing output without ``--overwrite``, for a name that says no format, for a file format over a folder and
     for a folder of other files)."""
-    from ..io.lightfield import FOLDER_FORMATS, detect_format, refuse_foreign_folder
+    from ..io.lightfield import FOLDER_FORMATS, detect_format, format_of_extension, refuse_foreign_folder
 
     try:
         name = fmt or detect_format(output, option="--format")
     except ValueError as exc:
         raise click.UsageError(str(exc)) from None
+    said = format_of_extension(output)
+    if fmt is not None and said is not None and said != fmt and not output.is_dir():   # a file no loader reads back
+        right = output.with_suffix(".png" if fmt == "eslf" else "" if fmt == "views" else f".{fmt}")
+        raise click.BadParameter(f"-o {output.name} says {said} by its extension, and --format {fmt} would write "
+                                 f"{fmt} under that name; name it {right.name}, or leave --format out",
+                                 param_hint="--format")
+    check_writable(output)
     if name not in FOLDER_FORMATS:
         with usage_errors():
             refuse_folder(output)       # '-o lf.npy' naming a folder: a file never replaces a folder

@@ -10,9 +10,9 @@ import click
 from ..depth import DEFAULT_METHOD
 from ..io.atomic import refuse_folder
 from ..io.depthio import DEFAULT_MIN_CONFIDENCE
-from .common import (OneInputCommand, POSITIVE, UNIT_INTERVAL, RegistryChoice, calibration_kwargs, input_options,
-                     output_option, overwrite_option, progress_bar, quiet, refuse_writing_over_command_inputs,
-                     usage_errors)
+from .common import (OneInputCommand, POSITIVE, UNIT_INTERVAL, RegistryChoice, calibration_kwargs, check_writable,
+                     input_options, output_option, overwrite_option, progress_bar, quiet,
+                     refuse_writing_over_command_inputs, usage_errors)
 
 
 def parse_range(text: str | None) -> tuple[float, float] | None:
@@ -136,6 +136,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
         paths = depth_output_paths(output, ply=ply, confidence=True)
     except ValueError as exc:
         raise click.BadParameter(str(exc), param_hint="--output") from None
+    for p in paths.values():
+        check_writable(p)
     with usage_errors():
         for p in paths.values():
             refuse_folder(p)

@@ -134,6 +134,23 @@ class LazyGroup(click.Group):
                 raise
             click.echo(f"error: {exc}", err=True)
             ctx.exit(1)
+        except OSError as exc:     # a write failing mid-run (full or read-only disk, a folder gone): one line
+            if ctx.obj and ctx.obj.get("verbose", 0) > 0:
+                raise
+            click.echo(f"error: {os_error_text(exc)}", err=True)
+            ctx.exit(1)
+
+
+def os_error_text(exc: OSError) -> str:
+    """One line for an OSError, naming the output a temporary file stood for (not its temporary name)."""
+    from ..io.atomic import destination_of
+
+    if exc.filename is None or not exc.strerror:
+        return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    dest = destination_of(exc.filename)
+    if str(dest) != str(exc.filename):
+        return f"cannot write {dest}: {exc.strerror}"
+    return f"{exc.strerror}: {exc.filename}"
 
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})

@@ -132,7 +132,12 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
         raise click.BadParameter(str(exc), param_hint="--name") from exc
     archive_path = None
     if archive is not None:
-        archive_path = out / archive_name(archive, get_preset(preset).serial)
+        camera = get_preset(preset)
+        if camera.make != "Lytro":       # a Lytro archive holds Bayer MOD_NNNN.RAW white images only
+            raise click.BadParameter(f"{archive} is a Lytro calibration archive; {preset!r} is not a Lytro camera "
+                                     f"({camera.make} {camera.model}): its white image is written beside the raw",
+                                     param_hint="--archive")
+        archive_path = out / archive_name(archive, camera.serial)
         names = {**names, "archive": archive_path.name}
     check_folder_output(out, list(names.values()), overwrite, what="the synthetic raw")
     try:

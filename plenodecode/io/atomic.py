@@ -45,11 +45,13 @@ import os
 import hashlib
 import re
 import shutil
+import signal
 import socket
+import threading
 import time
 import uuid
 from pathlib import Path
-from typing import Iterable, Iterator, Sequence
+from typing import Callable, Iterable, Iterator, Sequence
 
 log = logging.getLogger(__name__)
 
@@ -83,11 +85,27 @@ def check_destination(path: str | os.PathLike, overwrite: bool) -> Path:
     ------
     FileExistsError
         ``path`` exists (or is a dangling symlink) and ``overwrite`` is False.
+    OSError
+        ``path`` cannot be created (:func:`refuse_unwritable`).
     """
     p = Path(path)
     _refuse_existing(p, overwrite)
+    refuse_unwritable(p)
     p.parent.mkdir(parents=True, exist_ok=True)
     return p
+
+
+def refuse_unwritable(path: str | os.PathLike) -> None:
+    """Raise when the output ``path`` cannot be created: :class:`NotADirectoryError` when the nearest existing
+    path above it is a file, :class:`PermissionError` when that folder is not writable (permissions, a read-only
+    disk).  For checks before any work; creates nothing."""
+    folder = Path(os.path.abspath(path)).parent
+    while not os.path.lexists(folder):
+        folder = folder.parent
+    if not folder.is_dir():
+        raise NotADirectoryError(f"cannot write {path}: {folder} is a file, not a folder")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise PermissionError(f"cannot write {path}: no permission to write in {folder} (or a read-only disk)")
 
 
 def _refuse_existing(p: Path, overwrite: bool) -> None:
@@ -116,6 +134,14 @@ def refuse_existing(paths: Iterable[str | os.PathLike], overwrite: bool) -> None
 def is_temporary(path: str | os.PathLike) -> bool:
     """True for the name of a temporary output or a replaced folder that this module creates."""
     return bool(_LEFTOVER.match(Path(path).name))
+
+
+def destination_of(path: str | os.PathLike) -> Path:
+    """The output a temporary name of this module stands for (``dir/.x.png.<token>.tmp.png`` -> ``dir/x.png``);
+    any other path unchanged."""
+    p = Path(path)
+    m = _LEFTOVER.match(p.name)
+    return p.with_name(m.group("name")) if m else p
 
 
 def temporary_sibling(path: str | os.PathLike, *, folder: bool = False, suffix: str | None = None) -> Path:
@@ -259,6 +285,31 @@ def commit(tmp: str | os.PathLike, dest: str | os.PathLike) -> None:
     else:
         os.replace(t, d)
     log.debug("committed %s", d)
+
+
+@contextlib.contextmanager
+def interrupts_between_steps() -> Iterator[Callable[[], None]]:
+    """Context manager for a writer whose steps run on another thread (zarr's I/O loop): Ctrl-C (SIGINT) is held
+    back until the yielded ``check()``, called between steps, raises it as KeyboardInterrupt (or until the block
+    ends).  An interrupt in the middle of a step would leave that thread writing into the temporary output after
+    :func:`atomic_output` removed it, and print its tasks' tracebacks at exit.  Outside the main thread, or under a
+    SIGINT handler of the caller's own, nothing changes."""
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+        yield lambda: None
+        return
+    caught: list[int] = []
+
+    def check() -> None:
+        if caught:
+            raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    try:
+        yield check
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    check()
 
 
 @contextlib.contextmanager

@@ -116,6 +116,12 @@ def _walk(folder: Path, exclude: set[Path], stop_marker: str | None,
     return found
 
 
+def one_or_many(inputs: str | os.PathLike | Iterable[str | os.PathLike]) -> list[str | os.PathLike]:
+    """``inputs`` as a list of paths: one path (``'shoot/'``, not its characters, which would be searched
+    from '/') or an iterable of them."""
+    return [inputs] if isinstance(inputs, (str, bytes, os.PathLike)) else list(inputs)
+
+
 def find_raws(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os.PathLike] = (),
               stop_marker: str | None = None) -> list[Path]:
     """Every raw file under ``inputs``.
@@ -133,7 +139,7 @@ def find_raws(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os
 
     Parameters
     ----------
-    inputs : iterable of path-like
+    inputs : path-like or iterable of path-like
     exclude : iterable of path-like
         Folders not to search.
     stop_marker : str, optional
@@ -146,7 +152,7 @@ def find_raws(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os
     """
     skip = {Path(e).resolve() for e in exclude}
     found: list[Path] = []
-    for item in inputs:
+    for item in one_or_many(inputs):
         p = Path(item)
         if p.is_dir():
             if p.resolve() not in skip:
@@ -179,7 +185,7 @@ def images_not_taken(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[s
         missed = not _is_raw_candidate(p) if found is None else p.resolve() not in found
         return missed and not _is_white_mosaic(_mosaic_sidecar(p))
 
-    return [f for item in inputs if Path(item).is_dir() and Path(item).resolve() not in skip
+    return [f for item in one_or_many(inputs) if Path(item).is_dir() and Path(item).resolve() not in skip
             for f in _walk(Path(item), skip, stop_marker, take=not_taken)]
 
 

@@ -56,7 +56,7 @@ import numpy as np
 
 from ..errors import FormatError, MetadataError
 from ..types import LINEAR_COLOUR_STATES, LightField, LightFieldGeometry
-from .atomic import atomic_output, atomic_outputs, refuse_existing
+from .atomic import atomic_output, atomic_outputs, interrupts_between_steps, refuse_existing
 from .generic import json_safe
 from .images import quantise, read_image, srgb_encode, to_unit_float, write_image
 
@@ -147,19 +147,21 @@ def _save_zarr(lf: LightField, path: Path, *, progress: Progress, **_: Any) -> N
     import zarr
 
     V, U, Y, X, C = lf.shape
-    group = zarr.open_group(str(path), mode="w", attributes=_attrs(lf), zarr_format=3)
-    data = group.create_array("data", shape=lf.shape, dtype="float32", chunks=(1, 1, Y, X, C), fill_value=0.0,
-                              dimension_names=("v", "u", "y", "x", "c"))
-    weight = None
-    if lf.weight is not None:
-        weight = group.create_array("weight", shape=lf.shape[:4], dtype="float32", chunks=(1, 1, Y, X),
-                                    fill_value=0.0, dimension_names=("v", "u", "y", "x"))
-    for k in range(V * U):
-        v, u = divmod(k, U)
-        data[v, u] = lf.data[v, u]
-        if weight is not None:
-            weight[v, u] = np.asarray(lf.weight[v, u], np.float32)
-        _tick(progress, k + 1, V * U)
+    with interrupts_between_steps() as check:       # zarr writes on its own thread: Ctrl-C between views only
+        group = zarr.open_group(str(path), mode="w", attributes=_attrs(lf), zarr_format=3)
+        data = group.create_array("data", shape=lf.shape, dtype="float32", chunks=(1, 1, Y, X, C), fill_value=0.0,
+                                  dimension_names=("v", "u", "y", "x", "c"))
+        weight = None
+        if lf.weight is not None:
+            weight = group.create_array("weight", shape=lf.shape[:4], dtype="float32", chunks=(1, 1, Y, X),
+                                        fill_value=0.0, dimension_names=("v", "u", "y", "x"))
+        for k in range(V * U):
+            check()
+            v, u = divmod(k, U)
+            data[v, u] = lf.data[v, u]
+            if weight is not None:
+                weight[v, u] = np.asarray(lf.weight[v, u], np.float32)
+            _tick(progress, k + 1, V * U)
 
 
 def _load_zarr(path: Path, *, view: tuple[int, int] | None = None) -> LightField | np.ndarray:
@@ -479,6 +481,11 @@ def _check_format(name: str) -> LightFieldFormat:
     return LIGHTFIELD_FORMATS[name]
 
 
+def format_of_extension(path: str | os.PathLike) -> str | None:
+    """The light-field format the extension of ``path`` names ('.mat' -> 'mat', '.png' -> 'eslf', ...), or None."""
+    return _FILE_FORMATS.get(Path(path).suffix.lower())
+
+
 def detect_format(path: str | os.PathLike, *, option: str = "format=") -> str:
     """Format name of an existing light field, or of one to write at ``path``; ``option`` is how the error names
     the way to choose the format (the keyword ``format=``, or the CLI's ``--format``).
@@ -500,8 +507,8 @@ def detect_format(path: str | os.PathLike, *, option: str = "format=") -> str:
         if (p / VIEWS_JSON).is_file() or _view_files(p):
             return "views"
     ext = p.suffix.lower()
-    if ext in _FILE_FORMATS:
-        return _FILE_FORMATS[ext]
+    if format_of_extension(p) is not None:
+        return format_of_extension(p)
     if ext in PAGE_EXTENSIONS:
         raise ValueError(_page_error(p))
     if ext == "" and not p.is_file():

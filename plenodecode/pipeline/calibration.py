@@ -52,7 +52,11 @@ def _grid_from_file(path: str | os.PathLike) -> LensletGrid:
     except (OSError, UnicodeDecodeError) as exc:
         raise CalibrationError(f"{path}: cannot read the lenslet grid ({exc}); pass a grid written by "
                                "'plenodecode calibrate'") from exc
-    return LensletGrid.from_json(text)
+    try:
+        return LensletGrid.from_json(text)
+    except CalibrationError as exc:     # which file, and what to pass instead
+        hint = "" if "plenodecode calibrate" in str(exc) else "; pass a grid written by 'plenodecode calibrate'"
+        raise CalibrationError(f"{path}: {exc}{hint}") from exc
 
 
 def _from_database(raw: RawCapture, db: Path) -> Calibration:

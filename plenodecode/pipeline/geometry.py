@@ -49,15 +49,23 @@ def _lightfields(paths: Sequence[Path], calibration_options: dict[str, Any], mos
                  progress: Progress) -> Iterator[Any]:
     """Each capture as a light field, decoded on demand (one in memory at a time); the raws share the
     calibration chosen for the first and come with their lens samples, which the corners are fitted on
-    (``(LightField, LensSamples)``, :func:`plenodecode.decoding.decode_samples`)."""
+    (``(LightField, LensSamples)``, :func:`plenodecode.decoding.decode_samples`).  A file that cannot be read comes
+    as its FormatError / MetadataError, which :func:`run_geometric_calibration` reports and skips."""
     from ..calib.geometry.captures import CAPTURE_DECODE
     from ..decoding import decode_samples
     from ..io.raytrix import is_rgb_export
 
+    from ..errors import FormatError, MetadataError
+
     chosen: Calibration | None = None
     for n, path in enumerate(paths):
-        item = open_input(path, mosaic=mosaic)
-        if isinstance(item, LightField):
+        try:
+            item = open_input(path, mosaic=mosaic)
+        except (FormatError, MetadataError) as exc:     # a damaged file among the captures: reported and skipped
+            item = exc
+        if isinstance(item, Exception):
+            yield item
+        elif isinstance(item, LightField):
             yield item
         else:
             if chosen is None:

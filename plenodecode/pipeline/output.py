@@ -140,13 +140,15 @@ def refuse_folder_clash(folder: str | os.PathLike, names: Sequence[str], overwri
     Raises
     ------
     FileExistsError
-        A clash; or ``folder`` is a file.
+        A clash.
+    NotADirectoryError
+        ``folder`` is a file (even with ``overwrite``).
     """
     from ..io.atomic import refuse_existing
 
     p = Path(folder)
-    if p.exists() and not p.is_dir():
-        raise FileExistsError(f"{p} exists and is not a folder")
+    if p.exists() and not p.is_dir():       # not even with overwrite: a folder output never replaces a file
+        raise NotADirectoryError(f"{p} is a file; this output is a folder: name a folder that is not a file")
     if p.is_dir():
         refuse_existing([p / n for n in names], overwrite)
 

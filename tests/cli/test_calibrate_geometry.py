@@ -73,6 +73,29 @@ def test_toolbox_layout(captures, tmp_path):
     assert len(doc["EstCamPosesV"]) == 3 and doc["CalOptions"]["LFSize"][:4] == list(LF_SHAPE)
 
 
+def test_a_damaged_file_among_the_captures_is_reported_and_skipped(captures, tmp_path):
+    """A truncated container and a text file named .lfp in the set: the old code decoded the captures before them
+    and then ended the whole run with the first one's read error (exit 1, nothing written)."""
+    import shutil
+
+    from tests.conftest import ROOT
+
+    folder, _ = captures
+    caps = tmp_path / "caps"
+    shutil.copytree(folder, caps)
+    (caps / "cut.lfp").write_bytes((ROOT / "sample_raws" / "f01-mini" / "scene.lfp").read_bytes()[:200_000])
+    (caps / "notes.lfp").write_text("hello\n")
+    out = tmp_path / "cal.json"
+    result = run(["calibrate-geometry", str(caps), "--board", "7x5x0.004", "-o", str(out), "--no-distortion"])
+    assert result.exit_code == 0, result.output
+    cal = load_geometric_calibration(out)
+    skipped = {s["capture"]: s["reason"] for s in cal.info["skipped"]}
+    assert set(skipped) == {"board_99.npy", "cut.lfp", "notes.lfp"}
+    assert "truncated" in skipped["cut.lfp"] and "not a Lytro container" in skipped["notes.lfp"]
+    assert len(cal.info["captures"]) == 8
+    assert "skipped cut.lfp" in result.output and "skipped notes.lfp" in result.output
+
+
 @pytest.mark.parametrize("board", ["8x6", "8x6x0", "1x6x0.01", "axbxc", "8x6x-0.1"])
 def test_bad_board_is_a_usage_error(board, tmp_path):
     result = run(["calibrate-geometry", str(tmp_path), "--board", board, "-o", str(tmp_path / "cal.json")])

@@ -47,7 +47,9 @@ CASES = [
     (["synth", "illum-mini", "-o", "OUT"], ["--offset", "nan", "0"], "--offset"),
     (["synth", "illum-mini", "-o", "OUT"], ["--shape", "0", "10"], "--shape"),
     (["synth", "illum-mini", "-o", "OUT"], ["--seed", "-1"], "--seed"),
-    *[(["calibrate", WHITE, "-o", "OUT.json"], ["--pitch", v], "--pitch") for v in ("nan", "-3", "0")],
+    *[(["calibrate", WHITE, "-o", "OUT.json"], ["--pitch", v], "--pitch") for v in ("nan", "-3", "0", "0.5", "2")],
+    *[(["batch", RAW, "-o", "OUT"], ["--scheduler", v], "--scheduler")
+      for v in ("bogus", "tcp://host", "tcp://host:99999", "http://host:8786", "tcp://my host:8786")],
     (["batch", RAW, "-o", "OUT"], ["--slope", "nan"], "--slope"),
     *[(["batch", RAW, "-o", "OUT"], ["--jobs", v], "--jobs") for v in ("0", "-2")],
 ]

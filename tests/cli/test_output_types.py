@@ -126,8 +126,14 @@ def test_decode_to_an_unknown_extension_names_the_format_option(tmp_path, no_wor
      ".exr files hold 16 or 32 bits per sample, not 8"),
     ("export", ["-o", "v", "--format", "views", "--image-type", "png", "--bit-depth", "32"], "--bit-depth",
      ".png files hold 8 or 16 bits per sample, not 32"),
+    # an extension that says another format (a .mat file named .png loads back as nothing); an image type of a
+    # format without images: both written (or ignored) in silence before
+    ("export", ["-o", "lf.png", "--format", "mat"], "--format", "name it lf.mat, or leave --format out"),
+    ("decode", ["-o", "lf.png", "--format", "zarr"], "--format", "name it lf.zarr, or leave --format out"),
+    ("export", ["-o", "lf.mat", "--format", "npy"], "--format", "-o lf.mat says mat by its extension"),
+    ("export", ["-o", "lf.mat", "--image-type", "exr"], "--image-type", "is the image type of a views folder"),
 ], ids=["decode-eslf-jpg", "decode-mat-8", "decode-zarr-8", "decode-npy-16", "export-eslf-exr", "export-exr-8",
-        "export-png-32"])
+        "export-png-32", "export-png-as-mat", "decode-png-as-zarr", "export-mat-as-npy", "export-mat-image-type"])
 def test_a_lightfield_format_its_bit_depth_cannot_hold_is_refused_before_any_work(tmp_path, monkeypatch, command,
                                                                                   args, option, words):
     """'decode RAW -o lf.mat --bit-depth 8' and '-o lf.jpg --format eslf' decoded the raw (export: loaded the light

@@ -210,3 +210,19 @@ def test_cli_synth_output_named_like_an_image_is_refused(tmp_path, extra, words)
     errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
     assert res.exit_code == 2 and len(errors) == 1 and "Invalid value for -o / --output:" in errors[0], res.output
     assert words in errors[0] and not (tmp_path / "out.png").exists()
+
+
+@pytest.mark.parametrize("preset, archive", [("raytrix", "illum-tar"), ("square", "f01-datac")])
+def test_cli_synth_archive_of_a_camera_without_one_is_refused_before_writing(tmp_path, preset, archive):
+    """A Lytro calibration archive of a non-Lytro preset: the old code wrote the raw and its truth, then failed
+    with a 40-line 'raw.cfa is None' traceback, leaving the half-written set."""
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+
+    res = CliRunner().invoke(cli, ["synth", preset, "-o", str(tmp_path / "out"), "--archive", archive])
+    assert res.exit_code == 2, res.output
+    errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
+    assert len(errors) == 1 and "--archive" in errors[0] and "not a Lytro camera" in errors[0], res.output
+    assert "Traceback" not in res.output
+    assert not (tmp_path / "out").exists()

@@ -183,6 +183,12 @@ def run_geometric_calibration(raws_or_lightfields: Iterable[LightField | RawCapt
         if names is not None and n >= len(names):
             raise ValueError(f"names has {len(names)} entries for more captures")
         name = f"capture {n + 1}" if names is None else names[n]
+        if isinstance(item, Exception):     # a file that could not be read (pipeline.geometry): skipped, as a set of
+            log.warning("%s: %s; skipped", name, item)      # files is (one bad file does not end the run)
+            skipped.append((name, str(item)))
+            if progress is not None and total is not None:
+                progress(n + 1, total)
+            continue
         lf, samples = _lightfield_and_samples(item, grid, white)
         if shape is not None and lf.shape[:4] != shape:
             raise CalibrationError(f"{name}: light field of shape {lf.shape[:4]}, the others {shape}; decode every "
@@ -246,11 +252,11 @@ def calibrate_geometry(raws_or_lightfields: Iterable[LightField | RawCapture],
 
     Parameters
     ----------
-    raws_or_lightfields : iterable of LightField, (LightField, LensSamples) or RawCapture
+    raws_or_lightfields : iterable of LightField, (LightField, LensSamples), RawCapture or Exception
         10-20 captures of a flat checkerboard at various distances and tilts, same zoom and focus.  The corners
         of a raw, or of a light field given with its lens samples (:func:`plenodecode.decoding.decode_samples`),
         are fitted on the samples (:func:`.corners.refine_corners_on_samples`); those of a bare light field on
-        its views.
+        its views.  An exception stands for a file that could not be read: skipped with its message.
     board : Board, (rows, cols, square_m) or 'ROWSxCOLSxSQUARE_M'
         Inner corners (not squares) and their spacing in metres.
     names : sequence of str, optional
