@@ -313,10 +313,10 @@ def check_grid_file(ctx: click.Context, param: click.Parameter, value: Path | No
     is a usage error naming the option, before any raw is read (in a batch: not one failure per raw)."""
     if value is not None:
         from ..errors import PlenodecodeError
-        from ..pipeline.calibration import _grid_from_file
+        from ..pipeline.calibration import grid_from_file
 
         try:
-            _grid_from_file(value)
+            grid_from_file(value)
         except PlenodecodeError as exc:
             raise click.BadParameter(str(exc), ctx, param) from None
     return value

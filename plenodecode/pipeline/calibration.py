@@ -46,7 +46,9 @@ class Calibration:
         return f"calibration: {self.source}" + (f" {self.detail}" if self.detail else "")
 
 
-def _grid_from_file(path: str | os.PathLike) -> LensletGrid:
+def grid_from_file(path: str | os.PathLike) -> LensletGrid:
+    """The lenslet grid JSON ``path`` (``--calibration``); :class:`~plenodecode.errors.CalibrationError` naming the
+    file and what to pass instead when it is unreadable or not a grid."""
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -144,7 +146,7 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
     white_raw = open_raw(white, mosaic=mosaic) if isinstance(white, (str, os.PathLike)) else white
     db = Path(database) if database is not None else Path(store.DEFAULT_DB)
     if grid is not None:
-        cal = Calibration(_grid_from_file(grid), white_raw, "grid file",
+        cal = Calibration(grid_from_file(grid), white_raw, "grid file",
                           str(grid) + (f" (white {Path(white_raw.path or '?').name})" if white_raw else ""))
     elif white_raw is not None:
         from ..calib import calibrate

@@ -41,9 +41,10 @@ def test_real_antleg_centre_view_and_photograph_edges_match_their_neighbours(tmp
     res = run("batch", folder / "light_field.png", "-w", folder / "radiometry_frame.png", "--dark",
               folder / "dark_frame.tif", "--outputs", "centre,refocus", "-o", tmp_path / "out")
     assert res.exit_code == 0, res.output
-    # the dark frame's own levels are not used: no guess at them is shown (the raw's and the white's still are)
+    # the dark frame's own levels are not used: no guess at them is shown; the raw's line names the dark frame
     logged = caplog.text
-    assert "light_field.png: black" in logged and "dark_frame.tif" not in logged
+    assert "light_field.png: no JSON sidecar" in logged and "dark_frame.tif: no JSON sidecar" not in logged
+    assert "black from the dark frame dark_frame.tif" in logged
     # before: the centre view's left column and half its top row were 0, one left pixel 4.8x its neighbour; the
     # photograph's left column up to 7.8x its neighbour.  The noisy specimen itself gives 0.72-1.64 on the right
     for name in ("centre.png", "refocus_s+0.00.png"):
