@@ -85,6 +85,11 @@ def cfa_channel_map(cfa: str | None) -> np.ndarray:
     return np.array([[lut[cfa[0]], lut[cfa[1]]], [lut[cfa[2]], lut[cfa[3]]]], np.int8)
 
 
+#: ``metadata.extra`` key of a raw read from an image mosaic without a sidecar (no white image, no camera identity,
+#: no colour matrix can come with it): how the reader chose its CFA and levels.
+BARE_MOSAIC_KEY = "bare_mosaic"
+
+
 @dataclass(frozen=True)
 class RawCapture:
     """A raw sensor image as read from a file.

@@ -19,7 +19,7 @@ import numpy as np
 from ..errors import CalibrationError, DecodeError
 from ..raymodel import GeometricCalibration
 from ..registry import lookup
-from ..types import LensletGrid, LightField, RawCapture
+from ..types import BARE_MOSAIC_KEY, LensletGrid, LightField, RawCapture
 from . import colour as _colour
 from . import devignette as _dv
 from .demosaic import DEMOSAIC_METHODS
@@ -308,8 +308,11 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
     if dark_p is not None:
         path = dark if isinstance(dark, (str, os.PathLike)) else getattr(dark, "path", None)
         refuse_bright_dark(dark_p[0], raw, os.path.basename(path) if path else "the frame given as dark")
+    # a bare mosaic without a white image is self-calibrated, and the pipeline says then, once, that it is not
+    # devignetted and stays in camera RGB (pipeline.calibration); any other raw without them is warned about here
+    expected = logging.INFO if BARE_MOSAIC_KEY in raw.metadata.extra and white_p is None else logging.WARNING
     if white_p is None:
-        log.warning("no white image: the raw is not devignetted; weights come from the lenslet disk radius")
+        log.log(expected, "no white image: the raw is not devignetted; weights come from the lenslet disk radius")
 
     cfa = raw.cfa
     nch = 1 if cfa is None else 3
@@ -318,7 +321,7 @@ def _decode(raw: RawCapture, grid: LensletGrid, *, white=None, dark=None, demosa
     if nch == 3 and colour == "linear-srgb":
         matrix = _colour.colour_matrix(raw.metadata)
         if matrix is None:
-            log.warning("the raw's metadata has no colour matrix (ccm): the light field stays in camera RGB")
+            log.log(expected, "the raw's metadata has no colour matrix (ccm): the light field stays in camera RGB")
         else:
             colour_state = "linear-srgb"
     elif nch == 1 and colour == "linear-srgb":

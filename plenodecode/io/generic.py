@@ -26,7 +26,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import FormatError, LevelOptionError, MetadataError
-from ..types import CFA_PATTERNS, CameraMetadata, RawCapture
+from ..types import BARE_MOSAIC_KEY, CFA_PATTERNS, CameraMetadata, RawCapture
 from .atomic import atomic_outputs, refuse_existing
 from .images import read_image
 from .images import srgb_decode
@@ -42,8 +42,6 @@ MOSAIC_EXTENSIONS = (".png", ".tif", ".tiff", ".exr", ".pgm", ".pnm", ".bmp", ".
 MOSAIC_WRITE_EXTENSIONS = (".png", ".tif", ".tiff")
 SIDECAR_FORMAT = "plenodecode.mosaic"
 SIDECAR_VERSION = 1
-#: ``metadata.extra`` key of a mosaic read without a sidecar: how its CFA and levels were chosen.
-BARE_MOSAIC_KEY = "bare_mosaic"
 
 
 # ----------------------------------------------------------------------------- sidecar

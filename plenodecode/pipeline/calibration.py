@@ -160,8 +160,10 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
 
         cal = Calibration(calibrate_raytrix(raw), None, "camera", "(Raytrix RayCalibData)")
     elif is_bare_mosaic(raw):
+        # what the decoding will do without a white image and metadata, said once here (the decoder logs it at INFO)
         log.warning("%s: no white image and no camera identity for the database: the lenslet grid comes from "
-                    "self-calibration of the scene", Path(raw.path or "mosaic").name)
+                    "self-calibration of the scene; the light field is not devignetted%s",
+                    Path(raw.path or "mosaic").name, " and stays in camera RGB (no colour matrix)" if raw.cfa else "")
         cal = _self_calibration(raw, progress)
     else:
         cal = _database_or_scene(raw, db, self_calibrate=self_calibrate, progress=progress)

@@ -254,3 +254,41 @@ def test_a_typed_level_the_file_cannot_have_is_a_usage_error_naming_it(tmp_path,
     assert res.exit_code == 2 and len(errors) == 1, res.output
     assert f"Invalid value for {option}:" in errors[0] and words in errors[0], errors
     assert not (tmp_path / "lf.zarr").exists()
+
+
+def test_real_f01_jpeg_says_what_a_bare_mosaic_means_in_two_lines(tmp_path):
+    """'plenodecode IMG_1.jpg -o photo.png' printed four WARNING lines for the expected case of a bare mosaic (no
+    sidecar; no white image, so self-calibrated; not devignetted; no colour matrix), alarming for a first run.
+    Now two: how the file was read, and what its missing white image and metadata mean for the light field.  An
+    F01 raw with its metadata but no white image is still warned about by the decoder."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    proc = subprocess.run([sys.executable, "-m", "plenodecode", str(shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg")),
+                           "-o", str(tmp_path / "photo.png")], capture_output=True, text=True, env=env, cwd=tmp_path,
+                          timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    warnings = [line for line in proc.stderr.splitlines() if line.startswith("WARNING")]
+    assert len(warnings) == 2, warnings
+    assert "IMG_1.jpg: no JSON sidecar; CFA BGGR" in warnings[0]
+    assert all(s in warnings[1] for s in ("self-calibration", "not devignetted", "camera RGB")), warnings[1]
+    assert (tmp_path / "photo.png").is_file()
+    # a raw with its metadata (not a bare mosaic) and no white image: the decoder's own warning stays
+    from plenodecode.decoding import decode
+
+    sim = synthetic.simulate("f01-mini", seed=1, shape=(120, 120))
+    import logging
+
+    records: list[logging.LogRecord] = []
+    handler = logging.Handler()
+    handler.emit = records.append
+    logging.getLogger("plenodecode.decoding.decoder").addHandler(handler)
+    try:
+        decode(sim.raw, sim.grid)
+    finally:
+        logging.getLogger("plenodecode.decoding.decoder").removeHandler(handler)
+    assert any(r.levelno == logging.WARNING and "not devignetted" in r.getMessage() for r in records)
