@@ -36,7 +36,8 @@ def manifest_name(taken: list[str]) -> str:
 @click.pass_context
 def command(ctx: click.Context, input_path: Path, output: Path, overwrite: bool) -> None:
     """Write every item embedded in the Lytro file FILE (.lfp, .LFP, -stk.lfp, -dm.lfp, .lfr) into the folder
-    OUTPUT: JPEGs (.jpg), H.264 streams (.h264), depth / confidence maps and depth LUTs (.npy, float32),
+    OUTPUT: JPEGs (.jpg), H.264 streams (.h264), depth / confidence maps and depth LUTs (.npy, float32; the
+    maps also as pictures with a colour bar, .png),
     metadata (.json), a raw (frame.raw + frame.json), the table of contents (toc.json) and contents.json (each
     item's file, type, size, shape and TOC facts).  One line per file written.
 
@@ -46,13 +47,14 @@ def command(ctx: click.Context, input_path: Path, output: Path, overwrite: bool)
       plenodecode extract IMG_0002-dm.lfp -o depth/ --overwrite
     """
     from ..io.atomic import write_text_atomic
-    from ..io.lytro import TOC_FILE, content_file_name, extract_contents, read_container
+    from ..io.lytro import TOC_FILE, content_file_name, extract_contents, preview_file_name, read_container
     from ..pipeline import staged_folder
 
     items = read_container(input_path).items
     files = [content_file_name(it) for it in items]
-    manifest = manifest_name([TOC_FILE, *files])
-    names = [TOC_FILE, *files, manifest]
+    previews = {f: preview_file_name(it) for f, it in zip(files, items) if preview_file_name(it) is not None}
+    manifest = manifest_name([TOC_FILE, *files, *previews.values()])
+    names = [TOC_FILE, *files, *previews.values(), manifest]
     check_folder_output(output, names, overwrite, what="every item")
     document = {"source": str(input_path), "toc": TOC_FILE,
                 "items": [{"file": f, "name": it.name, "type": it.type, "size": it.size,
@@ -65,6 +67,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, overwrite: bool)
         return
     for f, it in zip(files, items):
         click.echo(f"{output / f}  {it.describe()}, {it.size} bytes")
+        if f in previews:
+            click.echo(f"{output / previews[f]}  its picture, colour bar in the file's units")
     click.echo(f"{output / TOC_FILE}  table of contents")
     click.echo(f"{output / manifest}  the items' metadata")
     click.echo(f"wrote {len(items)} items of {input_path.name} to {output}")

@@ -62,7 +62,8 @@ def test_extract_writes_every_item_with_its_metadata(tmp_path):
     n = check_extracted(path, out)
     assert n == 4                                          # a depth map and three JPEGs (metadata is in the TOC)
     lines = res.output.splitlines()
-    assert len(lines) == n + 3 and lines[-1] == f"wrote {n} items of p.lfp to {out}"
+    assert len(lines) == n + 4 and lines[-1] == f"wrote {n} items of p.lfp to {out}"     # + the depth map's picture
+    assert f"{out / 'depth_map.png'}  its picture, colour bar in the file's units" in lines
     assert sum(line.startswith(str(out / "focus_stack_")) and "jpeg 16x8" in line for line in lines) == 3
     depth = json.loads((out / "contents.json").read_text())["items"]
     assert [e for e in depth if e["type"] == "depth"][0]["shape"] == [3, 4]
@@ -127,3 +128,32 @@ def test_an_extracted_raw_keeps_its_camera_serial(tmp_path):
     res = CliRunner().invoke(cli, ["decode", str(tmp_path / "items" / "frame.raw"), "--database", str(root / "calib"),
                                    "-o", str(tmp_path / "lf.zarr")])
     assert res.exit_code == 0, res.output
+
+
+def test_extracted_depth_and_confidence_maps_come_with_pictures(tmp_path):
+    """'extract IMG_0002-dm.lfp' wrote the depth and confidence maps as .npy only, which no picture viewer opens.
+    Each 2-D map now also gets a PNG with a colour bar in the file's units; the picture follows the map (its grey
+    level, over the image part, rises with the confidence it shows: correlation above 0.9) and the .npy stays as
+    it was.  A depth LUT (1-D) gets none."""
+    from plenodecode.io.images import read_image
+
+    path = shared_path("lytro-containers", "IMG_0002-dm.lfp")
+    res = run("extract", path, "-o", tmp_path / "dm")
+    assert res.exit_code == 0, res.output
+    assert check_extracted(path, tmp_path / "dm") == 2
+    for name in ("depth_map", "confidence_map"):
+        assert f"{name}.png  its picture" in res.output
+    confidence = np.load(tmp_path / "dm" / "confidence_map.npy")
+    picture = np.asarray(read_image(tmp_path / "dm" / "confidence_map.png"), np.float64)
+    assert picture.shape[0] >= confidence.shape[0] and picture.shape[2] == 3
+    # the image part: the largest block of the figure whose rows and columns are not the white margin
+    grey = picture.mean(axis=-1)
+    rows = np.flatnonzero((grey < grey.max()).mean(axis=1) > 0.5)
+    cols = np.flatnonzero((grey[rows] < grey.max()).mean(axis=0) > 0.9)
+    shown = grey[rows[0]:rows[-1] + 1, cols[0]:cols[0] + len(rows)]
+    import cv2
+
+    resized = cv2.resize(confidence, (shown.shape[1], shown.shape[0]), interpolation=cv2.INTER_AREA)
+    assert np.corrcoef(resized.ravel(), shown.ravel())[0, 1] > 0.9
+    res = run("-q", "extract", shared_path("lytro-containers", "IMG_0002-stk.lfp"), "-o", tmp_path / "stk")
+    assert res.exit_code == 0 and not list((tmp_path / "stk").glob("*.png")), res.output

@@ -214,12 +214,42 @@ def content_file_name(item: ContentItem) -> str:
     return item.name + EXTENSIONS.get(item.type, ".bin")
 
 
+#: Content types whose 2-D float maps :func:`extract_contents` also writes as a picture (:func:`preview_file_name`).
+PREVIEW_TYPES = ("depth", "confidence")
+
+
+def preview_file_name(item: ContentItem) -> str | None:
+    """``<name>.png``: the colour-mapped picture :func:`extract_contents` writes beside a 2-D depth or confidence
+    map's ``.npy`` (which no picture viewer opens); None for any other item."""
+    return item.name + ".png" if item.type in PREVIEW_TYPES and item.shape is not None and len(item.shape) == 2 \
+        else None
+
+
+def _preview_png(values: np.ndarray, item: ContentItem) -> bytes:
+    """PNG bytes of a (rows, cols) float32 map with its colour bar (:func:`~plenodecode.io.depthio.colour_map_image`):
+    depth in the depth colour map, in the container's own units (Lytro's lambda), confidence in grey."""
+    import cv2
+
+    from ..depthio import DEPTH_CMAP, colour_map_image
+    from ..images import quantise
+
+    depth = item.type == "depth"
+    rgb = colour_map_image(values, label="depth (Lytro lambda)" if depth else "confidence",
+                           cmap=DEPTH_CMAP if depth else "gray",
+                           title=f"{item.name}, {values.shape[1]} x {values.shape[0]}")
+    ok, buf = cv2.imencode(".png", cv2.cvtColor(quantise(rgb, 8), cv2.COLOR_RGB2BGR))
+    if not ok:
+        raise FormatError(f"cannot encode the picture of {item.name}")
+    return buf.tobytes()
+
+
 def extract_contents(path: str | os.PathLike, out_dir: str | os.PathLike, *,
                      overwrite: bool = False) -> list[Path]:
     """Save every payload of a container as a file in ``out_dir``.
 
     JPEGs -> ``.jpg``, H.264 blocks -> ``.h264``, depth / confidence maps and depth LUTs ->
-    ``.npy`` float32 (rows, cols) (payloads are little-endian float32), JSON -> ``.json``,
+    ``.npy`` float32 (rows, cols) (payloads are little-endian float32), the 2-D depth and confidence maps also as
+    a picture with a colour bar (:func:`preview_file_name`), JSON -> ``.json``,
     the raw -> ``frame.raw`` beside ``frame.json`` (readable with :func:`read_raw_pair`),
     and the table of contents -> ``toc.json``.
 
@@ -251,6 +281,8 @@ def extract_contents(path: str | os.PathLike, out_dir: str | os.PathLike, *,
             arr = np.frombuffer(buf, "<f4").astype(np.float32)
             arr = arr.reshape(it.shape) if it.shape is not None else arr
             plan.append((target, arr))
+            if preview_file_name(it) is not None:
+                plan.append((out / preview_file_name(it), _preview_png(arr, it)))
         else:
             plan.append((target, buf))
     with atomic_outputs([t for t, _ in plan], overwrite=overwrite) as tmps:

@@ -35,7 +35,7 @@ def test_processed_container_contents_and_extraction(tmp_path):
     import cv2
     img = cv2.imread(str(tmp_path / "x" / "focus_stack_02.jpg"))
     assert img.shape == (8, 16, 3) and abs(float(img.mean()) - 80) < 3
-    assert len(files) == 5
+    assert len(files) == 6                           # toc, the depth map and its picture, three JPEGs
 
 
 def test_real_f01_depth_map_file(tmp_path):

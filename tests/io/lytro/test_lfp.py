@@ -142,7 +142,7 @@ def test_real_demo_lfp_illum_living_picture(tmp_path):
     import cv2
     img = cv2.imread(str(tmp_path / "focus_stack_00.jpg"))
     assert img.shape == (480, 704, 3)
-    assert len(files) == 12  # toc + depth + 10 JPEGs
+    assert len(files) == 13  # toc + depth + its picture + 10 JPEGs
 
 
 def test_payload_size_disagrees_with_metadata(tmp_path):
