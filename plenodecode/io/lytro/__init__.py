@@ -26,15 +26,16 @@ from .. import packing
 from .container import LytroContainer, Section, read_container, section_name, write_container
 from .contents import ContentItem
 from .fields import lookup
-from .lfp import (TOC_FILE, content_file_name, preview_file_name, extract_contents, frame_ref, read_lytro, read_modulation_white,
-                  write_lfp, write_lfr)
+from .lfp import (TOC_FILE, content_file_name, extract_contents, frame_ref, preview_file_name, read_lytro,
+                  read_modulation_white, write_lfp, write_lfr)
 from .metadata import lytro_metadata, metadata_from_lytro
 from .rawpair import find_sidecar, read_raw_pair, read_raw_pair_metadata, read_sidecar, write_raw_pair
 
 __all__ = [
     "Section", "ContentItem", "LytroContainer", "read_container", "read_lytro", "metadata_from_lytro",
     "find_sidecar", "read_raw_pair", "read_raw_pair_metadata", "write_container", "write_lfr", "write_lfp",
-    "write_raw_pair", "extract_contents", "content_file_name", "preview_file_name", "TOC_FILE", "lytro_metadata", "section_name", "lookup",
+    "write_raw_pair", "extract_contents", "content_file_name", "preview_file_name", "TOC_FILE", "lytro_metadata",
+    "section_name", "lookup",
     "read_sidecar", "pack_10bit", "unpack_10bit", "pack_12bit", "unpack_12bit", "frame_ref", "read_modulation_white",
 ]
 
