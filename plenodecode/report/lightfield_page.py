@@ -76,7 +76,9 @@ def stack_slopes(lf: LightField, disparity: np.ndarray, n: int) -> np.ndarray:
 
     The range is ``lf.geometry.disparity_range`` when the light field has one, else the 1st-99th percentiles
     of the finite values of ``disparity``; either is widened as :func:`plenodecode.render.default_slopes`
-    widens it (10 % + 0.05 on each side).
+    widens it (10 % + 0.05 on each side), then kept within the refocusable range
+    (:func:`plenodecode.render.refocus_range`), past which no slice is sharp (the real F01 shoe's page ran
+    -1.80 .. 0.79 where -1.15 .. 1.15 refocus).
 
     Parameters
     ----------
@@ -90,13 +92,16 @@ def stack_slopes(lf: LightField, disparity: np.ndarray, n: int) -> np.ndarray:
     -------
     ndarray, shape (n,), float64, increasing
     """
-    from ..render import default_slopes
+    from ..render import default_slopes, refocus_range
 
     geometry = lf.geometry
     if geometry.disparity_range is None or not all(math.isfinite(v) for v in geometry.disparity_range):
         lo, hi = colour_range(disparity)
         geometry = dataclasses.replace(geometry, disparity_range=(float(lo), float(hi)))
-    return default_slopes(lf.replace(geometry=geometry), n)
+    slopes = default_slopes(lf.replace(geometry=geometry), n)
+    reach_lo, reach_hi = refocus_range(lf)
+    lo, hi = max(float(slopes[0]), reach_lo), min(float(slopes[-1]), reach_hi)
+    return np.linspace(lo, hi, len(slopes)) if lo < hi else slopes     # a scene wholly outside: as measured
 
 
 def stack_alphas(lf: LightField, slopes: np.ndarray) -> list[float | None] | None:

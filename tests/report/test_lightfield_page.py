@@ -389,3 +389,22 @@ def test_the_depth_legend_says_which_end_is_near(page):
     warmth = rgb[..., 0].astype(int) - rgb[..., 2]
     y0, y1, x0, x1 = RECT
     assert np.median(warmth[y0 + 4:y1 - 4, x0 + 4:x1 - 4]) > 100 and np.median(warmth[:8, :8]) < -10
+
+
+def test_slopes_stay_within_the_refocusable_range():
+    """The page of the real F01 shoe stacked slopes -1.80 .. 0.79 where the camera refocuses -1.15 .. 1.15: the
+    depth map's spread (noise, a periodic mesh) set the range, and the slices past the reach were never sharp.
+    The stack now ends at the refocusable range; a scene inside it keeps its own range."""
+    from plenodecode.render import refocus_range
+
+    lf, truth = two_planes(n=5, shape=SHAPE, d_bg=D_BG, d_fg=D_FG, rect=RECT)
+    g = dataclasses.replace(lf.geometry, hci=None, disparity_range=None, spatial_step_px=1.0, view_step_px=1.0,
+                            calibration={"pitch": 0.4})
+    plenoptic = lf.replace(geometry=g, metadata={})
+    assert refocus_range(plenoptic) == pytest.approx((-0.4, 0.4))
+    wide = np.where(truth > (D_BG + D_FG) / 2, 3.0, -3.0).astype(np.float32)     # a map spread past the reach
+    np.testing.assert_allclose(stack_slopes(plenoptic, wide, 9), np.linspace(-0.4, 0.4, 9), atol=1e-9)
+    inside = np.where(truth > (D_BG + D_FG) / 2, 0.2, -0.1).astype(np.float32)
+    slopes = stack_slopes(plenoptic, inside, 9)
+    pad = 0.1 * 0.3 + 0.05
+    np.testing.assert_allclose([slopes[0], slopes[-1]], [-0.1 - pad, 0.2 + pad], atol=1e-6)
