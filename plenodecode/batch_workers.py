@@ -191,7 +191,9 @@ def release_dask_worker() -> bool:
 
 
 #: ``[scheme://]host:port`` of a Dask scheduler (an IPv6 host in brackets); 'inproc://' addresses as they are.
-_SCHEDULER_ADDRESS = re.compile(r"^(?:(?:tcp|tls|ws|wss|ucx)://)?(?:\[[0-9A-Fa-f:.]+\]|[^\s:/\[\]]+):(?P<port>[0-9]{1,5})/?$")
+_SCHEDULER_ADDRESS = re.compile(r"^(?:(?:tcp|tls|ws|wss|ucx)://)?"         # protocol
+                                r"(?:\[[0-9A-Fa-f:.]+\]|[^\s:/\[\]]+)"          # [IPv6] or host
+                                r":(?P<port>[0-9]{1,5})/?$")
 
 
 def check_scheduler_address(address: str) -> str:

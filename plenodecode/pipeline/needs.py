@@ -218,5 +218,5 @@ def check_product(item: LightField | RawCapture, name: str, *, rectified: bool =
                                     keyword=keyword, missing=missing, source=source, need=NEEDS[need])
 
 
-__all__ = ["NEEDS", "MICROSCOPE_NO_ALPHA", "REQUESTS", "FOCUSED_NOT_METRIC", "FOCUSED_NO_FOCUS_CONSTANTS", "check_product",
-           "is_focused_raw"]
+__all__ = ["NEEDS", "MICROSCOPE_NO_ALPHA", "REQUESTS", "FOCUSED_NOT_METRIC", "FOCUSED_NO_FOCUS_CONSTANTS",
+           "check_product", "is_focused_raw"]
