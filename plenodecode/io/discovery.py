@@ -176,7 +176,6 @@ def images_not_taken(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[s
     folder yields no raw; white images that their sidecar flags as such are skipped on purpose, not listed.
     Each folder's files sorted.  ``taken``: what that :func:`find_raws` returned, so that
     no image's header, sidecar or Raytrix XML is looked up a second time."""
-    skip = {Path(e).resolve() for e in exclude}
     found = None if taken is None else {Path(f).resolve() for f in taken}
 
     def not_taken(p: Path) -> bool:
@@ -185,18 +184,23 @@ def images_not_taken(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[s
         missed = not _is_raw_candidate(p) if found is None else p.resolve() not in found
         return missed and not _is_white_mosaic(_mosaic_sidecar(p))
 
-    return [f for item in one_or_many(inputs) if Path(item).is_dir() and Path(item).resolve() not in skip
-            for f in _walk(Path(item), skip, stop_marker, take=not_taken)]
+    return _in_folders(inputs, exclude, stop_marker, not_taken)
 
 
 def desktop_exports_not_taken(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os.PathLike] = (),
                               stop_marker: str | None = None) -> list[Path]:
     """The Lytro Desktop exports (:func:`is_desktop_export`) in the folders among ``inputs`` that :func:`find_raws`
     with the same ``exclude`` and ``stop_marker`` passes over; each folder's files sorted."""
+    return _in_folders(inputs, exclude, stop_marker, lambda p: not p.name.startswith(".") and is_desktop_export(p))
+
+
+def _in_folders(inputs: Iterable[str | os.PathLike], exclude: Iterable[str | os.PathLike], stop_marker: str | None,
+                take: Callable[[Path], bool]) -> list[Path]:
+    """The files ``take`` accepts in the folders among ``inputs`` (one path or several), searched as
+    :func:`find_raws` searches them (``exclude``, ``stop_marker``); each folder's files sorted."""
     skip = {Path(e).resolve() for e in exclude}
-    return [f for item in inputs if Path(item).is_dir() and Path(item).resolve() not in skip
-            for f in _walk(Path(item), skip, stop_marker,
-                           take=lambda p: not p.name.startswith(".") and is_desktop_export(p))]
+    return [f for item in one_or_many(inputs) if Path(item).is_dir() and Path(item).resolve() not in skip
+            for f in _walk(Path(item), skip, stop_marker, take=take)]
 
 
 __all__ = ["RAW_SUFFIXES", "PAIR_SUFFIXES", "MOSAIC_SUFFIXES", "find_raws", "needs_no_database", "images_not_taken",
