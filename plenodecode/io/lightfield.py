@@ -691,7 +691,7 @@ def load_lightfield(path: str | os.PathLike, *, view: tuple[int, int] | None = N
     return _check_format(name).load(p, view=view)
 
 
-__all__ = ["LIGHTFIELD_FORMATS", "PAGE_EXTENSIONS", "LightFieldFormat", "save_lightfield", "load_lightfield", "linearise",
-           "detect_format", "eslf_from_lightfield", "lightfield_from_eslf", "ESLF_DEFAULT_VIEWS", "ESLF_EXTENSIONS",
-           "ESLF_NAMES", "VIEW_EXT", "FOLDER_FORMATS", "holds_lightfield", "refuse_foreign_folder",
+__all__ = ["LIGHTFIELD_FORMATS", "PAGE_EXTENSIONS", "LightFieldFormat", "save_lightfield", "load_lightfield",
+           "linearise", "detect_format", "eslf_from_lightfield", "lightfield_from_eslf", "ESLF_DEFAULT_VIEWS",
+           "ESLF_EXTENSIONS", "ESLF_NAMES", "VIEW_EXT", "FOLDER_FORMATS", "holds_lightfield", "refuse_foreign_folder",
            "written_files"]
