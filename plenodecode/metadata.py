@@ -15,8 +15,9 @@ from typing import Any, Mapping
 from .errors import MetadataError
 from .optics import MicroscopeOptics
 
-#: Colour states of a light field.
-COLOUR_STATES = ("camera", "linear-srgb", "srgb")
+#: Colour states of a light field: linear camera RGB, linear sRGB, and each of them sRGB-encoded for display
+#: (:data:`ENCODED_COLOUR_STATES`).
+COLOUR_STATES = ("camera", "linear-srgb", "srgb", "camera-srgb-curve")
 
 
 @dataclass(frozen=True)
@@ -84,6 +85,22 @@ class CameraMetadata:
 GEOMETRY_SCHEMA_VERSION = 1
 #: Colour states of linear values: a display export applies the sRGB transfer function to them.
 LINEAR_COLOUR_STATES = ("camera", "linear-srgb")
+#: The display-encoded state of each linear one: the sRGB transfer function (IEC 61966-2-1) on its values, its
+#: primaries kept.  'srgb' is linear sRGB so encoded; 'camera-srgb-curve' is camera RGB so encoded (no white
+#: balance or colour matrix applied: the tone curve of sRGB, not its colours).
+ENCODED_COLOUR_STATES = {"linear-srgb": "srgb", "camera": "camera-srgb-curve"}
+
+
+def encoded_colour_state(colour: str) -> str:
+    """The colour state of ``colour``'s values after the sRGB transfer function ('camera' -> 'camera-srgb-curve',
+    'linear-srgb' -> 'srgb'); a display-encoded state is returned as it is."""
+    return ENCODED_COLOUR_STATES.get(colour, colour)
+
+
+def linear_colour_state(colour: str) -> str:
+    """The colour state of ``colour``'s values with the sRGB transfer function undone ('camera-srgb-curve' ->
+    'camera', 'srgb' -> 'linear-srgb'); a linear state is returned as it is."""
+    return {enc: lin for lin, enc in ENCODED_COLOUR_STATES.items()}.get(colour, colour)
 #: Keys of the legacy free-form ``LightField.metadata`` dict that :class:`LightFieldGeometry` replaces.
 LEGACY_GEOMETRY_KEYS = ("source", "calibration", "camera", "spatial_step_px", "view_step_px", "geometry",
                         "disparity_range", "hci_parameters", "focus_distance_m", "colour", "microscope",
@@ -298,9 +315,9 @@ class LightFieldGeometry:
 
     @property
     def display_encoded(self) -> bool:
-        """True when the values are sRGB-encoded for display (colour 'srgb'); a display export of a light
-        field that is not applies the sRGB transfer function (colour 'camera' or 'linear-srgb')."""
-        return self.colour == "srgb"
+        """True when the values are sRGB-encoded for display (colour 'srgb' or 'camera-srgb-curve'); a display
+        export of a light field that is not applies the sRGB transfer function (colour 'camera' or 'linear-srgb')."""
+        return self.colour in ENCODED_COLOUR_STATES.values()
 
     @classmethod
     def from_camera(cls, camera: CameraMetadata, calibration: Mapping[str, Any] | None = None,
@@ -424,4 +441,5 @@ class LightFieldMetadata(Mapping[str, Any]):
 
 
 __all__ = ["COLOUR_STATES", "CameraMetadata", "HCIParameters", "LightFieldGeometry", "LightFieldMetadata",
-           "GEOMETRY_SCHEMA_VERSION", "LINEAR_COLOUR_STATES", "LEGACY_GEOMETRY_KEYS"]
+           "GEOMETRY_SCHEMA_VERSION", "LINEAR_COLOUR_STATES", "ENCODED_COLOUR_STATES", "LEGACY_GEOMETRY_KEYS",
+           "encoded_colour_state", "linear_colour_state"]

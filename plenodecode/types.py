@@ -52,8 +52,9 @@ from typing import Any, Literal, Mapping
 import numpy as np
 
 from .errors import CalibrationError
-from .metadata import (COLOUR_STATES, GEOMETRY_SCHEMA_VERSION, LEGACY_GEOMETRY_KEYS, LINEAR_COLOUR_STATES,
-                       CameraMetadata, HCIParameters, LightFieldGeometry, LightFieldMetadata)
+from .metadata import (COLOUR_STATES, ENCODED_COLOUR_STATES, GEOMETRY_SCHEMA_VERSION, LEGACY_GEOMETRY_KEYS,
+                       LINEAR_COLOUR_STATES, CameraMetadata, HCIParameters, LightFieldGeometry, LightFieldMetadata,
+                       encoded_colour_state, linear_colour_state)
 from .optics import MicroscopeOptics
 
 #: Bayer pattern names, upper-left 2x2 tile read row-major.
@@ -358,7 +359,8 @@ class LightField:
     weight : ndarray, shape (V, U, Y, X), float32, or None
         Confidence of each sample in [0, 1] (low where a view leaves the lenslet disk).
     colour : str
-        'camera', 'linear-srgb' or 'srgb'.
+        'camera', 'linear-srgb', or either sRGB-encoded: 'srgb' (linear sRGB encoded) or 'camera-srgb-curve'
+        (camera RGB encoded: the sRGB tone curve without sRGB colours).
     metadata : Mapping
         Given: free-form provenance (decoder settings, ...), optionally with the legacy keys
         :data:`LEGACY_GEOMETRY_KEYS` ('source', 'calibration', 'camera', 'spatial_step_px', ...), which are
@@ -436,4 +438,5 @@ __all__ = [
     "CFA_PATTERNS", "COLOUR_STATES", "GRID_JSON_VERSION", "cfa_channel_map",
     "CameraMetadata", "RawCapture", "LensletGrid", "LightField", "LightFieldGeometry", "HCIParameters",
     "LightFieldMetadata", "GEOMETRY_SCHEMA_VERSION", "LINEAR_COLOUR_STATES", "LEGACY_GEOMETRY_KEYS", "MicroscopeOptics",
+    "ENCODED_COLOUR_STATES", "encoded_colour_state", "linear_colour_state",
 ]

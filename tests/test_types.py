@@ -166,6 +166,8 @@ def test_legacy_view_round_trips_and_replace_rules():
     enc = lf.replace(colour="srgb")
     assert enc.geometry == replace(lf.geometry, colour="srgb") and enc.geometry.display_encoded
     assert not lf.geometry.display_encoded and enc.provenance == lf.provenance
+    cam = lf.replace(colour="camera-srgb-curve")      # camera RGB with the sRGB curve: encoded, not sRGB colours
+    assert cam.geometry.colour == "camera-srgb-curve" and cam.geometry.display_encoded
     # metadata= replaces everything (legacy keys included); geometry= keeps the typed part
     assert lf.replace(metadata={}).geometry == _lf({}).geometry
     edited = lf.replace(metadata={**lf.metadata, "disparity_range": [-1.0, 2.0]})
@@ -242,3 +244,17 @@ def test_types_hands_on_the_metadata_types():
         assert getattr(types, name) is getattr(metadata, name), name
     lf = LightField(np.zeros((3, 3, 2, 2, 1), np.float32), metadata={"spatial_step_px": 2.0})
     assert isinstance(lf.geometry, metadata.LightFieldGeometry) and lf.geometry.spatial_step_px == 2.0
+
+
+def test_encoded_and_linear_colour_states_pair_up():
+    """Each linear state has one sRGB-encoded state with the same primaries, and back."""
+    from plenodecode.types import (COLOUR_STATES, ENCODED_COLOUR_STATES, LINEAR_COLOUR_STATES, encoded_colour_state,
+                                   linear_colour_state)
+
+    assert encoded_colour_state("camera") == "camera-srgb-curve" and encoded_colour_state("linear-srgb") == "srgb"
+    assert linear_colour_state("camera-srgb-curve") == "camera" and linear_colour_state("srgb") == "linear-srgb"
+    assert set(COLOUR_STATES) == set(LINEAR_COLOUR_STATES) | set(ENCODED_COLOUR_STATES.values())
+    for state in COLOUR_STATES:
+        enc, lin = encoded_colour_state(state), linear_colour_state(state)
+        assert enc in ENCODED_COLOUR_STATES.values() and lin in LINEAR_COLOUR_STATES
+        assert encoded_colour_state(lin) == enc and linear_colour_state(enc) == lin

@@ -435,7 +435,8 @@ def quiet(ctx: click.Context) -> bool:
 
 
 #: How a light field's colour state reads in a summary line.
-COLOUR_WORDS = {"camera": "camera RGB", "linear-srgb": "linear sRGB", "srgb": "sRGB"}
+COLOUR_WORDS = {"camera": "camera RGB", "linear-srgb": "linear sRGB", "srgb": "sRGB",
+                "camera-srgb-curve": "camera RGB with the sRGB tone curve"}
 
 
 def empty_views_note(lf: Any, name: str) -> str:

@@ -74,6 +74,7 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
     """
     from ..pipeline import (check_geometry, choose_calibration, decode_raw, open_raw, read_dark_frame,
                             stores_display_encoded, write_lightfield)
+    from ..types import encoded_colour_state
 
     refuse_decoded_input(raw_path)
     refuse_database_with_grid(calibration, white, database)
@@ -104,5 +105,6 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
                                progress=progress_bar(f"writing {name}", ctx))
     if not quiet(ctx):
         rectified = ", rectified" if lf.geometry.ray_model else ""
-        click.echo(f"wrote {out} ({name}: {lightfield_summary(lf.shape, 'srgb' if encoded else lf.colour)}"
+        colour = encoded_colour_state(lf.colour) if encoded else lf.colour
+        click.echo(f"wrote {out} ({name}: {lightfield_summary(lf.shape, colour)}"
                    f"{rectified}){encoded_note(name) if encoded else ''}" + empty_views_note(lf, name))

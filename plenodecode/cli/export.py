@@ -103,6 +103,7 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
     """
     from ..io.lightfield import save_lightfield
     from ..pipeline import stores_display_encoded
+    from ..types import encoded_colour_state
 
     page = _page_format(output, fmt, overwrite)
     if page is not None:
@@ -115,8 +116,8 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
 
     refuse_writing_over_inputs([output] if page is not None else written_files(output, name), [lf_in])
     lf = _load(lf_in)
-    if srgb and lf.colour == "srgb":
-        raise click.BadParameter(f"{lf_in.name} is sRGB-encoded already (colour 'srgb'); leave --srgb out",
+    if srgb and lf.geometry.display_encoded:
+        raise click.BadParameter(f"{lf_in.name} is sRGB-encoded already (colour {lf.colour!r}); leave --srgb out",
                                  param_hint="--srgb")
     encoded = page is None and stores_display_encoded(name, lf.colour, int(bit_depth))
     try:
@@ -131,6 +132,6 @@ def command(ctx: click.Context, lf_in: Path, output: Path, fmt: str | None, bit_
     except ValueError as exc:
         raise click.UsageError(str(exc)) from exc
     if not (ctx.obj or {}).get("quiet"):
-        colour = "srgb" if srgb or encoded or page is not None else lf.colour
+        colour = encoded_colour_state(lf.colour) if srgb or encoded or page is not None else lf.colour
         click.echo(f"wrote {out} ({name}: {lightfield_summary(lf.shape, colour)})"
                    f"{encoded_note(name) if encoded else ''}" + empty_views_note(lf, name))

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..metadata import LINEAR_COLOUR_STATES
 from .atomic import atomic_output, check_destination, refuse_folder, write_bytes_atomic
 from .images import quantise, write_image
 from .pfm import write_pfm
@@ -302,12 +303,13 @@ def display_colours(image: np.ndarray, colour_state: str) -> np.ndarray:
     """(Y, X, C) view -> (Y, X, 3) uint8 display colours.
 
     ``rint(255 clip(V, 0, 1))`` with ``V`` the sRGB encoding (:func:`plenodecode.io.images.srgb_encode`) of the
-    view unless it is already 'srgb' (:func:`plenodecode.io.images.quantise`); NaN becomes 0.
+    view unless it is sRGB-encoded already ('srgb', 'camera-srgb-curve'; :func:`plenodecode.io.images.quantise`);
+    NaN becomes 0.
     """
     img = np.asarray(image)
     if img.shape[-1] == 1:
         img = np.repeat(img, 3, axis=-1)
-    return quantise(img, 8, encode_srgb=colour_state != "srgb")
+    return quantise(img, 8, encode_srgb=colour_state in LINEAR_COLOUR_STATES)
 
 
 def write_depth_outputs(pfm_path: str | os.PathLike, values: np.ndarray, *, label: str,

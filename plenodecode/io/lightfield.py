@@ -35,10 +35,11 @@ Metadata schema (the document every format stores), ``version`` :data:`FORMAT_VE
   still load with the same geometry.
 
 Integer formats clip to [0, 1].  ``encode_srgb=True`` applies the sRGB transfer function
-before quantising and records the colour state 'srgb'; by default 8-bit views and ESLF of a linear
-light field are encoded so (:func:`stores_display_encoded`), by every front end alike.  Every output is written under a
-temporary name in the destination folder and renamed; nothing is replaced without
-``overwrite=True``.
+before quantising and records the encoded colour state: 'srgb' for linear sRGB, 'camera-srgb-curve' for camera
+RGB (no white balance or colour matrix: the sRGB tone curve, not sRGB colours; :func:`linearise` takes it back to
+'camera'); by default 8-bit views and ESLF of a linear light field are encoded so (:func:`stores_display_encoded`),
+by every front end alike.  Every output is written under a temporary name in the destination folder and renamed;
+nothing is replaced without ``overwrite=True``.
 """
 
 from __future__ import annotations
@@ -55,10 +56,10 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from ..errors import FormatError, MetadataError
-from ..types import LINEAR_COLOUR_STATES, LightField, LightFieldGeometry
+from ..types import LINEAR_COLOUR_STATES, LightField, LightFieldGeometry, encoded_colour_state, linear_colour_state
 from .atomic import atomic_output, atomic_outputs, interrupts_between_steps, refuse_existing
 from .generic import json_safe
-from .images import quantise, read_image, srgb_encode, to_unit_float, write_image
+from .images import quantise, read_image, srgb_decode, srgb_encode, to_unit_float, write_image
 
 log = logging.getLogger(__name__)
 
@@ -115,16 +116,42 @@ def stores_display_encoded(format: str, colour: str, bit_depth: int) -> bool:
     """Whether a light field of colour state ``colour`` saved as ``format`` at ``bit_depth`` is sRGB-encoded by
     default (:func:`save_lightfield`, every front end): the 8-bit image formats (views, eslf) of a linear one are,
     as every photograph is (8-bit linear views look dark and keep 1/255 steps in the shadows); the data then load
-    back as colour 'srgb'.  Every other format and depth stores linear light."""
+    back as colour 'srgb', or 'camera-srgb-curve' for camera RGB (:func:`linearise` undoes either).  Every other
+    format and depth stores linear light."""
     return format in IMAGE_LIGHTFIELD_FORMATS and int(bit_depth) == 8 and colour in LINEAR_COLOUR_STATES
 
 
 def _encoded(lf: LightField, encode_srgb: bool) -> LightField:
+    """``lf`` with the sRGB transfer function applied, its colour state the encoded one of its own
+    (:func:`~plenodecode.types.encoded_colour_state`: camera RGB stays camera RGB, 'camera-srgb-curve')."""
     if not encode_srgb:
         return lf
-    if lf.colour == "srgb":
-        raise ValueError("encode_srgb: the light field is already sRGB-encoded (colour 'srgb')")
-    return lf.replace(data=srgb_encode(lf.data), colour="srgb")
+    if lf.geometry.display_encoded:
+        raise ValueError(f"encode_srgb: the light field is already sRGB-encoded (colour {lf.colour!r})")
+    return lf.replace(data=srgb_encode(lf.data), colour=encoded_colour_state(lf.colour))
+
+
+def linearise(lf: LightField) -> LightField:
+    """The light field in linear light: an sRGB-encoded one ('srgb', 'camera-srgb-curve') through the inverse
+    sRGB transfer function (:func:`plenodecode.io.images.srgb_decode`, values clipped to [0, 1]), to 'linear-srgb'
+    or 'camera' (:func:`~plenodecode.types.linear_colour_state`: the primaries are kept); a linear one as it is.
+
+    Parameters
+    ----------
+    lf : LightField
+        ``data`` (V, U, Y, X, C) float32.
+
+    Returns
+    -------
+    LightField
+        ``data`` (V, U, Y, X, C) float32; weight and geometry kept.
+    """
+    if not lf.geometry.display_encoded:
+        return lf
+    data = np.empty(lf.shape, np.float32)
+    for v in range(lf.shape[0]):              # one view row at a time: srgb_decode works in float64
+        data[v] = srgb_decode(lf.data[v])
+    return lf.replace(data=data, colour=linear_colour_state(lf.colour))
 
 
 def _tick(progress: Progress, done: int, total: int) -> None:
@@ -581,7 +608,8 @@ def save_lightfield(lf: LightField, path: str | os.PathLike, *, format: str | No
     progress : callable(done, total), optional
         Called after each view (zarr, views) or once at the end.
     encode_srgb : bool, optional
-        Apply the sRGB transfer function first (display export); the saved colour state is 'srgb'.  Default
+        Apply the sRGB transfer function first (display export); the saved colour state is the encoded one
+        ('srgb' for linear sRGB, 'camera-srgb-curve' for camera RGB).  Default
         (None): :func:`stores_display_encoded`, so 8-bit views and ESLF of a linear light field are encoded, as
         the CLI writes them; False keeps linear light.
     image_ext : str, optional
@@ -664,6 +692,6 @@ def load_lightfield(path: str | os.PathLike, *, view: tuple[int, int] | None = N
 
 
 __all__ = ["LIGHTFIELD_FORMATS", "PAGE_EXTENSIONS", "LightFieldFormat", "save_lightfield", "load_lightfield",
-           "detect_format", "eslf_from_lightfield", "lightfield_from_eslf", "ESLF_DEFAULT_VIEWS", "ESLF_EXTENSIONS",
-           "ESLF_NAMES", "VIEW_EXT", "FOLDER_FORMATS", "holds_lightfield", "refuse_foreign_folder",
+           "linearise", "detect_format", "eslf_from_lightfield", "lightfield_from_eslf", "ESLF_DEFAULT_VIEWS",
+           "ESLF_EXTENSIONS", "ESLF_NAMES", "VIEW_EXT", "FOLDER_FORMATS", "holds_lightfield", "refuse_foreign_folder",
            "written_files"]

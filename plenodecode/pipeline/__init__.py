@@ -18,8 +18,9 @@ five steps, each implemented once here::
 
 Display encoding (one rule, :func:`display_encoding`): images of a linear light field (colour state
 'camera' or 'linear-srgb') get the sRGB transfer function, except 32-bit float outputs, which stay linear;
-'srgb' images are written as they are.  A light field saved by ``decode`` / ``export`` stays linear, except as
-8-bit views or ESLF (:func:`stores_display_encoded`).
+sRGB-encoded images ('srgb', or camera RGB with the curve, 'camera-srgb-curve') are written as they are.  A
+light field saved by ``decode`` / ``export`` stays linear, except as 8-bit views or ESLF
+(:func:`stores_display_encoded`).
 
 Importing this module is light (no numba, OpenCV or OpenImageIO): the CLI reads its registries for
 ``click.Choice`` lists.

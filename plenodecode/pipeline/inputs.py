@@ -12,7 +12,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Iterator
 
-from ..types import LightField, RawCapture
+from ..types import LINEAR_COLOUR_STATES, LightField, RawCapture
 
 if TYPE_CHECKING:
     from ..io.mosaic_levels import MosaicOptions
@@ -30,7 +30,7 @@ IMAGE_EXTENSIONS = ("png", "tif", "exr")
 #: Bits per sample of image outputs (32 = float).
 BIT_DEPTHS = (8, 16, 32)
 #: Colour states that hold linear values (display-encoded when written, except as 32-bit float).
-LINEAR_COLOURS = ("camera", "linear-srgb")
+LINEAR_COLOURS = LINEAR_COLOUR_STATES
 
 
 # ------------------------------------------------------------------------------------------------- inputs

@@ -106,7 +106,8 @@ def exposure_gain(rendered: Rendered, exposure: float | str = 0.0) -> float:
 
 
 def expose(image: Any, colour: str, gain: float) -> Any:
-    """``image`` with its linear light times ``gain`` (sRGB-decoded and re-encoded for the 'srgb' state)."""
+    """``image`` with its linear light times ``gain`` (sRGB-decoded and re-encoded for an sRGB-encoded state,
+    'srgb' or 'camera-srgb-curve')."""
     if gain == 1.0:
         return image
     from ..io.images import srgb_encode

@@ -32,7 +32,7 @@ class Rendered:
         File stem and image (H, W, C) float32 of every image; one for single-image products.  A folder of many
         images may render each one when it is read (:class:`ViewImages`).
     colour : str
-        Colour state of the images ('camera', 'linear-srgb' or 'srgb'); decides the display encoding.
+        Colour state of the images (:data:`~plenodecode.types.COLOUR_STATES`); decides the display encoding.
     folder : bool
         The product is a folder of images (and ``documents``), not one file.
     documents : tuple of (str, callable)

@@ -59,6 +59,10 @@ def test_display_colours_are_srgb_encoded_bytes():
     np.testing.assert_array_equal(display_colours(img, "linear-srgb"), np.rint(srgb * 255).astype(np.uint8))
     np.testing.assert_array_equal(display_colours(img, "srgb"), np.rint(x * 255).astype(np.uint8))
     assert display_colours(img[..., :1], "srgb").shape == (6, 7, 3)
+    # camera RGB: linear gets the curve, already on the curve ('camera-srgb-curve', 8-bit F01 views) is kept:
+    # the point cloud's colours of such a light field were encoded a second time (washed out)
+    np.testing.assert_array_equal(display_colours(img, "camera"), np.rint(srgb * 255).astype(np.uint8))
+    np.testing.assert_array_equal(display_colours(img, "camera-srgb-curve"), np.rint(x * 255).astype(np.uint8))
 
 
 def test_depth_outputs_are_written_together(tmp_path):

@@ -345,3 +345,52 @@ def test_load_lightfield_of_an_hci_folder_keeps_parameters_cfg(tmp_path, source)
     assert depth_constants(read)[:2] == pytest.approx((0.1 * 100 / 35 * 512, 7.0)) and depth_constants(read)[2] == "hci"
     assert focal_length_px(loaded) == focal_length_px(read)
     np.testing.assert_allclose(loaded.data, read.data, atol=1e-6)
+
+
+@pytest.mark.parametrize("fmt,name", [("views", "views"), ("eslf", "lf.png")])
+def test_camera_rgb_encoded_round_trip_keeps_camera_rgb(tmp_path, fmt, name):
+    """An 8-bit views folder or ESLF of a camera-RGB light field (no white balance or colour matrix: the F01 JPEGs)
+    was labelled 'srgb', so reading it back claimed sRGB colours.  It is 'camera-srgb-curve' now, and linearise()
+    takes it back to 'camera' through the inverse sRGB curve: exact values on a small array whose encodings are
+    whole 8-bit steps."""
+    from plenodecode.io.images import srgb_decode
+    from plenodecode.io.lightfield import linearise
+
+    # 8-bit codes 0, 10 (linear segment of the curve), 128, 255 -> their linear values, in the three channels
+    codes = np.array([[0, 10, 128], [255, 128, 10]], np.float64)
+    linear = srgb_decode(codes / 255.0)
+    expected_linear = np.array([[0.0, 10 / 255 / 12.92, ((128 / 255 + 0.055) / 1.055) ** 2.4],
+                                [1.0, ((128 / 255 + 0.055) / 1.055) ** 2.4, 10 / 255 / 12.92]])
+    np.testing.assert_allclose(linear, expected_linear, rtol=1e-12)
+    assert abs(expected_linear[0, 2] - 0.2158605) < 1e-7          # the sRGB value of 128/255
+    data = np.broadcast_to(linear.astype(np.float32)[None, None, :, None, :], (3, 3, 2, 4, 3)).copy()
+    lf = LightField(data, None, "camera", {"source": "synthetic", "spatial_step_px": 8.6})
+    out = save_lightfield(lf, tmp_path / name, bit_depth=8)
+    back = load_lightfield(out)
+    assert back.colour == back.geometry.colour == "camera-srgb-curve" and back.geometry.display_encoded
+    codes5 = np.broadcast_to(codes[None, None, :, None, :], data.shape)
+    np.testing.assert_array_equal(np.rint(back.data * 255.0), codes5)        # stored as the sRGB-encoded codes
+    lin = linearise(back)
+    assert lin.colour == lin.geometry.colour == "camera" and not lin.geometry.display_encoded
+    assert lin.data.dtype == np.float32 and lin.shape == lf.shape and lin.geometry.spatial_step_px == 8.6
+    np.testing.assert_allclose(lin.data, np.broadcast_to(expected_linear[None, None, :, None, :], data.shape),
+                               rtol=2e-6, atol=1e-9)
+    # a linear light field is linearise()'s identity; a second encoding is refused, naming the state
+    assert linearise(lin) is lin
+    with pytest.raises(ValueError, match="already sRGB-encoded .colour 'camera-srgb-curve'"):
+        save_lightfield(back, tmp_path / "again", bit_depth=8, encode_srgb=True)
+
+
+def test_linear_srgb_still_encodes_to_srgb_and_linearises_to_linear_srgb(tmp_path):
+    """The sRGB path is unchanged: linear sRGB saved as 8-bit views loads as 'srgb' and linearises to 'linear-srgb'."""
+    from plenodecode.io.images import srgb_decode
+    from plenodecode.io.lightfield import linearise
+
+    lf = make_lf()
+    back = load_lightfield(save_lightfield(lf, tmp_path / "v", bit_depth=8))
+    assert back.colour == "srgb"
+    lin = linearise(back)
+    assert lin.colour == "linear-srgb"
+    np.testing.assert_allclose(lin.data, srgb_decode(back.data), rtol=1e-6)
+    # within the 8-bit step of the curve's steepest linear slope (2.4 / 1.055 per unit at full scale)
+    assert np.abs(lin.data - lf.data).max() <= 0.5 / 255 * 2.4 / 1.055 * 1.01
