@@ -101,6 +101,8 @@ def linear_colour_state(colour: str) -> str:
     """The colour state of ``colour``'s values with the sRGB transfer function undone ('camera-srgb-curve' ->
     'camera', 'srgb' -> 'linear-srgb'); a linear state is returned as it is."""
     return {enc: lin for lin, enc in ENCODED_COLOUR_STATES.items()}.get(colour, colour)
+
+
 #: Keys of the legacy free-form ``LightField.metadata`` dict that :class:`LightFieldGeometry` replaces.
 LEGACY_GEOMETRY_KEYS = ("source", "calibration", "camera", "spatial_step_px", "view_step_px", "geometry",
                         "disparity_range", "hci_parameters", "focus_distance_m", "colour", "microscope",
