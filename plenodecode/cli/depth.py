@@ -109,7 +109,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, method: str, met
             overwrite: bool) -> None:
     """Estimate the depth of RAW_OR_LF (a raw, a saved light field, an HCI scene folder or a .npy).
 
-    Writes OUTPUT (.pfm, readable by the HCI benchmark toolkit), OUTPUT with .exr (32-bit float),
+    Writes OUTPUT (.pfm, readable by the HCI benchmark toolkit; -o X.png or X.exr names the same set),
+    OUTPUT with .exr (32-bit float),
     OUTPUT with .png (colour map with a legend, pixels below --min-confidence grey) and the confidence
     map in [0, 1] as OUTPUT_confidence.exr and .png (laid out as OUTPUT's .png, --min-confidence marked on
     its colour bar): disparity in px per view step (HCI sign: positive = closer than the focus plane), or

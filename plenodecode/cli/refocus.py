@@ -75,7 +75,8 @@ def refocus_at_virtual_depth(ctx: click.Context, input_path: Path, output: Path,
     note_if_dark(ctx, photo, exposure)
     if not quiet(ctx):
         render = photo.data["render"]
-        click.echo(f"wrote {output} (virtual depth {virtual_depth:g}, patch {float(render.patch.flat[0]):.2f} px)")
+        click.echo(f"wrote {output} ({picture_size(photo.images[0][1], bits)}; virtual depth {virtual_depth:g}, "
+                   f"patch {float(render.patch.flat[0]):.2f} px)")
 
 
 @click.command("refocus", cls=OneInputCommand)

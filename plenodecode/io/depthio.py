@@ -282,14 +282,20 @@ def write_colour_map_png(path: str | os.PathLike, values: np.ndarray, *, label: 
 # ---------------------------------------------------------------------------------------------------------------
 # everything the depth command writes
 # ---------------------------------------------------------------------------------------------------------------
+#: Extensions ``-o`` of the depth command takes; each names the same set of files (:func:`depth_output_paths`).
+DEPTH_OUTPUT_SUFFIXES = (".pfm", ".exr", ".png")
+
+
 def depth_output_paths(pfm_path: str | os.PathLike, *, ply: str | os.PathLike | None = None,
                        confidence: bool = False) -> dict[str, Path]:
     """The files :func:`write_depth_outputs` writes for ``-o X.pfm``: pfm, exr (``X.exr``), png (``X.png``),
     with ``confidence`` 'confidence_exr' and 'confidence_png' (``X_confidence.exr`` / ``.png``), and ply when
-    asked."""
+    asked.  ``X.png`` or ``X.exr`` names the same set (a user asking for the picture gets it, and the rest
+    beside it)."""
     p = Path(pfm_path)
-    if p.suffix.lower() != ".pfm":
-        raise ValueError(f"the depth output must end in .pfm, got {p.name!r}")
+    if p.suffix.lower() not in DEPTH_OUTPUT_SUFFIXES:
+        raise ValueError(f"the depth output must end in .pfm, .exr or .png (all three are written), got {p.name!r}")
+    p = p.with_suffix(".pfm")
     out = {"pfm": p, "exr": p.with_suffix(".exr"), "png": p.with_suffix(".png")}
     if confidence:
         out["confidence_exr"] = p.with_name(f"{p.stem}_confidence.exr")
@@ -401,4 +407,4 @@ def write_point_cloud(path: str | os.PathLike, points: np.ndarray, colours: np.n
 __all__ = ["write_ply", "write_point_cloud", "read_ply", "write_colour_map_png", "colour_map_figure",
            "colour_map_image", "colour_range", "colour_mapped", "DEFAULT_MIN_CONFIDENCE", "MASK_GREY",
            "CONFIDENCE_CMAP", "CONFIDENCE_MARK", "check_min_confidence", "DEPTH_CMAP", "DEPTH_PERCENTILES",
-           "write_depth_outputs", "depth_output_paths", "display_colours"]
+           "write_depth_outputs", "depth_output_paths", "DEPTH_OUTPUT_SUFFIXES", "display_colours"]

@@ -19,8 +19,8 @@ plenodecode optics JSON (``--optics FILE.json``)
     "magnification": 20, "na": 0.5, "tube_lens_mm": 180, "medium_index": 1.33, "microlens_focal_um": 2433}``
     (:func:`format_optics_json` writes it).
 
-:func:`optics_beside` finds ``metadata.txt`` in the raw's folder; :func:`format_metadata_txt` writes a
-napari-LF file (the tests generate theirs with it).  Readers never write.
+:func:`optics_beside` finds ``metadata.txt`` in the raw's folder (else an LFAnalyze sample's README);
+:func:`format_metadata_txt` writes a napari-LF file (the tests generate theirs with it).  Readers never write.
 """
 
 from __future__ import annotations
@@ -39,6 +39,12 @@ log = logging.getLogger(__name__)
 
 #: The file napari-LF keeps beside a light-field image.
 METADATA_NAME = "metadata.txt"
+#: READMEs beside a raw read for optics when there is no ``metadata.txt`` (LFAnalyze's sample data keep them
+#: there as ``pitch 125 um`` lines), and the values one must give to count (a README that merely mentions an NA
+#: does not make a camera a microscope); larger files are no such README.
+README_NAMES = ("README", "README.txt")
+README_REQUIRED = ("lens_pitch_m", "pixel_pitch_m", "magnification", "numerical_aperture")
+README_MAX_BYTES = 64 * 1024
 #: napari-LF ``calibrate`` key -> (MicroscopeOptics field, metres per file unit).
 NAPARI_KEYS: dict[str, tuple[str, float]] = {
     "ulens_pitch": ("lens_pitch_m", 1e-6),
@@ -134,14 +140,33 @@ def read_optics(path: str | os.PathLike) -> MicroscopeOptics:
     return parse_optics(text, p)
 
 
+def _readme_optics(folder: Path) -> MicroscopeOptics | None:
+    """The optics an LFAnalyze sample's README in ``folder`` lists (:data:`README_NAMES`, text dialect), when it
+    gives every one of :data:`README_REQUIRED`; else None (any other README says nothing of optics)."""
+    for name in README_NAMES:
+        readme = folder / name
+        try:
+            if not readme.is_file() or readme.stat().st_size > README_MAX_BYTES:
+                continue
+            optics = parse_optics(readme.read_text(encoding="utf-8", errors="replace"), readme)
+        except (OSError, MetadataError):
+            continue
+        if all(getattr(optics, f) is not None for f in README_REQUIRED):
+            log.info("microscope optics from %s: %s", readme, optics.describe())
+            return optics
+    return None
+
+
 def optics_beside(raw_path: str | os.PathLike) -> MicroscopeOptics | None:
-    """The optics of the napari-LF ``metadata.txt`` in the raw's folder, None when there is none.
+    """The optics of the napari-LF ``metadata.txt`` in the raw's folder, else those an LFAnalyze sample's README
+    beside it lists (``pitch 125 um`` lines giving at least pitch, pixel size, magnification and NA); None
+    when there are none.
 
     A ``metadata.txt`` that holds no optical value (another program's file) is ignored with a warning.
     """
     meta = Path(raw_path).parent / METADATA_NAME
     if not meta.is_file():
-        return None
+        return _readme_optics(Path(raw_path).parent)
     try:
         optics = read_optics(meta)
     except MetadataError as exc:

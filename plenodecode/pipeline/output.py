@@ -276,12 +276,12 @@ def write_depth(rendered: Rendered, pfm_path: str | os.PathLike, *, ply: str | o
     min_confidence = check_min_confidence(DEFAULT_MIN_CONFIDENCE if min_confidence is None else min_confidence)
     values = rendered.data["values"]
     if not full:
-        from ..io.depthio import write_point_cloud
+        from ..io.depthio import depth_output_paths, write_point_cloud
         from ..io.pfm import write_pfm
 
         if ply is not None and rendered.data.get("points") is None:
             raise ValueError("ply needs points (3-D coordinates of every pixel): render the depth with points=True")
-        return [write_pfm(pfm_path, values, overwrite=overwrite)] + (
+        return [write_pfm(depth_output_paths(pfm_path)["pfm"], values, overwrite=overwrite)] + (
             [] if ply is None else [write_point_cloud(ply, rendered.data["points"], rendered.data.get("colours"),
                                                       overwrite=overwrite)])
     from ..io.depthio import write_depth_outputs

@@ -260,3 +260,28 @@ def test_f01_shoe_mesh_depth_keeps_to_the_scene_range(tmp_path):
     disparity = read_pfm(tmp_path / "d.pfm")
     near, far = np.nanpercentile(disparity, [95, 5])
     assert 1.2 < near < 2.5 and -1.0 < far < 0.5, (near, far)
+
+
+@pytest.mark.parametrize("suffix", [".png", ".exr"])
+def test_an_output_named_as_the_picture_writes_the_whole_depth_set(tmp_path, suffix):
+    """'depth RAW -o depth.png' (what a user asking for a depth picture types) was refused ('must end in .pfm');
+    .png and .exr now name the same files as .pfm: the PFM, EXR and PNG of the map with its confidence beside,
+    the PNG a colour-mapped figure and the PFM the values the EXR holds."""
+    from tests.conftest import shared_path
+
+    r42 = shared_path("raytrix-r42", "sc2_klein.png")
+    res = CliRunner().invoke(cli, ["depth", str(r42), "-o", str(tmp_path / f"d{suffix}")])
+    assert res.exit_code == 0, res.output
+    names = {"d.pfm", "d.exr", "d.png", "d_confidence.exr", "d_confidence.png"}
+    assert {p.name for p in tmp_path.iterdir()} == names
+    assert {line.split("/")[-1] for line in res.stdout.splitlines() if line.startswith("wrote ")} == names
+    values = read_pfm(tmp_path / "d.pfm")
+    assert values.shape == (122, 176) and np.nanstd(values) > 0
+    np.testing.assert_array_equal(read_image(tmp_path / "d.exr").reshape(values.shape), values)
+    assert read_image(tmp_path / "d.png").shape[0] > values.shape[0]     # a figure with its colour bar
+
+
+def test_a_depth_output_of_another_kind_is_refused_naming_the_option(tmp_path):
+    res = CliRunner().invoke(cli, ["depth", "sample_raws/illum-mini/scene.lfr", "-o", str(tmp_path / "d.jpg")])
+    assert res.exit_code == 2 and "--output" in res.output and ".pfm, .exr or .png" in res.output, res.output
+    assert not any(tmp_path.iterdir())

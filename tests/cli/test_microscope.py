@@ -132,16 +132,36 @@ def test_optics_file_errors_name_the_cli_options(square_capture, tmp_path):
     assert "numerical_aperture" not in text and not (tmp_path / "a.pfm").exists()
 
 
+def test_optics_beside_a_raw_come_from_metadata_txt_else_a_readme_that_lists_them(tmp_path):
+    """An LFAnalyze sample's README (``pitch 125 um`` lines) beside the raw gives its optics when there is no
+    metadata.txt; a README that lacks one of pitch, pixel size, magnification and NA, or only mentions them in
+    prose, gives none (a camera is not made a microscope by its README); metadata.txt wins over a README."""
+    from plenodecode.io.microscope import optics_beside
+
+    raw = tmp_path / "light_field.png"
+    full = "SUMMARY\n\npixel-size 4.55 um\npitch 125 um\nmagnification 20 x\nna 0.5\nmedium-index 1.33\n"
+    (tmp_path / "README").write_text(full)
+    optics = optics_beside(raw)
+    assert optics.lens_pitch_m == pytest.approx(125e-6) and optics.pixel_pitch_m == pytest.approx(4.55e-6)
+    assert (optics.magnification, optics.numerical_aperture, optics.medium_index) == (20, 0.5, 1.33)
+    (tmp_path / "README").write_text(full.replace("na 0.5\n", ""))
+    assert optics_beside(raw) is None
+    (tmp_path / "README").write_text("This camera has a pitch of 125 um and an NA of 0.5.\n")
+    assert optics_beside(raw) is None
+    (tmp_path / "README").write_text(full)
+    (tmp_path / "metadata.txt").write_text(format_metadata_txt(PRESETS["square"].microscope))
+    assert optics_beside(raw) == PRESETS["square"].microscope
+
+
 # ------------------------------------------------------------------------------------- the real ant-leg capture
 @pytest.fixture(scope="module")
 def antleg(tmp_path_factory):
-    """The ant leg decoded through the CLI with its radiometry and dark frames and its optics (the LFAnalyze
-    parameter list of its README), saved as Zarr."""
+    """The ant leg decoded through the CLI with its radiometry and dark frames, saved as Zarr; its optics come from
+    the LFAnalyze parameter list of the README beside it, with no option (``--optics README`` was needed)."""
     folder = shared_path(*ANTLEG)
     out = tmp_path_factory.mktemp("antleg") / "lf.zarr"
     r = CliRunner().invoke(cli, ["decode", str(folder / "light_field.png"), "-w", str(folder / "radiometry_frame.png"),
-                                 "--dark", str(folder / "dark_frame.tif"), "--optics", str(folder / "README"),
-                                 "-o", str(out)], obj={})
+                                 "--dark", str(folder / "dark_frame.tif"), "-o", str(out)], obj={})
     assert r.exit_code == 0, r.output
     from plenodecode.io.lightfield import load_lightfield
 

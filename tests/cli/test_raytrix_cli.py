@@ -99,6 +99,7 @@ def test_two_xmls_are_ambiguous_until_raytrix_xml_names_one(shoot, tmp_path):
     assert "virtual depth 4.5" in res.output and "patch 7.75 px" in res.output        # 34.86 px / 4.5
     png = read_image(out)
     assert png.ndim == 3 and png.shape[2] == 3 and channels_differ(png) > 0.05
+    assert f"wrote {out} ({png.shape[1]} x {png.shape[0]} px, 16-bit; virtual depth" in res.output   # as --slope's
     # an XML that is no RayCalibData: a usage error naming the option, before any work
     (raw.parent / "notes.txt").write_text("<Settings/>")
     res = run("decode", raw, "--raytrix-xml", raw.parent / "notes.txt", "-o", tmp_path / "lf.zarr")

@@ -79,8 +79,8 @@ def test_depth_outputs_are_written_together(tmp_path):
     with pytest.raises(FileExistsError):
         write_depth_outputs(tmp_path / "e.pfm", v, label="disparity")
     assert not (tmp_path / "e.pfm").exists() and not (tmp_path / "e.exr").exists()
-    with pytest.raises(ValueError, match=".pfm"):
-        write_depth_outputs(tmp_path / "e.png", v, label="x")
+    with pytest.raises(ValueError, match=r"\.pfm, \.exr or \.png"):
+        write_depth_outputs(tmp_path / "e.tif", v, label="x")
 
 
 def _uniform_lf(d=0.6, n=5, size=40):
