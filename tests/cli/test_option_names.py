@@ -60,3 +60,31 @@ def test_summary_files_not_of_a_batch_name_the_option_not_the_keyword(tmp_path):
     assert _error(res) == (f"Error: {out / 'summary.json'} exists and was not written by a batch run; pass "
                            "--overwrite or choose another -o folder")
     assert (out / "summary.json").read_text() == "{}"
+
+
+@pytest.mark.parametrize("view", [("4,4",), ("4", "4")])
+def test_view_takes_v_comma_u_as_focus_at_takes_x_comma_y(tmp_path, view):
+    """'views --view 4,4' (the form --focus-at X,Y teaches) failed with click's "'4,4' is not a valid float"; it
+    and the older 'V U' form both write the HCI antinous centre view, input_Cam040.png, to the sample."""
+    import cv2
+    import numpy as np
+
+    hci = shared_path("hci-antinous")
+    out = tmp_path / "v.png"
+    res = CliRunner().invoke(cli, ["views", str(hci), "--view", *view, "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    written = cv2.imread(str(out), cv2.IMREAD_UNCHANGED)
+    centre = cv2.imread(str(hci / "input_Cam040.png"), cv2.IMREAD_UNCHANGED)
+    assert written.dtype == np.uint16 and np.array_equal(written, centre.astype(np.uint16) * 257)
+
+
+@pytest.mark.parametrize("view, said", [(("4",), "expected V,U (view row, view column, e.g. 4,4 or 7.5,6.25), "
+                                                 "got '4'"),
+                                        (("4,x",), "expected V,U (view row, view column, e.g. 4,4 or 7.5,6.25), "
+                                                   "got '4,x'"),
+                                        (("4,-1",), "V and U must be finite and >= 0, got '4,-1'")])
+def test_bad_view_is_one_line_naming_view_before_the_input_is_read(tmp_path, view, said):
+    res = CliRunner().invoke(cli, ["views", str(ROOT / "sample_raws" / "square" / "scene.png"), "--view", *view,
+                                   "-o", str(tmp_path / "v.png")])
+    assert _error(res) == f"Error: Invalid value for '--view': {said}"
+    assert list(tmp_path.iterdir()) == []
