@@ -220,8 +220,8 @@ def _microscope_fields() -> dict:
               help="Interpolation between neighbouring views of the 'parallax' product.")
 @click.option("--metric", is_flag=True,
               help="The 'depth' product in metres (depth.pfm; um for a light-field microscope) instead of disparity, "
-                   "from each raw's own focus distance (a raw whose metadata lacks it fails; when no raw has it, the run "
-                   "is refused).")
+                   "from each raw's own focus distance (a raw whose metadata lacks it fails; when no raw has it, the "
+                   "run is refused).")
 @click.option("--ply", is_flag=True,
               help="The 'depth' product also writes a coloured point cloud beside its PFM (depth.ply or "
                    "disparity.ply; needs what --metric needs).")

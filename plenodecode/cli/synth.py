@@ -234,7 +234,9 @@ def _checkerboard_set(ctx: click.Context, preset: str, out: Path, *, board: Boar
                                          progress=progress_bar(f"checkerboard set of {preset}", ctx))
     except ValueError as exc:
         if "does not fit" in str(exc):
-            raise click.BadParameter(f"{exc} (--distances)", param_hint="--checkerboard") from exc
+            bent = ("; or the distortion of --distortion / --geometry bends it out of the views"
+                    if distortion is not None else "")
+            raise click.BadParameter(f"{exc} (--distances{bent})", param_hint="--checkerboard") from exc
         raise click.UsageError(str(exc)) from exc
     try:
         paths = write_checkerboard_set(cset, out, name=name, overwrite=overwrite)

@@ -21,6 +21,7 @@ INTERP_CHOICE = RegistryChoice("plenodecode.render.viewpoints", "PERSPECTIVE_INT
 
 
 def _is_number(text: str) -> bool:
+    """True when ``float(text)`` reads it (nan and inf too: :class:`ViewPosition` refuses those by name)."""
     try:
         float(text)
     except ValueError:

@@ -270,3 +270,18 @@ def test_cli_synth_offset_up_to_half_a_pitch_is_drawn(tmp_path):
     assert res.exit_code == 0, res.output
     truth = syn.load_truth(tmp_path / "scene.truth.json")
     assert truth.grid.to_dict() == syn.make_grid("f01-mini", offset=(4.9, -4.9), shape=(96, 128)).to_dict()
+
+
+def test_cli_synth_board_bent_out_of_the_views_names_the_distortion(tmp_path):
+    """'--distortion 1e9 0 0 0 0' said only '... use a smaller board or other distances (--distances)', sending the
+    user to an option that was never the problem."""
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+
+    res = CliRunner().invoke(cli, ["synth", "f01-mini", "-o", str(tmp_path / "out"), "--checkerboard", "3x4x0.004",
+                                   "--captures", "1", "--distortion", "1e9", "0", "0", "0", "0"])
+    assert res.exit_code == 2, res.output
+    assert res.output.strip().splitlines()[-1].endswith(
+        "(--distances; or the distortion of --distortion / --geometry bends it out of the views)")
+    assert list(tmp_path.iterdir()) == []
