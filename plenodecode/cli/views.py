@@ -110,12 +110,16 @@ def command(ctx: click.Context, input_path: Path, output: Path, view: tuple[floa
     src = open_source(input_path, progress=progress_bar("decoding", ctx),
                       **calibration_kwargs(calibration, white, database, self_calibrate))
     refuse_focused_views(src.focused, input_path, views_anyway, instead=FOCUSED_PHOTO.format(raw=input_path))
-    lf = src.lightfield
-    if view is not None:        # said as the option's V U, not the library's keywords v, u
-        for label, index, n in (("V (view row)", view[0], lf.shape[0]), ("U (view column)", view[1], lf.shape[1])):
+    if view is not None:        # said as the option's V,U, not the library's keywords v, u; a raw's before decoding
+        from ..decoding.rectify import decoded_shape
+
+        views = (src.input.shape[:2] if src.raw is None
+                 else decoded_shape(src.calibration.grid, src.decode_options.get("n_views"))[:2])
+        for label, index, n in (("V (view row)", view[0], views[0]), ("U (view column)", view[1], views[1])):
             if index > n - 1:
-                raise click.BadParameter(f"{label} {index:g} is past the last view of this {lf.shape[0]} x "
-                                         f"{lf.shape[1]} light field: 0 to {n - 1}", param_hint="--view")
+                raise click.BadParameter(f"{label} {index:g} is past the last view of this {views[0]} x "
+                                         f"{views[1]} light field: 0 to {n - 1}", param_hint="--view")
+    lf = src.lightfield
     with usage_errors(param_hint="--view"):
         rendered = render_product(src, "views", view=view, interp=interp)
     with usage_errors():

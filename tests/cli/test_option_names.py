@@ -88,3 +88,16 @@ def test_bad_view_is_one_line_naming_view_before_the_input_is_read(tmp_path, vie
                                    "-o", str(tmp_path / "v.png")])
     assert _error(res) == f"Error: Invalid value for '--view': {said}"
     assert list(tmp_path.iterdir()) == []
+
+
+def test_view_past_the_last_of_a_raw_is_refused_before_decoding(tmp_path, monkeypatch):
+    """'views IMG_1.jpg --view 20,4' on the real F01 JPEG decoded the whole raw before saying that its 9 x 9 views
+    end at 8; the calibration's decoded shape says so before decoding."""
+    from plenodecode.pipeline import source
+
+    monkeypatch.setattr(source, "decode_raw", lambda *a, **k: pytest.fail("decoded before --view was checked"))
+    jpeg = shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg")
+    res = CliRunner().invoke(cli, ["views", str(jpeg), "--view", "20,4", "-o", str(tmp_path / "v.png")])
+    assert _error(res) == ("Error: Invalid value for --view: V (view row) 20 is past the last view of this 9 x 9 light "
+                           "field: 0 to 8")
+    assert list(tmp_path.iterdir()) == []
