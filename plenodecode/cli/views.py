@@ -61,6 +61,24 @@ class ViewsCommand(OneInputCommand):
         return super().parse_args(ctx, args)
 
 
+def _note_if_outside(view: tuple[float, float], weight: Any) -> None:
+    """Say on stderr when a view ``--view`` interpolates from is partly outside the micro-images (data in under
+    :data:`~plenodecode.imaging.MIN_VIEW_DATA` of its samples; ``weight`` (V, U, Y, X)): the picture shows the
+    lenses' edges as stripes (the real F01 JPEG's corner views hold 44 %), which a folder of every view writes
+    black."""
+    from ..imaging import view_data_share
+
+    share = view_data_share(weight)
+    used = {(v, u) for v in {math.floor(view[0]), math.ceil(view[0])} for u in {math.floor(view[1]), math.ceil(view[1])}
+            if v < share.shape[0] and u < share.shape[1]}
+    low = min(share[v, u] for v, u in used)
+    if low < MIN_VIEW_DATA:
+        whole = share >= MIN_VIEW_DATA
+        click.echo(f"note: view {view[0]:g}, {view[1]:g} is partly outside the micro-images (data in {low:.0%} of its "
+                   f"samples): it shows the lenses' edges as stripes; {int(whole.sum())} of the {share.size} views are "
+                   "whole, and the folder of every view writes the others black", err=True)
+
+
 @click.command("views", cls=ViewsCommand)
 @click.argument("input_path", metavar="RAW_OR_LF", type=click.Path(exists=True, path_type=Path))
 @output_option
@@ -126,6 +144,8 @@ def command(ctx: click.Context, input_path: Path, output: Path, view: tuple[floa
         written = write_product(rendered, output, bit_depth=bits, ext=ext, overwrite=overwrite, exposure=exposure,
                                 progress=progress_bar("writing views", ctx))
     note_if_dark(ctx, rendered, exposure, "the view" if view is not None else "the centre view")
+    if view is not None and lf.weight is not None and not quiet(ctx):
+        _note_if_outside(view, lf.weight)
     if not quiet(ctx):
         if view is not None:
             click.echo(f"wrote {output} (view {view[0]:g}, {view[1]:g}; {picture_size(rendered.images[0][1], bits)})")

@@ -101,3 +101,18 @@ def test_view_past_the_last_of_a_raw_is_refused_before_decoding(tmp_path, monkey
     assert _error(res) == ("Error: Invalid value for --view: V (view row) 20 is past the last view of this 9 x 9 light "
                            "field: 0 to 8")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("view, note", [("8,8", True), ("7.5,7", False)])
+def test_view_partly_outside_the_micro_images_says_so(tmp_path, view, note):
+    """'views IMG_1.jpg --view 8,8' on the real F01 JPEG wrote a corner view striped by the lenses' edges (data in
+    44 % of its samples; the folder of every view writes it black) without a word; now a note on stderr says so.
+    A view between whole ones (7.5,7) gets none."""
+    jpeg = shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg")
+    res = CliRunner().invoke(cli, ["views", str(jpeg), "--view", view, "-o", str(tmp_path / "v.png")])
+    assert res.exit_code == 0, res.output
+    notes = [line for line in res.stderr.splitlines() if "outside the micro-images" in line]
+    assert notes == ([f"note: view {view.replace(',', ', ')} is partly outside the micro-images (data in 44% of its "
+                      "samples): it shows the lenses' edges as stripes; 77 of the 81 views are whole, and the folder "
+                      "of every view writes the others black"] if note else [])
+    assert (tmp_path / "v.png").is_file()
