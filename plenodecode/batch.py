@@ -761,19 +761,10 @@ def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | Non
         if threads is not None:
             limit_threads(threads)
         from .optics import MicroscopeOptics
-        from .pipeline import check_product, open_raw
+        from .pipeline import open_raw
 
         raw = open_raw(src, mosaic=options.mosaic_options(), optics=MicroscopeOptics.from_dict(options.optics))
-        for product in options.outputs:     # what the metadata cannot serve fails now, before calibrating
-            try:
-                check_product(raw, product, rectified=options.geometry is not None,
-                              **_check_options(product, options))
-            except MissingConstantsError as exc:
-                if exc.keyword not in ("metric", "points") or exc.missing != ("focus_distance_m",):
-                    raise
-                raise MissingConstantsError(f"{exc}; pass --depth-focus-distance METRES (depth_focus_distance=) for "
-                                            "every raw", keyword=exc.keyword, missing=exc.missing, source=exc.source,
-                                            need=exc.need) from None
+        _check_metadata(raw, options)       # what the metadata cannot serve fails now, before calibrating
         # the folder is staged under a temporary name and replaces ``target`` (checked above) only when complete
         with atomic_output(target, overwrite=True, folder=True) as staging:
             products, left_out = _write_products(raw, staging, options, threads=threads)
@@ -814,6 +805,23 @@ def _thumbnail(image: Any, path: Path, *, colour: str) -> Path:
     if scale < 1.0:
         img = cv2.resize(img, (max(1, round(w * scale)), max(1, round(h * scale))), interpolation=cv2.INTER_AREA)
     return write_image_file(path, np.clip(img, 0.0, 1.0), colour=colour, bit_depth=8)
+
+
+def _check_metadata(raw: Any, options: BatchOptions) -> None:
+    """Raise the MissingConstantsError of the first product of ``options.outputs`` that the metadata of ``raw`` (a
+    RawCapture) cannot serve (:func:`plenodecode.pipeline.check_product`): an alpha, a focus distance, metric
+    depth without the camera constants they need."""
+    from .pipeline import check_product
+
+    for product in options.outputs:
+        try:
+            check_product(raw, product, rectified=options.geometry is not None, **_check_options(product, options))
+        except MissingConstantsError as exc:
+            if exc.keyword not in ("metric", "points") or exc.missing != ("focus_distance_m",):
+                raise
+            raise MissingConstantsError(f"{exc}; pass --depth-focus-distance METRES (depth_focus_distance=) for "
+                                        "every raw", keyword=exc.keyword, missing=exc.missing, source=exc.source,
+                                        need=exc.need) from None
 
 
 def _check_options(product: str, options: BatchOptions) -> dict[str, Any]:
@@ -1049,6 +1057,35 @@ def check_outputs_for_any(files: Sequence[str | os.PathLike], options: BatchOpti
                          f"{'is a' if len(focused) == 1 else 'are'} focused-plenoptic (Raytrix) "
                          f"raw{'s' * (len(focused) != 1)}, whose views have one pixel per lens; ask for photo (total "
                          "focus), total-focus or depth (virtual depth), or pass --views-anyway")
+
+
+def check_constants_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> list[MissingConstantsError]:
+    """The MissingConstantsError of every readable raw of ``files`` (:func:`_check_metadata`) when not one of them
+    has the constants ``options`` ask for (``alpha``, ``focus_distance``, ``metric``, ``ply``, alpha stack units), so
+    that a batch would fail them all before decoding; [] as soon as one has them.  Raws that cannot be read are
+    passed over (their tasks fail for that reason); nothing is calibrated or decoded."""
+    if (options.alpha is None and options.focus_distance is None and not options.metric and not options.ply
+            and options.stack_units != "alpha"):
+        return []
+    from . import pipeline
+    from .pipeline.inputs import quieted
+    from .optics import MicroscopeOptics
+
+    mosaic = options.mosaic_options()
+    refused: list[MissingConstantsError] = []
+    with quieted(__name__.split(".")[0]):     # the tasks read these raws again and say their warnings
+        for f in files:
+            try:
+                raw = pipeline.open_raw(f, mosaic=mosaic, optics=MicroscopeOptics.from_dict(options.optics))
+            except (PlenodecodeError, OSError, ValueError):
+                continue
+            try:
+                _check_metadata(raw, options)
+            except MissingConstantsError as exc:
+                refused.append(exc)
+                continue
+            return []
+    return refused
 
 
 def _check_views(grid: Any, n_views: int | None, raw: Any) -> None:
@@ -1419,5 +1456,5 @@ def write_summary(summary: BatchSummary, out_dir: str | os.PathLike, *, overwrit
 
 __all__ = ["BATCH_OUTPUTS", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
            "task_key", "outputs_to_replace", "check_outputs_to_replace", "check_slope_for_any", "check_stack_for_any",
-           "check_outputs_for_any", "process_raw",
+           "check_outputs_for_any", "check_constants_for_any", "process_raw",
            "run_batch", "write_summary", "check_summary_files"]

@@ -214,6 +214,11 @@ def check_scheduler_address(address: str) -> str:
     return text
 
 
+#: Seconds to wait for a Dask scheduler to answer (Dask's own default, 30 s, kept a batch with a mistyped or
+#: stopped scheduler silent for half a minute); a shorter ``distributed.comm.timeouts.connect`` is kept.
+SCHEDULER_CONNECT_S = 5.0
+
+
 def connect_scheduler(scheduler: Any) -> tuple[Any, bool]:
     """A Dask ``Client`` of ``scheduler`` (an address, checked by :func:`check_scheduler_address`, or a Client)
     and whether it is our own to close.
@@ -223,13 +228,17 @@ def connect_scheduler(scheduler: Any) -> tuple[Any, bool]:
     ValueError
         A malformed address.
     OSError
-        The scheduler cannot be reached (Dask's connect timeout).
+        The scheduler cannot be reached within :data:`SCHEDULER_CONNECT_S` seconds.
     """
+    import dask
+    from dask.utils import parse_timedelta
     from distributed import Client
 
     if isinstance(scheduler, Client):
         return scheduler, False
-    return Client(check_scheduler_address(scheduler), set_as_default=False), True
+    address = check_scheduler_address(scheduler)
+    timeout = min(SCHEDULER_CONNECT_S, parse_timedelta(dask.config.get("distributed.comm.timeouts.connect"), "s"))
+    return Client(address, timeout=timeout, set_as_default=False), True
 
 
 def run_dask(tasks: list[tuple[Path, str]], task: Task, lost: Lost, outputs: Sequence[str], scheduler: Any,

@@ -846,9 +846,10 @@ def test_cli_alpha_fails_a_raw_without_focal_length_before_decoding_and_goes_on(
     assert not (out / "nofocal").exists() and len(list((out / "scene1").glob("refocus_a1.005.png"))) == 1
 
 
-def test_cli_focus_distance_fails_raws_without_the_constants_before_decoding(data, tmp_path, monkeypatch):
+def test_cli_focus_distance_no_raw_can_serve_is_refused_before_decoding(data, tmp_path, monkeypatch):
     """--focus-distance on raws that cannot turn metres into a slope (one without a focal length, one without the
-    distance it was focused at): each fails at once, naming what it lacks, and none is calibrated or decoded."""
+    distance it was focused at): each failed on its row and the batch wrote a summary of that; now, as no raw can
+    serve it, one usage error names --focus-distance and what the first lacks, none is decoded, nothing written."""
     from plenodecode.io import lytro
     from plenodecode.pipeline import source
     from plenodecode.synthetic import PRESETS, simulate
@@ -862,13 +863,12 @@ def test_cli_focus_distance_fails_raws_without_the_constants_before_decoding(dat
     good = data["shoot"] / "take1" / "scene1.lfr"
     res = CliRunner().invoke(cli, ["batch", str(bad), str(good), "-o", str(out), "--database", str(data["db"]),
                                    "--jobs", "1", "--outputs", "refocus", "--focus-distance", "0.5"])
-    assert res.exit_code == 1, res.output
-    lines = res.stdout.splitlines()
-    assert any(line.startswith("nofocal.lfr") and " failed " in line and "focal_length_m" in line
-               for line in lines), res.stdout
-    assert any(line.startswith("scene1.lfr") and " failed " in line and "focus_distance_m" in line
-               for line in lines), res.stdout
-    assert decoded == [] and not (out / "nofocal").exists() and not (out / "scene1").exists()
+    assert res.exit_code == 2, res.output
+    assert res.output.strip().splitlines()[-1] == (
+        "Error: Invalid value for --focus-distance: none of the 2 raws has what it needs (nofocal.lfr, scene1.lfr): "
+        "nofocal.lfr has no focal_length_m in its metadata, which a focus distance (metres -> slope) needs; use "
+        "--slope S (px per view step) instead")
+    assert decoded == [] and not out.exists()
 
 
 def test_cli_without_a_database_decodes_what_needs_none_and_fails_the_rest_with_the_reason(data, tmp_path,

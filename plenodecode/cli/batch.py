@@ -122,6 +122,25 @@ def _no_database(db_dir: Path, default: bool, inputs: tuple[Path, ...]) -> str:
             "or --self-calibrate")
 
 
+def _refuse_constants_none_has(files: list[Path], options: Any) -> None:
+    """When not one raw has the camera constants an option needs (--focus-distance, --alpha, --metric, --ply,
+    --stack-units alpha), raise the first raw's MissingConstantsError saying so, which the command group turns
+    into a usage error naming the option (:func:`plenodecode.cli.main.constants_usage_error`).  A batch of real F01
+    JPEGs and synthetic raws with --focus-distance failed every raw and wrote a summary of that; with one raw that
+    has them, the others fail on their rows."""
+    from ..batch import check_constants_for_any
+    from ..errors import MissingConstantsError
+
+    refused = check_constants_for_any(files, options)
+    if not refused:
+        return
+    first = refused[0]
+    said = ("" if len(refused) == 1 else f"none of the {len(refused)} raws has what it needs "
+            f"({_some_names([Path(e.source) for e in refused])}): ")
+    raise MissingConstantsError(said + str(first), keyword=first.keyword, missing=first.missing,
+                                source=said + first.source, need=first.need)
+
+
 def _some_names(paths: list[Path]) -> str:
     """The first three file names, and how many more: 'a.png, b.png, c.png and 2 more'."""
     return ", ".join(p.name for p in paths[:3]) + (f" and {len(paths) - 3} more" if len(paths) > 3 else "")
@@ -201,7 +220,8 @@ def _microscope_fields() -> dict:
               help="Interpolation between neighbouring views of the 'parallax' product.")
 @click.option("--metric", is_flag=True,
               help="The 'depth' product in metres (depth.pfm; um for a light-field microscope) instead of disparity, "
-                   "from each raw's own focus distance (a raw whose metadata lacks it fails).")
+                   "from each raw's own focus distance (a raw whose metadata lacks it fails; when no raw has it, the "
+                   "run is refused).")
 @click.option("--ply", is_flag=True,
               help="The 'depth' product also writes a coloured point cloud beside its PFM (depth.ply or "
                    "disparity.ply; needs what --metric needs).")
@@ -302,6 +322,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
             check_outputs_to_replace(files, out_dir, options)
         except FileExistsError as exc:
             raise _refused(exc) from None
+    _refuse_constants_none_has(files, options)
     try:        # a slope past every raw's picture: refused as 'plenodecode refocus' refuses it, before decoding
         check_slope_for_any(files, options)
     except ValueError as exc:
@@ -318,7 +339,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
     except FileExistsError as exc:      # output folders that appeared since the check above: refused as it refuses
         raise _refused(exc) from None
     except OSError as exc:   # cannot reach the scheduler, cannot create the output folder
-        where = f"the Dask scheduler {scheduler}" if scheduler else f"{out_dir}"
+        where = f"the Dask scheduler {scheduler} (--scheduler)" if scheduler else f"{out_dir}"
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         click.echo(f"error: cannot use {where}: {msg}", err=True)
         ctx.exit(1)

@@ -65,7 +65,6 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
         raise click.UsageError("--for RAW picks a white image from a calibration database: add --database DIR")
     if database is not None:
         _refuse_unused_with_database(ctx, for_raw, inputs, output, report, scene, refine)
-    _check_names(output, report)
     for path, option in ((output, "-o / --output"), (report, "--report")):
         if path is None:
             continue
@@ -73,6 +72,7 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
         if database is not None and path.resolve().is_relative_to(database.resolve()):
             raise click.BadParameter(f"{path} is inside the calibration database {database}, which only "
                                      "'calibrate --database' writes; choose a path outside it", param_hint=option)
+    _check_names(output, report)
     if output is not None:
         check_output(output, overwrite)
     if report is not None:
@@ -140,10 +140,13 @@ MIN_FIT_SHARE = 0.5
 
 def _check_names(output: Path | None, report: Path | None) -> None:
     """Usage errors before any work: the report written over the grid, or the two swapped (a grid JSON named .html,
-    a report page not named .html)."""
+    a report page not named .html), or a grid not named .json."""
     if output is not None and output.suffix.lower() in (".html", ".htm"):
         raise click.BadParameter(f"{output.name} names an HTML page; the grid is JSON (e.g. grid.json), the page is "
                                  "--report", param_hint="-o / --output")
+    if output is not None and output.suffix.lower() != ".json":   # '-o g.xyz' wrote the JSON under that name
+        raise click.BadParameter(f"the grid is written as JSON, the one format calibrate writes: name it "
+                                 f"{output.with_suffix('.json').name}, not {output.name}", param_hint="-o / --output")
     if report is None:
         return
     if output is not None and report.resolve() == output.resolve():

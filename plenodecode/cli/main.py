@@ -58,7 +58,8 @@ def constants_usage_error(command: click.Command | None, exc: MissingConstantsEr
     """The usage error (exit 2, one line) of a product asked of an input without the camera constants it needs
     (alpha, a focus distance, metric depth): it names the command's option (``--refocus`` / ``--alpha``,
     ``--stack-units``, ``--focus-distance``, ``--metric``, ``--ply``), the missing constants and what to type
-    instead (``--focus-distance`` where only the camera's focus distance is missing for metric depth)."""
+    instead (``--focus-distance``, batch's ``--depth-focus-distance``, where only the camera's focus distance is
+    missing for metric depth)."""
     param_name, instead = CONSTANTS_OPTIONS[exc.keyword]
     param = next((p for p in getattr(command, "params", ()) if p.name == param_name), None)
     hint = " / ".join(param.opts) if param is not None else f"--{param_name.replace('_', '-')}"
@@ -69,7 +70,8 @@ def constants_usage_error(command: click.Command | None, exc: MissingConstantsEr
         return click.BadParameter(text + (f"; use {instead} instead" if text.endswith(MICROSCOPE_NO_ALPHA) else ""),
                                   param_hint=hint)
     if exc.keyword in ("metric", "points") and exc.missing == ("focus_distance_m",):
-        instead = "--focus-distance METRES (the distance in focus)"
+        own = next((p for p in getattr(command, "params", ()) if p.name == "depth_focus_distance"), None)
+        instead = f"{own.opts[0] if own is not None else '--focus-distance'} METRES (the distance in focus)"
     return click.BadParameter(f"{exc.source} has no {', '.join(exc.missing)} in its metadata, which {exc.need} "
                               f"needs; use {instead} instead", param_hint=hint)
 

@@ -36,7 +36,8 @@ SCENE_CHOICE = RegistryChoice("plenodecode.synthetic.thin", "THIN_SCENES")
 @click.option("--rotation", type=FiniteFloat(min=-0.5, max=0.5, min_open=True, max_open=True), default=None,
               help="Grid rotation in rad (default: the preset's).")
 @click.option("--offset", type=(FINITE, FINITE), default=None, metavar="ROW COL",
-              help="Sub-pixel shift of the lattice from the sensor centre, px [default: the preset's].")
+              help="Shift of the lattice from the sensor centre, px, each within half the lens pitch "
+                   "[default: the preset's].")
 @click.option("--shape", type=(click.IntRange(16, MAX_SIDE), click.IntRange(16, MAX_SIDE)), default=None,
               metavar="H W", help=f"Sensor rows and columns, px, at most {MAX_PIXELS // 10**6} Mpx [default: the "
                                   "preset's].")
@@ -104,6 +105,7 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
         raise click.BadParameter(f"{shape[0]} x {shape[1]} is {shape[0] * shape[1] / 1e6:.0f} Mpx; at most "
                                  f"{MAX_PIXELS // 10**6} Mpx (1.5 x the Illum's 41 Mpx) are simulated",
                                  param_hint="--shape")
+    _check_lattice(preset, pitch, rotation, offset, shape, n_views)
     scene = None
     if scene_name is not None:
         if get_preset(preset).focused:
@@ -157,6 +159,35 @@ def command(ctx: click.Context, preset: str, out_dir: Path, seed: int, pitch: fl
         click.echo(f"{key:11s} {path}")
 
 
+def _check_lattice(preset: str, pitch: float | None, rotation: float | None, offset: tuple[float, float] | None,
+                   shape: tuple[int, int] | None, n_views: int | None) -> None:
+    """Refuse, naming the option, a lattice the generator would draw but nothing could use: ``--offset`` past half
+    a lens pitch (a shift by whole lenses draws the same lattice but writes an MLA offset of that size into the
+    metadata), a ``--pitch`` / ``--shape`` that leaves fewer lenses than a calibration is checked on
+    (:data:`~plenodecode.calib.check.MIN_LENSES`; 1 x 1 at ``--pitch 1e6``), ``--views`` more than see a micro-image
+    (which decode refuses)."""
+    from ..calib.check import MIN_LENSES
+    from ..synthetic import get_preset
+    from ..synthetic.lattice import make_grid
+
+    camera = get_preset(preset)
+    step = camera.pitch_px if pitch is None else pitch
+    if offset is not None and max(abs(v) for v in offset) > step / 2:
+        raise click.BadParameter(f"ROW and COL must each be within +-{step / 2:.4g} px (half the {step:.4g} px lens "
+                                 f"pitch; a shift by a whole lens draws the same lattice), got {offset[0]:g} "
+                                 f"{offset[1]:g}", param_hint="--offset")
+    grid = make_grid(camera, pitch=pitch, rotation=rotation, offset=offset, shape=shape)
+    if grid.shape[0] * grid.shape[1] < MIN_LENSES:
+        h, w = grid.sensor_shape
+        said = " / ".join(name for name, value in (("--pitch", pitch), ("--shape", shape)) if value is not None)
+        raise click.BadParameter(f"{step:.4g} px lenses on a {h} x {w} px sensor are {grid.shape[0]} x "
+                                 f"{grid.shape[1]} lenses; a calibration is checked on at least {MIN_LENSES} (a "
+                                 "smaller pitch or a larger sensor)", param_hint=said or "--pitch")
+    if n_views is not None and n_views > grid.max_views():
+        raise click.BadParameter(f"{n_views} is more than the {grid.max_views()} views per axis that see a "
+                                 f"micro-image of {step:.4g} px lenses", param_hint="--views")
+
+
 def _checkerboard_set(ctx: click.Context, preset: str, out: Path, *, board: Board, captures: int,
                       distortion: tuple[float, ...] | None, distances: tuple[float, float] | None,
                       geometry_file: Path | None, n_views: int | None, placement: str, seed: int,
@@ -203,7 +234,9 @@ def _checkerboard_set(ctx: click.Context, preset: str, out: Path, *, board: Boar
                                          progress=progress_bar(f"checkerboard set of {preset}", ctx))
     except ValueError as exc:
         if "does not fit" in str(exc):
-            raise click.BadParameter(f"{exc} (--distances)", param_hint="--checkerboard") from exc
+            bent = ("; or the distortion of --distortion / --geometry bends it out of the views"
+                    if distortion is not None else "")
+            raise click.BadParameter(f"{exc} (--distances{bent})", param_hint="--checkerboard") from exc
         raise click.UsageError(str(exc)) from exc
     try:
         paths = write_checkerboard_set(cset, out, name=name, overwrite=overwrite)

@@ -133,7 +133,7 @@ def test_stack_and_parallax_options_key_only_their_outputs():
 def test_batch_metric_depth_and_point_cloud_are_the_depth_commands(tmp_path):
     """'batch --metric --ply --depth-focus-distance 0.5' writes depth.pfm and depth.ply equal to 'depth --metric --ply
     --focus-distance 0.5' (illum-mini's metadata has no focus distance: measured depths 0.41-0.58 m); without the
-    distance the raw fails in one line naming what its metadata lacks, and nothing is written for it."""
+    distance, as no raw has it, one usage error names --metric and --depth-focus-distance, and nothing is written."""
     from plenodecode.io.depthio import read_ply
     from plenodecode.io.pfm import read_pfm
 
@@ -156,10 +156,10 @@ def test_batch_metric_depth_and_point_cloud_are_the_depth_commands(tmp_path):
     assert (out / "thumbs" / "depth.png").is_file()
     res = CliRunner().invoke(cli, ["batch", str(RAW), "-o", str(tmp_path / "c"), "--outputs", "depth", "--metric",
                                    "-j", "1", *DB])
-    assert res.exit_code == 1 and "metric depth needs the distance the camera was focused at" in res.output
-    error, = [r["error"] for r in json.loads((tmp_path / "c" / "summary.json").read_text())["results"]]
-    assert error.endswith("pass --depth-focus-distance METRES for every raw"), error
-    assert not (tmp_path / "c" / "scene").exists()
+    assert res.exit_code == 2 and res.output.strip().splitlines()[-1] == (   # its only raw: refused before work
+        "Error: Invalid value for --metric: scene.lfr has no focus_distance_m in its metadata, which metric depth "
+        "needs; use --depth-focus-distance METRES (the distance in focus) instead")
+    assert not (tmp_path / "c").exists()
 
 
 def test_batch_options_refuse_a_bad_depth_focus_distance():

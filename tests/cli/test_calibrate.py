@@ -348,3 +348,21 @@ def test_the_levels_warning_of_a_16_bit_mosaic_prints_its_white_level_whole(tmp_
     assert proc.returncode == 0, proc.stderr
     line = next(s for s in proc.stderr.splitlines() if "white.png: no JSON sidecar" in s)
     assert ", white 65535 of 65535 (" in line and "e+" not in line, line
+
+
+@pytest.mark.parametrize("name", ["g.xyz", "grid", "g.mat"])
+def test_grid_named_other_than_json_is_refused_before_fitting(tmp_path, monkeypatch, name):
+    """'calibrate radiometry_frame.png -o g.xyz' on the real ant-leg frame fitted for seconds and wrote the grid
+    JSON under g.xyz; a name that is not .json is refused naming -o, with the name to use, and nothing fitted."""
+    from plenodecode import calib
+    from tests.conftest import shared_path
+
+    frame = shared_path("lf-microscopy-antleg", "radiometry_frame.png")
+    monkeypatch.setattr(calib, "calibrate", lambda *a, **k: pytest.fail("fitted before -o was checked"))
+    res = CliRunner().invoke(cli, ["calibrate", str(frame), "-o", str(tmp_path / name)])
+    assert res.exit_code == 2, res.output
+    stem = name.split(".")[0]
+    assert res.output.strip().splitlines()[-1] == ("Error: Invalid value for -o / --output: the grid is written as "
+                                                   f"JSON, the one format calibrate writes: name it {stem}.json, not "
+                                                   f"{name}")
+    assert list(tmp_path.iterdir()) == []

@@ -60,3 +60,59 @@ def test_summary_files_not_of_a_batch_name_the_option_not_the_keyword(tmp_path):
     assert _error(res) == (f"Error: {out / 'summary.json'} exists and was not written by a batch run; pass "
                            "--overwrite or choose another -o folder")
     assert (out / "summary.json").read_text() == "{}"
+
+
+@pytest.mark.parametrize("view", [("4,4",), ("4", "4")])
+def test_view_takes_v_comma_u_as_focus_at_takes_x_comma_y(tmp_path, view):
+    """'views --view 4,4' (the form --focus-at X,Y teaches) failed with click's "'4,4' is not a valid float"; it
+    and the older 'V U' form both write the HCI antinous centre view, input_Cam040.png, to the sample."""
+    import cv2
+    import numpy as np
+
+    hci = shared_path("hci-antinous")
+    out = tmp_path / "v.png"
+    res = CliRunner().invoke(cli, ["views", str(hci), "--view", *view, "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    written = cv2.imread(str(out), cv2.IMREAD_UNCHANGED)
+    centre = cv2.imread(str(hci / "input_Cam040.png"), cv2.IMREAD_UNCHANGED)
+    assert written.dtype == np.uint16 and np.array_equal(written, centre.astype(np.uint16) * 257)
+
+
+@pytest.mark.parametrize("view, said", [(("4",), "expected V,U (view row, view column, e.g. 4,4 or 7.5,6.25), "
+                                                 "got '4'"),
+                                        (("4,x",), "expected V,U (view row, view column, e.g. 4,4 or 7.5,6.25), "
+                                                   "got '4,x'"),
+                                        (("4,-1",), "V and U must be finite and >= 0, got '4,-1'")])
+def test_bad_view_is_one_line_naming_view_before_the_input_is_read(tmp_path, view, said):
+    res = CliRunner().invoke(cli, ["views", str(ROOT / "sample_raws" / "square" / "scene.png"), "--view", *view,
+                                   "-o", str(tmp_path / "v.png")])
+    assert _error(res) == f"Error: Invalid value for '--view': {said}"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_view_past_the_last_of_a_raw_is_refused_before_decoding(tmp_path, monkeypatch):
+    """'views IMG_1.jpg --view 20,4' on the real F01 JPEG decoded the whole raw before saying that its 9 x 9 views
+    end at 8; the calibration's decoded shape says so before decoding."""
+    from plenodecode.pipeline import source
+
+    monkeypatch.setattr(source, "decode_raw", lambda *a, **k: pytest.fail("decoded before --view was checked"))
+    jpeg = shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg")
+    res = CliRunner().invoke(cli, ["views", str(jpeg), "--view", "20,4", "-o", str(tmp_path / "v.png")])
+    assert _error(res) == ("Error: Invalid value for --view: V (view row) 20 is past the last view of this 9 x 9 light "
+                           "field: 0 to 8")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("view, note", [("8,8", True), ("7.5,7", False)])
+def test_view_partly_outside_the_micro_images_says_so(tmp_path, view, note):
+    """'views IMG_1.jpg --view 8,8' on the real F01 JPEG wrote a corner view striped by the lenses' edges (data in
+    44 % of its samples; the folder of every view writes it black) without a word; now a note on stderr says so.
+    A view between whole ones (7.5,7) gets none."""
+    jpeg = shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg")
+    res = CliRunner().invoke(cli, ["views", str(jpeg), "--view", view, "-o", str(tmp_path / "v.png")])
+    assert res.exit_code == 0, res.output
+    notes = [line for line in res.stderr.splitlines() if "outside the micro-images" in line]
+    assert notes == ([f"note: view {view.replace(',', ', ')} is partly outside the micro-images (data in 44% of its "
+                      "samples): it shows the lenses' edges as stripes; 77 of the 81 views are whole, and the folder "
+                      "of every view writes the others black"] if note else [])
+    assert (tmp_path / "v.png").is_file()

@@ -226,3 +226,62 @@ def test_cli_synth_archive_of_a_camera_without_one_is_refused_before_writing(tmp
     assert len(errors) == 1 and "--archive" in errors[0] and "not a Lytro camera" in errors[0], res.output
     assert "Traceback" not in res.output
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("extra, error", [
+    (["--offset", "1e9", "0"], "Invalid value for --offset: ROW and COL must each be within +-4.964 px (half the "
+                               "9.928 px lens pitch; a shift by a whole lens draws the same lattice), got 1e+09 0"),
+    (["--pitch", "20", "--offset", "0", "-10.5"], "Invalid value for --offset: ROW and COL must each be within +-10 px "
+                                                  "(half the 20 px lens pitch; a shift by a whole lens draws the same "
+                                                  "lattice), got 0 -10.5"),
+    (["--pitch", "1e6"], "Invalid value for --pitch: 1e+06 px lenses on a 656 x 656 px sensor are 1 x 1 lenses; a "
+                         "calibration is checked on at least 30 (a smaller pitch or a larger sensor)"),
+    (["--shape", "16", "16"], "Invalid value for --shape: 9.928 px lenses on a 16 x 16 px sensor are 1 x 2 lenses; a "
+                              "calibration is checked on at least 30 (a smaller pitch or a larger sensor)"),
+    (["--checkerboard", "3x4x0.004", "--views", "99"], "Invalid value for --views: 99 is more than the 11 views per "
+                                                       "axis that see a micro-image of 9.928 px lenses"),
+])
+def test_cli_synth_refuses_a_lattice_nothing_could_use_before_simulating(tmp_path, monkeypatch, extra, error):
+    """'synth f01-mini --offset 1e9 0' simulated for 13 s and wrote mla_offset_m 4550 m into the metadata;
+    '--pitch 1e6' wrote a raw of one lens; '--checkerboard --views 99' wrote truth for a decode that refuses 99."""
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("simulated before the options were checked")
+
+    monkeypatch.setattr(syn, "simulate", no_work)
+    monkeypatch.setattr("plenodecode.synthetic.checkerboard.simulate_checkerboard_set", no_work)
+    res = CliRunner().invoke(cli, ["synth", "f01-mini", "-o", str(tmp_path / "out"), *extra])
+    assert res.exit_code == 2, res.output
+    assert res.output.strip().splitlines()[-1] == f"Error: {error}"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_cli_synth_offset_up_to_half_a_pitch_is_drawn(tmp_path):
+    """The bound is half the pitch in effect: 4.9 px on the 9.928 px f01-mini lattice is written as given."""
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+
+    res = CliRunner().invoke(cli, ["synth", "f01-mini", "-o", str(tmp_path), "--offset", "4.9", "-4.9", "--shape",
+                                   "96", "128", "--no-noise", "--no-lightfield"])
+    assert res.exit_code == 0, res.output
+    truth = syn.load_truth(tmp_path / "scene.truth.json")
+    assert truth.grid.to_dict() == syn.make_grid("f01-mini", offset=(4.9, -4.9), shape=(96, 128)).to_dict()
+
+
+def test_cli_synth_board_bent_out_of_the_views_names_the_distortion(tmp_path):
+    """'--distortion 1e9 0 0 0 0' said only '... use a smaller board or other distances (--distances)', sending the
+    user to an option that was never the problem."""
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+
+    res = CliRunner().invoke(cli, ["synth", "f01-mini", "-o", str(tmp_path / "out"), "--checkerboard", "3x4x0.004",
+                                   "--captures", "1", "--distortion", "1e9", "0", "0", "0", "0"])
+    assert res.exit_code == 2, res.output
+    assert res.output.strip().splitlines()[-1].endswith(
+        "(--distances; or the distortion of --distortion / --geometry bends it out of the views)")
+    assert list(tmp_path.iterdir()) == []

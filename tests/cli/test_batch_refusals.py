@@ -1,0 +1,99 @@
+"""``plenodecode batch`` refuses before any work what no raw could do (a focus distance or metric depth that no
+raw has the constants for) and what cannot run at all (an unreachable --scheduler), in one line naming the option,
+with nothing written."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from plenodecode.cli.main import cli
+from tests.conftest import ROOT, shared_path
+
+F01 = ROOT / "sample_raws" / "f01-mini" / "scene.lfp"
+ILLUM = ROOT / "sample_raws" / "illum-mini" / "scene.lfr"
+DB = ROOT / "calib"
+
+
+def _folder(tmp_path, *files):
+    folder = tmp_path / "shoot"
+    folder.mkdir()
+    for f in files:
+        shutil.copy(f, folder / f.name)
+    return folder
+
+
+@pytest.mark.parametrize("extra, error", [
+    (["--focus-distance", "1"], "Invalid value for --focus-distance: none of the 3 raws has what it needs (IMG_1.jpg, "
+                                "scene.lfp, scene.lfr): IMG_1.jpg has no focal_length_m, f_number, lens_pitch_m in "
+                                "its metadata, which a focus distance (metres -> slope) needs; use --slope S (px per "
+                                "view step) instead"),
+    (["--outputs", "depth", "--metric"], "Invalid value for --metric: none of the 3 raws has what it needs (IMG_1.jpg, "
+                                         "scene.lfp, scene.lfr): IMG_1.jpg has no focal_length_m, f_number, "
+                                         "lens_pitch_m in its metadata, which metric depth needs; use plain disparity "
+                                         "(without --metric and --ply), or for a light-field microscope give its "
+                                         "optics (--magnification, --na, --medium-index, --lens-pitch-um, --pixel-um, "
+                                         "or --optics FILE.json) instead"),
+], ids=["focus-distance", "metric"])
+def test_batch_refuses_a_focus_no_raw_has_the_constants_for(tmp_path, monkeypatch, extra, error):
+    """A real F01 JPEG beside the two Lytro sample raws, none with a focus distance in its metadata: '--focus-distance
+    1' failed all three on their rows (exit 1) and wrote summary.json and index.html of that."""
+    from plenodecode import batch
+
+    monkeypatch.setattr(batch, "run_batch", lambda *a, **k: pytest.fail("the batch ran"))
+    folder = _folder(tmp_path, shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg"), F01, ILLUM)
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["batch", str(folder), "-o", str(out), "--database", str(DB), *extra])
+    assert res.exit_code == 2, res.output
+    assert res.output.strip().splitlines()[-1] == f"Error: {error}"
+    assert not out.exists()
+
+
+def test_batch_metric_of_one_raw_without_focus_distance_names_depth_focus_distance(tmp_path):
+    """The batch's option for the depth's focus distance is --depth-focus-distance (its --focus-distance
+    refocuses the photographs): the refusal says that one."""
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["batch", str(_folder(tmp_path, F01)), "-o", str(out), "--database", str(DB),
+                                   "--outputs", "depth", "--metric"])
+    assert res.exit_code == 2, res.output
+    assert res.output.strip().splitlines()[-1] == (
+        "Error: Invalid value for --metric: scene.lfp has no focus_distance_m in its metadata, which metric depth "
+        "needs; use --depth-focus-distance METRES (the distance in focus) instead")
+    assert not out.exists()
+
+
+def test_batch_metric_depth_of_the_raws_that_can_and_a_row_for_the_one_that_cannot(tmp_path):
+    """With --depth-focus-distance the Illum sample raw can give metric depth and the real F01 JPEG still cannot (no
+    focal length, f-number, lens pitch): the raw is written in metres, the JPEG fails on its row saying why, exit 1."""
+    folder = _folder(tmp_path, shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg"), ILLUM)
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["batch", str(folder), "-o", str(out), "--database", str(DB), "--outputs", "depth",
+                                   "--metric", "--depth-focus-distance", "0.5", "--jobs", "1"])
+    assert res.exit_code == 1, res.output
+    rows = {r["source"].rsplit("/", 1)[-1]: r for r in json.loads((out / "summary.json").read_text())["results"]}
+    assert rows["scene.lfr"]["status"] == "done" and rows["IMG_1.jpg"]["status"] == "failed"
+    assert "IMG_1.jpg: metric depth needs the camera constants focal_length_m, f_number, lens_pitch_m" in \
+        rows["IMG_1.jpg"]["error"]
+    assert sorted(p.name for p in out.iterdir()) == ["index.html", "scene", "summary.json"]
+    from plenodecode.io.pfm import read_pfm
+
+    depth = read_pfm(next(p for p in rows["scene.lfr"]["outputs"] if p.endswith("depth.pfm")))
+    lo, hi = np.percentile(depth[np.isfinite(depth)], [5, 95])
+    assert 0.3 < lo < hi < 0.8         # metres about the 0.5 m in focus, not disparities (px per view step)
+
+
+def test_batch_unreachable_scheduler_fails_in_seconds_naming_the_option(tmp_path):
+    """'--scheduler tcp://127.0.0.1:1' (nothing listens) waited Dask's 30 s connect timeout; the client now waits
+    5 s, and the one line names --scheduler."""
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["batch", str(_folder(tmp_path, F01)), "-o", str(out), "--database", str(DB),
+                                   "--scheduler", "tcp://127.0.0.1:1"])
+    assert res.exit_code == 1, res.output
+    assert res.stderr.strip().splitlines()[-1] == (
+        "error: cannot use the Dask scheduler tcp://127.0.0.1:1 (--scheduler): Timed out trying to connect to "
+        "tcp://127.0.0.1:1 after 5 s")
+    assert not out.exists()
