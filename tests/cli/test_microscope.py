@@ -395,6 +395,40 @@ def test_antleg_alpha_is_refused_as_not_applying_to_a_microscope(antleg, tmp_pat
         assert instead in errors[0] and "focal_length_m" not in errors[0] and not out.exists(), errors
 
 
+def test_microscope_alpha_refusal_carries_what_to_use_instead():
+    """The command line's 'use --slope S ... instead' for a microscope's alpha was added by matching the end of the
+    error's message against MICROSCOPE_NO_ALPHA (a reworded message would have lost it, and the library's message
+    said no alternative at all).  The error now carries it (``instead``, ``reason``), the library's message ends
+    with it, and the command line says its option from those fields (real ant-leg raw with its optics; no decoding).
+    """
+    from plenodecode.cli.main import constants_usage_error
+    from plenodecode.errors import MissingConstantsError
+    from plenodecode.io.microscope import read_optics
+    from plenodecode.pipeline import check_product, open_raw
+
+    folder = shared_path(*ANTLEG)
+    raw = open_raw(folder / "light_field.png", optics=read_optics(folder / "README"))
+    for product, options, instead in (("refocus", {"alpha": 1.02}, "refocus by slope instead"),
+                                      ("focal-stack", {"units": "alpha"},
+                                       "give START and STOP as slopes (units='slope')")):
+        with pytest.raises(MissingConstantsError) as caught:
+            check_product(raw, product, **options)
+        exc = caught.value
+        assert exc.instead == instead and exc.missing == (), str(exc)
+        assert exc.reason.startswith("alpha (Ng's film depth -> slope) does not apply to a light-field microscope")
+        assert str(exc) == f"light_field.png: {exc.reason}; {instead}"
+    # the command line's words come from the fields: another reason still gets the option to use
+    other = MissingConstantsError("x.png: another reason; refocus by slope instead", keyword="alpha", missing=(),
+                                  source="x.png", need="alpha", reason="another reason",
+                                  instead="refocus by slope instead")
+    assert constants_usage_error(None, other).format_message() == (
+        "Invalid value for --alpha: x.png: another reason; use --slope S (px per view step) instead")
+    without = MissingConstantsError("x.png: why, and what to do", keyword="alpha", missing=(), source="x.png",
+                                    need="alpha")
+    assert constants_usage_error(None, without).format_message() == ("Invalid value for --alpha: x.png: why, and "
+                                                                     "what to do")
+
+
 def test_dark_frame_of_another_size_is_refused_before_any_work(tmp_path, monkeypatch):
     """'--dark' with a frame of another camera was reported as 'dark image must have the raw's size ...' (no
     option named) after the white image had been calibrated (~1.4 s); it is now a usage error naming --dark,
