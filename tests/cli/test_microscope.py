@@ -429,6 +429,32 @@ def test_microscope_alpha_refusal_carries_what_to_use_instead():
                                                                      "what to do")
 
 
+def test_info_of_the_dark_frame_says_it_has_no_micro_images():
+    """'plenodecode info dark_frame.tif' (the ant leg's real dark frame) said 'black 95 ... (black estimated from the
+    gaps between micro-images', alarming nonsense for a dark frame; it now says the image is nearly uniform and
+    dark with no micro-images, with its values, as the light field itself still gets its estimate."""
+    import os
+    import subprocess
+    import sys
+
+    folder = shared_path(*ANTLEG)
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+
+    def info(name: str) -> subprocess.CompletedProcess:
+        proc = subprocess.run([sys.executable, "-m", "plenodecode", "info", str(folder / name)], capture_output=True,
+                              text=True, env=env, timeout=120)
+        assert proc.returncode == 0, proc.stderr
+        return proc
+
+    dark = info("dark_frame.tif")
+    assert "gaps" not in dark.stderr and "black 0, white 65535" in dark.stdout, dark.stderr
+    # measured: 98 % of its values within 95..107 of 65535 (min 42, max 199)
+    assert re.search(r"no micro-images to estimate the black level from: nearly uniform and dark, 98 % of the "
+                     r"values within 9\d\.\.1[01]\d, as in a dark frame", dark.stderr), dark.stderr
+    raw = info("light_field.png")
+    assert "black estimated from the gaps between micro-images" in raw.stderr and "black 92" in raw.stdout
+
+
 def test_dark_frame_of_another_size_is_refused_before_any_work(tmp_path, monkeypatch):
     """'--dark' with a frame of another camera was reported as 'dark image must have the raw's size ...' (no
     option named) after the white image had been calibrated (~1.4 s); it is now a usage error naming --dark,
