@@ -429,6 +429,10 @@ class TaskResult:
         ``host:pid`` of the process that ran the task.
     worker_peak_mb : float or None
         Peak resident memory of that process so far (``ru_maxrss``), MB.
+    level, level_of : float or None, str or None
+        How bright the first picture written is (:func:`plenodecode.pipeline.image_level` before ``--exposure``:
+        the 99.5th percentile of its middle image in linear light, full scale 1) and its product ('photo', 'views':
+        the centre view, ...); None without a picture.  The command line notes a dark one (``note_if_dark``).
     started : float
         When the task started on the worker (``time.time()``, s): the earliest task of each worker is the one
         that paid its imports and kernel loading (:meth:`BatchSummary.latency`).
@@ -444,6 +448,8 @@ class TaskResult:
     worker: str = ""
     worker_peak_mb: float | None = None
     started: float = 0.0
+    level: float | None = None
+    level_of: str | None = None
 
 
 @dataclass(frozen=True)
@@ -776,7 +782,7 @@ def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | Non
                                             need=exc.need) from None
         # the folder is staged under a temporary name and replaces ``target`` (checked above) only when complete
         with atomic_output(target, overwrite=True, folder=True) as staging:
-            products, left_out = _write_products(raw, staging, options, threads=threads)
+            products, left_out, (level_of, level) = _write_products(raw, staging, options, threads=threads)
             rel_out = [str(p.relative_to(staging)) for p, _ in products]
             rel_thumb = [None if t is None else str(t.relative_to(staging)) for _, t in products]
             marker = {"key": key, "source": str(src.resolve()), "outputs": rel_out, "thumbnails": rel_thumb,
@@ -785,7 +791,7 @@ def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | Non
         return TaskResult(str(src), "done", tuple(str(target / o) for o in rel_out),
                           tuple(None if t is None else str(target / t) for t in rel_thumb), left_out=left_out,
                           seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb(),
-                          started=started)
+                          started=started, level=level, level_of=level_of)
     except (PlenodecodeError, OSError) as exc:
         log.info("%s failed: %s", src, exc)
         return TaskResult(str(src), "failed", error=one_line(exc), seconds=time.perf_counter() - t0,
@@ -1087,8 +1093,8 @@ def depth_stem(rendered: Any) -> str:
     return "depth" if str(rendered.data.get("label", "")).startswith("depth") else "disparity"
 
 
-def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
-                    threads: int | None = None) -> tuple[list[tuple[Path, Path | None]], tuple[str, ...]]:
+def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: int | None = None
+                    ) -> tuple[list[tuple[Path, Path | None]], tuple[str, ...], tuple[str | None, float | None]]:
     """Calibrate and decode ``raw`` and write ``options.outputs`` into ``folder``, all through
     :mod:`plenodecode.pipeline` (the same calibration policy, products, display encoding and writers as the
     single-purpose commands).
@@ -1104,6 +1110,8 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     left_out : tuple of str
         One line per reason an output asked for was not written ('centre,parallax: not for a focused-plenoptic
         (Raytrix) raw (...)'; :func:`_focused_views_left_out`), or empty.
+    level : (str, float) or (None, None)
+        The first picture product and its :func:`plenodecode.pipeline.image_level` (:attr:`TaskResult.level`).
     """
     import numpy as np
 
@@ -1127,6 +1135,12 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     thumbs = folder / THUMB_DIR
     thumbs.mkdir()
     written: list[tuple[Path, Path | None]] = []
+    level: tuple[str | None, float | None] = (None, None)
+
+    def measured(product: str, rendered: Any) -> None:
+        nonlocal level
+        if level[0] is None:       # the first picture: how bright it is, before the exposure
+            level = (product, pipeline.image_level(rendered))
 
     def centre_thumbnail(name: str, lf: Any = None) -> Path:
         from .render import perspective
@@ -1143,6 +1157,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
             # the pictures 'plenodecode views' writes (view_VV_UU, views outside the micro-images black), with its
             # --exposure (one gain, from the centre view); the 'lightfield' output is the data as decoded
             rendered = pipeline.render_product(src, "views")
+            measured(product, rendered)
             gain = pipeline.exposure_gain(rendered, options.exposure)
             pipeline.write_product(rendered, folder / "views", bit_depth=bits, exposure=math.log2(gain))
             lf = src.lightfield
@@ -1151,6 +1166,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
             written.append((folder / "views", centre_thumbnail("views", lf)))
         elif product == "focal-stack":
             rendered = pipeline.render_product(src, "focal-stack", **_stack_options(src, options))
+            measured(product, rendered)
             gain = pipeline.exposure_gain(rendered, options.exposure)      # one gain for the stack and thumbnail
             pipeline.write_product(rendered, folder / FOCAL_STACK_DIR, bit_depth=bits, exposure=math.log2(gain))
             (_, aif), = [item for item in rendered.images if item[0] == "all_in_focus"]
@@ -1164,6 +1180,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
                 if options.radius is None:
                     raise
                 raise DecodeError(f"--radius {options.radius:g} does not suit {_raw_name(raw)}: {exc}") from None
+            measured(product, rendered)
             gain = pipeline.exposure_gain(rendered, options.exposure)
             frames_dir = folder / PARALLAX_FRAMES_DIR if options.parallax_frames else None
             pipeline.write_parallax(rendered, folder / PARALLAX_NAME, fps=options.fps, frames_dir=frames_dir,
@@ -1208,12 +1225,13 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
                 # 'photo' is the 'refocus' at the same focus, or a focused raw's 'total-focus': one file
                 log.info("%s: %s is the same image as an earlier output", product, name)
                 continue
+            measured(product, rendered)
             # one gain for the file and its thumbnail ('auto' measures the image once)
             gain = pipeline.exposure_gain(rendered, options.exposure)
             dest, = pipeline.write_product(rendered, folder / name, bit_depth=bits, exposure=math.log2(gain))
             shown = pipeline.expose(image, rendered.colour, gain)
             written.append((dest, _thumbnail(shown, thumbs / f"{stem}.png", colour=rendered.colour)))
-    return written, ((f"{','.join(left_out)}: {FOCUSED_LEFT_OUT}",) if left_out else ())
+    return written, ((f"{','.join(left_out)}: {FOCUSED_LEFT_OUT}",) if left_out else ()), level
 
 
 # ------------------------------------------------------------------------------ runners

@@ -319,6 +319,39 @@ def test_antleg_dark_views_and_parallax_are_named(antleg, tmp_path):
         r.output
 
 
+def test_antleg_batch_names_its_dark_picture_once(tmp_path):
+    """'plenodecode batch' over the ant leg wrote pictures and thumbnails as dark as the single commands' (the
+    photograph's brightest 0.5 % at 14 % of full scale) without the note those commands print.  It now prints
+    that note, in the same words, once per raw (naming the raw and its first picture), and none at --exposure
+    auto; the thumbnails stay what the files are (dim at the default exposure: mean 36 of 255 for the photo's),
+    and --exposure auto brightens both."""
+    from plenodecode.io.images import read_image, srgb_decode, to_unit_float
+
+    folder = shared_path(*ANTLEG)
+    base = ["batch", str(folder / "light_field.png"), "-w", str(folder / "radiometry_frame.png"), "--dark",
+            str(folder / "dark_frame.tif"), "--outputs", "photo,views", "--jobs", "1"]
+
+    def brightest(path: Path) -> float:
+        return float(np.percentile(srgb_decode(to_unit_float(read_image(path))), 99.5))
+
+    r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "out")], obj={})
+    assert r.exit_code == 0, r.output
+    notes = [line for line in r.output.splitlines() if "is dark" in line]
+    assert len(notes) == 1, r.output
+    found = re.fullmatch(r"note: the photo of light_field\.png is dark \(its brightest 0\.5 % reach (\d+) % of full "
+                         r"scale, in linear light\); --exposure auto brightens it to full scale, --exposure 2 by two "
+                         r"stops", notes[0])
+    assert found, notes
+    folder_out = tmp_path / "out" / "light_field"
+    level = brightest(folder_out / "refocus_s+0.00.png")
+    assert 0.05 < level < 0.25 and int(found.group(1)) == pytest.approx(100 * level, abs=1.0)    # measured 14 %
+    assert brightest(folder_out / "thumbs" / "refocus_s+0.00.png") == pytest.approx(level, abs=0.03)
+    r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "auto"), "--exposure", "auto"], obj={})
+    assert r.exit_code == 0 and "is dark" not in r.output, r.output
+    for name in ("refocus_s+0.00.png", "thumbs/refocus_s+0.00.png"):
+        assert brightest(tmp_path / "auto" / "light_field" / name) > 0.95, name
+
+
 def test_antleg_focal_stack_all_in_focus_has_no_bright_edge_column(antleg, tmp_path):
     """The focal stack's all-in-focus image of the ant leg had a bright line down its second column (rows 28-43 at
     2.7 x the background beside it, in linear light), in none of the slices: the ant leg's first column holds a few
