@@ -1332,6 +1332,7 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
         from .batch_workers import start_pool
 
         pool, threads = start_pool(jobs, options.outputs)
+    made = not out.exists()
     try:
         names = output_names(files)
         out.mkdir(parents=True, exist_ok=True)
@@ -1343,29 +1344,37 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
             client.close()
         raise
     t0 = time.perf_counter()
-    if progress is not None:
-        progress(0, len(files))
     tasks = [(f, n) for f, n in zip(files, names)]
     task = functools.partial(process_raw, out_dir=str(out), options=options, overwrite=overwrite)
-    if scheduler is not None:
-        from .batch_workers import run_dask
+    try:
+        if progress is not None:
+            progress(0, len(files))
+        if scheduler is not None:
+            from .batch_workers import run_dask
 
-        try:
-            results = run_dask(tasks, task, _lost_result, options.outputs, client, max_in_flight, progress)
-        finally:
-            if own_client:
-                client.close()
-    elif pool is not None:
-        from .batch_workers import run_pool
+            try:
+                results = run_dask(tasks, task, _lost_result, options.outputs, client, max_in_flight, progress)
+            finally:
+                if own_client:
+                    client.close()
+        elif pool is not None:
+            from .batch_workers import run_pool
 
-        results = run_pool(pool, tasks, task, _lost_result, options.outputs, jobs, max_in_flight or 2 * jobs,
-                           threads, progress)
-    else:
-        results = []
-        for i, (f, n) in enumerate(tasks):
-            results.append(process_raw(f, out, options, name=n, overwrite=overwrite))
-            if progress is not None:
-                progress(i + 1, len(files))
+            results = run_pool(pool, tasks, task, _lost_result, options.outputs, jobs, max_in_flight or 2 * jobs,
+                               threads, progress)
+        else:
+            results = []
+            for i, (f, n) in enumerate(tasks):
+                results.append(process_raw(f, out, options, name=n, overwrite=overwrite))
+                if progress is not None:
+                    progress(i + 1, len(files))
+    except BaseException:       # Ctrl-C: the raws finished stay (a new run resumes); nothing half-written does
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)   # (done already when run_pool was reached)
+        _clean_stale(out)       # what the stopped workers were writing
+        if made and not any(out.iterdir()):
+            out.rmdir()         # nor the folder this run made
+        raise
     summary = BatchSummary(tuple(results), time.perf_counter() - t0)
     log.info("batch: %d done, %d skipped, %d failed in %.1f s", summary.count("done"), summary.count("skipped"),
              summary.count("failed"), summary.seconds)
