@@ -429,6 +429,10 @@ class TaskResult:
         ``host:pid`` of the process that ran the task.
     worker_peak_mb : float or None
         Peak resident memory of that process so far (``ru_maxrss``), MB.
+    level, level_of : float or None, str or None
+        How bright the first picture written is (:func:`plenodecode.pipeline.image_level` before ``--exposure``:
+        the 99.5th percentile of its middle image in linear light, full scale 1) and its product ('photo', 'views':
+        the centre view, ...); None without a picture.  The command line notes a dark one (``note_if_dark``).
     started : float
         When the task started on the worker (``time.time()``, s): the earliest task of each worker is the one
         that paid its imports and kernel loading (:meth:`BatchSummary.latency`).
@@ -444,6 +448,8 @@ class TaskResult:
     worker: str = ""
     worker_peak_mb: float | None = None
     started: float = 0.0
+    level: float | None = None
+    level_of: str | None = None
 
 
 @dataclass(frozen=True)
@@ -767,7 +773,7 @@ def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | Non
         _check_metadata(raw, options)       # what the metadata cannot serve fails now, before calibrating
         # the folder is staged under a temporary name and replaces ``target`` (checked above) only when complete
         with atomic_output(target, overwrite=True, folder=True) as staging:
-            products, left_out = _write_products(raw, staging, options, threads=threads)
+            products, left_out, (level_of, level) = _write_products(raw, staging, options, threads=threads)
             rel_out = [str(p.relative_to(staging)) for p, _ in products]
             rel_thumb = [None if t is None else str(t.relative_to(staging)) for _, t in products]
             marker = {"key": key, "source": str(src.resolve()), "outputs": rel_out, "thumbnails": rel_thumb,
@@ -776,7 +782,7 @@ def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | Non
         return TaskResult(str(src), "done", tuple(str(target / o) for o in rel_out),
                           tuple(None if t is None else str(target / t) for t in rel_thumb), left_out=left_out,
                           seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb(),
-                          started=started)
+                          started=started, level=level, level_of=level_of)
     except (PlenodecodeError, OSError) as exc:
         log.info("%s failed: %s", src, exc)
         return TaskResult(str(src), "failed", error=one_line(exc), seconds=time.perf_counter() - t0,
@@ -1124,8 +1130,8 @@ def depth_stem(rendered: Any) -> str:
     return "depth" if str(rendered.data.get("label", "")).startswith("depth") else "disparity"
 
 
-def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
-                    threads: int | None = None) -> tuple[list[tuple[Path, Path | None]], tuple[str, ...]]:
+def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: int | None = None
+                    ) -> tuple[list[tuple[Path, Path | None]], tuple[str, ...], tuple[str | None, float | None]]:
     """Calibrate and decode ``raw`` and write ``options.outputs`` into ``folder``, all through
     :mod:`plenodecode.pipeline` (the same calibration policy, products, display encoding and writers as the
     single-purpose commands).
@@ -1141,6 +1147,8 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     left_out : tuple of str
         One line per reason an output asked for was not written ('centre,parallax: not for a focused-plenoptic
         (Raytrix) raw (...)'; :func:`_focused_views_left_out`), or empty.
+    level : (str, float) or (None, None)
+        The first picture product and its :func:`plenodecode.pipeline.image_level` (:attr:`TaskResult.level`).
     """
     import numpy as np
 
@@ -1164,6 +1172,12 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
     thumbs = folder / THUMB_DIR
     thumbs.mkdir()
     written: list[tuple[Path, Path | None]] = []
+    level: tuple[str | None, float | None] = (None, None)
+
+    def measured(product: str, rendered: Any) -> None:
+        nonlocal level
+        if level[0] is None:       # the first picture: how bright it is, before the exposure
+            level = (product, pipeline.image_level(rendered))
 
     def centre_thumbnail(name: str, lf: Any = None) -> Path:
         from .render import perspective
@@ -1180,6 +1194,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
             # the pictures 'plenodecode views' writes (view_VV_UU, views outside the micro-images black), with its
             # --exposure (one gain, from the centre view); the 'lightfield' output is the data as decoded
             rendered = pipeline.render_product(src, "views")
+            measured(product, rendered)
             gain = pipeline.exposure_gain(rendered, options.exposure)
             pipeline.write_product(rendered, folder / "views", bit_depth=bits, exposure=math.log2(gain))
             lf = src.lightfield
@@ -1188,6 +1203,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
             written.append((folder / "views", centre_thumbnail("views", lf)))
         elif product == "focal-stack":
             rendered = pipeline.render_product(src, "focal-stack", **_stack_options(src, options))
+            measured(product, rendered)
             gain = pipeline.exposure_gain(rendered, options.exposure)      # one gain for the stack and thumbnail
             pipeline.write_product(rendered, folder / FOCAL_STACK_DIR, bit_depth=bits, exposure=math.log2(gain))
             (_, aif), = [item for item in rendered.images if item[0] == "all_in_focus"]
@@ -1201,6 +1217,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
                 if options.radius is None:
                     raise
                 raise DecodeError(f"--radius {options.radius:g} does not suit {_raw_name(raw)}: {exc}") from None
+            measured(product, rendered)
             gain = pipeline.exposure_gain(rendered, options.exposure)
             frames_dir = folder / PARALLAX_FRAMES_DIR if options.parallax_frames else None
             pipeline.write_parallax(rendered, folder / PARALLAX_NAME, fps=options.fps, frames_dir=frames_dir,
@@ -1245,12 +1262,13 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *,
                 # 'photo' is the 'refocus' at the same focus, or a focused raw's 'total-focus': one file
                 log.info("%s: %s is the same image as an earlier output", product, name)
                 continue
+            measured(product, rendered)
             # one gain for the file and its thumbnail ('auto' measures the image once)
             gain = pipeline.exposure_gain(rendered, options.exposure)
             dest, = pipeline.write_product(rendered, folder / name, bit_depth=bits, exposure=math.log2(gain))
             shown = pipeline.expose(image, rendered.colour, gain)
             written.append((dest, _thumbnail(shown, thumbs / f"{stem}.png", colour=rendered.colour)))
-    return written, ((f"{','.join(left_out)}: {FOCUSED_LEFT_OUT}",) if left_out else ())
+    return written, ((f"{','.join(left_out)}: {FOCUSED_LEFT_OUT}",) if left_out else ()), level
 
 
 # ------------------------------------------------------------------------------ runners
@@ -1351,6 +1369,7 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
         from .batch_workers import start_pool
 
         pool, threads = start_pool(jobs, options.outputs)
+    made = not out.exists()
     try:
         names = output_names(files)
         out.mkdir(parents=True, exist_ok=True)
@@ -1362,29 +1381,37 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
             client.close()
         raise
     t0 = time.perf_counter()
-    if progress is not None:
-        progress(0, len(files))
     tasks = [(f, n) for f, n in zip(files, names)]
     task = functools.partial(process_raw, out_dir=str(out), options=options, overwrite=overwrite)
-    if scheduler is not None:
-        from .batch_workers import run_dask
+    try:
+        if progress is not None:
+            progress(0, len(files))
+        if scheduler is not None:
+            from .batch_workers import run_dask
 
-        try:
-            results = run_dask(tasks, task, _lost_result, options.outputs, client, max_in_flight, progress)
-        finally:
-            if own_client:
-                client.close()
-    elif pool is not None:
-        from .batch_workers import run_pool
+            try:
+                results = run_dask(tasks, task, _lost_result, options.outputs, client, max_in_flight, progress)
+            finally:
+                if own_client:
+                    client.close()
+        elif pool is not None:
+            from .batch_workers import run_pool
 
-        results = run_pool(pool, tasks, task, _lost_result, options.outputs, jobs, max_in_flight or 2 * jobs,
-                           threads, progress)
-    else:
-        results = []
-        for i, (f, n) in enumerate(tasks):
-            results.append(process_raw(f, out, options, name=n, overwrite=overwrite))
-            if progress is not None:
-                progress(i + 1, len(files))
+            results = run_pool(pool, tasks, task, _lost_result, options.outputs, jobs, max_in_flight or 2 * jobs,
+                               threads, progress)
+        else:
+            results = []
+            for i, (f, n) in enumerate(tasks):
+                results.append(process_raw(f, out, options, name=n, overwrite=overwrite))
+                if progress is not None:
+                    progress(i + 1, len(files))
+    except BaseException:       # Ctrl-C: the raws finished stay (a new run resumes); nothing half-written does
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)   # (done already when run_pool was reached)
+        _clean_stale(out)       # what the stopped workers were writing
+        if made and not any(out.iterdir()):
+            out.rmdir()         # nor the folder this run made
+        raise
     summary = BatchSummary(tuple(results), time.perf_counter() - t0)
     log.info("batch: %d done, %d skipped, %d failed in %.1f s", summary.count("done"), summary.count("skipped"),
              summary.count("failed"), summary.seconds)

@@ -109,8 +109,11 @@ def run_pool(pool: ProcessPoolExecutor, tasks: list[tuple[Path, str]], task: Tas
     (:func:`start_pool` of ``jobs`` and ``outputs``), at most ``limit`` submitted at a time, largest first.
 
     A worker that dies (e.g. killed for memory) fails the tasks in flight (``lost``) and the pool is restarted
-    for the rest.  ``pool`` is shut down on return.  Results in the order of ``tasks``.
+    for the rest.  ``pool`` is shut down on return; on Ctrl-C (which the workers ignore) their tasks are interrupted
+    first.  Results in the order of ``tasks``.
     """
+    from .io.atomic import interrupts_between_steps
+
     results: list[Any] = [None] * len(tasks)
     order = largest_first(tasks)
     pending: dict[Future, int] = {}
@@ -121,12 +124,12 @@ def run_pool(pool: ProcessPoolExecutor, tasks: list[tuple[Path, str]], task: Tas
                 idx = order[nxt]
                 f, n = tasks[idx]
                 try:
-                    fut = pool.submit(task, f, name=n, threads=threads)
+                    with interrupts_between_steps():    # Ctrl-C: once the worker being started has its task
+                        pending[pool.submit(task, f, name=n, threads=threads)] = idx
                 except BrokenProcessPool:
                     pool.shutdown(wait=False, cancel_futures=True)
                     pool = start_pool(jobs, outputs)[0]
                     continue
-                pending[fut] = idx
                 nxt += 1
             done, _ = wait(list(pending), return_when=FIRST_COMPLETED)
             for fut in done:
@@ -138,6 +141,9 @@ def run_pool(pool: ProcessPoolExecutor, tasks: list[tuple[Path, str]], task: Tas
                 finished += 1
                 if progress is not None:
                     progress(finished, len(tasks))
+    except KeyboardInterrupt:
+        pool.interrupt(pending)
+        raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
     return results

@@ -47,11 +47,19 @@ class MissingConstantsError(MetadataError):
         The input, as the message names it.
     need : str
         What needs the constants, as a phrase ("alpha (Ng's film depth -> slope)", "metric depth", ...).
+    reason : str
+        Why, as the message says it without the input's name and without ``instead`` (default: the message).
+    instead : str or None
+        The request that serves instead, in the library's words and as the message ends ('refocus by slope
+        instead'), which the command line says in its options ('use --slope S ... instead'); None when there is
+        none, or the message says what to do itself.
     """
 
-    def __init__(self, message: str, *, keyword: str, missing: tuple[str, ...], source: str, need: str) -> None:
+    def __init__(self, message: str, *, keyword: str, missing: tuple[str, ...], source: str, need: str,
+                 reason: str | None = None, instead: str | None = None) -> None:
         super().__init__(message)
         self.keyword, self.missing, self.source, self.need = keyword, tuple(missing), source, need
+        self.reason, self.instead = message if reason is None else reason, instead
 
 
 class DecodeError(PlenodecodeError):

@@ -11,11 +11,13 @@ forked from a fork server that imported the heavy modules once where the platfor
 from __future__ import annotations
 
 import contextlib
+import functools
 import multiprocessing
 import multiprocessing.context
 import os
+import signal
 import threading
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
 from typing import Any, Callable, Iterable, Iterator
 
 #: Environment variables that size the BLAS / OpenMP thread pools when those libraries load.
@@ -112,6 +114,43 @@ def _environment(values: dict[str, str]) -> Iterator[None]:
                 os.environ[var] = value
 
 
+@contextlib.contextmanager
+def _children_block_ctrl_c() -> Iterator[None]:
+    """Processes started inside the block (the fork server, spawned workers) start with Ctrl-C (SIGINT) blocked,
+    which an exec keeps and the fork server hands on to the workers it forks, until a worker ignores it
+    (:func:`_start_worker`): a Ctrl-C reaches every process of a terminal's foreground group, and one that landed
+    while the fork server imported its modules, or while a worker waited for a task, printed a traceback of that
+    process after the command's 'Aborted!'.  The command stops on it and stops its workers' tasks
+    (:meth:`_CappedPool.interrupt`); in this process a Ctrl-C of those milliseconds waits, it is not lost."""
+    if not hasattr(signal, "pthread_sigmask"):       # no POSIX signals (Windows): no process group either
+        yield
+        return
+    from multiprocessing import resource_tracker
+
+    resource_tracker.ensure_running()    # first: starting it unblocks SIGINT in this thread when done
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def _stop_task(signum: int, frame: Any) -> None:
+    """SIGINT in a worker's task: KeyboardInterrupt, once (the cleanup it starts is not cut off by the next)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    raise KeyboardInterrupt
+
+
+def _interruptible(fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Any:
+    """``fn(*args, **kwargs)`` in a worker, Ctrl-C raising KeyboardInterrupt meanwhile (:meth:`_CappedPool.
+    interrupt`); between tasks the worker ignores it."""
+    previous = signal.signal(signal.SIGINT, _stop_task)
+    try:
+        return fn(*args, **kwargs)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _fork_server_context(threads: int, preload: tuple[str, ...]) -> multiprocessing.context.BaseContext | None:
     """The 'forkserver' context with the server started now (it imports ``preload`` in the background) with
     :data:`THREAD_ENV_VARS` = ``threads``; None where the platform has no fork server, or where this process's
@@ -125,7 +164,7 @@ def _fork_server_context(threads: int, preload: tuple[str, ...]) -> multiprocess
     context = multiprocessing.get_context("forkserver")
     if not _FORK_SERVER_THREADS:
         context.set_forkserver_preload(list(preload))
-        with _environment(_capped_environment(threads)):
+        with _environment(_capped_environment(threads)), _children_block_ctrl_c():
             forkserver.ensure_running()             # returns at once; the server imports ``preload`` meanwhile
         _FORK_SERVER_THREADS.append(threads)
     return context
@@ -155,8 +194,27 @@ class _CappedPool(ProcessPoolExecutor):
             self._relay.start()
 
     def submit(self, fn, /, *args, **kwargs):  # type: ignore[override]
-        with _environment(self._thread_env):
-            return super().submit(fn, *args, **kwargs)
+        # a spawned worker starts here (one forked by the fork server has Ctrl-C blocked as the server has)
+        spawned = self._mp_context.get_start_method() != "forkserver"
+        with _environment(self._thread_env), _children_block_ctrl_c() if spawned else contextlib.nullcontext():
+            return super().submit(functools.partial(_interruptible, fn), *args, **kwargs)
+
+    def interrupt(self, futures: Iterable[Future]) -> None:
+        """Ctrl-C for ``futures`` (the workers ignore a terminal's, :func:`_start_worker`): the pool is
+        shut down without its pending tasks and each task running or already handed to a worker stops as a command
+        does on Ctrl-C (KeyboardInterrupt: what it was writing is removed); returns once the workers have ended."""
+        from concurrent.futures import wait as wait_for
+
+        workers = list((self._processes or {}).values())     # the stdlib's own record of its processes
+        self.shutdown(wait=False, cancel_futures=True)
+        running = [f for f in futures if not f.done()]
+        while running:      # again and again: a worker takes SIGINT only inside a task, and may be starting one
+            for p in workers:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(p.pid, signal.SIGINT)
+            running = list(wait_for(running, timeout=0.1).not_done)
+        for p in workers:
+            p.join()
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         super().shutdown(wait=wait, cancel_futures=cancel_futures)
@@ -198,8 +256,12 @@ def worker_pool(jobs: int, threads: int, *, preload: Iterable[str] = (),
 
 
 def _start_worker(threads: int, notices: Any, log_level: int | None = None) -> None:
-    """A pool worker's initializer: :func:`limit_threads`; relay compile notices to ``notices`` (a queue); log at
+    """A pool worker's initializer: Ctrl-C ignored but in its tasks (:func:`_interruptible`; it started blocked,
+    :func:`_children_block_ctrl_c`); :func:`limit_threads`; relay compile notices to ``notices`` (a queue); log at
     ``log_level`` in the command's format."""
+    if hasattr(signal, "pthread_sigmask"):
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     limit_threads(threads)
     if log_level is not None:
         import logging

@@ -63,12 +63,9 @@ def constants_usage_error(command: click.Command | None, exc: MissingConstantsEr
     param_name, instead = CONSTANTS_OPTIONS[exc.keyword]
     param = next((p for p in getattr(command, "params", ()) if p.name == param_name), None)
     hint = " / ".join(param.opts) if param is not None else f"--{param_name.replace('_', '-')}"
-    if not exc.missing:         # the message says why; a microscope's alpha: with the option to use instead
-        from ..pipeline.needs import MICROSCOPE_NO_ALPHA
-
-        text = str(exc)
-        return click.BadParameter(text + (f"; use {instead} instead" if text.endswith(MICROSCOPE_NO_ALPHA) else ""),
-                                  param_hint=hint)
+    if not exc.missing:         # the message says why; the request that serves instead (a microscope's slope) by option
+        text = str(exc) if exc.instead is None else f"{exc.source}: {exc.reason}; use {instead} instead"
+        return click.BadParameter(text, param_hint=hint)
     if exc.keyword in ("metric", "points") and exc.missing == ("focus_distance_m",):
         own = next((p for p in getattr(command, "params", ()) if p.name == "depth_focus_distance"), None)
         instead = f"{own.opts[0] if own is not None else '--focus-distance'} METRES (the distance in focus)"

@@ -41,6 +41,11 @@ DARK_SHARE = 0.1
 GAP_PERCENTILE = 5.0
 #: Smallest mosaic (pixels) whose black level is estimated: smaller images hold too few micro-images.
 MIN_ESTIMATE_PIXELS = 64 * 64
+#: A mosaic whose 1st..99th percentiles span less than this share of full scale holds no micro-images (a dark
+#: frame: the ant-leg microscope's spans 0.02 %, its light field 5 %, the darkest F01 JPEG 23 %).
+UNIFORM_SPAN = 0.005
+#: Below this share of full scale (99th percentile) a nearly uniform mosaic is dark.
+DARK_SHARE_OF_FULL = 0.05
 
 
 @dataclass(frozen=True)
@@ -202,6 +207,24 @@ def estimate_black_level(mosaic: np.ndarray) -> float | None:
     return black
 
 
+def nearly_uniform(mosaic: np.ndarray, full_scale: float) -> tuple[float, float] | None:
+    """The 1st and 99th percentiles of a mosaic that holds no micro-images: they span less than
+    :data:`UNIFORM_SPAN` of ``full_scale`` (a dark frame, a capture without light); None otherwise.
+
+    Parameters
+    ----------
+    mosaic : ndarray, shape (H, W)
+        The stored samples.
+    full_scale : float
+        The largest value the file can hold.
+    """
+    x = np.asarray(mosaic)
+    if x.ndim != 2 or x.size == 0:
+        return None
+    lo, hi = (float(v) for v in np.percentile(x[::3, ::3], [1.0, 99.0]))
+    return (lo, hi) if hi - lo < UNIFORM_SPAN * float(full_scale) else None
+
+
 def linearise_srgb(mosaic: np.ndarray, full_scale: float) -> np.ndarray:
     """Display-encoded uint8/uint16 samples -> linear uint16 ``rint(65535 * srgb_decode(x / full_scale))``.
 
@@ -236,7 +259,8 @@ def bare_mosaic_levels(mosaic: np.ndarray, bits: int, full_scale: float,
     """Black and white level (units of the stored samples) of a mosaic without a sidecar, and where they came from.
 
     ``--black-level``/``--white-level`` first; then :func:`known_levels` of the sensor known by the size;
-    then :func:`estimate_black_level` (black 0 when it finds no gaps) and the file's full scale.
+    then :func:`estimate_black_level` (black 0 when it finds no gaps, or the image is :func:`nearly_uniform`) and the
+    file's full scale.
 
     Parameters
     ----------
@@ -260,10 +284,17 @@ def bare_mosaic_levels(mosaic: np.ndarray, bits: int, full_scale: float,
     if known is not None:
         black, white, how = known
     else:
-        estimated = None if options.black_level is not None else estimate_black_level(mosaic)
+        uniform = None if options.black_level is not None else nearly_uniform(mosaic, full)
+        estimated = None if options.black_level is not None or uniform is not None else estimate_black_level(mosaic)
         black, white = (0.0 if estimated is None else estimated), full
-        how = ("black estimated from the gaps between micro-images" if estimated is not None
-               else "no dark gaps found to estimate the black level from, black 0") + f", white = full scale {full:g}"
+        if uniform is not None:     # no gaps to take a black level from: say what the image is instead
+            dark = uniform[1] < DARK_SHARE_OF_FULL * full
+            how = (f"no micro-images to estimate the black level from: nearly uniform{' and dark' * dark}, 98 % of "
+                   f"the values within {uniform[0]:g}..{uniform[1]:g}{', as in a dark frame' * dark}; white = full "
+                   f"scale {full:g}")
+        else:
+            how = ("black estimated from the gaps between micro-images" if estimated is not None
+                   else "no dark gaps found to estimate the black level from, black 0") + f", white = full scale {full:g}"
     if options.black_level is not None or options.white_level is not None:
         black = black if options.black_level is None else options.black_level
         white = white if options.white_level is None else options.white_level
@@ -274,4 +305,4 @@ def bare_mosaic_levels(mosaic: np.ndarray, bits: int, full_scale: float,
 
 
 __all__ = ["MosaicOptions", "KnownSensor", "KNOWN_SENSORS", "CFA_CHOICES", "INPUT_ENCODINGS", "known_levels",
-           "estimate_black_level", "linearise_srgb", "bare_mosaic_cfa", "bare_mosaic_levels"]
+           "estimate_black_level", "nearly_uniform", "linearise_srgb", "bare_mosaic_cfa", "bare_mosaic_levels"]

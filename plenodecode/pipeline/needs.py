@@ -87,14 +87,16 @@ NEEDS = {"alpha": "alpha (Ng's film depth -> slope)", "distance": "a focus dista
          "metric": "metric depth"}
 
 #: Why a light-field microscope (its optics known) has no alpha, as a focus distance does not apply to it
-#: (:func:`plenodecode.render.alpha.distance_to_slope`); the command line adds its option to use instead.
+#: (:func:`plenodecode.render.alpha.distance_to_slope`); the error's ``instead`` says to refocus by slope.
 MICROSCOPE_NO_ALPHA = (f"{NEEDS['alpha']} does not apply to a light-field microscope (no main lens focused at a "
                        "distance: its depth is measured from the native object plane)")
 
 
-def _missing(item: LightField | RawCapture, need: str, options: Mapping[str, Any]) -> tuple[str, tuple[str, ...]] | None:
-    """Why ``item`` cannot serve the request ``need`` of :data:`NEEDS`, and the constants missing (empty when
-    the reason names the options that supply them); None when it can.
+def _missing(item: LightField | RawCapture, need: str, options: Mapping[str, Any]
+             ) -> tuple[str, tuple[str, ...], bool] | None:
+    """Why ``item`` cannot serve the request ``need`` of :data:`NEEDS`, the constants missing (empty when
+    the reason names the options that supply them) and whether a slope serves instead (:data:`INSTEAD`); None
+    when it can.
 
     Alpha asks :func:`~plenodecode.render.alpha.missing_refocus_constants`; a distance or metric depth of a
     camera also asks its focus distance, and anything else is tried on the decoded geometry's stand-in
@@ -109,12 +111,12 @@ def _missing(item: LightField | RawCapture, need: str, options: Mapping[str, Any
     overrides = {} if options.get("focus_distance") is None else {"focus_distance_m": options["focus_distance"]}
     model = depth_model(stand_in, overrides)
     if need == "alpha" and model == "microscope":      # its constants would not help: there is no main lens
-        return MICROSCOPE_NO_ALPHA, ()
+        return MICROSCOPE_NO_ALPHA, (), True
     camera = need == "alpha" or model == "plenoptic"
     missing = missing_refocus_constants(stand_in.geometry) if camera else ()
     if missing:
         return (f"{NEEDS[need]} needs the camera constant{'s' * (len(missing) > 1)} {', '.join(missing)}, which its "
-                "metadata does not have"), missing
+                "metadata does not have"), missing, True
     if need == "alpha":
         return None
     try:
@@ -125,8 +127,9 @@ def _missing(item: LightField | RawCapture, need: str, options: Mapping[str, Any
     except MetadataError as exc:
         if camera:
             return (f"{NEEDS[need]} needs the distance the camera was focused at (focus_distance_m, or "
-                    "infinityLambda and the MLA-sensor gap), which its metadata does not have"), ("focus_distance_m",)
-        return str(exc), ()
+                    "infinityLambda and the MLA-sensor gap), which its metadata does not have", ("focus_distance_m",),
+                    True)
+        return str(exc), (), False
     except ValueError:
         return None
     return None
@@ -204,18 +207,18 @@ def check_product(item: LightField | RawCapture, name: str, *, rectified: bool =
         return
     keyword, need = asked
     if need == "metric" and (is_focused_raw(item) if focused is None else focused):
-        failure: tuple[str, tuple[str, ...]] | None = (FOCUSED_NOT_METRIC, ())
+        failure: tuple[str, tuple[str, ...], bool] | None = (FOCUSED_NOT_METRIC, (), False)
     else:
         failure = None if (rectified and need != "alpha") else _missing(item, need, options)
     if failure is not None:
-        why, missing = failure
+        why, missing, by_slope = failure
         source = _name(item)
         if missing and need != "metric" and (is_focused_raw(item) if focused is None else focused):
             # 'refocus by slope' alone would send a Raytrix raw to the views its commands refuse
-            why, missing = FOCUSED_NO_FOCUS_CONSTANTS.format(need=NEEDS[need], raw=source), ()
-        instead = INSTEAD.get(keyword)
-        raise MissingConstantsError(f"{source}: {why}" + (f"; {instead}" if instead and missing else ""),
-                                    keyword=keyword, missing=missing, source=source, need=NEEDS[need])
+            why, missing, by_slope = FOCUSED_NO_FOCUS_CONSTANTS.format(need=NEEDS[need], raw=source), (), False
+        instead = INSTEAD.get(keyword) if by_slope else None
+        raise MissingConstantsError(f"{source}: {why}" + (f"; {instead}" if instead else ""), keyword=keyword,
+                                    missing=missing, source=source, need=NEEDS[need], reason=why, instead=instead)
 
 
 __all__ = ["NEEDS", "MICROSCOPE_NO_ALPHA", "REQUESTS", "FOCUSED_NOT_METRIC", "FOCUSED_NO_FOCUS_CONSTANTS",

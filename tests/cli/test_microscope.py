@@ -339,6 +339,39 @@ def test_antleg_dark_views_and_parallax_are_named(antleg, tmp_path):
         r.output
 
 
+def test_antleg_batch_names_its_dark_picture_once(tmp_path):
+    """'plenodecode batch' over the ant leg wrote pictures and thumbnails as dark as the single commands' (the
+    photograph's brightest 0.5 % at 14 % of full scale) without the note those commands print.  It now prints
+    that note, in the same words, once per raw (naming the raw and its first picture), and none at --exposure
+    auto; the thumbnails stay what the files are (dim at the default exposure: mean 36 of 255 for the photo's),
+    and --exposure auto brightens both."""
+    from plenodecode.io.images import read_image, srgb_decode, to_unit_float
+
+    folder = shared_path(*ANTLEG)
+    base = ["batch", str(folder / "light_field.png"), "-w", str(folder / "radiometry_frame.png"), "--dark",
+            str(folder / "dark_frame.tif"), "--outputs", "photo,views", "--jobs", "1"]
+
+    def brightest(path: Path) -> float:
+        return float(np.percentile(srgb_decode(to_unit_float(read_image(path))), 99.5))
+
+    r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "out")], obj={})
+    assert r.exit_code == 0, r.output
+    notes = [line for line in r.output.splitlines() if "is dark" in line]
+    assert len(notes) == 1, r.output
+    found = re.fullmatch(r"note: the photo of light_field\.png is dark \(its brightest 0\.5 % reach (\d+) % of full "
+                         r"scale, in linear light\); --exposure auto brightens it to full scale, --exposure 2 by two "
+                         r"stops", notes[0])
+    assert found, notes
+    folder_out = tmp_path / "out" / "light_field"
+    level = brightest(folder_out / "refocus_s+0.00.png")
+    assert 0.05 < level < 0.25 and int(found.group(1)) == pytest.approx(100 * level, abs=1.0)    # measured 14 %
+    assert brightest(folder_out / "thumbs" / "refocus_s+0.00.png") == pytest.approx(level, abs=0.03)
+    r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "auto"), "--exposure", "auto"], obj={})
+    assert r.exit_code == 0 and "is dark" not in r.output, r.output
+    for name in ("refocus_s+0.00.png", "thumbs/refocus_s+0.00.png"):
+        assert brightest(tmp_path / "auto" / "light_field" / name) > 0.95, name
+
+
 def test_antleg_focal_stack_all_in_focus_has_no_bright_edge_column(antleg, tmp_path):
     """The focal stack's all-in-focus image of the ant leg had a bright line down its second column (rows 28-43 at
     2.7 x the background beside it, in linear light), in none of the slices: the ant leg's first column holds a few
@@ -413,6 +446,66 @@ def test_antleg_alpha_is_refused_as_not_applying_to_a_microscope(antleg, tmp_pat
         assert errors[0].startswith(f"Error: Invalid value for {option}: light_field.png: alpha (Ng's film depth -> "
                                     "slope) does not apply to a light-field microscope"), errors
         assert instead in errors[0] and "focal_length_m" not in errors[0] and not out.exists(), errors
+
+
+def test_microscope_alpha_refusal_carries_what_to_use_instead():
+    """The command line's 'use --slope S ... instead' for a microscope's alpha was added by matching the end of the
+    error's message against MICROSCOPE_NO_ALPHA (a reworded message would have lost it, and the library's message
+    said no alternative at all).  The error now carries it (``instead``, ``reason``), the library's message ends
+    with it, and the command line says its option from those fields (real ant-leg raw with its optics; no decoding).
+    """
+    from plenodecode.cli.main import constants_usage_error
+    from plenodecode.errors import MissingConstantsError
+    from plenodecode.io.microscope import read_optics
+    from plenodecode.pipeline import check_product, open_raw
+
+    folder = shared_path(*ANTLEG)
+    raw = open_raw(folder / "light_field.png", optics=read_optics(folder / "README"))
+    for product, options, instead in (("refocus", {"alpha": 1.02}, "refocus by slope instead"),
+                                      ("focal-stack", {"units": "alpha"},
+                                       "give START and STOP as slopes (units='slope')")):
+        with pytest.raises(MissingConstantsError) as caught:
+            check_product(raw, product, **options)
+        exc = caught.value
+        assert exc.instead == instead and exc.missing == (), str(exc)
+        assert exc.reason.startswith("alpha (Ng's film depth -> slope) does not apply to a light-field microscope")
+        assert str(exc) == f"light_field.png: {exc.reason}; {instead}"
+    # the command line's words come from the fields: another reason still gets the option to use
+    other = MissingConstantsError("x.png: another reason; refocus by slope instead", keyword="alpha", missing=(),
+                                  source="x.png", need="alpha", reason="another reason",
+                                  instead="refocus by slope instead")
+    assert constants_usage_error(None, other).format_message() == (
+        "Invalid value for --alpha: x.png: another reason; use --slope S (px per view step) instead")
+    without = MissingConstantsError("x.png: why, and what to do", keyword="alpha", missing=(), source="x.png",
+                                    need="alpha")
+    assert constants_usage_error(None, without).format_message() == ("Invalid value for --alpha: x.png: why, and "
+                                                                     "what to do")
+
+
+def test_info_of_the_dark_frame_says_it_has_no_micro_images():
+    """'plenodecode info dark_frame.tif' (the ant leg's real dark frame) said 'black 95 ... (black estimated from the
+    gaps between micro-images', alarming nonsense for a dark frame; it now says the image is nearly uniform and
+    dark with no micro-images, with its values, as the light field itself still gets its estimate."""
+    import os
+    import subprocess
+    import sys
+
+    folder = shared_path(*ANTLEG)
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+
+    def info(name: str) -> subprocess.CompletedProcess:
+        proc = subprocess.run([sys.executable, "-m", "plenodecode", "info", str(folder / name)], capture_output=True,
+                              text=True, env=env, timeout=120)
+        assert proc.returncode == 0, proc.stderr
+        return proc
+
+    dark = info("dark_frame.tif")
+    assert "gaps" not in dark.stderr and "black 0, white 65535" in dark.stdout, dark.stderr
+    # measured: 98 % of its values within 95..107 of 65535 (min 42, max 199)
+    assert re.search(r"no micro-images to estimate the black level from: nearly uniform and dark, 98 % of the "
+                     r"values within 9\d\.\.1[01]\d, as in a dark frame", dark.stderr), dark.stderr
+    raw = info("light_field.png")
+    assert "black estimated from the gaps between micro-images" in raw.stderr and "black 92" in raw.stdout
 
 
 def test_dark_frame_of_another_size_is_refused_before_any_work(tmp_path, monkeypatch):

@@ -107,6 +107,27 @@ def test_black_estimate_on_monochrome_and_small_images():
     assert estimate_black_level(noise) is None                     # no dark gaps: not a lenslet mosaic
 
 
+def test_a_nearly_uniform_image_is_not_said_to_have_gaps():
+    """A dark frame read as a raw said 'black 95 ... estimated from the gaps between micro-images' (it has none):
+    a mosaic whose 1st..99th percentiles span under 0.5 % of full scale is now said to be nearly uniform, with
+    its values, and read with black 0; a lenslet mosaic keeps its estimate."""
+    from plenodecode.io.mosaic_levels import bare_mosaic_levels, nearly_uniform
+
+    dark = np.random.default_rng(0).normal(101.0, 2.5, (300, 300)).round().astype(np.uint16)   # as a dark frame
+    lo, hi = nearly_uniform(dark, 65535)
+    assert 93 <= lo < 101 < hi <= 109, (lo, hi)
+    assert estimate_black_level(dark) is not None                   # what was said before: 'from the gaps'
+    black, white, how = bare_mosaic_levels(dark, 16, 65535, MosaicOptions())
+    assert (black, white) == (0.0, 65535.0) and "gaps" not in how, how
+    assert how.startswith(f"no micro-images to estimate the black level from: nearly uniform and dark, 98 % of the "
+                          f"values within {lo:g}..{hi:g}, as in a dark frame"), how
+    grey = dark + np.uint16(30000)                                  # uniform but not dark: not called a dark frame
+    assert "nearly uniform," in bare_mosaic_levels(grey, 16, 65535, MosaicOptions())[2]
+    sim = synthetic.simulate("square", seed=2, shape=(400, 420))   # a lenslet mosaic: gaps and micro-images
+    assert nearly_uniform(sim.raw.mosaic, 4095) is None
+    assert "estimated from the gaps" in bare_mosaic_levels(sim.raw.mosaic, 16, 4095, MosaicOptions())[2]
+
+
 def test_srgb_input_encoding_is_linearised(scene, tmp_path):
     lin = np.clip((scene[0].raw.mosaic.astype(np.float64) - BLACK12) / (WHITE12 - BLACK12), 0, 1)
     enc = np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * lin ** (1 / 2.4) - 0.055)
