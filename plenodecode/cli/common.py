@@ -218,14 +218,15 @@ def in_option_names(text: str) -> str:
     from ..optics import OPTICS_OPTIONS, OPTICS_SUPPLY, option_name
 
     text = text.replace(OPTICS_SUPPLY, "or --optics FILE.json, or a napari-LF metadata.txt beside the raw")
-    return re.sub(r"\b(" + "|".join(OPTICS_OPTIONS) + r")\b", lambda m: option_name(m.group(1)), text)
+    # a bare field name only: not the tail of an option already named ('--magnification' stays as it is)
+    return re.sub(r"(?<![-\w])(" + "|".join(OPTICS_OPTIONS) + r")\b", lambda m: option_name(m.group(1)), text)
 
 
 @contextlib.contextmanager
 def optics_in_option_names() -> Iterator[None]:
     """Errors raised inside (ValueError, the library's errors, usage errors) with their message in the command's
     option names (:func:`in_option_names`); the same exception object, so its type and attributes are kept."""
-    from ..errors import PlenodecodeError
+    from ..errors import MissingConstantsError, PlenodecodeError
 
     try:
         yield
@@ -233,7 +234,9 @@ def optics_in_option_names() -> Iterator[None]:
         exc.message = in_option_names(exc.message)
         raise
     except (ValueError, PlenodecodeError) as exc:
-        if len(exc.args) == 1 and isinstance(exc.args[0], str):
+        # a camera's missing constants (lens_pitch_m of a Lytro) are no microscope option: left as they are
+        camera_constants = isinstance(exc, MissingConstantsError) and bool(exc.missing)
+        if len(exc.args) == 1 and isinstance(exc.args[0], str) and not camera_constants:
             exc.args = (in_option_names(exc.args[0]),)
         raise
 

@@ -599,3 +599,24 @@ def test_antleg_reader_lines_name_the_dark_frame_not_an_unused_black(tmp_path):
     assert lines and all("black from the dark frame dark_frame.tif" in x and "estimated" not in x
                          for x in lines), lines
     assert len(list((tmp_path / "out" / "light_field").glob("*.png"))) == 1       # the photograph
+
+
+def test_option_names_replace_bare_optics_fields_only():
+    """Messages raised inside a command with microscope options name the options: a bare field becomes its option,
+    but an option already named stayed no option ('--magnification' became '----magnification'), and a camera's
+    missing constants (a Lytro's lens_pitch_m, for alpha or metric depth) were renamed microscope options."""
+    from plenodecode.cli.common import in_option_names, optics_in_option_names
+    from plenodecode.errors import MissingConstantsError
+
+    assert in_option_names("needs numerical_aperture; give --magnification or magnification") == \
+        "needs --na; give --magnification or --magnification"
+    camera = "IMG_1.jpg has no focal_length_m, f_number, lens_pitch_m in its metadata"
+    with pytest.raises(MissingConstantsError) as info:
+        with optics_in_option_names():
+            raise MissingConstantsError(camera, keyword="metric", missing=("focal_length_m", "f_number",
+                                                                           "lens_pitch_m"),
+                                        source="IMG_1.jpg", need="metric depth")
+    assert str(info.value) == camera
+    with pytest.raises(ValueError, match="^needs --medium-index$"):
+        with optics_in_option_names():
+            raise ValueError("needs medium_index")
