@@ -16,10 +16,13 @@ from plenodecode.io.lightfield import save_lightfield
 from plenodecode.types import LightField
 from tests.conftest import ROOT
 
+#: Every script below gives SIGINT back its KeyboardInterrupt first: a suite started as a background job (``make test
+#: &``) runs with SIGINT ignored, which its processes inherit, and Python then installs no handler of its own.
 #: Runs the CLI with zarr's file writer slowed down, the third file write sending SIGINT to the process first:
 #: the interrupt lands while the main thread waits for that write on zarr's I/O thread.
 SCRIPT = textwrap.dedent("""
     import os, signal, sys, time
+    signal.signal(signal.SIGINT, signal.default_int_handler)   # as in a terminal, though run from a background job
     import zarr.storage._local as local
 
     real, calls = local._put, []
@@ -56,6 +59,7 @@ def test_ctrl_c_during_a_zarr_write_leaves_nothing_and_no_traceback(tmp_path):
 #: Runs the CLI with the function MODULE.NAME sending SIGINT to the process on its CALL-th call, before it runs.
 WRITER_SCRIPT = textwrap.dedent("""
     import importlib, os, signal, sys
+    signal.signal(signal.SIGINT, signal.default_int_handler)   # as in a terminal, though run from a background job
 
     module, name, call = importlib.import_module(os.environ["MODULE"]), os.environ["NAME"], int(os.environ["CALL"])
     real, calls = getattr(module, name), []
@@ -98,6 +102,7 @@ def test_ctrl_c_while_views_or_a_mat_file_are_written_leaves_nothing(tmp_path, c
 #: while the fork server still imports its modules).
 BATCH_SCRIPT = textwrap.dedent("""
     import os, signal, sys
+    signal.signal(signal.SIGINT, signal.default_int_handler)   # as in a terminal, though run from a background job
     import plenodecode.cli.batch as batch_cli
 
     real, stop_at = batch_cli.progress_bar, int(os.environ["STOP_AT"])
