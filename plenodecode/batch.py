@@ -20,10 +20,10 @@ Layout of ``out_dir``::
     out_dir/index.html        thumbnails of every output and the error of every failure
 
 All-or-nothing per raw: a task writes into a hidden staging folder ``out_dir/.<name>.<random>.tmp``
-(:func:`plenodecode.io.atomic.atomic_output`) and renames it to ``out_dir/<name>`` only when every product and the ``.done.json`` marker are
-written, so a killed run leaves no output under its final name (the next run removes the staging folders
-of runs that no longer live, and leaves those of a live one alone).  Two batches must not write into the
-same ``out_dir`` at the same time.
+(:func:`plenodecode.io.atomic.atomic_output`) and renames it to ``out_dir/<name>`` only when every product and
+the ``.done.json`` marker are written, so a killed run leaves no output under its final name (the next run
+removes the staging folders of runs that no longer live, and leaves those of a live one alone).  Two batches
+must not write into the same ``out_dir`` at the same time.
 
 Resuming: ``.done.json`` holds the task key, the SHA-256 of the input's bytes and of the options
 (:func:`task_key`); a later run with the same key skips the raw.  A folder ``out_dir/<name>`` of a
@@ -51,7 +51,7 @@ import time
 import traceback
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 from .deprecation import renamed_fields
 from .errors import DecodeError, MissingConstantsError, PlenodecodeError, one_line
@@ -1041,22 +1041,13 @@ def check_outputs_for_any(files: Sequence[str | os.PathLike], options: BatchOpti
     cut = [o for o in options.outputs if o in VIEW_OUTPUTS]
     if not cut or options.views_anyway or options.grid is not None:
         return
-    from . import pipeline
-    from .pipeline.inputs import quieted
-    from .optics import MicroscopeOptics
     from .pipeline.needs import is_focused_raw
 
-    mosaic = options.mosaic_options()
     focused = []
-    with quieted(__name__.split(".")[0]):     # the tasks read these raws again and say their warnings
-        for f in files:
-            try:
-                raw = pipeline.open_raw(f, mosaic=mosaic, optics=MicroscopeOptics.from_dict(options.optics))
-            except (PlenodecodeError, OSError, ValueError):
-                continue
-            if not is_focused_raw(raw):
-                return
-            focused.append(Path(f).name)
+    for f, raw in _readable_raws(files, options):
+        if not is_focused_raw(raw):
+            return
+        focused.append(Path(f).name)
     if focused:
         which = focused[0] if len(focused) == 1 else f"all {len(focused)} raws here"
         raise ValueError(f"{','.join(cut)}: no raw here can serve {'it' if len(cut) == 1 else 'them'}: {which} "
@@ -1073,25 +1064,33 @@ def check_constants_for_any(files: Sequence[str | os.PathLike], options: BatchOp
     if (options.alpha is None and options.focus_distance is None and not options.metric and not options.ply
             and options.stack_units != "alpha"):
         return []
+    refused: list[MissingConstantsError] = []
+    for _, raw in _readable_raws(files, options):
+        try:
+            _check_metadata(raw, options)
+        except MissingConstantsError as exc:
+            refused.append(exc)
+            continue
+        return []
+    return refused
+
+
+def _readable_raws(files: Sequence[str | os.PathLike], options: BatchOptions
+                   ) -> Iterator[tuple[str | os.PathLike, Any]]:
+    """``(path, RawCapture)`` of every raw of ``files`` that can be read as the batch reads them (mosaic options,
+    optics), without their warnings (the tasks read them again and say them); unreadable ones are passed over."""
     from . import pipeline
-    from .pipeline.inputs import quieted
     from .optics import MicroscopeOptics
+    from .pipeline.inputs import quieted
 
     mosaic = options.mosaic_options()
-    refused: list[MissingConstantsError] = []
-    with quieted(__name__.split(".")[0]):     # the tasks read these raws again and say their warnings
+    with quieted(__name__.split(".")[0]):
         for f in files:
             try:
                 raw = pipeline.open_raw(f, mosaic=mosaic, optics=MicroscopeOptics.from_dict(options.optics))
             except (PlenodecodeError, OSError, ValueError):
                 continue
-            try:
-                _check_metadata(raw, options)
-            except MissingConstantsError as exc:
-                refused.append(exc)
-                continue
-            return []
-    return refused
+            yield f, raw
 
 
 def _check_views(grid: Any, n_views: int | None, raw: Any) -> None:

@@ -294,7 +294,8 @@ def bare_mosaic_levels(mosaic: np.ndarray, bits: int, full_scale: float,
                    f"scale {full:g}")
         else:
             how = ("black estimated from the gaps between micro-images" if estimated is not None
-                   else "no dark gaps found to estimate the black level from, black 0") + f", white = full scale {full:g}"
+                   else "no dark gaps found to estimate the black level from, black 0")
+            how += f", white = full scale {full:g}"
     if options.black_level is not None or options.white_level is not None:
         black = black if options.black_level is None else options.black_level
         white = white if options.white_level is None else options.white_level
