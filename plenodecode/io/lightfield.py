@@ -56,7 +56,8 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from ..errors import FormatError, MetadataError
-from ..types import LINEAR_COLOUR_STATES, LightField, LightFieldGeometry, encoded_colour_state, linear_colour_state
+from ..types import (COLOUR_STATES, LINEAR_COLOUR_STATES, LightField, LightFieldGeometry, encoded_colour_state,
+                     linear_colour_state)
 from .atomic import atomic_output, atomic_outputs, interrupts_between_steps, refuse_existing
 from .generic import json_safe
 from .images import quantise, read_image, srgb_decode, srgb_encode, to_unit_float, write_image
@@ -93,6 +94,9 @@ def _restored(data: np.ndarray, weight: np.ndarray | None, colour: str, doc: Map
     """The light field of a saved document: version 2 has the typed ``geometry``; in version 1 the geometry
     is in the legacy keys of ``metadata``, which :class:`LightField` reads."""
     provenance = dict(doc.get("metadata") or {})
+    if colour not in COLOUR_STATES:     # a state added after this version (as 'camera-srgb-curve' was)
+        raise FormatError(f"{src}: colour state {colour!r} is unknown to this plenodecode (it knows "
+                          f"{', '.join(COLOUR_STATES)}): written by a newer version; upgrade plenodecode")
     if doc.get("geometry") is None:
         return LightField(data, weight, colour, provenance)
     try:

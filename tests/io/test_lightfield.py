@@ -394,3 +394,19 @@ def test_linear_srgb_still_encodes_to_srgb_and_linearises_to_linear_srgb(tmp_pat
     np.testing.assert_allclose(lin.data, srgb_decode(back.data), rtol=1e-6)
     # within the 8-bit step of the curve's steepest linear slope (2.4 / 1.055 per unit at full scale)
     assert np.abs(lin.data - lf.data).max() <= 0.5 / 255 * 2.4 / 1.055 * 1.01
+
+
+def test_a_colour_state_of_a_newer_version_says_upgrade(tmp_path):
+    """A light field whose colour state this version does not know (one a later version added, as
+    'camera-srgb-curve' was) is refused saying to upgrade, not 'unreadable geometry; rewrite the light field'."""
+    from plenodecode.io.lightfield import load_lightfield, save_lightfield
+
+    out = save_lightfield(make_lf(), tmp_path / "views", format="views", bit_depth=16)
+    doc_path = Path(out) / "lightfield.json"
+    doc = json.loads(doc_path.read_text())
+    doc["colour"] = "camera-log"
+    if isinstance(doc.get("geometry"), dict):
+        doc["geometry"]["colour"] = "camera-log"
+    doc_path.write_text(json.dumps(doc))
+    with pytest.raises(FormatError, match="'camera-log' is unknown to this plenodecode .*upgrade plenodecode$"):
+        load_lightfield(out)
