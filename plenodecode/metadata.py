@@ -18,6 +18,9 @@ from .optics import MicroscopeOptics
 #: Colour states of a light field: linear camera RGB, linear sRGB, and each of them sRGB-encoded for display
 #: (:data:`ENCODED_COLOUR_STATES`).
 COLOUR_STATES = ("camera", "linear-srgb", "srgb", "camera-srgb-curve")
+#: How each colour state reads to a person (the CLI's summary lines, ``info``, the light-field page).
+COLOUR_WORDS = {"camera": "camera RGB", "linear-srgb": "linear sRGB", "srgb": "sRGB",
+                "camera-srgb-curve": "camera RGB with the sRGB tone curve"}
 
 
 @dataclass(frozen=True)
@@ -442,6 +445,6 @@ class LightFieldMetadata(Mapping[str, Any]):
         return f"LightFieldMetadata({self._items!r})"
 
 
-__all__ = ["COLOUR_STATES", "CameraMetadata", "HCIParameters", "LightFieldGeometry", "LightFieldMetadata",
-           "GEOMETRY_SCHEMA_VERSION", "LINEAR_COLOUR_STATES", "ENCODED_COLOUR_STATES", "LEGACY_GEOMETRY_KEYS",
+__all__ = ["COLOUR_STATES", "COLOUR_WORDS", "CameraMetadata", "HCIParameters", "LightFieldGeometry",
+           "LightFieldMetadata", "GEOMETRY_SCHEMA_VERSION", "LINEAR_COLOUR_STATES", "ENCODED_COLOUR_STATES", "LEGACY_GEOMETRY_KEYS",
            "encoded_colour_state", "linear_colour_state"]

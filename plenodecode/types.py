@@ -52,7 +52,7 @@ from typing import Any, Literal, Mapping
 import numpy as np
 
 from .errors import CalibrationError
-from .metadata import (COLOUR_STATES, ENCODED_COLOUR_STATES, GEOMETRY_SCHEMA_VERSION, LEGACY_GEOMETRY_KEYS,
+from .metadata import (COLOUR_STATES, COLOUR_WORDS, ENCODED_COLOUR_STATES, GEOMETRY_SCHEMA_VERSION, LEGACY_GEOMETRY_KEYS,
                        LINEAR_COLOUR_STATES, CameraMetadata, HCIParameters, LightFieldGeometry, LightFieldMetadata,
                        encoded_colour_state, linear_colour_state)
 from .optics import MicroscopeOptics
@@ -438,5 +438,5 @@ __all__ = [
     "CFA_PATTERNS", "COLOUR_STATES", "GRID_JSON_VERSION", "cfa_channel_map",
     "CameraMetadata", "RawCapture", "LensletGrid", "LightField", "LightFieldGeometry", "HCIParameters",
     "LightFieldMetadata", "GEOMETRY_SCHEMA_VERSION", "LINEAR_COLOUR_STATES", "LEGACY_GEOMETRY_KEYS", "MicroscopeOptics",
-    "ENCODED_COLOUR_STATES", "encoded_colour_state", "linear_colour_state",
+    "ENCODED_COLOUR_STATES", "COLOUR_WORDS", "encoded_colour_state", "linear_colour_state",
 ]

@@ -19,6 +19,7 @@ import click
 from click.core import ParameterSource
 
 from ..io.atomic import refuse_folder, refuse_unwritable
+from ..metadata import COLOUR_WORDS     # how a colour state reads in a summary line (info, decode's)
 from ..pipeline import BIT_DEPTHS
 
 
@@ -435,11 +436,6 @@ def usage_errors(param_hint: str | None = None) -> Iterator[None]:
 def quiet(ctx: click.Context) -> bool:
     """True with ``plenodecode -q``."""
     return bool((ctx.obj or {}).get("quiet"))
-
-
-#: How a light field's colour state reads in a summary line.
-COLOUR_WORDS = {"camera": "camera RGB", "linear-srgb": "linear sRGB", "srgb": "sRGB",
-                "camera-srgb-curve": "camera RGB with the sRGB tone curve"}
 
 
 def empty_views_note(lf: Any, name: str) -> str:

@@ -47,7 +47,7 @@ from ..io.atomic import refuse_existing
 from ..io.depthio import (DEFAULT_MIN_CONFIDENCE, DEPTH_CMAP, MASK_GREY, colour_mapped, colour_range,
                           display_colours)
 from ..io.images import quantise
-from ..types import LightField
+from ..types import COLOUR_WORDS, LightField
 from .html import escape, page, write_html
 
 log = logging.getLogger(__name__)
@@ -462,7 +462,7 @@ def lightfield_page_html(lf: LightField, *, title: str | None = None, **kw: Any)
         f'</span><span>{depth["vmax"]:.3f}&nbsp;near</span></div>'
         f'<p class="muted">Slopes {data["slopes"][0]:.3f} to {data["slopes"][-1]:.3f} px per view step in '
         f'{last + 1} slices; {Y}&times;{X} px, '
-        f'{"monochrome" if C == 1 else f"{C} channels, colour {escape(lf.colour)}"}.</p></div></div>'
+        f'{"monochrome" if C == 1 else escape(COLOUR_WORDS.get(lf.colour, lf.colour))}.</p></div></div>'
         f'<script type="application/json" id="lf-data">{_json_for_script(data)}</script>'
         f'<script>{_SCRIPT}</script>'
     )

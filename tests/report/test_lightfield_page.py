@@ -78,6 +78,9 @@ def test_page_is_one_self_contained_file(page):
     disp = np.frombuffer(base64.b64decode(depth["values"]), "<f4").reshape(depth["height"], depth["width"])
     assert abs(np.median(disp[RECT[0] + 4:RECT[1] - 4, RECT[2] + 4:RECT[3] - 4]) - D_FG) < 0.05
     assert abs(np.median(disp[20:44, 6:30]) - D_BG) < 0.05
+    # the colour state in words, as info and decode say it ('3 channels, colour linear-srgb' was the identifier)
+    said = re.findall(r"in \d+ slices;[^<]*", html)
+    assert said == [f"in {DEFAULT_SLICES} slices; 64&times;88 px, linear sRGB."], said
 
 
 def test_slopes_fall_back_on_the_depth_map_and_alpha_needs_the_camera():
