@@ -434,8 +434,8 @@ def test_noise_free_views_keep_the_plain_settings(scene):
 
 def test_colour_matching_runs_and_finds_the_planes(scene):
     """estimate_depth(grey=False) crashed in the refinement: its views are the three colours and their contrast
-    channels, 6, which OpenCV's cubic remap refuses (imaging.EXACT_WARP_CHANNELS).  It now runs and finds the two
-    planes as the grey matching does (BadPix0.07 measured 0.00 %, grey 0.03 %)."""
+    channels, 6, which OpenCV's cubic remap refuses (imaging.MAX_WARP_CHANNELS).  It now runs and finds the two
+    planes as the grey matching does (BadPix0.07 measured 0.00 %, as grey)."""
     lf, gt, _ = scene
     dm = estimate_depth(lf, method="costvolume", grey=False)
     assert dm.disparity.shape == gt.shape and badpix(dm, gt, 0.07, 5) < 1.0
