@@ -248,44 +248,77 @@ def _residual_figure(grid: LensletGrid, m: dict[str, Any], rms: float | None) ->
     return fig
 
 
-def vignetting_profile(img: np.ndarray, *, bins: int = 60) -> tuple[np.ndarray, np.ndarray]:
-    """Mean of an image against the distance from its centre.
+def vignetting_profile(img: np.ndarray, centres: np.ndarray | None = None, *,
+                       bins: int = 40) -> tuple[np.ndarray, np.ndarray]:
+    """Brightness of an image against the distance from its centre.
+
+    With ``centres`` the image is read at the lens centres only (nearest pixel) and each bin gives the median of its
+    lenses: the gaps between the disks and the unlit border around a lens array, which an average over all
+    pixels mixes in (a dip where a radius first reaches a dark border, a zigzag where a bin is narrower than a
+    lens), do not count.  Without ``centres`` every pixel counts (the mean).
+
+    Parameters
+    ----------
+    img : ndarray (H, W), float
+    centres : ndarray (N, 2) float64, optional
+        Lens centres (row, col) in px, e.g. those with a disk in a white image.
+    bins : int
 
     Returns
     -------
     radius : ndarray (bins,) float64, bin centres in px
-    mean : ndarray (bins,) float64, NaN for empty bins
+    value : ndarray (bins,) float64, NaN for empty bins
     """
     h, w = img.shape
-    step = max(1, int(math.sqrt(h * w / 2e6)))
-    sub = img[::step, ::step].astype(np.float64)
-    rr, cc = np.mgrid[0:h:step, 0:w:step]
-    r = np.hypot(rr - (h - 1) / 2, cc - (w - 1) / 2).ravel()
-    edges = np.linspace(0, r.max() + 1e-9, bins + 1)
+    if centres is not None:
+        c = np.asarray(centres, np.float64).reshape(-1, 2)
+        ij = np.rint(c).astype(np.int64)
+        on = (ij[:, 0] >= 0) & (ij[:, 0] < h) & (ij[:, 1] >= 0) & (ij[:, 1] < w)
+        vals = img[ij[on, 0], ij[on, 1]].astype(np.float64)
+        r = np.hypot(c[on, 0] - (h - 1) / 2, c[on, 1] - (w - 1) / 2)
+    else:
+        step = max(1, int(math.sqrt(h * w / 2e6)))
+        rr, cc = np.mgrid[0:h:step, 0:w:step]
+        vals = img[::step, ::step].astype(np.float64).ravel()
+        r = np.hypot(rr - (h - 1) / 2, cc - (w - 1) / 2).ravel()
+    edges = np.linspace(0, (r.max() if len(r) else 0.0) + 1e-9, bins + 1)
     k = np.clip(np.digitize(r, edges) - 1, 0, bins - 1)
-    s = np.bincount(k, weights=sub.ravel(), minlength=bins)
-    n = np.bincount(k, minlength=bins)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = s / n
-    return 0.5 * (edges[:-1] + edges[1:]), np.where(n > 0, mean, np.nan)
+    if centres is None:
+        s = np.bincount(k, weights=vals, minlength=bins)
+        n = np.bincount(k, minlength=bins)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            value = np.where(n > 0, s / n, np.nan)
+    else:
+        value = np.array([np.median(vals[k == b]) if np.any(k == b) else np.nan for b in range(bins)])
+    return 0.5 * (edges[:-1] + edges[1:]), value
 
 
-def _vignetting_figure(m: dict[str, Any]) -> Any:
+def _vignetting_figure(m: dict[str, Any]) -> tuple[Any, str]:
+    """The vignetting profile of a white image at its lenses with a disk; returns the figure and its caption
+    (the edge's level in % of the centre's, in words)."""
     import matplotlib
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    r, mean = vignetting_profile(m["img"])
+    r, value = vignetting_profile(m["img"], m["grid_centres"][m["found"]])
+    ok = np.isfinite(value)
     fig, ax = plt.subplots(figsize=(7, 3.5))
-    peak = np.nanmax(mean) if np.isfinite(mean).any() else 1.0
-    ax.plot(r, mean / peak, "-o", ms=3, color="#aa5522")
-    ax.set_xlabel("distance from the sensor centre (px)")
-    ax.set_ylabel("mean white level (relative)")
-    ax.set_ylim(0, 1.05)
+    peak = float(np.nanmax(value)) if ok.any() and np.nanmax(value) > 0 else 1.0
+    ax.plot(r[ok], 100.0 * value[ok] / peak, "-o", ms=3, color="#aa5522")
+    ax.set_xlabel("distance of the lens from the sensor centre (px)")
+    ax.set_ylabel("white level at the lens centre (%)")
+    ax.set_ylim(0, 105)
     ax.grid(alpha=0.3)
     ax.set_title("vignetting profile", fontsize=10)
     fig.tight_layout()
-    return fig
+    caption = "white level at the centre of each lens with a disk, median per distance, % of the brightest"
+    if ok.sum() >= 2:
+        centre = float(value[ok][0])
+        edge, at = float(value[ok][-1]), float(r[ok][-1])
+        if centre > 0:
+            caption += f"; the outermost lenses ({at:.0f} px from the centre) get {100.0 * edge / centre:.0f} % of " \
+                       "the light of the central ones"
+    return fig, caption
 
 
 def _judge_white(grid: LensletGrid, m: dict[str, Any], kind: str) -> tuple[list[Check], float | None]:
@@ -592,8 +625,7 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
             parts.append(H.section("Residuals", H.figure_html(_residual_figure(grid, m, rms_line),
                                                                 f"detected minus grid centre ({what})")))
         if kind not in ("self-calibration", "camera-file"):
-            parts.append(H.section("Vignetting", H.figure_html(_vignetting_figure(m),
-                                                                 "mean normalised white level against radius")))
+            parts.append(H.section("Vignetting", H.figure_html(*_vignetting_figure(m))))
     doc = H.page(title or "plenodecode calibration report", parts, subtitle=source_line(grid, raws, grid_path))
     out = H.write_html(p, doc, overwrite=overwrite)
     log.info("calibration report written to %s", out)

@@ -190,3 +190,69 @@ def test_the_camera_steps_of_a_real_white_read_as_whole_numbers(tmp_path):
     text = _text(tmp_path / "r.html")
     assert " zoom step -312 " in text and " focus step 417 " in text and ".000 " not in text.split("zoom step")[1][:40]
     assert re.search(r" disk radius \d+\.\d{3} px ", text)
+
+
+_EDGE = re.compile(r"the outermost lenses \((\d+) px from the centre\) get (\d+) % of the light of the central ones")
+
+
+def test_vignetting_of_the_square_sample_follows_its_cos4_falloff(tmp_path):
+    """The vignetting profile averaged every pixel of a radius, gaps between the disks included: on
+    sample_raws/square (27.5 px lenses, cos^4 falloff to 50 % at the corners) it zigzagged 100, 55, 88, 60 %
+    near the centre.  Read at the lens centres it follows the camera's falloff, and the caption says how much
+    light the outermost lenses get (measured 53 % at 730 px; the model gives 53.6 %)."""
+    from pathlib import Path
+
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+    from plenodecode.synthetic import vignetting
+
+    white = Path(__file__).resolve().parents[2] / "sample_raws" / "square" / "scene_white.png"
+    res = CliRunner().invoke(cli, ["-q", "calibrate", str(white), "-o", str(tmp_path / "g.json"),
+                                   "--report", str(tmp_path / "r.html")])
+    assert res.exit_code == 0, res.output
+    m = _EDGE.search(_text(tmp_path / "r.html"))
+    assert m, "the vignetting caption gives no level for the outermost lenses"
+    radius, level = int(m.group(1)), int(m.group(2))
+    assert 650 <= radius <= 777                                            # corners of 1100 x 1100: 777 px
+    truth = 100.0 * float(vignetting(549.5 + radius / 2 ** 0.5, 549.5 + radius / 2 ** 0.5, (1100, 1100), 0.5))
+    assert abs(level - truth) <= 3, (level, truth)
+
+
+def test_vignetting_of_the_real_antleg_has_no_dip_at_the_dark_border(tmp_path):
+    """The ant leg's lens array leaves unlit strips at the sensor's left and right edges: averaged over every pixel,
+    the profile fell from 80 to 70 % where a radius first reached them (1300 px) and rose again, a dip no
+    microscope illumination has.  Read at the lenses with a disk it falls smoothly (no step above 4 points
+    between neighbours), and the caption's edge level agrees with the disks' brightness in the four corners
+    (95th percentile of 100 x 100 px corner windows against the centre's: 48-84 %, mean 65 %)."""
+    import numpy as np
+
+    from click.testing import CliRunner
+
+    from plenodecode.calib.centroids import flatten_white
+    from plenodecode.cli.main import cli
+    from plenodecode.io import read_raw
+    from plenodecode.report.calibration import vignetting_profile
+    from plenodecode.types import LensletGrid
+    from tests.conftest import shared_path
+
+    white = shared_path("lf-microscopy-antleg", "radiometry_frame.png")
+    res = CliRunner().invoke(cli, ["-q", "calibrate", str(white), "-o", str(tmp_path / "g.json"),
+                                   "--report", str(tmp_path / "r.html")])
+    assert res.exit_code == 0, res.output
+    m = _EDGE.search(_text(tmp_path / "r.html"))
+    assert m, "the vignetting caption gives no level for the outermost lenses"
+    raw = read_raw(white)
+    a = raw.mosaic.astype(np.float64) - float(np.mean(raw.black))
+    h, w = a.shape
+    centre = np.percentile(a[h // 2 - 100:h // 2 + 100, w // 2 - 100:w // 2 + 100], 95)
+    corners = [np.percentile(a[r0:r0 + 100, c0:c0 + 100], 95) / centre
+               for r0 in (20, h - 120) for c0 in (20, w - 120)]
+    assert abs(int(m.group(2)) - 100.0 * np.mean(corners)) <= 6, (m.group(0), corners)
+    grid = LensletGrid.from_json((tmp_path / "g.json").read_text())
+    img = flatten_white(raw, equalise=False)
+    c = grid.centres()
+    lit = img[np.clip(np.rint(c[:, 0]).astype(int), 0, h - 1), np.clip(np.rint(c[:, 1]).astype(int), 0, w - 1)]
+    _, level = vignetting_profile(img, c[lit > 0.25 * np.percentile(lit, 99)])
+    level = 100.0 * level / np.nanmax(level)
+    assert np.nanmax(np.abs(np.diff(level[np.isfinite(level)]))) < 4.0
