@@ -112,10 +112,17 @@ def angle_text(rad: float) -> str:
     return f"{r:.5f} rad ({d:.3f} deg)"
 
 
+def refitted(grid: LensletGrid) -> bool:
+    """Whether ``--refine`` moved the grid on the image: ``info['refit']`` holds a refit, not the record of a
+    skipped one (``method`` 'none', with its ``reason``)."""
+    rf = grid.info.get("refit")
+    return isinstance(rf, dict) and rf.get("method") != "none"
+
+
 def rms_text(grid: LensletGrid) -> str:
     """The one RMS figure as shown by the report and ``plenodecode calibrate`` (:data:`RMS_DEFINITION`), with
     what is left about a smooth distortion of the lens array's image when that explains it (:func:`smooth_part`)."""
-    if source_kind(grid) == "camera-file" and "refit" not in grid.info:
+    if source_kind(grid) == "camera-file" and not refitted(grid):
         return "n/a (grid used as given)"
     if grid.residual_rms is None:
         return "n/a"
@@ -475,7 +482,7 @@ def judge_calibration(grid: LensletGrid, m: dict[str, Any] | None = None) -> Jud
     warnings = [str(w) for w in grid.info.get("warnings", [])]
     rms, origin = grid.residual_rms, "fit"
     if kind == "camera-file":
-        return Judgement("as given", [], warnings, rms if "refit" in grid.info else None, "fit")
+        return Judgement("as given", [], warnings, rms if refitted(grid) else None, "fit")
     if kind == "self-calibration":
         checks = _judge_selfcal(grid)
     elif m is not None and "found" in m:
@@ -505,8 +512,10 @@ def source_line(grid: LensletGrid, raws: Sequence[RawCapture], grid_path: Path |
         line = f"{SOURCE_KINDS[kind]}: {_files(files)}"
     elif kind == "camera-file":
         line = f"{SOURCE_KINDS[kind]}: the RayCalibData of {_files(files)}"
-        if "refit" in inf:
+        if refitted(grid):
             line += f", refitted on the image ({inf['refit'].get('method', '?')})"
+        elif "refit" in inf:
+            line += "; the refit on the image was skipped"
     else:
         line = f"{SOURCE_KINDS[kind]}" if grid_path is None else f"grid JSON {grid_path} (no record of how it was made)"
         if raws:
@@ -534,9 +543,11 @@ def _params(grid: LensletGrid) -> list[tuple[str, str]]:
     if grid.lens_type is not None:
         types, counts = np.unique(np.asarray(grid.lens_type), return_counts=True)
         rows.append(("lens types", ", ".join(f"type {t}: {c}" for t, c in zip(types, counts))))
-    if "refit" in inf:
+    if refitted(grid):
         rf = inf["refit"]
         rows.append(("refit on the image", ", ".join(f"{k} {v}" for k, v in rf.items() if k != "change")))
+    elif "refit" in inf:
+        rows.append(("refit on the image", f"skipped: {inf['refit'].get('reason', 'no reason recorded')}"))
     for key in ("camera_model", "serial", "zoom_step", "focus_step", "n_whites", "method", "binning", "rim_radius_px",
                 "n_detected", "n_fit"):
         if inf.get(key) is not None:
@@ -595,8 +606,9 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
     if kind == "camera-file":
         how = ("The camera's own calibration is used as given: plenodecode did not measure it, so there is no "
                "residual or off-grid judgement; the figure draws the grid on the image for a visual check."
-               + (" The refit on the image is the one measurement made (see the parameters)." if "refit" in grid.info
-                  else ""))
+               + (" The refit on the image is the one measurement made (see the parameters)." if refitted(grid)
+                  else " The refit on the image (--refine) was skipped (see the note above): the grid is the "
+                       "calibration file's." if "refit" in grid.info else ""))
         judged = f"<p>{H.escape(how)}</p>"
     else:
         rows = [(c.quantity, c.value, c.rule, c.level) for c in j.checks]
@@ -632,5 +644,5 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
     return out
 
 
-__all__ = ["write_calibration_report", "judge_calibration", "source_kind", "source_line", "rms_text",
+__all__ = ["write_calibration_report", "judge_calibration", "source_kind", "source_line", "rms_text", "refitted",
            "vignetting_profile", "Check", "Judgement", "RMS_DEFINITION", "SELFCAL_RULES", "SELFCAL_BASIS", "LEVELS"]

@@ -256,3 +256,27 @@ def test_vignetting_of_the_real_antleg_has_no_dip_at_the_dark_border(tmp_path):
     _, level = vignetting_profile(img, c[lit > 0.25 * np.percentile(lit, 99)])
     level = 100.0 * level / np.nanmax(level)
     assert np.nanmax(np.abs(np.diff(level[np.isfinite(level)]))) < 4.0
+
+
+def test_a_skipped_raytrix_refit_is_not_reported_as_a_refit(tmp_path):
+    """'calibrate sc2_klein.png --refine' on the real R42: the image does not constrain the grid (the tiles disagree
+    by ~3.6 px), so the XML's grid is kept.  The report's subtitle still said 'refitted on the image (none)' and
+    its text 'The refit on the image is the one measurement made'; the parameters read 'method none, reason ...'.
+    Now each says the refit was skipped, and the summary line says the grid is used as given."""
+    from click.testing import CliRunner
+
+    from plenodecode.cli.main import cli
+    from plenodecode.types import LensletGrid
+    from tests.conftest import shared_path
+
+    image = shared_path("raytrix-r42", "sc2_klein.png")
+    res = CliRunner().invoke(cli, ["calibrate", "--refine", str(image), "-o", str(tmp_path / "g.json"),
+                                   "--report", str(tmp_path / "r.html")])
+    assert res.exit_code == 0, res.output
+    grid = LensletGrid.from_json((tmp_path / "g.json").read_text())
+    assert grid.info["refit"]["method"] == "none"                        # skipped: the measured fact behind it all
+    text = _text(tmp_path / "r.html")
+    assert "refitted on the image" not in text and "the one measurement made" not in text, text
+    assert "sc2_klein.png; the refit on the image was skipped" in text
+    assert f"refit on the image skipped: {grid.info['refit']['reason']}" in text
+    assert "RMS n/a (grid used as given)" in res.output and "RMS n/a (grid used as given)" in text
