@@ -94,14 +94,53 @@ def residual_statistics(residuals: np.ndarray, lens_ij: np.ndarray, *, block: in
 SMOOTH_FIELD_DEGREE = 3
 
 
+def smooth_field(ij: np.ndarray, d: np.ndarray, degree: int = SMOOTH_FIELD_DEGREE, *,
+                 k_sigma: float | None = None, rounds: int = 3) -> tuple[np.ndarray, np.ndarray] | None:
+    """Least-squares polynomial field of lens-centre departures over the lens indices.
+
+    ``d_k = sum_{i + j <= degree} a_ij r'^i k'^j + e_k`` per axis, ``r', k'`` the lens indices centred and scaled
+    to [-1, 1].  With ``k_sigma`` the fit is repeated ``rounds`` times without the lenses whose ``|e|`` exceeds
+    ``k_sigma`` robust sigmas (``median |e| / 1.1774``): scene texture moves single lenses, not the field.
+
+    Parameters
+    ----------
+    ij : ndarray (N, 2) int, lens (row, col) indices
+    d : ndarray (N, 2) float64, departures (px)
+    degree : int
+    k_sigma : float, optional
+    rounds : int
+
+    Returns
+    -------
+    (field, used) : ndarray (N, 2) float64 and ndarray (N,) bool, or None with fewer than 5 lenses per coefficient
+    """
+    r, k = (np.asarray(ij)[:, a].astype(np.float64) for a in (0, 1))
+    terms = [(i, j) for i in range(degree + 1) for j in range(degree + 1 - i)]
+    if len(r) < 5 * len(terms):
+        return None
+    r = (r - 0.5 * (r.min() + r.max())) / max(0.5 * (r.max() - r.min()), 1.0)
+    k = (k - 0.5 * (k.min() + k.max())) / max(0.5 * (k.max() - k.min()), 1.0)
+    design = np.stack([r ** i * k ** j for i, j in terms], axis=1)
+    used = np.ones(len(r), bool)
+    for _ in range(rounds if k_sigma is not None else 1):
+        coef, *_ = np.linalg.lstsq(design[used], d[used], rcond=None)
+        if k_sigma is None:
+            break
+        e = np.hypot(*(d - design @ coef).T)
+        keep = e <= k_sigma * max(float(np.median(e[used])) / 1.1774, 1e-6)
+        if keep.sum() < 5 * len(terms) or np.array_equal(keep, used):
+            break
+        used = keep
+    return design @ coef, used
+
+
 def smooth_distortion(grid: LensletGrid, degree: int = SMOOTH_FIELD_DEGREE) -> dict[str, float] | None:
     """How far the measured lens centres of ``grid`` depart from its regular lattice smoothly, and the rest.
 
     Optics between the lens array and the sensor (a microscope's relay lens) bend the array's image: the
     measured centres ``c_rk`` (``grid.refined``) then depart from the lattice ``l_rk`` by a smooth field that
     the decoder follows (it uses each lens's measured centre), on top of the centres' own scatter.  Fitted per
-    axis by least squares, ``c_rk - l_rk = sum_{i + j <= degree} a_ij r'^i k'^j + e_rk`` (``r', k'`` the lens
-    indices, centred and scaled to [-1, 1]).
+    axis by least squares (:func:`smooth_field`).
 
     Returns
     -------
@@ -113,15 +152,10 @@ def smooth_distortion(grid: LensletGrid, degree: int = SMOOTH_FIELD_DEGREE) -> d
         return None
     d = grid.refined - grid.lattice_centres().reshape(grid.refined.shape)
     ok = np.all(np.isfinite(d), axis=-1)
-    r, k = (np.nonzero(ok)[a].astype(np.float64) for a in (0, 1))
-    terms = [(i, j) for i in range(degree + 1) for j in range(degree + 1 - i)]
-    if len(r) < 5 * len(terms):
+    fitted = smooth_field(np.argwhere(ok), d[ok], degree)
+    if fitted is None:
         return None
-    r = (r - 0.5 * (r.min() + r.max())) / max(0.5 * (r.max() - r.min()), 1.0)
-    k = (k - 0.5 * (k.min() + k.max())) / max(0.5 * (k.max() - k.min()), 1.0)
-    design = np.stack([r ** i * k ** j for i, j in terms], axis=1)
-    coef, *_ = np.linalg.lstsq(design, d[ok], rcond=None)
-    field = design @ coef
+    field = fitted[0]
     rest = d[ok] - field
     return {"max_px": float(np.hypot(*field.T).max()), "rest_rms_px": float(np.sqrt(np.mean(np.sum(rest ** 2, 1))))}
 

@@ -300,6 +300,45 @@ def _describe_raycalib(path: Path) -> list[str]:
             f"{len(cal.lens_types) or 'no'} lens type(s){': ' + types if types else ''}"]
 
 
+def _describe_mat_centres(path: Path) -> list[str] | None:
+    """A MATLAB .mat that holds a table of lenslet centres, (rows, cols, 2) in (row, col) or (x, y) order, and no
+    'LF' light field (e.g. the F01 JPEGs' ``image_cords.mat``): the lattice it measures; None for any other .mat."""
+    import numpy as np
+    import scipy.io
+
+    try:
+        names = scipy.io.whosmat(str(path))
+    except (NotImplementedError, ValueError, OSError, TypeError):
+        return None                  # not MATLAB v5: the light-field reader says what it expected
+    if any(n == "LF" for n, _, _ in names):
+        return None
+    table = next(((n, shape) for n, shape, cls in names if len(shape) == 3 and shape[2] == 2
+                  and min(shape[:2]) >= 3 and cls not in ("char", "cell", "struct", "object")), None)
+    if table is None:
+        return None
+    name, (R, C, _) = table
+    a = np.asarray(scipy.io.loadmat(str(path), variable_names=[name])[name], np.float64)
+    across = np.nanmedian(np.abs(a[:, -1] - a[:, 0]), axis=0)      # along a lens row: the column changes most
+    col = int(np.argmax(across))
+    row = 1 - col
+    order = "(row, col)" if col == 1 else "(x, y)"
+    pitch = float(np.nanmedian((a[:, -1, col] - a[:, 0, col]) / (C - 1)))
+    spacing = float(np.nanmedian((a[-1, :, row] - a[0, :, row]) / (R - 1)))
+    rotation = float(np.nanmedian(np.arctan2(a[:, -1, row] - a[:, 0, row], a[:, -1, col] - a[:, 0, col])))
+    shift = float(np.nanmedian(np.abs(np.diff(a[:, 0, col]))) / pitch) % 1.0    # odd rows' offset, in pitches
+    lattice = "hex" if abs(shift - 0.5) < 0.15 else "square" if min(shift, 1 - shift) < 0.15 else "unclear"
+    from ..report.calibration import angle_text
+
+    return [f"{path}: lenslet centres (a MATLAB table, not a light field)",
+            f"  centres  {name}: {R} x {C} lenses (rows x cols), {order} px, rows "
+            f"{np.nanmin(a[..., row]):g}..{np.nanmax(a[..., row]):g}, cols {np.nanmin(a[..., col]):g}.."
+            f"{np.nanmax(a[..., col]):g} (MATLAB pixels count from 1)",
+            f"  lattice  {lattice}, pitch {pitch:.3f} px along the rows, rows {spacing:.3f} px apart "
+            f"({spacing / pitch:.3f} x pitch), rotation {angle_text(rotation)}",
+            "  use      not read by plenodecode; 'plenodecode calibrate --scene IMAGE -o grid.json' measures the "
+            "centres in the lenslet image"]
+
+
 def _describe_other(path: Path) -> list[str]:
     try:
         from ..io import read_raw
@@ -339,6 +378,10 @@ def describe(path: Path) -> list[str]:
     if path.is_dir() and input_kind(path) == "lightfield" and not holds_lightfield(path):
         raise FormatError(f"{path}: a folder holding no light field; info describes files (e.g. "
                           f"'plenodecode info {path}/*'), light-field folders and calibration databases")
+    if path.is_file() and path.suffix.lower() == ".mat":
+        centres = _describe_mat_centres(path)
+        if centres is not None:
+            return centres
     if path.exists() and is_lightfield_path(path):
         return _describe_lightfield(path)
     if not path.is_file():
@@ -371,7 +414,8 @@ def info(files: tuple[Path, ...]) -> None:
     white images (or their .TXT/.json metadata alone), any raw plenodecode reads, and
     saved light fields and HCI scene folders; also on lenslet grids, mosaic sidecars,
     synthetic ground truth, the calibration database's index.json, geometric
-    calibrations (CalInfo.json) and Raytrix RayCalibData XML.
+    calibrations (CalInfo.json), Raytrix RayCalibData XML and tables of lens centres
+    in a .mat (e.g. image_cords.mat).
 
     \b
     Example:

@@ -10,8 +10,9 @@ rules stated on the page:
   by a smooth field (optics bending the lens array's image, which the decoder follows through each
   lens's measured centre: :func:`smooth_part`), the RMS is judged by what is left about it;
 * **self-calibration**: what a scene can show -- the RMS compared with the spread that
-  scene-based centre detection has, the local misfit of the lattice and the fraction of lenses
-  found (:data:`SELFCAL_RULES`, thresholds measured on generated scenes);
+  scene-based centre detection has, the local misfit of the lattice, the fraction of lenses
+  found and the smooth departure of the centres from the lattice, which a self-calibrated grid does not
+  follow (:data:`SELFCAL_RULES`, thresholds measured on generated scenes and the real captures);
 * **the camera's own calibration file** (Raytrix XML) used as given: no residual judgement, the
   grid is drawn on the image only (and a refit on the image, when asked for, is reported as such).
 
@@ -55,6 +56,7 @@ SELFCAL_RULES = {
     "rms_pitch": (0.08, 0.125),        # RMS / pitch, at most
     "misfit_pitch": (0.05, 0.10),      # local misfit / pitch, at most
     "found": (0.5, 0.2),               # fraction of the inner lenses found, at least
+    "smooth_pitch": (0.05, 0.15),      # largest smooth departure of the centres from the lattice / pitch, at most
 }
 #: How the self-calibration thresholds were derived (printed on the report).
 SELFCAL_BASIS = (
@@ -65,7 +67,10 @@ SELFCAL_BASIS = (
     "0.04-0.05 pitch, local misfit 0.02-0.035 pitch, 80-86 % found.  Grids moved off the fit by a known "
     "amount (0.3 px shift, 0.1 % and 0.3 % pitch, 1 mrad rotation) read local misfits equal to their true "
     "RMS error (0.30, 0.52, 1.57, 0.52 px).  RMS up to 0.08 pitch keeps the 4-sigma inlier cut "
-    "(4 RMS / sqrt 2 = 0.23 pitch) inside the 0.25-pitch window in which a centre is assigned to a lens.")
+    "(4 RMS / sqrt 2 = 0.23 pitch) inside the 0.25-pitch window in which a centre is assigned to a lens.  "
+    "A smooth field (cubic in the lens indices) fitted to the rim centres reads at most 0.005 pitch on the sample "
+    "scenes, 0.03-0.035 pitch on the F01 JPEGs and 0.09 pitch (2.5 px) on the ant-leg microscope scene, whose "
+    "radiometry frame shows a relay-lens distortion of 2.4 px: the self-calibrated lattice is up to 3 px off there.")
 
 
 @dataclass(frozen=True)
@@ -112,10 +117,17 @@ def angle_text(rad: float) -> str:
     return f"{r:.5f} rad ({d:.3f} deg)"
 
 
+def refitted(grid: LensletGrid) -> bool:
+    """Whether ``--refine`` moved the grid on the image: ``info['refit']`` holds a refit, not the record of a
+    skipped one (``method`` 'none', with its ``reason``)."""
+    rf = grid.info.get("refit")
+    return isinstance(rf, dict) and rf.get("method") != "none"
+
+
 def rms_text(grid: LensletGrid) -> str:
     """The one RMS figure as shown by the report and ``plenodecode calibrate`` (:data:`RMS_DEFINITION`), with
     what is left about a smooth distortion of the lens array's image when that explains it (:func:`smooth_part`)."""
-    if source_kind(grid) == "camera-file" and "refit" not in grid.info:
+    if source_kind(grid) == "camera-file" and not refitted(grid):
         return "n/a (grid used as given)"
     if grid.residual_rms is None:
         return "n/a"
@@ -248,44 +260,77 @@ def _residual_figure(grid: LensletGrid, m: dict[str, Any], rms: float | None) ->
     return fig
 
 
-def vignetting_profile(img: np.ndarray, *, bins: int = 60) -> tuple[np.ndarray, np.ndarray]:
-    """Mean of an image against the distance from its centre.
+def vignetting_profile(img: np.ndarray, centres: np.ndarray | None = None, *,
+                       bins: int = 40) -> tuple[np.ndarray, np.ndarray]:
+    """Brightness of an image against the distance from its centre.
+
+    With ``centres`` the image is read at the lens centres only (nearest pixel) and each bin gives the median of its
+    lenses: the gaps between the disks and the unlit border around a lens array, which an average over all
+    pixels mixes in (a dip where a radius first reaches a dark border, a zigzag where a bin is narrower than a
+    lens), do not count.  Without ``centres`` every pixel counts (the mean).
+
+    Parameters
+    ----------
+    img : ndarray (H, W), float
+    centres : ndarray (N, 2) float64, optional
+        Lens centres (row, col) in px, e.g. those with a disk in a white image.
+    bins : int
 
     Returns
     -------
     radius : ndarray (bins,) float64, bin centres in px
-    mean : ndarray (bins,) float64, NaN for empty bins
+    value : ndarray (bins,) float64, NaN for empty bins
     """
     h, w = img.shape
-    step = max(1, int(math.sqrt(h * w / 2e6)))
-    sub = img[::step, ::step].astype(np.float64)
-    rr, cc = np.mgrid[0:h:step, 0:w:step]
-    r = np.hypot(rr - (h - 1) / 2, cc - (w - 1) / 2).ravel()
-    edges = np.linspace(0, r.max() + 1e-9, bins + 1)
+    if centres is not None:
+        c = np.asarray(centres, np.float64).reshape(-1, 2)
+        ij = np.rint(c).astype(np.int64)
+        on = (ij[:, 0] >= 0) & (ij[:, 0] < h) & (ij[:, 1] >= 0) & (ij[:, 1] < w)
+        vals = img[ij[on, 0], ij[on, 1]].astype(np.float64)
+        r = np.hypot(c[on, 0] - (h - 1) / 2, c[on, 1] - (w - 1) / 2)
+    else:
+        step = max(1, int(math.sqrt(h * w / 2e6)))
+        rr, cc = np.mgrid[0:h:step, 0:w:step]
+        vals = img[::step, ::step].astype(np.float64).ravel()
+        r = np.hypot(rr - (h - 1) / 2, cc - (w - 1) / 2).ravel()
+    edges = np.linspace(0, (r.max() if len(r) else 0.0) + 1e-9, bins + 1)
     k = np.clip(np.digitize(r, edges) - 1, 0, bins - 1)
-    s = np.bincount(k, weights=sub.ravel(), minlength=bins)
-    n = np.bincount(k, minlength=bins)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = s / n
-    return 0.5 * (edges[:-1] + edges[1:]), np.where(n > 0, mean, np.nan)
+    if centres is None:
+        s = np.bincount(k, weights=vals, minlength=bins)
+        n = np.bincount(k, minlength=bins)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            value = np.where(n > 0, s / n, np.nan)
+    else:
+        value = np.array([np.median(vals[k == b]) if np.any(k == b) else np.nan for b in range(bins)])
+    return 0.5 * (edges[:-1] + edges[1:]), value
 
 
-def _vignetting_figure(m: dict[str, Any]) -> Any:
+def _vignetting_figure(m: dict[str, Any]) -> tuple[Any, str]:
+    """The vignetting profile of a white image at its lenses with a disk; returns the figure and its caption
+    (the edge's level in % of the centre's, in words)."""
     import matplotlib
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    r, mean = vignetting_profile(m["img"])
+    r, value = vignetting_profile(m["img"], m["grid_centres"][m["found"]])
+    ok = np.isfinite(value)
     fig, ax = plt.subplots(figsize=(7, 3.5))
-    peak = np.nanmax(mean) if np.isfinite(mean).any() else 1.0
-    ax.plot(r, mean / peak, "-o", ms=3, color="#aa5522")
-    ax.set_xlabel("distance from the sensor centre (px)")
-    ax.set_ylabel("mean white level (relative)")
-    ax.set_ylim(0, 1.05)
+    peak = float(np.nanmax(value)) if ok.any() and np.nanmax(value) > 0 else 1.0
+    ax.plot(r[ok], 100.0 * value[ok] / peak, "-o", ms=3, color="#aa5522")
+    ax.set_xlabel("distance of the lens from the sensor centre (px)")
+    ax.set_ylabel("white level at the lens centre (%)")
+    ax.set_ylim(0, 105)
     ax.grid(alpha=0.3)
     ax.set_title("vignetting profile", fontsize=10)
     fig.tight_layout()
-    return fig
+    caption = "white level at the centre of each lens with a disk, median per distance, % of the brightest"
+    if ok.sum() >= 2:
+        centre = float(value[ok][0])
+        edge, at = float(value[ok][-1]), float(r[ok][-1])
+        if centre > 0:
+            caption += f"; the outermost lenses ({at:.0f} px from the centre) get {100.0 * edge / centre:.0f} % of " \
+                       "the light of the central ones"
+    return fig, caption
 
 
 def _judge_white(grid: LensletGrid, m: dict[str, Any], kind: str) -> tuple[list[Check], float | None]:
@@ -367,8 +412,25 @@ INFO_LABELS = {"n_detected": "disks detected by the fit", "n_fit": "disks the fi
                "n_whites": "white images", "binning": "binning of the fit's detection"}
 
 
-def _judge_selfcal(grid: LensletGrid) -> list[Check]:
-    """Checks of a self-calibrated grid from its fit statistics (``grid.info``)."""
+def scene_smooth_field(grid: LensletGrid, m: dict[str, Any]) -> dict[str, float] | None:
+    """The smooth part of a scene's rim centres' departure from a self-calibrated lattice
+    (:func:`plenodecode.calib.grid.smooth_field`, lenses scene texture moves rejected): ``max_px`` and the sensor
+    ``row``, ``col`` of the lens where it is largest; None without enough lenses."""
+    from ..calib.grid import smooth_field
+
+    ok = np.all(np.isfinite(m["residuals"]), axis=1)
+    ij = np.stack(np.unravel_index(m["lens"][ok], grid.shape), axis=1)
+    fitted = smooth_field(ij, m["residuals"][ok], k_sigma=4.0)
+    if fitted is None:
+        return None
+    mag = np.hypot(*fitted[0].T)
+    at = m["grid_centres"][m["lens"][ok][int(np.argmax(mag))]]
+    return {"max_px": float(mag.max()), "row": float(at[0]), "col": float(at[1])}
+
+
+def _judge_selfcal(grid: LensletGrid, m: dict[str, Any] | None = None) -> list[Check]:
+    """Checks of a self-calibrated grid from its fit statistics (``grid.info``) and, with the scene's rim centres
+    ``m``, the smooth departure of the centres from the lattice, which a self-calibrated grid does not follow."""
     inf = grid.info
     p = grid.pitch
     checks = []
@@ -399,6 +461,20 @@ def _judge_selfcal(grid: LensletGrid) -> list[Check]:
                             f"{found:.1%} of {inf.get('n_lenses_inner')}", f"good >= {g:.0%}, check >= {c:.0%}", lv,
                             "" if lv == "good" else f"only {found:.0%} of the lenses were found in the scene (dark "
                                                     "or featureless regions); the lattice is extrapolated there"))
+    field = scene_smooth_field(grid, m) if m is not None and len(m["centres"]) else None
+    if field is not None:
+        g, c = SELFCAL_RULES["smooth_pitch"]
+        f = field["max_px"]
+        lv = _level(f / p, g, c)
+        checks.append(Check("smooth departure of the centres from the lattice (largest)",
+                            f"{f:.2f} px = {f / p:.3f} pitch, at row {field['row']:.0f}, col {field['col']:.0f}",
+                            f"good <= {g} pitch, check <= {c} pitch", lv,
+                            "" if lv == "good" else
+                            f"the lens centres depart from the regular lattice by a smooth field of up to {f:.1f} px "
+                            f"(near row {field['row']:.0f}, col {field['col']:.0f}), as when a relay lens bends the "
+                            "lens array's image; a self-calibrated grid places every lens on the lattice, so those "
+                            "lenses are decoded that far off their centre: calibrate with a white image (a "
+                            "microscope's radiometry frame), whose fit follows the field lens by lens"))
     return checks
 
 
@@ -432,7 +508,8 @@ def judge_calibration(grid: LensletGrid, m: dict[str, Any] | None = None) -> Jud
     ----------
     grid : LensletGrid
     m : dict, optional
-        White-image measurement (only for white images and grids of unknown origin).
+        The measurement of the images given: white images (white-image grids and grids of unknown origin) or the
+        scene's rim centres (self-calibration, for the smooth departure from the lattice).
 
     Returns
     -------
@@ -442,9 +519,9 @@ def judge_calibration(grid: LensletGrid, m: dict[str, Any] | None = None) -> Jud
     warnings = [str(w) for w in grid.info.get("warnings", [])]
     rms, origin = grid.residual_rms, "fit"
     if kind == "camera-file":
-        return Judgement("as given", [], warnings, rms if "refit" in grid.info else None, "fit")
+        return Judgement("as given", [], warnings, rms if refitted(grid) else None, "fit")
     if kind == "self-calibration":
-        checks = _judge_selfcal(grid)
+        checks = _judge_selfcal(grid, m)
     elif m is not None and "found" in m:
         checks, rms = _judge_white(grid, m, kind)
         origin = "fit" if kind == "white-image" and grid.residual_rms is not None else "report"
@@ -472,8 +549,10 @@ def source_line(grid: LensletGrid, raws: Sequence[RawCapture], grid_path: Path |
         line = f"{SOURCE_KINDS[kind]}: {_files(files)}"
     elif kind == "camera-file":
         line = f"{SOURCE_KINDS[kind]}: the RayCalibData of {_files(files)}"
-        if "refit" in inf:
+        if refitted(grid):
             line += f", refitted on the image ({inf['refit'].get('method', '?')})"
+        elif "refit" in inf:
+            line += "; the refit on the image was skipped"
     else:
         line = f"{SOURCE_KINDS[kind]}" if grid_path is None else f"grid JSON {grid_path} (no record of how it was made)"
         if raws:
@@ -501,9 +580,11 @@ def _params(grid: LensletGrid) -> list[tuple[str, str]]:
     if grid.lens_type is not None:
         types, counts = np.unique(np.asarray(grid.lens_type), return_counts=True)
         rows.append(("lens types", ", ".join(f"type {t}: {c}" for t, c in zip(types, counts))))
-    if "refit" in inf:
+    if refitted(grid):
         rf = inf["refit"]
         rows.append(("refit on the image", ", ".join(f"{k} {v}" for k, v in rf.items() if k != "change")))
+    elif "refit" in inf:
+        rows.append(("refit on the image", f"skipped: {inf['refit'].get('reason', 'no reason recorded')}"))
     for key in ("camera_model", "serial", "zoom_step", "focus_step", "n_whites", "method", "binning", "rim_radius_px",
                 "n_detected", "n_fit"):
         if inf.get(key) is not None:
@@ -562,8 +643,9 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
     if kind == "camera-file":
         how = ("The camera's own calibration is used as given: plenodecode did not measure it, so there is no "
                "residual or off-grid judgement; the figure draws the grid on the image for a visual check."
-               + (" The refit on the image is the one measurement made (see the parameters)." if "refit" in grid.info
-                  else ""))
+               + (" The refit on the image is the one measurement made (see the parameters)." if refitted(grid)
+                  else " The refit on the image (--refine) was skipped (see the note above): the grid is the "
+                       "calibration file's." if "refit" in grid.info else ""))
         judged = f"<p>{H.escape(how)}</p>"
     else:
         rows = [(c.quantity, c.value, c.rule, c.level) for c in j.checks]
@@ -572,7 +654,8 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
         judged += f'<p class="muted">{H.escape(RMS_DEFINITION)}.</p>'
         if kind == "self-calibration":
             judged += (f'<p class="muted">Self-calibration is judged by what a scene can show: the scatter of the '
-                       f"detected centres about the lattice, the lattice's local misfit, and the lenses found. "
+                       f"detected centres about the lattice, the lattice's local misfit, the lenses found, and "
+                       f"how far the centres depart smoothly from the lattice. "
                        f"{H.escape(SELFCAL_BASIS)}</p>")
     parts = [H.section("Verdict", box, notes), H.section("How this grid is judged", judged),
              H.section("Grid parameters (as given)" if kind == "camera-file" else "Fitted parameters", H.table_html(_params(grid), header=("parameter", "value")))]
@@ -592,13 +675,13 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
             parts.append(H.section("Residuals", H.figure_html(_residual_figure(grid, m, rms_line),
                                                                 f"detected minus grid centre ({what})")))
         if kind not in ("self-calibration", "camera-file"):
-            parts.append(H.section("Vignetting", H.figure_html(_vignetting_figure(m),
-                                                                 "mean normalised white level against radius")))
+            parts.append(H.section("Vignetting", H.figure_html(*_vignetting_figure(m))))
     doc = H.page(title or "plenodecode calibration report", parts, subtitle=source_line(grid, raws, grid_path))
     out = H.write_html(p, doc, overwrite=overwrite)
     log.info("calibration report written to %s", out)
     return out
 
 
-__all__ = ["write_calibration_report", "judge_calibration", "source_kind", "source_line", "rms_text",
+__all__ = ["write_calibration_report", "judge_calibration", "source_kind", "source_line", "rms_text", "refitted",
+           "scene_smooth_field",
            "vignetting_profile", "Check", "Judgement", "RMS_DEFINITION", "SELFCAL_RULES", "SELFCAL_BASIS", "LEVELS"]

@@ -102,3 +102,30 @@ def test_info_lists_a_calibration_database_and_goes_on_past_a_bad_file(tmp_path)
     for name in ("MOD_0000.RAW", "scene.lfr", "scene.truth.json", "scene.truth.npz"):
         assert f"{folder / name}: " in res.output, name
     assert "the arrays of scene.truth.json" in res.output
+
+
+def test_info_describes_the_f01_lens_centre_table_not_as_a_broken_light_field():
+    """'info image_cords.mat' (the lens centres that come with the F01 JPEGs) said "no 5-D 'LF' variable (j, i, l, k,
+    c); expected an LFToolbox decoded light field" and exited 1.  It is a (362, 311, 2) table of (row, col) centres:
+    info now gives the lattice it measures, which matches a least-squares line through each lens row of the table
+    (pitch 9.932 px, rotation -0.0049 rad, the self-calibration of IMG_1.jpg gives 9.933 px and -0.00487 rad)."""
+    import re
+
+    import numpy as np
+    import scipy.io as sio
+
+    path = shared_path("lytro-f01-lenslet-jpg", "image_cords.mat")
+    out = info(path)
+    assert "lenslet centres (a MATLAB table, not a light field)" in out and "LFToolbox" not in out
+    assert "image_cords: 362 x 311 lenses (rows x cols), (row, col) px" in out
+    m = re.search(r"lattice  hex, pitch (\d+\.\d+) px along the rows, rows (\d+\.\d+) px apart .* rotation "
+                  r"(-?\d\.\d+) rad", out)
+    assert m, out
+    pitch, spacing, rotation = map(float, m.groups())
+    a = sio.loadmat(str(path))["image_cords"].astype(np.float64)
+    k = np.arange(a.shape[1])
+    fits = np.array([np.polyfit(k, a[r, :, 1], 1)[0] for r in range(a.shape[0])])           # col per lens
+    slopes = np.array([np.polyfit(a[r, :, 1], a[r, :, 0], 1)[0] for r in range(a.shape[0])])  # row per col
+    assert abs(pitch - np.median(fits)) < 0.01, (pitch, np.median(fits))
+    assert abs(rotation - np.arctan(np.median(slopes))) < 3e-4, (rotation, np.arctan(np.median(slopes)))
+    assert abs(spacing / pitch - math.sqrt(3) / 2) < 0.005
