@@ -419,7 +419,8 @@ class TaskResult:
     thumbnails : tuple of str or None
         8-bit PNG thumbnail of each output (same order), None where there is none.
     error : str or None
-        One line: the exception's class and message.
+        One line (:func:`plenodecode.errors.one_line`): the message of a data or file error, as the single commands
+        print it; 'internal error: TypeName: message' for a bug.
     left_out : tuple of str
         Outputs asked for that this raw cannot serve and were not written, one line per reason
         ('centre: not for a focused-plenoptic (Raytrix) raw (...)'); the others were.

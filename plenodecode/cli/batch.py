@@ -100,7 +100,13 @@ def _dark_notes(ctx: click.Context, summary: Any, exposure: float | str) -> None
 
 def _in_option_names(text: str) -> str:
     """The library's advice (replacing outputs: ``--overwrite (overwrite=True)``, 'output folder'; a focus distance
-    for metric depth) in the command's option names."""
+    for metric depth; what serves instead of camera constants a raw lacks, 'refocus by slope instead') in the
+    command's option names, as the single commands say it (:func:`~plenodecode.cli.main.use_instead`)."""
+    from ..pipeline.needs import INSTEAD
+    from .main import use_instead
+
+    for keyword, said in INSTEAD.items():
+        text = text.replace(said, use_instead(keyword))
     return text.replace(" (overwrite=True)", "").replace("choose another output folder", "choose another -o folder"
                                                           ).replace(" (depth_focus_distance=)", "")
 
