@@ -1397,3 +1397,19 @@ def test_a_failed_row_says_the_message_and_keeps_the_class_only_for_a_bug(tmp_pa
     monkeypatch.setattr(pipeline, "open_raw", bug)
     result = process_raw(root / "sample_raws" / "illum-mini" / "scene.lfr", tmp_path / "out", options)
     assert result.error == "internal error: ZeroDivisionError: division by zero", result.error
+
+
+def test_index_card_notes_a_dark_first_picture_as_the_terminal_does(tmp_path):
+    """The index page had no word on a raw whose pictures are dark (the terminal notes it): its card now says the
+    terminal's sentence (one helper, :func:`plenodecode.pipeline.dark_note`), naming the picture measured but not
+    the raw (the card is titled by it); not for a bright picture, nor without a measured one (a failed raw)."""
+    from plenodecode.report.batch import render_batch_index
+
+    results = (TaskResult(str(tmp_path / "dim.lfr"), "done", level=0.104, level_of="views"),
+               TaskResult(str(tmp_path / "bright.lfr"), "done", level=0.6, level_of="photo"),
+               TaskResult(str(tmp_path / "bad.lfr"), "failed", error="bad.lfr is not an LFP container"))
+    page = render_batch_index(BatchSummary(results=results), tmp_path)
+    said = ("note: the centre view is dark (its brightest 0.5 % reach 10 % of full scale, in linear light); "
+            "--exposure auto brightens it to full scale, --exposure 2 by two stops")
+    assert page.count('class="note"') == 1 and f'<div class="note">{html.escape(said)}</div>' in page
+    assert results[0].dark_note("dim.lfr") == said.removeprefix("note: ").replace("view is", "view of dim.lfr is")
