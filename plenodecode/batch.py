@@ -404,6 +404,12 @@ class BatchOptions:
                              dark_frame=None if self.dark is None else Path(self.dark).name)
 
 
+#: What a raw's dark note names per product measured (:attr:`TaskResult.level_of`), as the single commands name it;
+#: others: 'the <product>'.
+MEASURED = {"views": "the centre view", "centre": "the centre view", "focal-stack": "the focal stack's middle slice",
+            "parallax": "the parallax's middle frame"}
+
+
 @dataclass(frozen=True)
 class TaskResult:
     """What a worker reports for one raw (small: it travels back from the worker).
@@ -419,7 +425,8 @@ class TaskResult:
     thumbnails : tuple of str or None
         8-bit PNG thumbnail of each output (same order), None where there is none.
     error : str or None
-        One line: the exception's class and message.
+        One line (:func:`plenodecode.errors.one_line`): the message of a data or file error, as the single commands
+        print it; 'internal error: TypeName: message' for a bug.
     left_out : tuple of str
         Outputs asked for that this raw cannot serve and were not written, one line per reason
         ('centre: not for a focused-plenoptic (Raytrix) raw (...)'); the others were.
@@ -430,9 +437,10 @@ class TaskResult:
     worker_peak_mb : float or None
         Peak resident memory of that process so far (``ru_maxrss``), MB.
     level, level_of : float or None, str or None
-        How bright the first picture written is (:func:`plenodecode.pipeline.image_level` before ``--exposure``:
-        the 99.5th percentile of its middle image in linear light, full scale 1) and its product ('photo', 'views':
-        the centre view, ...); None without a picture.  The command line notes a dark one (``note_if_dark``).
+        How bright the first picture written is (:func:`plenodecode.pipeline.image_level`: the 99.5th percentile of
+        its middle image in linear light, full scale 1) and its product ('photo', 'views': the centre view, ...);
+        None without a picture, or with an ``exposure`` chosen (the pictures are as asked).  The command line and
+        the index page note a dark one (:meth:`dark_note`).
     started : float
         When the task started on the worker (``time.time()``, s): the earliest task of each worker is the one
         that paid its imports and kernel loading (:meth:`BatchSummary.latency`).
@@ -450,6 +458,16 @@ class TaskResult:
     started: float = 0.0
     level: float | None = None
     level_of: str | None = None
+
+    def dark_note(self, name: str | None = None) -> str | None:
+        """The single commands' note (:func:`plenodecode.pipeline.dark_note`) when the first picture is dark:
+        'the photo is dark (...); --exposure auto brightens it ...', 'the photo of ``name``' when named; else None."""
+        if self.level is None:
+            return None
+        from .pipeline import dark_note
+
+        what = MEASURED.get(self.level_of or "", f"the {self.level_of}")
+        return dark_note(self.level, what if name is None else f"{what} of {name}")
 
 
 @dataclass(frozen=True)
@@ -666,7 +684,7 @@ def _skip_result(src: Path, target: Path, key: str, t0: float, started: float) -
     return TaskResult(str(src), "skipped", tuple(str(o) for o in outs), thumbs,
                       left_out=tuple(str(n) for n in done.get("left_out", [])), seconds=time.perf_counter() - t0,
                       worker=_worker_id(), worker_peak_mb=_peak_mb(),
-                      started=started)
+                      started=started, level=done.get("level"), level_of=done.get("level_of"))
 
 
 #: The file name of the raw the current task (thread) works on: its log lines start with it.
@@ -776,8 +794,11 @@ def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | Non
             products, left_out, (level_of, level) = _write_products(raw, staging, options, threads=threads)
             rel_out = [str(p.relative_to(staging)) for p, _ in products]
             rel_thumb = [None if t is None else str(t.relative_to(staging)) for _, t in products]
+            if options.exposure != 0.0:        # the pictures are as asked: no note on their level
+                level_of, level = None, None
             marker = {"key": key, "source": str(src.resolve()), "outputs": rel_out, "thumbnails": rel_thumb,
-                      "left_out": list(left_out), "options": options.as_key_dict()}
+                      "left_out": list(left_out), "options": options.as_key_dict(), "level": level,
+                      "level_of": level_of}
             (staging / DONE_MARKER).write_text(json.dumps(marker, indent=1), encoding="utf-8")
         return TaskResult(str(src), "done", tuple(str(target / o) for o in rel_out),
                           tuple(None if t is None else str(target / t) for t in rel_thumb), left_out=left_out,
@@ -1480,7 +1501,7 @@ def write_summary(summary: BatchSummary, out_dir: str | os.PathLike, *, overwrit
     return js, html
 
 
-__all__ = ["BATCH_OUTPUTS", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
+__all__ = ["BATCH_OUTPUTS", "MEASURED", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
            "task_key", "outputs_to_replace", "check_outputs_to_replace", "check_slope_for_any", "check_stack_for_any",
            "check_outputs_for_any", "check_constants_for_any", "process_raw",
            "run_batch", "write_summary", "check_summary_files"]

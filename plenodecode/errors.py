@@ -81,8 +81,16 @@ class LevelOptionError(MetadataError):
 
 
 def one_line(exc: BaseException) -> str:
-    """``'TypeName: first line of the message'`` of ``exc``, for tables and logs that give a failure one line."""
-    text = f"{type(exc).__name__}: {exc}".strip()
+    """One line for a table or log that gives a failure one line (a batch's rows): the message of the library's
+    errors (:class:`PlenodecodeError`, which say what to do) and of an ``OSError`` (as the command line says it:
+    :func:`plenodecode.io.atomic.os_error_text`), as ``plenodecode RAW`` prints them after ``error:``; and
+    ``'TypeName: message'`` of any other exception (a bug, a worker lost), where the type is the clue."""
+    if isinstance(exc, OSError):
+        from .io.atomic import os_error_text
+
+        text = os_error_text(exc).strip()
+    else:
+        text = str(exc).strip() if isinstance(exc, PlenodecodeError) else f"{type(exc).__name__}: {exc}".strip()
     return text.splitlines()[0] if text else type(exc).__name__
 
 

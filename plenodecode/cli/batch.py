@@ -14,7 +14,7 @@ from ..io.depthio import DEFAULT_MIN_CONFIDENCE
 from .common import (FINITE, NON_NEGATIVE, POSITIVE, UNIT_INTERVAL, RegistryChoice, aperture_option, bit_depth_option,
                      calibration_option, check_writable, current_geometry, current_microscope_inputs,
                      current_mosaic_options, database_option, decoding_options, exposure_option, geometry_option,
-                     jobs_option, microscope_options, mosaic_options, note_if_dark, progress_bar,
+                     jobs_option, microscope_options, mosaic_options, progress_bar,
                      refuse_database_with_grid, self_calibrate_option, views_anyway_option)
 from .depth import parse_range
 from .refocus import parse_stack
@@ -82,25 +82,28 @@ def _echo_table(summary) -> None:
         click.echo(f"{name:{width}s}  {r.status:8s} {r.seconds:8.1f}  {detail}")
 
 
-#: What a batch's dark note names per product measured (:attr:`~plenodecode.batch.TaskResult.level_of`), as the
-#: single commands name it; others: 'the <product>'.
-MEASURED = {"views": "the centre view", "centre": "the centre view", "focal-stack": "the focal stack's middle slice",
-            "parallax": "the parallax's middle frame"}
-
-
-def _dark_notes(ctx: click.Context, summary: Any, exposure: float | str) -> None:
-    """The single commands' note on a dark picture (:func:`~plenodecode.cli.common.note_if_dark`), once per raw
-    decoded now, naming it and its first picture."""
+def _dark_notes(ctx: click.Context, summary: Any) -> None:
+    """The single commands' note on a dark picture (:meth:`~plenodecode.batch.TaskResult.dark_note`), once per
+    raw, naming it and its first picture (the index page's card says it too)."""
     from ..report.batch import display_names
 
+    if (ctx.obj or {}).get("quiet"):
+        return
     for name, r in zip(display_names([r.source for r in summary.results]), summary.results):
-        if r.level is not None:
-            note_if_dark(ctx, r.level, exposure, f"{MEASURED.get(r.level_of, f'the {r.level_of}')} of {name}")
+        note = r.dark_note(name)
+        if note is not None:
+            click.echo(f"note: {note}", err=True)
 
 
 def _in_option_names(text: str) -> str:
     """The library's advice (replacing outputs: ``--overwrite (overwrite=True)``, 'output folder'; a focus distance
-    for metric depth) in the command's option names."""
+    for metric depth; what serves instead of camera constants a raw lacks, 'refocus by slope instead') in the
+    command's option names, as the single commands say it (:func:`~plenodecode.cli.main.use_instead`)."""
+    from ..pipeline.needs import INSTEAD
+    from .main import use_instead
+
+    for keyword, said in INSTEAD.items():
+        text = text.replace(said, use_instead(keyword))
     return text.replace(" (overwrite=True)", "").replace("choose another output folder", "choose another -o folder"
                                                           ).replace(" (depth_focus_distance=)", "")
 
@@ -361,7 +364,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
         ctx.exit(1)
     summary = _errors_in_option_names(summary)
     js, index = write_summary(summary, out_dir, overwrite=overwrite)
-    _dark_notes(ctx, summary, exposure)
+    _dark_notes(ctx, summary)
     quiet = bool((ctx.obj or {}).get("quiet"))
     if not quiet:
         _echo_table(summary)

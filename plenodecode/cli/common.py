@@ -699,16 +699,15 @@ exposure_option = click.option(
 def note_if_dark(ctx: click.Context, rendered: Any, exposure: float | str, what: str = "the picture") -> None:
     """After writing a photograph (views, parallax frames: ``what`` names the one measured) at the default exposure:
     say on stderr when it is dark (its brightest 0.5 % below :data:`~plenodecode.pipeline.DARK_LEVEL` of full
-    scale, e.g. a dim microscope sample over a bright white frame) and name ``--exposure``.  ``rendered``: the
-    product, or its :func:`~plenodecode.pipeline.image_level` measured already (a batch's workers)."""
-    from ..pipeline import DARK_LEVEL, image_level
+    scale, e.g. a dim microscope sample over a bright white frame) and name ``--exposure``
+    (:func:`~plenodecode.pipeline.dark_note`; a batch: :meth:`~plenodecode.batch.TaskResult.dark_note`)."""
+    from ..pipeline import dark_note, image_level
 
     if quiet(ctx) or exposure != 0.0:
         return
-    level = float(rendered) if isinstance(rendered, (int, float)) else image_level(rendered)
-    if level < DARK_LEVEL:
-        click.echo(f"note: {what} is dark (its brightest 0.5 % reach {100 * level:.0f} % of full scale, in linear "
-                   f"light); --exposure auto brightens it to full scale, --exposure 2 by two stops", err=True)
+    note = dark_note(image_level(rendered), what)
+    if note is not None:
+        click.echo(f"note: {note}", err=True)
 
 
 class BoardSpec(click.ParamType):

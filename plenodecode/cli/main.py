@@ -19,6 +19,7 @@ from pathlib import Path
 import click
 
 from .. import __version__, _numba
+from ..io.atomic import os_error_text
 from ..errors import (LOG_FORMAT, DarkFrameMismatchError, GeometryMismatchError, LevelOptionError,
                       MissingConstantsError, PlenodecodeError)
 
@@ -54,23 +55,30 @@ CONSTANTS_OPTIONS = {"alpha": ("alpha", "--slope S (px per view step)"),
                      "points": ("ply", _PLAIN_DISPARITY)}
 
 
+def use_instead(keyword: str) -> str:
+    """What a command says to type instead of the option behind a MissingConstantsError's ``keyword``
+    (:data:`CONSTANTS_OPTIONS`): 'use --slope S (px per view step) instead'."""
+    return f"use {CONSTANTS_OPTIONS[keyword][1]} instead"
+
+
 def constants_usage_error(command: click.Command | None, exc: MissingConstantsError) -> click.BadParameter:
     """The usage error (exit 2, one line) of a product asked of an input without the camera constants it needs
     (alpha, a focus distance, metric depth): it names the command's option (``--refocus`` / ``--alpha``,
     ``--stack-units``, ``--focus-distance``, ``--metric``, ``--ply``), the missing constants and what to type
     instead (``--focus-distance``, batch's ``--depth-focus-distance``, where only the camera's focus distance is
     missing for metric depth)."""
-    param_name, instead = CONSTANTS_OPTIONS[exc.keyword]
+    param_name = CONSTANTS_OPTIONS[exc.keyword][0]
+    instead = use_instead(exc.keyword)
     param = next((p for p in getattr(command, "params", ()) if p.name == param_name), None)
     hint = " / ".join(param.opts) if param is not None else f"--{param_name.replace('_', '-')}"
     if not exc.missing:         # the message says why; the request that serves instead (a microscope's slope) by option
-        text = str(exc) if exc.instead is None else f"{exc.source}: {exc.reason}; use {instead} instead"
+        text = str(exc) if exc.instead is None else f"{exc.source}: {exc.reason}; {instead}"
         return click.BadParameter(text, param_hint=hint)
     if exc.keyword in ("metric", "points") and exc.missing == ("focus_distance_m",):
         own = next((p for p in getattr(command, "params", ()) if p.name == "depth_focus_distance"), None)
-        instead = f"{own.opts[0] if own is not None else '--focus-distance'} METRES (the distance in focus)"
+        instead = f"use {own.opts[0] if own is not None else '--focus-distance'} METRES (the distance in focus) instead"
     return click.BadParameter(f"{exc.source} has no {', '.join(exc.missing)} in its metadata, which {exc.need} "
-                              f"needs; use {instead} instead", param_hint=hint)
+                              f"needs; {instead}", param_hint=hint)
 
 
 #: The group's own flags, also taken where they follow the command (:meth:`LazyGroup.parse_args`): 'plenodecode
@@ -138,18 +146,6 @@ class LazyGroup(click.Group):
                 raise
             click.echo(f"error: {os_error_text(exc)}", err=True)
             ctx.exit(1)
-
-
-def os_error_text(exc: OSError) -> str:
-    """One line for an OSError, naming the output a temporary file stood for (not its temporary name)."""
-    from ..io.atomic import destination_of
-
-    if exc.filename is None or not exc.strerror:
-        return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-    dest = destination_of(exc.filename)
-    if str(dest) != str(exc.filename):
-        return f"cannot write {dest}: {exc.strerror}"
-    return f"{exc.strerror}: {exc.filename}"
 
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})

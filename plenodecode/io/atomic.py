@@ -144,6 +144,19 @@ def destination_of(path: str | os.PathLike) -> Path:
     return p.with_name(m.group("name")) if m else p
 
 
+def os_error_text(exc: OSError) -> str:
+    """One line for an OSError, naming the output a temporary file stood for (not its temporary name):
+    ``'No such file or directory: /x/y.png'``, ``'cannot write /x/y.png: No space left on device'``, or the
+    message a raise gave it (``FileExistsError('... pass --overwrite')``), without ``[Errno n]`` or the class."""
+    if exc.filename is None or not exc.strerror:     # OSError(28, 'No space left on device'): no '[Errno 28]'
+        text = exc.strerror or str(exc)
+        return text.splitlines()[0] if text else type(exc).__name__
+    dest = destination_of(exc.filename)
+    if str(dest) != str(exc.filename):
+        return f"cannot write {dest}: {exc.strerror}"
+    return f"{exc.strerror}: {exc.filename}"
+
+
 def temporary_sibling(path: str | os.PathLike, *, folder: bool = False, suffix: str | None = None) -> Path:
     """Create (and return) a new, empty, uniquely named file or folder beside ``path``.
 
@@ -457,5 +470,6 @@ def write_text_atomic(path: str | os.PathLike, text: str, *, overwrite: bool = F
 
 __all__ = ["check_destination", "refuse_existing", "refuse_folder", "atomic_output", "atomic_outputs",
            "write_bytes_atomic", "write_text_atomic",
-           "temporary_sibling", "commit", "discard", "is_temporary", "remove_stale_temporaries", "TEMP_MARK",
+           "temporary_sibling", "commit", "discard", "is_temporary", "destination_of", "os_error_text",
+           "remove_stale_temporaries", "TEMP_MARK",
            "OLD_MARK", "STALE_AFTER_S"]

@@ -38,7 +38,7 @@ from .calibration import Calibration, choose_calibration
 from .source import Source, check_geometry, decode_raw, load_lightfield_input, open_source
 from .products import (MAX_STACK_SLICES, PRODUCTS, STACK_UNITS, Rendered, virtual_depth_stem, render_product,
                        check_total_focus_patch, view_names, refocus_stem, focal_stack_names, parallax_frame_names)
-from .output import (AUTO_EXPOSURE, DARK_LEVEL, check_exposure, display_encoding, default_extension, expose,
+from .output import (AUTO_EXPOSURE, DARK_LEVEL, check_exposure, dark_note, display_encoding, default_extension, expose,
                      exposure_gain, image_level, stores_display_encoded,
                      write_image_file, refuse_folder_clash, staged_folder,
                      write_product, write_parallax, write_depth, write_lightfield)
@@ -50,7 +50,7 @@ __all__ = [
     "read_dark_frame", "virtual_depth_stem", "load_lightfield_input", "render_product",
     "check_total_focus_patch", "display_encoding", "stores_display_encoded", "default_extension", "write_image_file",
     "AUTO_EXPOSURE",
-    "DARK_LEVEL", "check_exposure", "expose", "exposure_gain", "image_level",
+    "DARK_LEVEL", "dark_note", "check_exposure", "expose", "exposure_gain", "image_level",
     "refuse_folder_clash", "staged_folder", "write_product", "write_parallax", "write_depth",
     "write_lightfield", "view_names", "refocus_stem", "focal_stack_names", "parallax_frame_names",
 ]

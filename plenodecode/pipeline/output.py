@@ -68,6 +68,16 @@ def image_level(rendered: Rendered) -> float:
     return float(np.percentile(brightest, 99.5))
 
 
+def dark_note(level: float, what: str = "the picture") -> str | None:
+    """What the command line and a batch's index page say of a picture whose :func:`image_level` is ``level``
+    at the default exposure, when below :data:`DARK_LEVEL`: that ``what`` is dark and how ``--exposure`` brightens
+    it; None when it is not dark."""
+    if level >= DARK_LEVEL:
+        return None
+    return (f"{what} is dark (its brightest 0.5 % reach {100 * level:.0f} % of full scale, in linear light); "
+            "--exposure auto brightens it to full scale, --exposure 2 by two stops")
+
+
 def check_exposure(exposure: float | str) -> float | str:
     """``exposure`` as :func:`exposure_gain` takes it: 'auto', or a float of stops within +-MAX_EXPOSURE_EV.
 

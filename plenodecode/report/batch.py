@@ -29,7 +29,7 @@ figure img{display:block;width:160px;height:auto;background:#eee;border:1px soli
 figure img.legend{width:240px}
 figcaption{margin-top:2px;word-break:break-all}
 .files{font-size:.85em;margin-top:6px;word-break:break-all}
-.left{color:#850;font-size:.85em;margin-top:6px;max-width:520px}
+.left,.note{color:#850;font-size:.85em;margin-top:6px;max-width:520px}
 .err{color:#a00;font-family:ui-monospace,monospace;font-size:.85em;white-space:pre-wrap;max-width:520px}
 table{border-collapse:collapse;margin-top:1.2em;font-size:.85em}
 td,th{border:1px solid #ddd;padding:3px 8px;text-align:left}
@@ -63,6 +63,8 @@ def _card(r: Any, base: Path, shown: str) -> str:
     more = f'<div class="files">also: {" &middot; ".join(files)}</div>' if files else ""
     err = f'<div class="err">{html.escape(r.error)}</div>' if r.error else ""
     err += "".join(f'<div class="left">left out: {html.escape(note)}</div>' for note in getattr(r, "left_out", ()))
+    dark = r.dark_note() if hasattr(r, "dark_note") else None     # as the terminal says it, without the raw's name
+    err += f'<div class="note">note: {html.escape(dark)}</div>' if dark else ""
     return (f'<div class="card {html.escape(r.status)}"><div class="name" title="{html.escape(r.source)}">{name}</div>'
             f'<div class="meta">{meta}</div><div class="thumbs">{"".join(figs)}</div>{more}{err}</div>')
 

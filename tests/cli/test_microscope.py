@@ -7,6 +7,7 @@ and plane depths, and the real LFAnalyze ant-leg capture (radiometry + dark fram
 
 from __future__ import annotations
 
+import html
 import math
 from pathlib import Path
 import re
@@ -366,8 +367,17 @@ def test_antleg_batch_names_its_dark_picture_once(tmp_path):
     level = brightest(folder_out / "refocus_s+0.00.png")
     assert 0.05 < level < 0.25 and int(found.group(1)) == pytest.approx(100 * level, abs=1.0)    # measured 14 %
     assert brightest(folder_out / "thumbs" / "refocus_s+0.00.png") == pytest.approx(level, abs=0.03)
+    # the index page's card said nothing of it (its dim thumbnails alone); it says the same note, of its raw's photo
+    card = f"note: {notes[0].removeprefix('note: ').replace(' of light_field.png', '')}"
+    assert card.startswith("note: the photo is dark (its brightest 0.5 % reach ")
+    assert (tmp_path / "out" / "index.html").read_text().count(f'<div class="note">{html.escape(card)}</div>') == 1
+    # run again, the raw skipped as done: its pictures are as dark, and the terminal and the rewritten page say so
+    r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "out")], obj={})
+    assert r.exit_code == 0 and "0 done, 1 skipped" in r.output and notes[0] in r.output.splitlines(), r.output
+    assert html.escape(card) in (tmp_path / "out" / "index.html").read_text()
     r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "auto"), "--exposure", "auto"], obj={})
     assert r.exit_code == 0 and "is dark" not in r.output, r.output
+    assert 'class="note"' not in (tmp_path / "auto" / "index.html").read_text()
     for name in ("refocus_s+0.00.png", "thumbs/refocus_s+0.00.png"):
         assert brightest(tmp_path / "auto" / "light_field" / name) > 0.95, name
 

@@ -379,5 +379,5 @@ def test_batch_refuses_more_views_than_the_lenses_give_naming_the_option(tmp_pat
                                    "31", "-j", "1", *_database()])
     assert res.exit_code == 1
     error, = [r["error"] for r in json.loads((tmp_path / "b" / "summary.json").read_text())["results"]]
-    assert error.startswith("DecodeError: --views 31 does not suit scene.lfr: more than the 17 views per axis"), error
+    assert error.startswith("--views 31 does not suit scene.lfr: more than the 17 views per axis"), error
     assert not (tmp_path / "b" / "scene").exists()

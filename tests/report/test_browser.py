@@ -75,7 +75,7 @@ def test_batch_index_renders_in_chromium(tmp_path):
         results.append(TaskResult(source=str(tmp_path / f"{name}.lfr"), status="done", outputs=tuple(outputs),
                                   thumbnails=tuple(thumbs), seconds=1.5, worker="host:1"))
     results.append(TaskResult(source=str(tmp_path / "broken.lfr"), status="failed",
-                              error="FormatError: broken.lfr is not an LFP container", seconds=0.1))
+                              error="broken.lfr is not an LFP container", seconds=0.1))
     html = write_batch_index(BatchSummary(results=tuple(results), seconds=3.2), out / "index.html")
     png = tmp_path / "index.png"
     console = browser_screenshot(html, png, size=SIZE)
