@@ -446,5 +446,6 @@ class LightFieldMetadata(Mapping[str, Any]):
 
 
 __all__ = ["COLOUR_STATES", "COLOUR_WORDS", "CameraMetadata", "HCIParameters", "LightFieldGeometry",
-           "LightFieldMetadata", "GEOMETRY_SCHEMA_VERSION", "LINEAR_COLOUR_STATES", "ENCODED_COLOUR_STATES", "LEGACY_GEOMETRY_KEYS",
+           "LightFieldMetadata", "GEOMETRY_SCHEMA_VERSION", "LINEAR_COLOUR_STATES", "ENCODED_COLOUR_STATES",
+           "LEGACY_GEOMETRY_KEYS",
            "encoded_colour_state", "linear_colour_state"]

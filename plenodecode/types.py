@@ -52,9 +52,9 @@ from typing import Any, Literal, Mapping
 import numpy as np
 
 from .errors import CalibrationError
-from .metadata import (COLOUR_STATES, COLOUR_WORDS, ENCODED_COLOUR_STATES, GEOMETRY_SCHEMA_VERSION, LEGACY_GEOMETRY_KEYS,
-                       LINEAR_COLOUR_STATES, CameraMetadata, HCIParameters, LightFieldGeometry, LightFieldMetadata,
-                       encoded_colour_state, linear_colour_state)
+from .metadata import (COLOUR_STATES, COLOUR_WORDS, ENCODED_COLOUR_STATES, GEOMETRY_SCHEMA_VERSION,
+                       LEGACY_GEOMETRY_KEYS, LINEAR_COLOUR_STATES, CameraMetadata, HCIParameters, LightFieldGeometry,
+                       LightFieldMetadata, encoded_colour_state, linear_colour_state)
 from .optics import MicroscopeOptics
 
 #: Bayer pattern names, upper-left 2x2 tile read row-major.
