@@ -55,8 +55,8 @@ from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 from .deprecation import renamed_fields
 from .errors import DecodeError, MissingConstantsError, PlenodecodeError, one_line
-from .io.atomic import (OLD_MARK, TEMP_MARK, atomic_output, discard, is_temporary, remove_stale_temporaries,
-                        refuse_unwritable, write_text_atomic)
+from .io.atomic import (OLD_MARK, TEMP_MARK, atomic_output, discard, is_temporary, os_error_text,
+                        remove_stale_temporaries, refuse_unwritable, write_text_atomic)
 from .registry import lookup
 from .threads import limit_threads
 
@@ -425,8 +425,8 @@ class TaskResult:
     thumbnails : tuple of str or None
         8-bit PNG thumbnail of each output (same order), None where there is none.
     error : str or None
-        One line (:func:`plenodecode.errors.one_line`): the message of a data or file error, as the single commands
-        print it; 'internal error: TypeName: message' for a bug.
+        One line (:func:`plenodecode.errors.one_line`, :func:`plenodecode.io.atomic.os_error_text`): the message
+        of a data or file error, as the single commands print it; 'internal error: TypeName: message' for a bug.
     left_out : tuple of str
         Outputs asked for that this raw cannot serve and were not written, one line per reason
         ('centre: not for a focused-plenoptic (Raytrix) raw (...)'); the others were.
@@ -806,7 +806,8 @@ def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | Non
                           started=started, level=level, level_of=level_of)
     except (PlenodecodeError, OSError) as exc:
         log.info("%s failed: %s", src, exc)
-        return TaskResult(str(src), "failed", error=one_line(exc), seconds=time.perf_counter() - t0,
+        error = os_error_text(exc) if isinstance(exc, OSError) else one_line(exc)
+        return TaskResult(str(src), "failed", error=error, seconds=time.perf_counter() - t0,
                           worker=_worker_id(), worker_peak_mb=_peak_mb(), started=started)
     except Exception as exc:  # a bug, not bad data: keep the batch going, keep the traceback in the log
         log.error("unexpected error on %s:\n%s", src, traceback.format_exc())

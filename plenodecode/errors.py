@@ -82,15 +82,11 @@ class LevelOptionError(MetadataError):
 
 def one_line(exc: BaseException) -> str:
     """One line for a table or log that gives a failure one line (a batch's rows): the message of the library's
-    errors (:class:`PlenodecodeError`, which say what to do) and of an ``OSError`` (as the command line says it:
-    :func:`plenodecode.io.atomic.os_error_text`), as ``plenodecode RAW`` prints them after ``error:``; and
-    ``'TypeName: message'`` of any other exception (a bug, a worker lost), where the type is the clue."""
-    if isinstance(exc, OSError):
-        from .io.atomic import os_error_text
-
-        text = os_error_text(exc).strip()
-    else:
-        text = str(exc).strip() if isinstance(exc, PlenodecodeError) else f"{type(exc).__name__}: {exc}".strip()
+    errors (:class:`PlenodecodeError`, which say what to do), as ``plenodecode RAW`` prints them after ``error:``;
+    ``'TypeName: message'`` of any other exception (a bug, a worker lost), where the type is the clue.  (An
+    ``OSError`` reads as the command line says it, :func:`plenodecode.io.atomic.os_error_text`, which knows the
+    temporary names.)"""
+    text = str(exc).strip() if isinstance(exc, PlenodecodeError) else f"{type(exc).__name__}: {exc}".strip()
     return text.splitlines()[0] if text else type(exc).__name__
 
 
