@@ -7,8 +7,33 @@ raise :class:`ValueError` naming the parameter.
 
 from __future__ import annotations
 
-#: How the command line shows a log line (warnings and notes on stderr), in the command and in its batch workers.
+import logging
+from typing import Any
+
+#: How the command line shows a log line on stderr, in the command and in its batch workers: ``warning: ...`` as
+#: its ``note: ...`` and ``error: ...`` lines (:func:`log_format`); with ``-v`` / ``-vv`` also the module that logs.
 LOG_FORMAT = "%(levelname)s %(name)s: %(message)s"
+
+
+class _LowerLevelName(logging.Formatter):
+    """:data:`LOG_FORMAT`'s record with its level name in lower case ('warning'), as the command's own lines."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        level = record.levelname            # other handlers of the record keep their own form
+        record.levelname = level.lower()
+        try:
+            return super().format(record)
+        finally:
+            record.levelname = level
+
+
+def configure_logging(level: int, *, stream: Any = None, force: bool = False) -> None:
+    """Log at ``level`` to ``stream`` (stderr) in the command line's form: ``'warning: IMG_1.jpg: ...'``, and
+    below WARNING (``-v``, ``-vv``) ``'info plenodecode.depth.pipeline: ...'`` (the module is what a developer
+    reading a verbose log wants; a user meeting a warning does not)."""
+    handler = logging.StreamHandler(stream)
+    handler.setFormatter(_LowerLevelName("%(levelname)s: %(message)s" if level >= logging.WARNING else LOG_FORMAT))
+    logging.basicConfig(level=level, handlers=[handler], force=force)
 
 
 class PlenodecodeError(Exception):
@@ -90,6 +115,6 @@ def one_line(exc: BaseException) -> str:
     return text.splitlines()[0] if text else type(exc).__name__
 
 
-__all__ = ["LOG_FORMAT", "PlenodecodeError", "FormatError", "MetadataError", "CalibrationError",
+__all__ = ["LOG_FORMAT", "configure_logging", "PlenodecodeError", "FormatError", "MetadataError", "CalibrationError",
            "GeometryMismatchError", "MissingConstantsError", "DecodeError", "DarkFrameMismatchError",
            "LevelOptionError", "one_line"]

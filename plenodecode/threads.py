@@ -264,11 +264,9 @@ def _start_worker(threads: int, notices: Any, log_level: int | None = None) -> N
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     limit_threads(threads)
     if log_level is not None:
-        import logging
+        from .errors import configure_logging
 
-        from .errors import LOG_FORMAT
-
-        logging.basicConfig(level=log_level, format=LOG_FORMAT, force=True)
+        configure_logging(log_level, force=True)
     if notices is not None:
         from . import _numba
 

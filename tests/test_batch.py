@@ -1360,7 +1360,8 @@ def test_cli_quiet_batch_workers_keep_their_warnings(tmp_path):
     """'plenodecode batch F01_JPEGS -o out --jobs 2 -q' printed every worker's warnings ('IMG_1.jpg: no JSON
     sidecar ...'): the workers start with no logging set up, and Python's last-resort handler prints warnings whatever
     the command's level.  They now log at the command's level and in its format: nothing with -q; without it the
-    command's 'WARNING plenodecode.<module>: <raw>: ...' lines."""
+    command's 'warning: <raw>: ...' lines (the form of its 'note:' and 'error:' lines; 'WARNING plenodecode.<module>:'
+    before, which the module's name only is now shown with -v)."""
     from tests.conftest import shared_path
 
     folder = shared_path("lytro-f01-lenslet-jpg")
@@ -1374,7 +1375,12 @@ def test_cli_quiet_batch_workers_keep_their_warnings(tmp_path):
     loud = subprocess.run([*base, "-o", str(tmp_path / "l")], capture_output=True, text=True, env=env, timeout=600)
     warnings = [line for line in loud.stderr.splitlines() if "no JSON sidecar" in line]
     assert loud.returncode == 0 and len(warnings) == 2, loud.stderr
-    assert all(line.startswith("WARNING plenodecode.io.generic: IMG_") for line in warnings), warnings
+    assert all(line.startswith("warning: IMG_") for line in warnings), warnings
+    verbose = subprocess.run([*base, "-o", str(tmp_path / "v"), "-v"], capture_output=True, text=True, env=env,
+                             timeout=600)
+    named = [line for line in verbose.stderr.splitlines() if "no JSON sidecar" in line]
+    assert verbose.returncode == 0 and len(named) == 2, verbose.stderr
+    assert all(line.startswith("warning plenodecode.io.generic: IMG_") for line in named), named
 
 
 def test_a_failed_row_says_the_message_and_keeps_the_class_only_for_a_bug(tmp_path, monkeypatch):

@@ -20,8 +20,8 @@ import click
 
 from .. import __version__, _numba
 from ..io.atomic import os_error_text
-from ..errors import (LOG_FORMAT, DarkFrameMismatchError, GeometryMismatchError, LevelOptionError,
-                      MissingConstantsError, PlenodecodeError)
+from ..errors import (DarkFrameMismatchError, GeometryMismatchError, LevelOptionError,
+                      MissingConstantsError, PlenodecodeError, configure_logging)
 
 #: command name -> (module, one-line description shown by --help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -164,7 +164,7 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
     ctx.obj["verbose"] = verbose
     ctx.obj["quiet"] = quiet
     level = logging.ERROR if quiet else (logging.DEBUG if verbose > 1 else logging.INFO if verbose else logging.WARNING)
-    logging.basicConfig(level=level, format=LOG_FORMAT, stream=sys.stderr)
+    configure_logging(level, stream=sys.stderr)
     # a command that meets kernels missing from the cache says so on stderr, one line per group
     _numba.set_compile_notice(None if quiet else lambda message: click.echo(message, err=True))
 

@@ -1,5 +1,6 @@
 """The command line as a whole: every command listed, documented with an example, consistent exit codes."""
 
+import os
 import re
 import subprocess
 import sys
@@ -211,3 +212,18 @@ def test_several_files_to_a_one_input_command_give_the_batch_that_takes_them(tmp
                          "Got unexpected extra argument (bogus)")):
         res = CliRunner().invoke(cli, argv)
         assert res.exit_code == 2 and words in res.output, (argv, res.output)
+
+
+def test_warnings_read_as_the_commands_own_lines(tmp_path):
+    """A warning read 'WARNING plenodecode.io.generic: IMG_1.jpg: ...' beside the command's 'note: ...' and
+    'error: ...' lines; it is now 'warning: IMG_1.jpg: ...', the module named only with -v (for whoever debugs)."""
+    from tests.conftest import shared_path
+
+    jpg = shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg")
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    for flags, start in (([], "warning: IMG_1.jpg: no JSON sidecar"),
+                         (["-v"], "warning plenodecode.io.generic: IMG_1.jpg: no JSON sidecar")):
+        res = subprocess.run([sys.executable, "-m", "plenodecode", *flags, "info", str(jpg)], capture_output=True,
+                             text=True, env=env, cwd=tmp_path, timeout=120)
+        assert res.returncode == 0 and res.stderr.splitlines()[0].startswith(start), res.stderr
