@@ -1234,7 +1234,7 @@ def test_cli_warnings_of_each_raw_name_it(tmp_path, jobs):
     assert res.returncode == 0, res.stderr
     lines = [line for line in res.stderr.splitlines() if "outside the refocusable range" in line]
     assert len(lines) == 2, res.stderr
-    assert sorted(line.split("plenodecode.pipeline.products: ")[-1].split(":")[0] for line in lines) == \
+    assert sorted(line.split("warning: ")[-1].split(":")[0] for line in lines) == \
         ["scene.lfr", "scene.png"]
     assert any("scene.png: slope 1.5 px/view is outside the refocusable range (slope -1.00..+1.00" in line
                for line in lines), lines

@@ -592,7 +592,7 @@ def test_antleg_reader_lines_name_the_dark_frame_not_an_unused_black(tmp_path):
         proc = subprocess.run([sys.executable, "-m", "plenodecode", *args], capture_output=True, text=True, env=env,
                               cwd=tmp_path, timeout=600)
         assert proc.returncode == 0, proc.stderr
-        return [line for line in proc.stderr.splitlines() if "plenodecode.io.generic" in line]
+        return [line for line in proc.stderr.splitlines() if "no JSON sidecar" in line]     # the reader's lines
 
     white = ["-w", str(folder / "radiometry_frame.png")]
     dark = ["--dark", str(folder / "dark_frame.tif")]

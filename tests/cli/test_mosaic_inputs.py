@@ -293,7 +293,7 @@ def test_real_f01_jpeg_says_what_a_bare_mosaic_means_in_two_lines(tmp_path):
                            "-o", str(tmp_path / "photo.png")], capture_output=True, text=True, env=env, cwd=tmp_path,
                           timeout=600)
     assert proc.returncode == 0, proc.stderr
-    warnings = [line for line in proc.stderr.splitlines() if line.startswith("WARNING")]
+    warnings = [line for line in proc.stderr.splitlines() if line.startswith("warning: ")]
     assert len(warnings) == 2, warnings
     assert "IMG_1.jpg: no JSON sidecar; CFA BGGR" in warnings[0]
     assert all(s in warnings[1] for s in ("self-calibration", "not devignetted", "camera RGB")), warnings[1]
