@@ -794,8 +794,6 @@ def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | Non
             products, left_out, (level_of, level) = _write_products(raw, staging, options, threads=threads)
             rel_out = [str(p.relative_to(staging)) for p, _ in products]
             rel_thumb = [None if t is None else str(t.relative_to(staging)) for _, t in products]
-            if options.exposure != 0.0:        # the pictures are as asked: no note on their level
-                level_of, level = None, None
             marker = {"key": key, "source": str(src.resolve()), "outputs": rel_out, "thumbnails": rel_thumb,
                       "left_out": list(left_out), "options": options.as_key_dict(), "level": level,
                       "level_of": level_of}
@@ -977,28 +975,24 @@ def _first_suiting(files: Sequence[str | os.PathLike], options: BatchOptions,
     costs a scene's fit; its task checks it.  The library's log is held back to errors meanwhile, so the tasks'
     warnings are not said twice.  Returns the refusals ([] when a raw suits)."""
     from . import pipeline
-    from .pipeline.inputs import quieted
     from .io.generic import is_bare_mosaic
-    from .optics import MicroscopeOptics
 
     mosaic = options.mosaic_options()
     refused: list[tuple[float, str, ValueError]] = []
-    with quieted(__name__.split(".")[0]):     # the tasks read these raws again and say their warnings
-        for f in files:
-            try:
-                raw = pipeline.open_raw(f, mosaic=mosaic, optics=MicroscopeOptics.from_dict(options.optics))
-                if options.white is None and is_bare_mosaic(raw):
-                    return []
-                cal = pipeline.choose_calibration(raw, grid=options.grid, database=options.database,
-                                                  white=options.white, mosaic=mosaic)
-                found = refusal(pipeline.Source(raw=raw, calibration=cal, geometry=options.geometric_calibration(),
-                                                decode_options=options.decode_options()))
-            except (PlenodecodeError, OSError, ValueError):
-                continue
-            if found is None:
-                return []
-            if found is not False:
-                refused.append((found[0], Path(f).name, found[1]))
+    for f, raw in _readable_raws(files, options):      # (still quiet while each is calibrated)
+        if options.white is None and is_bare_mosaic(raw):
+            return []
+        try:
+            cal = pipeline.choose_calibration(raw, grid=options.grid, database=options.database,
+                                              white=options.white, mosaic=mosaic)
+            found = refusal(pipeline.Source(raw=raw, calibration=cal, geometry=options.geometric_calibration(),
+                                            decode_options=options.decode_options()))
+        except (PlenodecodeError, OSError, ValueError):
+            continue
+        if found is None:
+            return []
+        if found is not False:
+            refused.append((found[0], Path(f).name, found[1]))
     return refused
 
 
@@ -1169,7 +1163,8 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: i
         One line per reason an output asked for was not written ('centre,parallax: not for a focused-plenoptic
         (Raytrix) raw (...)'; :func:`_focused_views_left_out`), or empty.
     level : (str, float) or (None, None)
-        The first picture product and its :func:`plenodecode.pipeline.image_level` (:attr:`TaskResult.level`).
+        The first picture product and its :func:`plenodecode.pipeline.image_level` (:attr:`TaskResult.level`), at
+        the default exposure only.
     """
     import numpy as np
 
@@ -1197,7 +1192,8 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: i
 
     def measured(product: str, rendered: Any) -> None:
         nonlocal level
-        if level[0] is None:       # the first picture: how bright it is, before the exposure
+        # the first picture: how bright it is, at the default exposure only (a chosen one is as asked: no note)
+        if level[0] is None and options.exposure == 0.0:
             level = (product, pipeline.image_level(rendered))
 
     def centre_thumbnail(name: str, lf: Any = None) -> Path:

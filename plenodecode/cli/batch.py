@@ -86,8 +86,9 @@ def _dark_notes(ctx: click.Context, summary: Any) -> None:
     """The single commands' note on a dark picture (:meth:`~plenodecode.batch.TaskResult.dark_note`), once per
     raw, naming it and its first picture (the index page's card says it too)."""
     from ..report.batch import display_names
+    from .common import quiet
 
-    if (ctx.obj or {}).get("quiet"):
+    if quiet(ctx):
         return
     for name, r in zip(display_names([r.source for r in summary.results]), summary.results):
         note = r.dark_note(name)
