@@ -48,6 +48,11 @@ IMAGE_FORMATS: dict[str, tuple[int, ...]] = {
 ANIMATION_FORMATS = (".gif", ".webp")
 
 _MAX_CHANNELS = {".jpg": 3, ".jpeg": 3, ".pfm": 3}
+#: OpenImageIO ``oiio:ColorSpace`` of the pixels written, per colour state (:data:`plenodecode.metadata.COLOUR_STATES`)
+#: of the values in the file: sRGB (its primaries and curve); linear Rec.709 = sRGB primaries (a PNG gets gAMA 1.0);
+#: camera RGB, whose primaries are the sensor's and were never converted, is 'unknown' (the Color Interop Forum's
+#: ID for colour of an unknown space: no sRGB, cHRM or gAMA chunk in a PNG, ``colorInteropID`` in an EXR).
+COLOUR_SPACE_TAGS = {"srgb": "sRGB", "linear-srgb": "lin_srgb", "camera": "unknown", "camera-srgb-curve": "unknown"}
 _FLOAT_KINDS = "f"
 
 
@@ -146,8 +151,25 @@ def quantise(image: np.ndarray, bit_depth: int, *, encode_srgb: bool = False) ->
     return y.astype(target)
 
 
+def colour_space_tag(colour: str | None, *, encode_srgb: bool = False, channels: int = 3) -> str | None:
+    """The ``oiio:ColorSpace`` of an image of colour state ``colour`` written with ``encode_srgb``
+    (:data:`COLOUR_SPACE_TAGS` of the state in the file); one channel has no primaries, so only its curve counts
+    ('sRGB' or 'lin_srgb').  ``colour`` None: 'sRGB' when encoded, else None (untagged)."""
+    from ..metadata import LINEAR_COLOUR_STATES, encoded_colour_state
+
+    if colour is None:
+        return "sRGB" if encode_srgb else None
+    if colour not in COLOUR_SPACE_TAGS:
+        raise ValueError(f"colour must be one of {sorted(COLOUR_SPACE_TAGS)} or None, got {colour!r}")
+    stored = encoded_colour_state(colour) if encode_srgb else colour
+    if channels == 1:
+        return "lin_srgb" if stored in LINEAR_COLOUR_STATES else "sRGB"
+    return COLOUR_SPACE_TAGS[stored]
+
+
 def write_image(path: str | os.PathLike, image: np.ndarray, *, bit_depth: int, overwrite: bool = False,
-                encode_srgb: bool = False, attributes: Mapping[str, Any] | None = None) -> Path:
+                encode_srgb: bool = False, attributes: Mapping[str, Any] | None = None,
+                colour: str | None = None) -> Path:
     """Write one image (PNG, TIFF, EXR, JPEG or PFM, chosen by the extension), atomically.
 
     Parameters
@@ -166,6 +188,10 @@ def write_image(path: str | os.PathLike, image: np.ndarray, *, bit_depth: int, o
         Apply the sRGB transfer function before quantising (display encoding).
     attributes : mapping, optional
         Extra OpenImageIO metadata attributes (e.g. ``{"ImageDescription": "..."}``).
+    colour : str, optional
+        Colour state of ``image`` as given (:data:`plenodecode.metadata.COLOUR_STATES`), which sets the file's
+        ``oiio:ColorSpace`` (:func:`colour_space_tag`): camera RGB is never tagged sRGB.  None: 'sRGB' when
+        ``encode_srgb``, else untagged.
 
     Returns
     -------
@@ -195,6 +221,7 @@ def write_image(path: str | os.PathLike, image: np.ndarray, *, bit_depth: int, o
                          f"got {a.shape}")
     if a.shape[0] == 0 or a.shape[1] == 0:
         raise ValueError(f"image must not be empty, got shape {a.shape}")
+    tag = colour_space_tag(colour, encode_srgb=encode_srgb, channels=channels)
     data = quantise(a, 32 if ext == ".exr" else bit_depth, encode_srgb=encode_srgb)
     if ext == ".pfm":
         return pfm.write_pfm(p, data, overwrite=overwrite)
@@ -204,8 +231,8 @@ def write_image(path: str | os.PathLike, image: np.ndarray, *, bit_depth: int, o
     spec = oiio.ImageSpec(a.shape[1], a.shape[0], channels, fmt)
     if ext in (".jpg", ".jpeg"):
         spec.attribute("Compression", "jpeg:95")
-    if encode_srgb:
-        spec.attribute("oiio:ColorSpace", "sRGB")
+    if tag is not None:
+        spec.attribute("oiio:ColorSpace", tag)
     # samples are stored as given: a 4th (or 2nd) channel is data, never premultiplied into the others
     spec.attribute("oiio:UnassociatedAlpha", 1)
     # no write-time stamp (OpenImageIO stamps EXR and TIFF with the clock otherwise): the same image gives the

@@ -231,7 +231,7 @@ def _save_views(lf: LightField, path: Path, *, bit_depth: int, progress: Progres
     for k in range(V * U):
         v, u = divmod(k, U)
         img = lf.data[v, u] if C == 3 else lf.data[v, u, :, :, 0]
-        write_image(path / _view_name(k, V * U, ext), img, bit_depth=bit_depth)
+        write_image(path / _view_name(k, V * U, ext), img, bit_depth=bit_depth, colour=lf.colour)
         _tick(progress, k + 1, V * U)
     doc = {**_attrs(lf), "shape": list(lf.shape), "bit_depth": bit_depth, "image_ext": ext,
            "weight": "weight.npy" if lf.weight is not None else None}
@@ -448,7 +448,7 @@ def _save_eslf(lf: LightField, path: Path, *, bit_depth: int, tmps: Mapping[Path
     tiles[..., :C] = quantise(lf.data, bit_depth).transpose(2, 0, 3, 1, 4)
     if lf.weight is not None:
         tiles[..., C] = quantise(lf.weight, bit_depth).transpose(2, 0, 3, 1)
-    write_image(tmps[path], tiles.reshape(Y * V, X * U, nch), bit_depth=bit_depth, overwrite=True)
+    write_image(tmps[path], tiles.reshape(Y * V, X * U, nch), bit_depth=bit_depth, overwrite=True, colour=lf.colour)
     tmps[path.with_suffix(".json")].write_text(
         json.dumps({**_attrs(lf), "format": "plenodecode.eslf", "V": V, "U": U, "channels": C,
                     "alpha_is_weight": lf.weight is not None}, indent=1), encoding="utf-8")

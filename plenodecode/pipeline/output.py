@@ -141,7 +141,7 @@ def write_image_file(path: str | os.PathLike, image: Any, *, colour: str, bit_de
     from ..io import images
 
     return images.write_image(path, expose(image, colour, gain), bit_depth=int(bit_depth), overwrite=overwrite,
-                              encode_srgb=display_encoding(colour, bit_depth))
+                              encode_srgb=display_encoding(colour, bit_depth), colour=colour)
 
 
 def refuse_folder_clash(folder: str | os.PathLike, names: Sequence[str], overwrite: bool) -> None:

@@ -95,3 +95,26 @@ def test_decode_to_8_bit_views_labels_camera_rgb_and_srgb_apart(tmp_path):
     assert (cam.colour, linearise(cam).colour) == ("camera-srgb-curve", "camera")
     # the colour matrix is what differs: the two files hold different colours of the same picture
     assert np.abs(srgb.centre_view() - cam.centre_view()).max() > 0.05
+
+
+def test_pictures_carry_the_colour_space_of_their_pixels(f01_lf, tmp_path):
+    """The files' own colour tag (OpenImageIO ``oiio:ColorSpace``): camera RGB no longer claims sRGB primaries.
+    A PNG tagged sRGB gets sRGB + cHRM (sRGB primaries) chunks; camera RGB gets neither, so a colour-managed viewer
+    is not told its sensor colours are sRGB ones; linear sRGB in a float EXR reads back as linear Rec.709."""
+    from tests.io.test_images import png_chunks, stored_colour_space
+
+    srgb_claim = {"sRGB", "cHRM"}
+    jpeg = shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg")
+    run("-q", jpeg, "-o", tmp_path / "f01.png")                                # the photograph, camera RGB
+    run("-q", jpeg, "-o", tmp_path / "f01.exr", "--bit-depth", "32")
+    run("export", f01_lf, "-o", tmp_path / "v8", "--format", "views", "--bit-depth", "8")
+    run("export", f01_lf, "-o", tmp_path / "eslf.png", "--bit-depth", "8")
+    for png in (tmp_path / "f01.png", tmp_path / "v8" / "input_Cam040.png", tmp_path / "eslf.png"):
+        assert not srgb_claim & set(png_chunks(png)), png
+    assert stored_colour_space(tmp_path / "f01.exr") == "unknown"
+    # a Lytro raw decoded with its white image (and colour matrix) is sRGB, and says so
+    run("-q", ILLUM_MINI / "scene.lfr", "-w", ILLUM_MINI / "MOD_0000.RAW", "-o", tmp_path / "illum.png")
+    run("-q", ILLUM_MINI / "scene.lfr", "-w", ILLUM_MINI / "MOD_0000.RAW", "-o", tmp_path / "illum.exr",
+        "--bit-depth", "32")
+    assert srgb_claim <= set(png_chunks(tmp_path / "illum.png"))
+    assert stored_colour_space(tmp_path / "illum.exr") == "lin_rec709_scene"

@@ -183,3 +183,69 @@ def test_srgb_encode_matches_colour_science():
     lin = lin.reshape(-1, 5)
     expect = np.asarray(colour.cctf_encoding(lin, function="sRGB"), np.float32)
     np.testing.assert_array_equal(srgb_encode(lin), expect)
+
+
+# ------------------------------------------------------------------------------------------- colour-space tags
+def png_chunks(path) -> list[str]:
+    """The chunk types of a PNG, in file order."""
+    import struct
+
+    b = open(path, "rb").read()
+    pos, names = 8, []
+    while pos < len(b):
+        (n,) = struct.unpack(">I", b[pos:pos + 4])
+        names.append(b[pos + 4:pos + 8].decode("ascii"))
+        pos += 12 + n
+    return names
+
+
+def stored_colour_space(path) -> str | None:
+    """The ``oiio:ColorSpace`` OpenImageIO reads back from ``path``."""
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(str(path))
+    try:
+        return inp.spec().getattribute("oiio:ColorSpace")
+    finally:
+        inp.close()
+
+
+@pytest.mark.parametrize("colour,encode,chunks", [
+    ("linear-srgb", True, {"sRGB", "cHRM", "gAMA"}),          # encoded here: sRGB primaries and curve
+    ("srgb", False, {"sRGB", "cHRM", "gAMA"}),                # already encoded: still sRGB
+    ("linear-srgb", False, {"gAMA"}),                         # linear: gamma 1.0, no sRGB claim
+    ("camera", True, set()),                                  # camera primaries: no sRGB, cHRM or gAMA
+    ("camera-srgb-curve", False, set()),
+    ("camera", False, set()),
+])
+def test_png_colour_chunks_say_what_the_pixels_are(tmp_path, rgb, colour, encode, chunks):
+    p = write_image(tmp_path / "a.png", rgb, bit_depth=16, encode_srgb=encode, colour=colour)
+    assert {"sRGB", "cHRM", "gAMA"} & set(png_chunks(p)) == chunks
+
+
+def test_untagged_and_encoded_default_keeps_srgb(tmp_path, rgb):
+    """Without a colour state, an encoded image is sRGB as before."""
+    p = write_image(tmp_path / "a.exr", rgb, bit_depth=32, encode_srgb=True)
+    assert stored_colour_space(p) == "srgb_rec709_scene"
+
+
+@pytest.mark.parametrize("colour,tag", [("camera", "unknown"), ("camera-srgb-curve", "unknown"),
+                                        ("linear-srgb", "lin_rec709_scene"), ("srgb", "srgb_rec709_scene")])
+def test_exr_colour_space_reads_back(tmp_path, rgb, colour, tag):
+    p = write_image(tmp_path / "a.exr", rgb, bit_depth=32, colour=colour)
+    assert stored_colour_space(p) == tag
+
+
+@pytest.mark.parametrize("colour,encode,chunks", [("camera", True, {"sRGB", "cHRM", "gAMA"}),
+                                                  ("camera", False, {"gAMA"})])
+def test_grey_image_tag_follows_its_curve(tmp_path, colour, encode, chunks):
+    """One channel has no primaries: a grey camera image is tagged by its tone curve alone."""
+    grey = np.random.default_rng(2).random((6, 9)).astype(np.float32)
+    p = write_image(tmp_path / "g.png", grey, bit_depth=16, encode_srgb=encode, colour=colour)
+    assert {"sRGB", "cHRM", "gAMA"} & set(png_chunks(p)) == chunks
+
+
+def test_unknown_colour_state_refused(tmp_path, rgb):
+    with pytest.raises(ValueError, match="colour must be one of"):
+        write_image(tmp_path / "a.png", rgb, bit_depth=8, colour="xyz")
+    assert not (tmp_path / "a.png").exists()
