@@ -913,7 +913,9 @@ def test_cli_without_a_database_decodes_what_needs_none_and_fails_the_rest_with_
     assert rows["damaged.lfr"]["status"] == "failed" and "not a Lytro container" in rows["damaged.lfr"]["error"]
     # only raws that need the database: refused before any work, nothing written
     res = CliRunner().invoke(cli, ["batch", str(shoot / "take1"), "-o", str(tmp_path / "none")])
-    assert res.exit_code == 2 and "--database" in res.output and "no calibration database at ./calib" in res.output
+    assert res.exit_code == 2 and "--database" in res.output, res.output
+    assert f"no calibration database (looked for its index.json in {tmp_path / 'calib'} (the current folder's), then " \
+           f"calib/ in {shoot / 'take1'} and each folder above it)" in " ".join(res.output.split())
     assert f"'plenodecode calibrate --database calib {shoot / 'take1'}'" in res.output    # its white images
     assert not (tmp_path / "none").exists()
 
@@ -928,14 +930,16 @@ def test_cli_without_the_default_database_says_how_to_build_it_from_the_whites_b
     import shlex
 
     root = Path(__file__).resolve().parents[1]
-    samples = root / "sample_raws"
+    samples = tmp_path / "sample_raws"                          # not beside the project's calib/, which is found
+    shutil.copytree(root / "sample_raws", samples)
     monkeypatch.chdir(tmp_path)                                   # no calib/ here
     runner = CliRunner()
     res = runner.invoke(cli, ["batch", str(samples), "-o", "out"])
     errors = [line for line in res.output.splitlines() if line.startswith("Error:")]
     assert res.exit_code == 2 and len(errors) == 1 and not (tmp_path / "out").exists(), res.output
-    assert errors[0].startswith("Error: Invalid value for --database: no calibration database at ./calib (the "
-                                "default) and every raw here needs one"), errors
+    assert errors[0].startswith("Error: Invalid value for --database: no calibration database (looked for its "
+                                f"index.json in {tmp_path / 'calib'} (the current folder's), then calib/ in "), errors
+    assert "and every raw here needs one" in errors[0]
     assert "--self-calibrate" in errors[0] and "--white WHITE_IMAGE" in errors[0]
     command = shlex.split(errors[0].split(" with '", 1)[1].split("'", 1)[0])
     assert command == ["plenodecode", "calibrate", "--database", "calib", str(samples)]

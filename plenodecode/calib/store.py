@@ -1,6 +1,7 @@
 """The calibration database: white images indexed by camera serial, zoom and focus step.
 
-Layout of a database folder (default ``calib/``, relative to the working directory)::
+Layout of a database folder (default: the first ``calib/`` holding an ``index.json`` in the working directory,
+else beside the raw or in a folder above it, :func:`find_database`)::
 
     calib/index.json                       the index (below)
     calib/.index.json.lock                 lock file that serialises writers of the index
@@ -59,7 +60,8 @@ log = logging.getLogger(__name__)
 
 Progress = Callable[[int, int], None] | None
 
-#: Default database folder (relative to the working directory).
+#: Name of the default database folder, looked for in the working directory, then beside the raw and above it
+#: (:func:`find_database`).
 DEFAULT_DB = "calib"
 INDEX_NAME = "index.json"
 #: Lock file beside the index; writers hold an exclusive ``flock`` on it while they read, merge and write.
@@ -124,6 +126,35 @@ def _rel(path: Path | str, db: Path) -> str:
         return os.path.relpath(path.resolve(), db.resolve())
     except ValueError:  # another drive (Windows)
         return str(path.resolve())
+
+
+def database_candidates(raw_path: str | os.PathLike | None = None) -> list[Path]:
+    """The folders :func:`find_database` tries, in order: ``calib`` in the working directory (relative), then
+    ``calib/`` in the raw's folder and in each folder above it up to the root (absolute), as git finds its
+    ``.git``: a project's database serves its raws from any working directory."""
+    out = [Path(DEFAULT_DB)]
+    if raw_path is not None:
+        folder = Path(str(raw_path).split("::", 1)[0]).resolve().parent     # an archive member: its archive
+        here = Path(DEFAULT_DB).resolve()
+        out += [d / DEFAULT_DB for d in (folder, *folder.parents) if (d / DEFAULT_DB) != here]
+    return out
+
+
+def find_database(raw_path: str | os.PathLike | None = None) -> Path | None:
+    """The calibration database a raw at ``raw_path`` uses when none is given (``--database``): the first of
+    :func:`database_candidates` that holds an ``index.json``; None when none does (:func:`where_looked` says where
+    it looked)."""
+    return next((d for d in database_candidates(raw_path) if (d / INDEX_NAME).is_file()), None)
+
+
+def where_looked(raw_path: str | os.PathLike | None = None) -> str:
+    """Where :func:`find_database` looked, in words, e.g. ``'/home/me/calib (the current folder's), then calib/
+    in /data/shoot and each folder above it'``."""
+    text = f"{Path(DEFAULT_DB).resolve()} (the current folder's)"
+    if raw_path is None:
+        return text
+    folder = Path(str(raw_path).split("::", 1)[0]).resolve().parent
+    return f"{text}, then {DEFAULT_DB}/ in {folder} and each folder above it"
 
 
 def load_index(db_dir: str | os.PathLike = DEFAULT_DB) -> list[WhiteEntry]:
@@ -640,6 +671,7 @@ def read_white(entry: WhiteEntry, db_dir: str | os.PathLike, raw: RawCapture) ->
     return white
 
 
-__all__ = ["DEFAULT_DB", "WhiteEntry", "build_database", "find_whites", "cache_grids", "select_white", "other_whites",
+__all__ = ["DEFAULT_DB", "database_candidates", "find_database", "where_looked", "WhiteEntry", "build_database",
+           "find_whites", "cache_grids", "select_white", "other_whites",
            "white_path", "grid_for", "calibration_for", "lookup_grid", "read_white", "load_index", "save_index",
            "update_index", "index_lock"]

@@ -125,16 +125,19 @@ def _errors_in_option_names(summary: Any) -> Any:
     return dataclasses.replace(summary, results=results)
 
 
-def _no_database(db_dir: Path, default: bool, inputs: tuple[Path, ...]) -> str:
-    """Why a batch whose raws all need the calibration database ``db_dir``, which is no folder, is refused, with
-    the command that builds it: from the inputs' folders that hold white images (``MOD_0000.RAW`` beside the
-    raws), else from a FOLDER of them; and the options that do without one."""
+def _no_database(db_dir: Path, default: bool, inputs: tuple[Path, ...], first: Path) -> str:
+    """Why a batch whose raws all need the calibration database ``db_dir``, which is no folder, is refused (the
+    default: where it was looked for, from ``first``, the first raw), with the command that builds it: from the
+    inputs' folders that hold white images (``MOD_0000.RAW`` beside the raws), else from a FOLDER of them; and the
+    options that do without one."""
     from ..calib.store import find_whites
 
     folders = [p if p.is_dir() else p.parent for p in inputs]
     with_whites = [str(f) for f in dict.fromkeys(folders) if find_whites(f)]
-    what = (f"no calibration database at ./{db_dir} (the default) and every raw here needs one" if default
-            else f"{db_dir} is not a folder")
+    from ..calib.store import where_looked
+
+    what = (f"no calibration database (looked for its index.json in {where_looked(first)}) and every raw here "
+            "needs one" if default else f"{db_dir} is not a folder")
     source = (f"the white images in {' '.join(with_whites)}" if with_whites else "a FOLDER of the camera's white "
               "images")
     command = f"plenodecode calibrate --database {db_dir} {' '.join(with_whites) or 'FOLDER'}"
@@ -272,7 +275,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
                          check_slope_for_any, check_stack_for_any, check_summary_files, find_raws, run_batch,
                          write_summary)
     from ..io.discovery import desktop_exports_not_taken, images_not_taken, needs_no_database
-    from ..calib.store import DEFAULT_DB
+    from ..calib.store import DEFAULT_DB, find_database
 
     if alpha is not None and focus_distance is not None:
         raise click.UsageError("pass at most one of --alpha and --focus-distance (each replaces --slope)")
@@ -285,7 +288,6 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
                                  "--no-frames", param_hint="--bit-depth")
     refuse_database_with_grid(calibration, None, database)
     check_writable(out_dir / SUMMARY_JSON)
-    db_dir = database or Path(DEFAULT_DB)
     if not overwrite:
         try:
             check_summary_files(out_dir)
@@ -316,12 +318,14 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
     for note in (not_taken, lf_note, export_note):
         if note and not (ctx.obj or {}).get("quiet"):
             click.echo(f"note: {note}", err=True)
+    # no --database: ./calib, else the calib/ beside the first raw that has one or above it (find_database)
+    db_dir = database or next((d for d in map(find_database, files) if d is not None), Path(DEFAULT_DB))
     # a --database typed that is no folder is refused; the default one missing only when no raw can do without it
     # (the others are decoded; those that need it fail with the reason, as a batch goes past any bad raw)
     if white is None and calibration is None and not self_calibrate and not db_dir.is_dir() and (
             database is not None and not all(needs_no_database(f) for f in files)
             or database is None and not any(needs_no_database(f) for f in files)):
-        raise click.BadParameter(_no_database(db_dir, database is None, inputs), param_hint="--database")
+        raise click.BadParameter(_no_database(db_dir, database is None, inputs, files[0]), param_hint="--database")
     mosaic = current_mosaic_options()
     options = BatchOptions(outputs=outputs, database=str(db_dir), format=lf_format, bit_depth=int(bit_depth),
                            exposure=exposure, slope=slope, alpha=alpha, focus_distance=focus_distance,

@@ -106,7 +106,8 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
        refused when it does not fit the raw (:func:`plenodecode.calib.check.check_white_fit`, as in 4);
     3. the camera's own calibration: a Raytrix raw's ``RayCalibData`` (:func:`~plenodecode.calib.selfcal.calibrate_raytrix`);
     4. a Lytro raw LFP's own white image (``modulationDataRef``), else the calibration database ``database``
-       (default :data:`plenodecode.calib.store.DEFAULT_DB`): the white image the raw's ``geometryCorrectionRef``
+       (default: ``./calib``, else ``calib/`` beside the raw or above it, :func:`plenodecode.calib.store.find_database`):
+       the white image the raw's ``geometryCorrectionRef``
        names, else that of the raw's camera at the nearest zoom and focus, and its cached grid; a white image
        whose lattice is off the raw's micro-images, or that is a scene, is refused in one line naming the
        camera's other white images (with ``self_calibrate``: self-calibration instead);
@@ -144,7 +145,7 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
     from ..io.generic import is_bare_mosaic
 
     white_raw = open_raw(white, mosaic=mosaic) if isinstance(white, (str, os.PathLike)) else white
-    db = Path(database) if database is not None else Path(store.DEFAULT_DB)
+    db = Path(database) if database is not None else store.find_database(raw.path)
     if grid is not None:
         cal = Calibration(grid_from_file(grid), white_raw, "grid file",
                           str(grid) + (f" (white {Path(white_raw.path or '?').name})" if white_raw else ""))
@@ -171,8 +172,9 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
     return cal
 
 
-def _database_or_scene(raw: RawCapture, db: Path, *, self_calibrate: bool, progress: Progress) -> Calibration:
-    """The raw's own white image (Lytro ``modulationDataRef``), else the database's, else self-calibration."""
+def _database_or_scene(raw: RawCapture, db: Path | None, *, self_calibrate: bool, progress: Progress) -> Calibration:
+    """The raw's own white image (Lytro ``modulationDataRef``), else the database's (``db``; None: none was given
+    or found), else self-calibration."""
     from ..calib import store
     from ..calib.check import WhiteMismatchError
 
@@ -186,7 +188,7 @@ def _database_or_scene(raw: RawCapture, db: Path, *, self_calibrate: bool, progr
         own = None
     if own is not None:
         return own
-    if (db / store.INDEX_NAME).is_file():
+    if db is not None and (db / store.INDEX_NAME).is_file():
         try:
             return _from_database(raw, db)
         except WhiteMismatchError as exc:  # its message already names the better choices
@@ -199,9 +201,11 @@ def _database_or_scene(raw: RawCapture, db: Path, *, self_calibrate: bool, progr
                                        "--self-calibrate") from exc
             log.info("database %s: %s", db, exc)
     elif not self_calibrate:
+        where = f"in {db} (no {store.INDEX_NAME})" if db is not None else \
+            f"(looked for its {store.INDEX_NAME} in {store.where_looked(raw.path)})"
         raise CalibrationError(
             f"no calibration for {name} (camera {raw.metadata.model or '?'} {raw.metadata.serial or '?'}): "
-            f"no calibration database in {db} (no {store.INDEX_NAME}); {_how_to_calibrate(raw, db)}")
+            f"no calibration database {where}; {_how_to_calibrate(raw, db or Path(store.DEFAULT_DB))}")
     return _self_calibration(raw, progress)
 
 

@@ -1,0 +1,83 @@
+"""Which calibration database a raw uses when ``--database`` is not given, through the CLI.
+
+``plenodecode sample_raws/illum-mini/scene.lfr -o x.png`` run from another folder said there was no calibration
+database: the default was ``./calib`` of the working directory only.  It is now ``./calib``, else the ``calib/``
+beside the raw or in a folder above it (as git finds ``.git``); the message names where it looked and ``info``
+says which database a raw uses.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+from click.testing import CliRunner
+
+from plenodecode.cli.main import cli
+from plenodecode.io.images import read_image
+
+ROOT = Path(__file__).resolve().parents[2]
+ILLUM_MINI = ROOT / "sample_raws" / "illum-mini"
+
+
+def invoke(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def chosen(caplog) -> list[str]:
+    """The calibration lines logged (:meth:`plenodecode.pipeline.Calibration.describe`), then forgotten."""
+    lines = [r.getMessage() for r in caplog.records if r.name == "plenodecode.pipeline.calibration"]
+    caplog.clear()
+    return lines
+
+
+def test_project_database_found_from_another_working_directory(tmp_path, monkeypatch, caplog):
+    monkeypatch.chdir(tmp_path)                                    # no calib/ here
+    caplog.set_level("INFO", logger="plenodecode.pipeline.calibration")
+    res = invoke(ILLUM_MINI / "scene.lfr", "-o", "photo.png")
+    assert res.exit_code == 0, res.output
+    assert chosen(caplog) == [f"calibration: database {ROOT / 'calib'}/ (white MOD_0000.RAW, cached grid)"]
+    photo = read_image(tmp_path / "photo.png")
+    assert photo.shape == (87, 125, 3) and photo.std() > 0.02 * np.iinfo(photo.dtype).max
+
+
+def test_database_above_the_raw_and_the_current_folder_first(tmp_path, monkeypatch, caplog):
+    """A database built in a project folder serves its raws two folders down; ./calib, when it has an index,
+    comes first; with neither, the one-line error names every place it looked and writes nothing."""
+    project = tmp_path / "project"
+    raws = project / "shoot" / "day1"
+    raws.mkdir(parents=True)
+    for name in ("scene.lfr", "MOD_0000.RAW", "MOD_0000.TXT"):
+        shutil.copy(ILLUM_MINI / name, raws / name)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    caplog.set_level("INFO", logger="plenodecode.pipeline.calibration")
+    res = invoke(raws / "scene.lfr", "-o", "photo.png")
+    lines = res.output.strip().splitlines()
+    assert res.exit_code == 1 and len(lines) == 1, res.output
+    assert (f"no calibration database (looked for its index.json in {elsewhere / 'calib'} (the current folder's), "
+            f"then calib/ in {raws} and each folder above it)") in lines[0]
+    assert not (elsewhere / "photo.png").exists()
+
+    assert invoke("-q", "calibrate", "--database", project / "calib", raws).exit_code == 0
+    chosen(caplog)
+    res = invoke(raws / "scene.lfr", "-o", "photo.png")
+    assert res.exit_code == 0, res.output
+    assert chosen(caplog) == [f"calibration: database {project / 'calib'}/ (white MOD_0000.RAW, cached grid)"]
+    assert (elsewhere / "photo.png").is_file()
+
+    # ./calib of the working directory is looked at first (named relative, as typed by the user of old)
+    assert invoke("-q", "calibrate", "--database", "calib", raws).exit_code == 0
+    chosen(caplog)
+    res = invoke(raws / "scene.lfr", "-o", "photo2.png")
+    assert res.exit_code == 0 and chosen(caplog) == ["calibration: database calib/ (white MOD_0000.RAW, cached grid)"]
+
+
+def test_batch_finds_the_database_above_its_raws(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    res = invoke("-q", "batch", ILLUM_MINI / "scene.lfr", "-o", "out", "--jobs", "1")
+    assert res.exit_code == 0, res.output
+    (photo,) = (tmp_path / "out" / "scene").glob("*.png")
+    assert read_image(photo).std() > 0
