@@ -1,4 +1,5 @@
-"""``plenodecode info FILE...``: describe raws and Lytro containers without decoding them, and saved light fields
+"""``plenodecode info FILE...``: describe raws and Lytro containers without decoding them (with the calibration
+decoding would choose: the lens pitch it reads or measures, its files, the decoded shape), and saved light fields
 (shape, colour, camera constants); both with the refocusable range (:mod:`plenodecode.render.alpha`)."""
 
 from __future__ import annotations
@@ -63,6 +64,10 @@ def _describe_container(path: Path) -> list[str]:
             else:
                 lines.append(f"  sensor   {w} x {h}, {bits} bit, {cfa} (the raw is not in this file)")
             lines += _lens_lines(cam)
+            if c.kind == "raw" and not c.white_image:
+                from ..pipeline import open_raw
+
+                lines += _calibration_lines(open_raw(path))
     images = [it for it in c.contents() if it.type != "json"]
     if images:
         lines.append("  contents")
@@ -85,8 +90,8 @@ def _has_image(meta) -> bool:
 def _lens_lines(cam) -> list[str]:
     parts = []
     if cam.zoom_step is not None or cam.focus_step is not None:
-        parts.append(f"zoom {cam.zoom_step:g}" if cam.zoom_step is not None else "zoom ?")
-        parts.append(f"focus {cam.focus_step:g}" if cam.focus_step is not None else "focus ?")
+        parts.append(f"zoom step {cam.zoom_step:g}" if cam.zoom_step is not None else "zoom step ?")
+        parts.append(f"focus step {cam.focus_step:g}" if cam.focus_step is not None else "focus step ?")
     if cam.focal_length_m is not None:
         parts.append(f"f = {cam.focal_length_m * 1e3:.2f} mm")
     if cam.f_number is not None:
@@ -97,14 +102,14 @@ def _lens_lines(cam) -> list[str]:
         parts.append(f"ISO {cam.iso:g}")
     pitch = cam.lenslet_pitch_px()
     if pitch:
-        parts.append(f"lenslet pitch {pitch:.3f} px")
-    return ([f"  lens     {', '.join(parts)}"] if parts else []) + _raw_refocus_lines(cam)
+        parts.append(f"lenslet pitch {pitch:.3f} px (metadata)")
+    return [f"  lens     {', '.join(parts)}"] if parts else []
 
 
 def _raw_refocus_lines(cam) -> list[str]:
-    """The refocusable range of a Lytro raw from its metadata alone: hex lenslets (row spacing = pitch *
-    sqrt(3) / 2, the decoder's spatial step) and one view per sensor pixel; nothing for other cameras, whose
-    lattice is known only after calibration (``plenodecode info`` on the decoded light field says it)."""
+    """The refocusable range of a Lytro raw from its metadata alone, when it has no calibration: hex lenslets (row
+    spacing = pitch * sqrt(3) / 2, the decoder's spatial step) and one view per sensor pixel; nothing for other
+    cameras, whose lattice is known only after calibration."""
     import math
 
     from ..render.alpha import refocus_range_units
@@ -116,6 +121,81 @@ def _raw_refocus_lines(cam) -> list[str]:
     geometry = LightFieldGeometry.from_camera(cam, {"pitch": pitch}, spatial_step_px=pitch * math.sqrt(3) / 2,
                                               view_step_px=1.0)
     return [f"  refocus  {refocus_range_units(geometry).describe()} (from the metadata, hex lenslets)"]
+
+
+def _optics_file(path: Path) -> Path | None:
+    """The file beside the raw ``path`` that :func:`plenodecode.io.microscope.optics_beside` reads its microscope
+    optics from: napari-LF's ``metadata.txt``, else an LFAnalyze README."""
+    from ..io.microscope import METADATA_NAME, README_NAMES
+
+    return next((f for f in (path.parent / n for n in (METADATA_NAME, *README_NAMES)) if f.is_file()), None)
+
+
+def _how_measured(cal) -> str:
+    """Where the pitch of the calibration ``cal`` (a :class:`~plenodecode.pipeline.Calibration`) comes from."""
+    if cal.source == "camera" and cal.white is None:
+        return "read from " + cal.detail.strip("()").replace("Raytrix RayCalibData ", "")
+    if cal.source == "self-calibration":
+        return "measured in the scene by self-calibration"
+    if cal.source == "grid file":
+        return f"from the grid {Path(cal.detail.split(' (')[0]).name}"
+    name = Path(cal.white.path).name if cal.white is not None and cal.white.path else "the white image"
+    return f"measured on the white image {name}"
+
+
+def _calibration_lines(raw) -> list[str]:
+    """What decoding ``raw`` (a :class:`~plenodecode.types.RawCapture`, read as decoding reads it) would use and
+    give, with the calibration it chooses (:func:`plenodecode.pipeline.choose_calibration`, the database it finds):
+    the lens pitch (measured or read, and where; beside the metadata's), the calibration and its files, the
+    decoded shape and the refocusable range.  Without a calibration: why, and the metadata's range (Lytro)."""
+    from ..calib.store import find_database
+    from ..decoding.rectify import decoded_geometry, decoded_shape
+    from ..errors import CalibrationError
+    from ..pipeline import choose_calibration
+    from ..pipeline.inputs import quieted
+    from ..render.alpha import missing_refocus_constants, refocus_range_units
+
+    m = raw.metadata
+    lines = []
+    if m.microscope is not None and not m.microscope.empty:
+        source = _optics_file(Path(raw.path)) if raw.path else None
+        lines.append(f"  optics   {m.microscope.describe()}" + (f" (read from {source.name})" if source else ""))
+    try:
+        db = find_database(raw.path)                        # named in full: info may be run from anywhere
+        with quieted("plenodecode.pipeline.calibration"):   # the line below says it (and, for a mosaic, why)
+            cal = choose_calibration(raw, database=None if db is None else db.resolve())
+    except CalibrationError as exc:
+        return lines + [f"  calib    none found: {exc}"] + _raw_refocus_lines(m)
+    g = cal.grid
+    said, where = m.lenslet_pitch_px(), "the metadata"
+    if said is None and m.microscope and m.microscope.lens_pitch_m and m.microscope.pixel_pitch_m:
+        said, where = m.microscope.lens_pitch_m / m.microscope.pixel_pitch_m, "the optics"
+    types = f", {len(set(g.lens_type.ravel().tolist()))} lens types" if g.lens_type is not None else ""
+    lines.append(f"  lenses   {g.lattice}, pitch {g.pitch:.3f} px {_how_measured(cal)}"
+                 + (f" ({where}: {said:.3f} px)" if said else "")
+                 + f"; {g.shape[0]} x {g.shape[1]} lenses{types}")
+    why = ""
+    if cal.source == "self-calibration":
+        from ..io.generic import is_bare_mosaic
+
+        why = (" (no white image" + (" or camera identity for a database" if is_bare_mosaic(raw) else "")
+               + ": not devignetted" + ("; stays camera RGB, no colour matrix" if raw.cfa and m.ccm is None else "") + ")")
+    lines.append(f"  calib    {cal.source} {cal.detail}{why}")
+    if g.lens_type is not None:
+        from ..decoding.focused import shown_virtual_depth_range
+
+        lo, hi = shown_virtual_depth_range(g)
+        return lines + [f"  refocus  virtual depth {lo:g}..{hi:g} (focused plenoptic: 'plenodecode refocus RAW "
+                        "--virtual-depth V'; its lens types' depth ranges)"]
+    V, U, Y, X = decoded_shape(g)
+    lines.append(f"  decodes  {V} x {U} views of {X} x {Y} px")
+    geometry = decoded_geometry(raw, g)
+    span = refocus_range_units(geometry)
+    missing = missing_refocus_constants(geometry)
+    lacks = (f"; alpha needs {', '.join(missing)}, not in the file"
+             if span.alpha is None and missing and m.microscope is None else "")
+    return lines + [f"  refocus  {span.describe()} (from the calibration{' and the metadata' if span.alpha else ''}"
+                    f"{lacks})"]
 
 
 def _describe_lightfield(path: Path) -> list[str]:
@@ -156,16 +236,20 @@ def _raw_metadata_lines(title: str, metadata: tuple, kind: str) -> list[str]:
     cam, cfa, black, white, w, h, bits, endian = metadata
     lines = [title, *_camera_lines(cam.model, cam.make, cam.serial), f"  kind     {kind}",
              f"  raw      {w} x {h}, {bits} bit ({endian}), {cfa}, black {_levels(black)}, white {_levels(white)}"]
-    return lines + _lens_lines(cam)
+    return lines + _lens_lines(cam) + (_raw_refocus_lines(cam) if kind == "metadata of a raw" else [])
 
 
 def _describe_raw_pair(path: Path) -> list[str]:
     from ..io import lytro
 
+    from ..pipeline import open_raw
+
     metadata = lytro.read_raw_pair_metadata(path)
     side = lytro.find_sidecar(path)
-    return _raw_metadata_lines(f"{path}: headerless Lytro raw with metadata {side.name if side else '?'}",
-                               metadata, "raw, white image" if metadata[0].is_white_image else "raw")
+    white = metadata[0].is_white_image
+    lines = _raw_metadata_lines(f"{path}: headerless Lytro raw with metadata {side.name if side else '?'}",
+                                metadata, "raw, white image" if white else "raw")
+    return lines if white else lines + _calibration_lines(open_raw(path))
 
 
 def _describe_sidecar(path: Path) -> list[str]:
@@ -341,9 +425,9 @@ def _describe_mat_centres(path: Path) -> list[str] | None:
 
 def _describe_other(path: Path) -> list[str]:
     try:
-        from ..io import read_raw
+        from ..pipeline import open_raw
 
-        raw = read_raw(path)
+        raw = open_raw(path)        # as decoding reads it: a Raytrix image with its XML, a microscope's optics
     except ImportError as exc:
         raise FormatError(f"{path}: not a Lytro file, and the reader for other formats is not available "
                           f"({exc}); install the full plenodecode") from None
@@ -361,7 +445,7 @@ def _describe_other(path: Path) -> list[str]:
         lines.append(f"  raw      {w} x {h}, {raw.cfa or 'monochrome'}, black {_levels(raw.black)}, "
                      f"white {_levels(raw.white)}, values {int(raw.mosaic.min())}..{int(raw.mosaic.max())}")
     lines += _lens_lines(m)
-    return lines
+    return lines if m.is_white_image else lines + _calibration_lines(raw)
 
 
 def describe(path: Path) -> list[str]:
@@ -407,8 +491,10 @@ def describe(path: Path) -> list[str]:
 @click.command("info")
 @click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path))
 def info(files: tuple[Path, ...]) -> None:
-    """Describe raws and containers: camera, serial, kind, image sizes, sections, and
-    the refocusable range (alpha, slope, metres when the geometry allows).
+    """Describe raws and containers: camera, serial, kind, image sizes, sections; for a
+    raw, the calibration decoding would use (database, white image, Raytrix XML or
+    self-calibration, and its files), the lens pitch it reads or measures, the decoded
+    shape, and the refocusable range (alpha, slope, metres when the geometry allows).
 
     Works on Lytro .lfp/.LFP/.lfr containers (raw or processed), MOD_NNNN.RAW + .TXT
     white images (or their .TXT/.json metadata alone), any raw plenodecode reads, and

@@ -159,7 +159,9 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
     elif "raytrix" in raw.metadata.extra:
         from ..calib.selfcal import calibrate_raytrix
 
-        cal = Calibration(calibrate_raytrix(raw), None, "camera", "(Raytrix RayCalibData)")
+        xml = raw.metadata.extra.get("raytrix_xml")
+        cal = Calibration(calibrate_raytrix(raw), None, "camera",
+                          f"(Raytrix RayCalibData{' ' + Path(xml).name if xml else ''})")
     elif is_bare_mosaic(raw):
         # what the decoding will do without a white image and metadata, said once here (the decoder logs it at INFO)
         log.warning("%s: no white image and no camera identity for the database: the lenslet grid comes from "

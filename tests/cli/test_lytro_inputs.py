@@ -54,7 +54,7 @@ def test_info_on_generated_raws(tmp_path):
     assert res.exit_code == 0, res.output
     a, b = res.output.split("\n\n")
     assert "kind     raw" in a and "raw      32 x 24, 10 bit (little), GRBG, black 64, white 1023" in a
-    assert "serial   B5143909630" in a and "lenslet pitch 14.286 px" in a and "zoom -1040, focus -300" in a
+    assert "serial   B5143909630" in a and "lenslet pitch 14.286 px" in a and "zoom step -1040, focus step -300" in a
     assert re.search(r"LFM\s+\d+\s+\d+\s+[0-9a-f]{12}\s+table of contents", a)
     assert "frames[0].frame.imageRef  [frame: raw]" in a
     assert "camera   B01" in b and "kind     raw, white image" in b and "32 x 24, 10 bit" in b

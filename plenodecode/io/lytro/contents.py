@@ -216,9 +216,12 @@ def describe_contents(toc: Mapping[str, Any], payloads: Mapping[str, memoryview]
             counters[base] = counters.get(base, 0) + 1
             name = f"{base}_{counters[base] - 1:02d}"
             shape = _shape_from(chain)
-            for k in ("focus", "lambda"):
+            # the slice's refocus depth in Lytro's lambda units: the F01 TOC's 'lambda', the Illum's 'focus' (same
+            # scale: the Illum depth map's minLambda..maxLambda span its slices' values); one name for both
+            for k in ("lambda", "focus"):
                 if isinstance(parent, Mapping) and as_number(parent.get(k)) is not None:
-                    info[k] = parent[k]
+                    info["lambda"] = parent[k]
+                    break
         else:
             typ = sniff or "binary"
             name = str(key)[:-3] if isinstance(key, str) and key.endswith("Ref") else (parent_key or "payload")

@@ -1,0 +1,109 @@
+"""``plenodecode info`` gives the same facts for every camera's raw: the lens pitch (measured or read, and where
+from), the calibration decoding will use and its files, the decoded shape and the refocusable range.
+
+It used to show the pitch and the range for a Lytro container only (from its metadata): nothing for the real F01
+JPEG mosaic, whose lattice self-calibration measures, and nothing of the Raytrix XML beside the R42 image that
+decoding uses; the F01 and Illum focus stacks called Lytro's lambda 'lambda' and 'focus'.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+from click.testing import CliRunner
+
+from plenodecode.cli.main import cli
+from tests.conftest import shared_path
+
+ROOT = Path(__file__).resolve().parents[2]
+FACTS = ("lenses", "calib", "refocus")
+
+
+def info(path) -> str:
+    res = CliRunner().invoke(cli, ["info", str(path)])
+    assert res.exit_code == 0, res.output
+    return res.output
+
+
+def fields(out: str) -> dict[str, str]:
+    """``{'lenses': 'hex, pitch ...', ...}``: the two-space indented lines of one file's description."""
+    return {m.group(1): m.group(2) for m in re.finditer(r"^  (\w+) +(.*)$", out, re.M)}
+
+
+def test_f01_jpeg_pitch_is_measured_and_matches_the_cameras_lens_table():
+    """IMG_1.jpg has no metadata: the pitch is measured by self-calibration (9.933 px), which is the pitch of the
+    camera's own lens-centre table image_cords.mat (9.932 px, a line through each row of it), and the refocusable
+    range follows from it: +-pitch / row spacing = +-2 / sqrt(3) px/view on a hex lattice."""
+    import scipy.io as sio
+
+    f = fields(info(shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg")))
+    assert set(FACTS) <= set(f), f
+    m = re.fullmatch(r"hex, pitch (\d+\.\d+) px measured in the scene by self-calibration; (\d+) x (\d+) lenses",
+                     f["lenses"])
+    assert m, f["lenses"]
+    pitch = float(m.group(1))
+    table = sio.loadmat(str(shared_path("lytro-f01-lenslet-jpg", "image_cords.mat")))["image_cords"].astype(float)
+    k = np.arange(table.shape[1])
+    table_pitch = np.median([np.polyfit(k, table[r, :, 1], 1)[0] for r in range(table.shape[0])])
+    assert abs(pitch - table_pitch) < 0.01, (pitch, table_pitch)
+    assert f["calib"].startswith("self-calibration from IMG_1.jpg (no white image or camera identity for a "
+                                 "database: not devignetted; stays camera RGB")
+    assert f["decodes"] == "9 x 9 views of 382 x 383 px"
+    s = 2 / math.sqrt(3)
+    assert f["refocus"].startswith(f"slope {-s:+.2f}..{s:+.2f} px/view (from the calibration; alpha needs "), f
+    assert "focal_length_m" in f["refocus"]
+
+
+def test_lytro_raw_gives_the_same_facts_with_the_pitch_read_and_measured():
+    f = fields(info(ROOT / "sample_raws" / "illum-mini" / "scene.lfr"))
+    assert set(FACTS) <= set(f), f
+    assert "lenslet pitch 14.286 px (metadata)" in f["lens"] and "zoom step -312, focus step 417" in f["lens"]
+    assert re.fullmatch(r"hex, pitch 14\.28\d px measured on the white image MOD_0000\.RAW \(the metadata: "
+                        r"14\.286 px\); 87 x 109 lenses", f["lenses"]), f["lenses"]
+    assert f["calib"] == f"database {ROOT / 'calib'}/ (white MOD_0000.RAW, cached grid)"
+    assert f["decodes"] == "15 x 15 views of 125 x 87 px"
+    assert f["refocus"] == "alpha 0.9814-1.0194 = slope -1.15..+1.15 px/view (from the calibration and the metadata)"
+
+
+def test_raytrix_image_names_the_xml_it_is_decoded_with():
+    f = fields(info(shared_path("raytrix-r42", "sc2_klein.png")))
+    assert set(FACTS) <= set(f), f
+    assert f["lenses"] == "hex, pitch 34.865 px read from sc2_klein.xml; 22 x 28 lenses, 3 lens types"
+    assert f["calib"] == "camera (Raytrix RayCalibData sc2_klein.xml)"
+    assert f["refocus"].startswith("virtual depth 1.07..100 (focused plenoptic: ")
+
+
+def test_microscope_optics_file_and_measured_pitch():
+    """The LFAnalyze README beside the ant-leg capture gives 125 um lenses on 4.55 um pixels (27.47 px);
+    self-calibration measures 27.56 px."""
+    f = fields(info(shared_path("lf-microscopy-antleg", "light_field.png")))
+    assert set(FACTS) <= set(f), f
+    assert f["optics"].startswith("lens-pitch-um 125 um, pixel-um 4.55 um") and f["optics"].endswith(
+        "(read from README)")
+    m = re.fullmatch(r"square, pitch (\d+\.\d+) px measured in the scene by self-calibration \(the optics: "
+                     r"27\.473 px\); \d+ x \d+ lenses", f["lenses"])
+    assert m and abs(float(m.group(1)) - 125 / 4.55) < 0.15, f["lenses"]
+    assert f["calib"].startswith("self-calibration from light_field.png")
+    assert "alpha" not in f["refocus"]               # a microscope refocuses by slope: no constants asked for
+
+
+def test_focus_stacks_of_both_lytro_cameras_say_lambda():
+    f01 = info(shared_path("lytro-containers", "IMG_0001-stk.lfp"))
+    illum = info(shared_path("lytro-containers", "demo.LFP"))
+    assert "refocus_00             jpeg 1080x1080 (lambda -8.923)" in f01
+    assert "focus_stack_00         jpeg 704x480 (lambda -15)" in illum
+    assert "(focus " not in f01 + illum
+
+
+def test_no_database_says_where_it_looked(tmp_path, monkeypatch):
+    import shutil
+
+    shutil.copy(ROOT / "sample_raws" / "illum-mini" / "scene.lfr", tmp_path / "scene.lfr")
+    monkeypatch.chdir(tmp_path)
+    f = fields(info(tmp_path / "scene.lfr"))
+    assert f["calib"].startswith("none found: no calibration for scene.lfr (camera ILLUM B5143909630): no "
+                                 f"calibration database (looked for its index.json in {tmp_path / 'calib'}")
+    assert f["refocus"] == "alpha 0.9814-1.0194 = slope -1.15..+1.15 px/view (from the metadata, hex lenslets)"
