@@ -116,7 +116,7 @@ def _raw_refocus_lines(cam) -> list[str]:
     from ..types import LightFieldGeometry
 
     pitch = cam.lenslet_pitch_px()
-    if (cam.make or "").lower() != "lytro" or not pitch or cam.is_white_image:
+    if not (cam.make or "").lower().startswith("lytro") or not pitch or cam.is_white_image:   # 'Lytro, Inc.' too
         return []
     geometry = LightFieldGeometry.from_camera(cam, {"pitch": pitch}, spatial_step_px=pitch * math.sqrt(3) / 2,
                                               view_step_px=1.0)
@@ -148,6 +148,8 @@ def _calibration_lines(raw) -> list[str]:
     give, with the calibration it chooses (:func:`plenodecode.pipeline.choose_calibration`, the database it finds):
     the lens pitch (measured or read, and where; beside the metadata's), the calibration and its files, the
     decoded shape and the refocusable range.  Without a calibration: why, and the metadata's range (Lytro)."""
+    import numpy as np
+
     from ..calib.store import find_database
     from ..decoding.rectify import decoded_geometry, decoded_shape
     from ..errors import CalibrationError
@@ -160,6 +162,14 @@ def _calibration_lines(raw) -> list[str]:
     if m.microscope is not None and not m.microscope.empty:
         source = _optics_file(Path(raw.path)) if raw.path else None
         lines.append(f"  optics   {m.microscope.describe()}" + (f" (read from {source.name})" if source else ""))
+    from ..io.generic import BARE_MOSAIC_KEY
+    from ..io.mosaic_levels import nearly_uniform
+
+    full = (m.extra.get(BARE_MOSAIC_KEY) or {}).get("file_full_scale") or float(np.max(raw.white))
+    flat = nearly_uniform(raw.mosaic, float(full))
+    if flat is not None:       # self-calibration would only fail on it, after seconds
+        return lines + [f"  calib    none: no micro-images (98 % of the values within {flat[0]:g}..{flat[1]:g}); a "
+                        "dark frame is given to decoding as --dark FRAME"]
     try:
         db = find_database(raw.path)                        # named in full: info may be run from anywhere
         with quieted("plenodecode.pipeline.calibration"):   # the line below says it (and, for a mosaic, why)
@@ -179,7 +189,8 @@ def _calibration_lines(raw) -> list[str]:
         from ..io.generic import is_bare_mosaic
 
         why = (" (no white image" + (" or camera identity for a database" if is_bare_mosaic(raw) else "")
-               + ": not devignetted" + ("; stays camera RGB, no colour matrix" if raw.cfa and m.ccm is None else "") + ")")
+               + ": not devignetted" + ("; stays camera RGB, no colour matrix" if raw.cfa and m.ccm is None else "")
+               + "; -w WHITE_IMAGE devignettes)")
     lines.append(f"  calib    {cal.source} {cal.detail}{why}")
     if g.lens_type is not None:
         from ..decoding.focused import shown_virtual_depth_range

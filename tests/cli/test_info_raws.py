@@ -107,3 +107,17 @@ def test_no_database_says_where_it_looked(tmp_path, monkeypatch):
     assert f["calib"].startswith("none found: no calibration for scene.lfr (camera ILLUM B5143909630): no "
                                  f"calibration database (looked for its index.json in {tmp_path / 'calib'}")
     assert f["refocus"] == "alpha 0.9814-1.0194 = slope -1.15..+1.15 px/view (from the metadata, hex lenslets)"
+
+
+def test_dark_frame_is_named_as_such_without_self_calibrating_it():
+    f = fields(info(shared_path("lf-microscopy-antleg", "dark_frame.tif")))
+    assert f["calib"] == ("none: no micro-images (98 % of the values within 95..107); a dark frame is given to "
+                          "decoding as --dark FRAME")
+    assert "lenses" not in f and "refocus" not in f
+
+
+def test_real_f01_frame_metadata_gives_the_range_its_metadata_allows():
+    """The F01's real frame JSON names its make 'Lytro, Inc.', which the metadata range skipped ('Lytro' only)."""
+    f = fields(info(shared_path("lytro-containers", "IMG_0001__frame.json")))
+    assert f["refocus"].startswith("alpha 0.96") and f["refocus"].endswith(
+        "slope -1.15..+1.15 px/view (from the metadata, hex lenslets)"), f
