@@ -444,7 +444,10 @@ def _describe_other(path: Path) -> list[str]:
                           f"({exc}); install the full plenodecode") from None
     m = raw.metadata
     h, w = raw.shape
-    lines = [f"{path}: raw image"]
+    from ..io.generic import BARE_MOSAIC_KEY, find_sidecar
+
+    side = None if BARE_MOSAIC_KEY in m.extra or "raytrix" in m.extra else find_sidecar(path)
+    lines = [f"{path}: raw image" + (f" with metadata {side.name}" if side else "")]
     lines += _camera_lines(m.model or _sensor_by_size(m, raw.shape), m.make, m.serial)
     lines.append(f"  kind     {'raw, white image' if m.is_white_image else 'raw'}")
     from ..io.raytrix import is_rgb_export

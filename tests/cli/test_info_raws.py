@@ -121,3 +121,12 @@ def test_real_f01_frame_metadata_gives_the_range_its_metadata_allows():
     f = fields(info(shared_path("lytro-containers", "IMG_0001__frame.json")))
     assert f["refocus"].startswith("alpha 0.96") and f["refocus"].endswith(
         "slope -1.15..+1.15 px/view (from the metadata, hex lenslets)"), f
+
+
+def test_mosaic_with_a_sidecar_names_it_and_its_database_white():
+    out = info(ROOT / "sample_raws" / "square" / "scene.png")
+    assert out.splitlines()[0].endswith("scene.png: raw image with metadata scene.json")
+    f = fields(out)
+    assert re.fullmatch(r"square, pitch 27\.5\d\d px measured on the white image scene_white\.png \(the metadata: "
+                        r"27\.500 px\); 41 x 41 lenses", f["lenses"]), f["lenses"]
+    assert f["calib"] == f"database {ROOT / 'calib'}/ (white scene_white.png, cached grid)"
