@@ -435,6 +435,9 @@ def _describe_mat_centres(path: Path) -> list[str] | None:
 
 
 def _describe_other(path: Path) -> list[str]:
+    from ..errors import MetadataError
+
+    unusable = None
     try:
         from ..pipeline import open_raw
 
@@ -442,6 +445,13 @@ def _describe_other(path: Path) -> list[str]:
     except ImportError as exc:
         raise FormatError(f"{path}: not a Lytro file, and the reader for other formats is not available "
                           f"({exc}); install the full plenodecode") from None
+    except MetadataError as exc:    # e.g. several RayCalibData XMLs beside it: described as an image, with why
+        from ..io import read_raw
+
+        try:
+            raw, unusable = read_raw(path), exc
+        except PlenodecodeError:
+            raise exc from None
     m = raw.metadata
     h, w = raw.shape
     from ..io.generic import BARE_MOSAIC_KEY, find_sidecar
@@ -459,6 +469,8 @@ def _describe_other(path: Path) -> list[str]:
         lines.append(f"  raw      {w} x {h}, {raw.cfa or 'monochrome'}, black {_levels(raw.black)}, "
                      f"white {_levels(raw.white)}, values {int(raw.mosaic.min())}..{int(raw.mosaic.max())}")
     lines += _lens_lines(m)
+    if unusable is not None:
+        return lines + [f"  calib    none: {unusable}"]
     return lines if m.is_white_image else lines + _calibration_lines(raw)
 
 

@@ -130,3 +130,17 @@ def test_mosaic_with_a_sidecar_names_it_and_its_database_white():
     assert re.fullmatch(r"square, pitch 27\.5\d\d px measured on the white image scene_white\.png \(the metadata: "
                         r"27\.500 px\); 41 x 41 lenses", f["lenses"]), f["lenses"]
     assert f["calib"] == f"database {ROOT / 'calib'}/ (white scene_white.png, cached grid)"
+
+
+def test_raytrix_image_between_two_xmls_says_which_choice_decoding_needs(tmp_path):
+    """The R42 image beside two RayCalibData XMLs, neither of its stem: info said 'a single-channel mosaic is
+    expected, found 3 channels'; it now gives the reason decoding gives, the XML choice to make."""
+    import shutil
+
+    shutil.copy(shared_path("raytrix-r42", "sc2_klein.png"), tmp_path / "scene.png")
+    for name in ("a.xml", "b.xml"):
+        shutil.copy(shared_path("raytrix-r42", "sc2_klein.xml"), tmp_path / name)
+    res = CliRunner().invoke(cli, ["info", str(tmp_path / "scene.png")])
+    assert res.exit_code == 1 and res.output.strip() == (
+        "error: scene.png: 2 RayCalibData XMLs beside it (a.xml, b.xml) and none named scene.xml; say which one "
+        "with --raytrix-xml FILE"), res.output
