@@ -57,7 +57,8 @@ class DatabaseOption(click.Option):
             record = super().get_help_record(ctx)
         finally:
             self.opts = shown
-        return None if record is None else (record[0], f"{record[1]}  [default: ./{DEFAULT_DB}]")
+        return None if record is None else (record[0], f"{record[1]}  [default: ./{DEFAULT_DB}, else {DEFAULT_DB}/ "
+                                                        "beside the raw or in a folder above it]")
 
     def get_error_hint(self, ctx: click.Context) -> str:
         """Errors name the option ``'--database'``, not its hidden old spelling."""

@@ -74,7 +74,8 @@ def test_database_option_has_one_spelling_in_the_help():
     for command in ("decode", "refocus", "views", "parallax", "depth", "render", "batch"):
         out = CliRunner().invoke(cli, [command, "--help"]).output
         assert "--database" in out and "--white-dir" not in out, command
-        assert f"[default: ./{DEFAULT_DB}]" in " ".join(out.split()), command
+        assert f"[default: ./{DEFAULT_DB}, else {DEFAULT_DB}/ beside the raw or in a folder above it]" in \
+            " ".join(out.split()), command
 
 
 def test_errors_name_the_database_option_not_its_old_spelling(tmp_path):
