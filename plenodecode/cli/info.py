@@ -133,8 +133,9 @@ def _optics_file(path: Path) -> Path | None:
 
 def _how_measured(cal) -> str:
     """Where the pitch of the calibration ``cal`` (a :class:`~plenodecode.pipeline.Calibration`) comes from."""
-    if cal.source == "camera" and cal.white is None:
-        return "read from " + cal.detail.strip("()").replace("Raytrix RayCalibData ", "")
+    if cal.source == "camera":
+        return ("read from " + cal.detail.strip("()").replace("Raytrix RayCalibData ", "") if cal.white is None
+                else "measured on the picture's own white image (modulationDataRef)")
     if cal.source == "self-calibration":
         return "measured in the scene by self-calibration"
     if cal.source == "grid file":
@@ -153,6 +154,8 @@ def _calibration_lines(raw) -> list[str]:
     from ..calib.store import find_database
     from ..decoding.rectify import decoded_geometry, decoded_shape
     from ..errors import CalibrationError
+    from ..io.generic import BARE_MOSAIC_KEY, is_bare_mosaic
+    from ..io.mosaic_levels import nearly_uniform
     from ..pipeline import choose_calibration
     from ..pipeline.inputs import quieted
     from ..render.alpha import missing_refocus_constants, refocus_range_units
@@ -162,9 +165,6 @@ def _calibration_lines(raw) -> list[str]:
     if m.microscope is not None and not m.microscope.empty:
         source = _optics_file(Path(raw.path)) if raw.path else None
         lines.append(f"  optics   {m.microscope.describe()}" + (f" (read from {source.name})" if source else ""))
-    from ..io.generic import BARE_MOSAIC_KEY
-    from ..io.mosaic_levels import nearly_uniform
-
     full = (m.extra.get(BARE_MOSAIC_KEY) or {}).get("file_full_scale") or float(np.max(raw.white))
     flat = nearly_uniform(raw.mosaic, float(full))
     if flat is not None:       # self-calibration would only fail on it, after seconds
@@ -186,8 +186,6 @@ def _calibration_lines(raw) -> list[str]:
                  + f"; {g.shape[0]} x {g.shape[1]} lenses{types}")
     why = ""
     if cal.source == "self-calibration":
-        from ..io.generic import is_bare_mosaic
-
         why = (" (no white image" + (" or camera identity for a database" if is_bare_mosaic(raw) else "")
                + ": not devignetted" + ("; stays camera RGB, no colour matrix" if raw.cfa and m.ccm is None else "")
                + "; -w WHITE_IMAGE devignettes)")
@@ -252,7 +250,6 @@ def _raw_metadata_lines(title: str, metadata: tuple, kind: str) -> list[str]:
 
 def _describe_raw_pair(path: Path) -> list[str]:
     from ..io import lytro
-
     from ..pipeline import open_raw
 
     metadata = lytro.read_raw_pair_metadata(path)

@@ -106,8 +106,8 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
        refused when it does not fit the raw (:func:`plenodecode.calib.check.check_white_fit`, as in 4);
     3. the camera's own calibration: a Raytrix raw's ``RayCalibData`` (:func:`~plenodecode.calib.selfcal.calibrate_raytrix`);
     4. a Lytro raw LFP's own white image (``modulationDataRef``), else the calibration database ``database``
-       (default: ``./calib``, else ``calib/`` beside the raw or above it, :func:`plenodecode.calib.store.find_database`):
-       the white image the raw's ``geometryCorrectionRef``
+       (default: ``./calib``, else ``calib/`` beside the raw or above it,
+       :func:`plenodecode.calib.store.find_database`): the white image the raw's ``geometryCorrectionRef``
        names, else that of the raw's camera at the nearest zoom and focus, and its cached grid; a white image
        whose lattice is off the raw's micro-images, or that is a scene, is refused in one line naming the
        camera's other white images (with ``self_calibrate``: self-calibration instead);

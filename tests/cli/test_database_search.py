@@ -41,7 +41,8 @@ def test_project_database_found_from_another_working_directory(tmp_path, monkeyp
     photo = read_image(tmp_path / "photo.png")
     assert photo.shape == (87, 125, 3) and photo.std() > 0.02 * np.iinfo(photo.dtype).max
     info = invoke("info", ILLUM_MINI / "scene.lfr")
-    assert info.exit_code == 0 and f"calib    database {ROOT / 'calib'}/ (white MOD_0000.RAW, cached grid)" in info.output
+    assert info.exit_code == 0, info.output
+    assert f"calib    database {ROOT / 'calib'}/ (white MOD_0000.RAW, cached grid)" in info.output
 
 
 def test_database_above_the_raw_and_the_current_folder_first(tmp_path, monkeypatch, caplog):
