@@ -194,38 +194,87 @@ def _image_measure(grid: LensletGrid, raws: Sequence[RawCapture]) -> dict[str, A
             "lens": np.zeros(0, int), "grid_centres": grid.centres()}
 
 
-def _overlay_figure(grid: LensletGrid, m: dict[str, Any]) -> Any:
+#: Overlay panels, in a 2 x 3 layout: name, (row, col) of the panel, where it looks (0: top / left, 1: centre,
+#: 2: bottom / right); the free slot (1, 1) holds the legend, clear of the image.
+_OVERLAY_SPOTS = (("top left", (0, 0), (0, 0)), ("centre", (0, 1), (1, 1)), ("top right", (0, 2), (0, 2)),
+                  ("bottom left", (1, 0), (2, 0)), ("bottom right", (1, 2), (2, 2)))
+#: Overlay markers in units of the pitch: the arm of a detected centre's '+' and the radius of the grid centre's dot
+#: (the grid's circles are drawn at its disk radius, the micro-image's outline the decoder uses).
+OVERLAY_CROSS_PITCH = 0.2
+OVERLAY_DOT_PITCH = 0.06
+
+
+def _overlay_figure(grid: LensletGrid, m: dict[str, Any]) -> tuple[Any, dict[str, float]]:
+    """The image at its corners and centre (7 pitches across each) with the grid drawn on it in image units: a circle
+    of the disk radius and a dot at every grid centre, a '+' at every detected centre, so the markers keep their size
+    against the micro-images whatever the pitch.
+
+    Returns the figure and its marker sizes in px of the image: ``pitch``, ``circle_radius``, ``cross_arm``,
+    ``dot_radius``, and ``legend_overlap`` (area of the legend over the panels, display px^2: 0)."""
     import matplotlib
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
+    from matplotlib.collections import EllipseCollection, LineCollection
 
     img = m["img"]
     h, w = img.shape
     half = max(12, int(round(3.5 * grid.pitch)))
-    spots = [("top left", half, half), ("top right", half, w - 1 - half), ("centre", h // 2, w // 2),
-             ("bottom left", h - 1 - half, half), ("bottom right", h - 1 - half, w - 1 - half)]
-    fig, axes = plt.subplots(1, 5, figsize=(17, 3.8))
     gc = m["grid_centres"]
     cen = m["centres"]
-    for ax, (name, r, c) in zip(axes, spots):
+    sizes = {"pitch": float(grid.pitch), "circle_radius": float(grid.radius),
+             "cross_arm": OVERLAY_CROSS_PITCH * grid.pitch, "dot_radius": OVERLAY_DOT_PITCH * grid.pitch}
+    fig, axes = plt.subplots(2, 3, figsize=(12, 8.6))
+    for name, (i, j), (py, px) in _OVERLAY_SPOTS:
+        ax = axes[i, j]
+        r = (half, h // 2, h - 1 - half)[py]
+        c = (half, w // 2, w - 1 - half)[px]
         r0, r1 = max(0, r - half), min(h, r + half + 1)
         c0, c1 = max(0, c - half), min(w, c + half + 1)
         vmax = float(np.percentile(img[r0:r1, c0:c1], 99.5)) or 1.0  # per panel: vignetted corners stay visible
         ax.imshow(img[r0:r1, c0:c1], cmap="gray", vmin=0, vmax=vmax, extent=(c0 - 0.5, c1 - 0.5, r1 - 0.5, r0 - 0.5),
                   interpolation="nearest")
-        sel = (gc[:, 0] >= r0) & (gc[:, 0] < r1) & (gc[:, 1] >= c0) & (gc[:, 1] < c1)
-        ax.scatter(gc[sel, 1], gc[sel, 0], s=60, facecolors="none", edgecolors="#2b8cff", linewidths=1.2,
-                   label="grid")
+        pad = grid.radius
+        sel = (gc[:, 0] >= r0 - pad) & (gc[:, 0] < r1 + pad) & (gc[:, 1] >= c0 - pad) & (gc[:, 1] < c1 + pad)
+        xy = gc[sel][:, ::-1]
+        for diameter, style in ((2 * sizes["circle_radius"], {"facecolors": "none", "edgecolors": "#2b8cff",
+                                                              "linewidths": 1.3}),
+                                (2 * sizes["dot_radius"], {"facecolors": "#2b8cff", "edgecolors": "none"})):
+            ax.add_collection(EllipseCollection(diameter, diameter, 0.0, units="xy", offsets=xy,
+                                                offset_transform=ax.transData, **style))
         if len(cen):
             sel = (cen[:, 0] >= r0) & (cen[:, 0] < r1) & (cen[:, 1] >= c0) & (cen[:, 1] < c1)
-            ax.plot(cen[sel, 1], cen[sel, 0], "+", color="#ff3030", ms=7, mew=1.2, label="detected")
-        ax.set_title(f"{name} (rows {r0}-{r1 - 1})", fontsize=9)
+            a = sizes["cross_arm"]
+            y, x = cen[sel, 0], cen[sel, 1]
+            arms = np.concatenate([np.stack([np.stack([x - a, y], 1), np.stack([x + a, y], 1)], 1),
+                                   np.stack([np.stack([x, y - a], 1), np.stack([x, y + a], 1)], 1)])
+            ax.add_collection(LineCollection(arms, colors="#ff3030", linewidths=1.4))
+        ax.set_title(f"{name} (rows {r0}-{r1 - 1}, cols {c0}-{c1 - 1})", fontsize=10)
         ax.set_xlim(c0 - 0.5, c1 - 0.5)
         ax.set_ylim(r1 - 0.5, r0 - 0.5)
-        ax.tick_params(labelsize=7)
-    axes[0].legend(loc="lower left", fontsize=7, framealpha=0.8)
+        ax.tick_params(labelsize=8)
+    key = axes[1, 1]
+    key.axis("off")
+    handles = [plt.Line2D([], [], ls="none", marker="o", ms=14, mfc="none", mec="#2b8cff", mew=1.3,
+                          label=f"grid lens: disk of radius {grid.radius:.1f} px\n(pitch {grid.pitch:.2f} px)"),
+               plt.Line2D([], [], ls="none", marker="o", ms=4, color="#2b8cff", label="grid lens centre")]
+    if len(cen):
+        handles.append(plt.Line2D([], [], ls="none", marker="+", ms=12, mew=1.4, color="#ff3030",
+                                  label="detected disk centre"))
+    legend = key.legend(handles=handles, loc="center", fontsize=10, frameon=False, handletextpad=1.0,
+                        labelspacing=1.2)
     fig.tight_layout()
-    return fig
+    fig.canvas.draw()
+    lb = legend.get_window_extent()
+    overlap = 0.0
+    for ax in axes.flat:
+        if ax is key:
+            continue
+        ab = ax.get_window_extent()
+        dx = min(lb.x1, ab.x1) - max(lb.x0, ab.x0)
+        dy = min(lb.y1, ab.y1) - max(lb.y0, ab.y0)
+        overlap += max(dx, 0.0) * max(dy, 0.0)
+    sizes["legend_overlap"] = float(overlap)
+    return fig, sizes
 
 
 def _residual_figure(grid: LensletGrid, m: dict[str, Any], rms: float | None) -> Any:
@@ -661,8 +710,12 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
              H.section("Grid parameters (as given)" if kind == "camera-file" else "Fitted parameters", H.table_html(_params(grid), header=("parameter", "value")))]
     if m is not None and m["img"] is not None:
         detected = "red +: detected disk centres; " if len(m["centres"]) else ""
+        fig, sizes = _overlay_figure(grid, m)
         parts.append(H.section("Lattice on the image", H.figure_html(
-            _overlay_figure(grid, m), f"{detected}blue circles: grid centres, at the corners and the centre")))
+            fig, f"{detected}blue circles: the grid's lenses, drawn at the disk radius the decoder uses, with a dot "
+                 "at each centre; at the corners and the centre of the image",
+            data={f"{k.replace('_', '-')}-px" if k != "legend_overlap" else "legend-overlap": f"{v:.3f}"
+                  for k, v in sizes.items()})))
         if len(m["centres"]):
             what = ("disk rims fitted at every lens as self-calibration measures them, lenses the fit rejected "
                     "included; the RMS line is over the fit's inliers") \

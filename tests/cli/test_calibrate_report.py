@@ -1,0 +1,71 @@
+"""What a person reads in the report 'plenodecode calibrate --report' writes on the real captures: the grid drawn
+on the image at the scale of its micro-images, clear of its legend."""
+
+from __future__ import annotations
+
+import base64
+import html as html_module
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from plenodecode.cli.main import cli
+from tests.conftest import ROOT, shared_path
+
+BLUE = (0x2B, 0x8C, 0xFF)       # the grid's markers
+
+
+def _calibrate(tmp_path: Path, *args: str) -> tuple[str, str]:
+    """Run 'plenodecode calibrate ARGS -o grid.json --report grid.html'; return (output, the report's HTML)."""
+    res = CliRunner().invoke(cli, ["calibrate", *map(str, args), "-o", str(tmp_path / "grid.json"),
+                                   "--report", str(tmp_path / "grid.html")], obj={})
+    assert res.exit_code == 0, res.output
+    return res.output, (tmp_path / "grid.html").read_text()
+
+
+def _overlay(html: str, tmp_path: Path) -> tuple[dict[str, float], np.ndarray]:
+    """The overlay figure's recorded drawing facts (``data-*`` px) and its PNG as (H, W, 3) uint8."""
+    from plenodecode.io.images import read_image
+
+    sec = html[html.index("Lattice on the image"):]
+    tag = re.search(r"<figure([^>]*)>", sec).group(1)
+    facts = {k: float(v) for k, v in re.findall(r'data-([a-z-]+)="([^"]+)"', tag)}
+    png = base64.b64decode(re.search(r'data:image/png;base64,([^"]+)', sec).group(1))
+    path = tmp_path / "overlay.png"
+    path.write_bytes(png)
+    return facts, read_image(path)[..., :3]
+
+
+# (capture, arguments): hex Raytrix micro-images of 35 px, the square microscope grid of 27.5 px, hex Lytro grids
+# of 14.3 px (Illum white) and 9.9 px (F01 JPEG, self-calibrated)
+CASES = {
+    "raytrix-r42": lambda: [shared_path("raytrix-r42", "sc2_klein.png")],
+    "antleg-white": lambda: [shared_path("lf-microscopy-antleg", "radiometry_frame.png")],
+    "illum-white": lambda: [ROOT / "sample_raws" / "illum-mini" / "MOD_0000.RAW"],
+    "f01-jpeg-scene": lambda: ["--scene", shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg")],
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_overlay_markers_scale_with_the_pitch_and_the_legend_stays_off_the_image(case, tmp_path):
+    """The overlay drew every grid centre as a 60 pt^2 ring (about 12 px on the page) whatever the pitch: on the
+    R42's 35 px micro-images a speck in each; five panels in a row made 245 px of image 300 px wide, and the legend
+    sat on the top-left panel's lenses.  Now the grid's lenses are circles of the disk radius (0.47 pitch) with a
+    centre dot, detections '+' of 0.2 pitch arms, all in image px; 2 x 3 panels, the legend in the free slot.
+    Measured: marker blue was 1.5-2.0 % of the overlay's pixels, now 5.2-6.5 %; the figure 1690 px wide (shrunk to
+    the page), now 1190 px."""
+    _, html = _calibrate(tmp_path, *CASES[case]())
+    facts, png = _overlay(html, tmp_path)
+    pitch = facts["pitch-px"]
+    assert 0.40 < facts["circle-radius-px"] / pitch < 0.5, facts      # the circle outlines the micro-image
+    assert facts["cross-arm-px"] / pitch == pytest.approx(0.2, abs=0.001)
+    assert facts["dot-radius-px"] / pitch == pytest.approx(0.06, abs=0.001)
+    assert facts["legend-overlap"] == 0.0                               # display px^2 of legend over the panels
+    assert png.shape[1] <= 1200                                          # the page's width: shown at full size
+    blue = np.all(np.abs(png.astype(np.int64) - BLUE) <= 40, axis=-1).mean()
+    assert blue > 0.04, blue
+    text = html_module.unescape(re.sub(r"<[^>]+>", " ", html))
+    assert "drawn at the disk radius the decoder uses" in text
