@@ -16,8 +16,10 @@ rules stated on the page:
 * **the camera's own calibration file** (Raytrix XML) used as given: no residual judgement, the
   grid is drawn on the image only (and a refit on the image, when asked for, is reported as such).
 
-One RMS figure, :data:`RMS_DEFINITION`, is used on the page and by ``plenodecode calibrate``
-(:func:`rms_text`).  Further contents: fitted parameters, zoomed overlays at the sensor centre and
+The header gives one accuracy figure: against white images, the lens-centre accuracy
+(:data:`ACCURACY_DEFINITION`: where the decoder cuts each micro-image against its disk, the residual histogram's
+line); otherwise the lattice RMS (:data:`RMS_DEFINITION`), which ``plenodecode calibrate`` prints
+(:func:`rms_text`) and a white image's page names as such.  Further contents: fitted parameters, zoomed overlays at the sensor centre and
 corners, residual map and histogram, and (white images) the vignetting profile.
 """
 
@@ -38,9 +40,13 @@ from . import html as H
 
 log = logging.getLogger(__name__)
 
-#: The one RMS figure of a calibration, shown on the report and in the CLI's summary line.
-RMS_DEFINITION = ("RMS: root-mean-square distance between the measured micro-image centres and the fitted "
-                  "lattice, px, over the inlier lenses")
+#: The lattice fit's RMS, shown on the report and in the CLI's summary line.
+RMS_DEFINITION = ("lattice RMS: root-mean-square distance between the measured micro-image centres and the fitted "
+                  "regular lattice, px, over the inlier lenses")
+#: The headline of a grid checked against white images: how far the centres the decoder uses are from the disks.
+ACCURACY_DEFINITION = ("lens-centre accuracy: root-mean-square distance between the lens centres the decoder uses "
+                       "(the lattice, or each lens's measured centre where the fit kept one) and the disks of the "
+                       "white image, detected again at full resolution, px, over every disk near a lens")
 #: Verdicts, from best to worst.
 LEVELS = ("good", "check", "bad")
 #: Residual (px) above which a lens of a white image counts as off the grid.
@@ -277,7 +283,9 @@ def _overlay_figure(grid: LensletGrid, m: dict[str, Any]) -> tuple[Any, dict[str
     return fig, sizes
 
 
-def _residual_figure(grid: LensletGrid, m: dict[str, Any], rms: float | None) -> Any:
+def _residual_figure(grid: LensletGrid, m: dict[str, Any], line: tuple[str, float | None]) -> Any:
+    """Residual map and histogram of the detected centres; ``line``: (label, px) of the dashed RMS line (px None:
+    the RMS of the residuals drawn)."""
     import matplotlib
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
@@ -293,8 +301,8 @@ def _residual_figure(grid: LensletGrid, m: dict[str, Any], rms: float | None) ->
                         reduce_C_function=np.mean, cmap="viridis", vmin=0, vmax=top)
         fig.colorbar(hb, ax=ax0, label="mean |residual| (px)")
         ax1.hist(mag, bins=60, range=(0, max(top * 1.5, 0.05)), color="#4477aa")
-        rms = float(np.sqrt(np.mean(mag ** 2))) if rms is None else rms
-        ax1.axvline(rms, color="k", ls="--", lw=1, label=f"RMS {rms:.3f} px")
+        rms = float(np.sqrt(np.mean(mag ** 2))) if line[1] is None else line[1]
+        ax1.axvline(rms, color="k", ls="--", lw=1, label=f"{line[0]} {rms:.3f} px")
         ax1.legend(fontsize=8)
     ax0.set_xlim(0, w)
     ax0.set_ylim(h, 0)
@@ -383,27 +391,31 @@ def _vignetting_figure(m: dict[str, Any]) -> tuple[Any, str]:
 
 
 def _judge_white(grid: LensletGrid, m: dict[str, Any], kind: str) -> tuple[list[Check], float | None]:
-    """Checks of a grid against white image(s); returns them and the RMS (recorded, else measured here)."""
-    from ..calib.grid import SMOOTH_FIELD_DEGREE, residual_statistics
+    """Checks of a grid against white image(s); returns them and the lens-centre accuracy
+    (:data:`ACCURACY_DEFINITION`, px; None without a disk near a lens)."""
+    from ..calib.grid import SMOOTH_FIELD_DEGREE
 
     checks: list[Check] = []
     a = m["assigned"]
     n_det = len(a)
     mag = np.hypot(*m["residuals"][a].T) if a.sum() else np.zeros(0)
+    accuracy = float(np.sqrt(np.mean(mag ** 2))) if len(mag) else None
+    if accuracy is not None:
+        checks.append(Check("lens-centre accuracy (RMS)", f"{accuracy:.3f} px over {len(mag)} disks",
+                            f"good <= {WHITE_RMS_PX[0]} px, check <= {WHITE_RMS_PX[1]} px (white images)",
+                            _level(accuracy, *WHITE_RMS_PX),
+                            "" if accuracy <= WHITE_RMS_PX[0] else
+                            f"the lens centres the decoder uses are {accuracy:.3f} px RMS from the disks of the white "
+                            f"image (expected < {WHITE_RMS_PX[0]} px)"))
     rms = grid.residual_rms if kind == "white-image" else None
-    how = "of the fit"
-    if rms is None and len(mag):
-        ij = np.stack(np.unravel_index(m["lens"][a], grid.shape), axis=1)
-        inl = mag < max(4.0 * float(np.median(mag)) / 1.1774, 1e-3)
-        rms = residual_statistics(m["residuals"][a][inl], ij[inl])["rms_px"]
-        how = "measured here against the white image"
     smooth = smooth_part(grid, rms)
     if smooth is not None:
         # the centres depart from the regular lattice mostly by a smooth field (optics bending the lens array's
         # image), which the decoder follows through each lens's measured centre: judged by what is left
         rest = smooth["rest_rms_px"]
-        checks.append(Check("RMS", f"{rms:.3f} px ({how}); {rest:.3f} px about a smooth distortion of the lens "
-                                   f"array's image of up to {smooth['max_px']:.2f} px",
+        checks.append(Check("fit to a regular lattice (lattice RMS)",
+                            f"{rms:.3f} px; {rest:.3f} px about a smooth distortion of the lens "
+                            f"array's image of up to {smooth['max_px']:.2f} px",
                             f"good <= {WHITE_RMS_PX[0]} px, check <= {WHITE_RMS_PX[1]} px (white images) about a "
                             f"smooth field (degree {SMOOTH_FIELD_DEGREE} in the lens indices), which the decoder "
                             "follows: it uses each lens's measured centre",
@@ -411,15 +423,15 @@ def _judge_white(grid: LensletGrid, m: dict[str, Any], kind: str) -> tuple[list[
                             "" if rest <= WHITE_RMS_PX[0] else f"the lens centres scatter by {rest:.3f} px about a "
                                                                f"smooth distortion (expected < {WHITE_RMS_PX[0]} px)"))
     elif rms is not None:
-        checks.append(Check("RMS", f"{rms:.3f} px ({how})",
+        checks.append(Check("fit to a regular lattice (lattice RMS)", f"{rms:.3f} px",
                             f"good <= {WHITE_RMS_PX[0]} px, check <= {WHITE_RMS_PX[1]} px (white images)",
                             _level(rms, *WHITE_RMS_PX),
-                            "" if rms <= WHITE_RMS_PX[0] else f"RMS residual {rms:.3f} px is high for a white "
+                            "" if rms <= WHITE_RMS_PX[0] else f"lattice RMS {rms:.3f} px is high for a white "
                                                               f"image (expected < {WHITE_RMS_PX[0]} px)"))
     if not n_det:
         checks.append(Check("disks detected", "0", "a white image shows every lens's disk", "bad",
                             "no lens disk could be detected in the white image"))
-        return checks, rms
+        return checks, accuracy
     near = a.mean()
     fitted = grid.info.get("n_detected") if kind == "white-image" else None
     # this check detects the disks again, at full resolution; the fit's own count (binned) differs by a few
@@ -447,7 +459,7 @@ def _judge_white(grid: LensletGrid, m: dict[str, Any], kind: str) -> tuple[list[
                         "" if ok else f"{int(missing.sum())} of {int(full.sum())} fully visible lenses ({frac:.1%}) "
                                       "show no detectable disk (dust, dead lenses or dark corners); the lattice "
                                       "places them"))
-    return checks, rms
+    return checks, accuracy
 
 
 def _binned(grid: LensletGrid) -> str:
@@ -538,16 +550,18 @@ class Judgement:
     warnings : list of str
         The grid's own warnings and one line per check below 'good'.
     rms : float or None
-        The one RMS figure (:data:`RMS_DEFINITION`), px.
-    rms_origin : str
-        'fit' (recorded by the calibration) or 'report' (measured against the images given).
+        The lattice RMS recorded by the calibration (:data:`RMS_DEFINITION`), px; None for a grid used as given
+        or of unknown origin.
+    accuracy : float or None
+        The lens-centre accuracy measured against the white images given (:data:`ACCURACY_DEFINITION`), px: the
+        report's headline where there is one.
     """
 
     verdict: str
     checks: list[Check]
     warnings: list[str]
     rms: float | None
-    rms_origin: str
+    accuracy: float | None = None
 
 
 def judge_calibration(grid: LensletGrid, m: dict[str, Any] | None = None) -> Judgement:
@@ -566,20 +580,35 @@ def judge_calibration(grid: LensletGrid, m: dict[str, Any] | None = None) -> Jud
     """
     kind = source_kind(grid)
     warnings = [str(w) for w in grid.info.get("warnings", [])]
-    rms, origin = grid.residual_rms, "fit"
+    rms, accuracy = grid.residual_rms, None
     if kind == "camera-file":
-        return Judgement("as given", [], warnings, rms if refitted(grid) else None, "fit")
+        return Judgement("as given", [], warnings, rms if refitted(grid) else None)
     if kind == "self-calibration":
         checks = _judge_selfcal(grid, m)
     elif m is not None and "found" in m:
-        checks, rms = _judge_white(grid, m, kind)
-        origin = "fit" if kind == "white-image" and grid.residual_rms is not None else "report"
+        checks, accuracy = _judge_white(grid, m, kind)
     else:
         checks = []
     warnings += [c.note for c in checks if c.level != "good" and c.note]
     levels = [c.level for c in checks] + (["check"] if grid.info.get("warnings") else [])
     verdict = max(levels, key=LEVELS.index) if levels else "as given"
-    return Judgement(verdict, checks, warnings, rms, origin)
+    return Judgement(verdict, checks, warnings, rms, accuracy)
+
+
+def _headline(grid: LensletGrid, j: Judgement, m: dict[str, Any] | None) -> tuple[str, str]:
+    """The verdict box's line -- the verdict and one accuracy figure: a white image's lens-centre accuracy
+    (:data:`ACCURACY_DEFINITION`), else the lattice RMS (:func:`rms_text`) -- and the line under it naming the lattice
+    RMS where the accuracy is the headline (a white image's fit: the figure ``plenodecode calibrate`` prints)."""
+    if j.accuracy is None:
+        return f"verdict: {j.verdict}; lattice RMS {rms_text(grid)}", ""
+    n = int(m["assigned"].sum()) if m is not None else 0
+    head = (f"verdict: {j.verdict}; lens-centre accuracy {j.accuracy:.3f} px RMS (the lens centres the decoder uses, "
+            f"measured against {n} disks of the white image)")
+    if j.rms is None:
+        return head, ""
+    tail = (f", measured on the fit's detection{_binned(grid)}" if smooth_part(grid, j.rms) is None else
+            "; the decoder follows that distortion lens by lens, so the lens-centre accuracy is what decoding sees")
+    return head, f"Fit to a regular lattice: lattice RMS {rms_text(grid)}{tail} ('plenodecode calibrate' prints it)."
 
 
 def _files(paths: Sequence[Any]) -> str:
@@ -684,9 +713,9 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
         m = (_scene_measure if kind == "self-calibration" and grid.info.get("method") == "rim" else
              _image_measure if kind == "camera-file" else _white_measure)(grid, raws)
     j = judge_calibration(grid, m)
-    rms = rms_text(grid) if j.rms_origin == "fit" else f"{j.rms:.3f} px (measured against the images given)"
-    head = f"verdict: {j.verdict}; RMS {rms}"
+    head, also = _headline(grid, j, m)
     box = H.notes_html([head], kind="ok" if j.verdict in ("good", "as given") else "warn")
+    box += f'<p class="muted">{H.escape(also)}</p>' if also else ""
     notes = (H.notes_html(j.warnings) if j.warnings else "" if j.verdict == "as given" else
              H.notes_html(["no problems found"], kind="ok"))
     if kind == "camera-file":
@@ -700,7 +729,9 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
         rows = [(c.quantity, c.value, c.rule, c.level) for c in j.checks]
         judged = (H.table_html(rows, header=("quantity", "value", "rule", "level")) if rows else
                   "<p>No image to check the grid against.</p>")
-        judged += f'<p class="muted">{H.escape(RMS_DEFINITION)}.</p>'
+        defined = ([ACCURACY_DEFINITION] if j.accuracy is not None else []) + \
+            ([RMS_DEFINITION] if j.accuracy is None or j.rms is not None else [])
+        judged += "".join(f'<p class="muted">{H.escape(d)}.</p>' for d in defined)
         if kind == "self-calibration":
             judged += (f'<p class="muted">Self-calibration is judged by what a scene can show: the scatter of the '
                        f"detected centres about the lattice, the lattice's local misfit, the lenses found, and "
@@ -717,15 +748,15 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
             data={f"{k.replace('_', '-')}-px" if k != "legend_overlap" else "legend-overlap": f"{v:.3f}"
                   for k, v in sizes.items()})))
         if len(m["centres"]):
-            what = ("disk rims fitted at every lens as self-calibration measures them, lenses the fit rejected "
-                    "included; the RMS line is over the fit's inliers") \
-                if kind == "self-calibration" else ("disks of the white image, detected again at full resolution; the "
-                                                    "grid centre is the lens centre the decoder uses, so the RMS line "
-                                                    f"is theirs, not the fit's {rms}")
-            # a white image's residuals are against the centres the decoder uses (measured where a smooth
-            # distortion moves them): their own RMS, not the lattice fit's
-            rms_line = j.rms if kind == "self-calibration" else None
-            parts.append(H.section("Residuals", H.figure_html(_residual_figure(grid, m, rms_line),
+            if kind == "self-calibration":
+                what = ("disk rims fitted at every lens as self-calibration measures them, lenses the fit rejected "
+                        "included; the dashed line is the lattice RMS, over the fit's inliers")
+                line = ("lattice RMS", j.rms)
+            else:   # against the centres the decoder uses (measured where a smooth distortion moves them)
+                what = ("the disks of the white image, detected again at full resolution, against the lens centres the "
+                        "decoder uses; the dashed line is the lens-centre accuracy")
+                line = ("lens-centre accuracy", j.accuracy)
+            parts.append(H.section("Residuals", H.figure_html(_residual_figure(grid, m, line),
                                                                 f"detected minus grid centre ({what})")))
         if kind not in ("self-calibration", "camera-file"):
             parts.append(H.section("Vignetting", H.figure_html(*_vignetting_figure(m))))
@@ -737,4 +768,4 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
 
 __all__ = ["write_calibration_report", "judge_calibration", "source_kind", "source_line", "rms_text", "refitted",
            "scene_smooth_field",
-           "vignetting_profile", "Check", "Judgement", "RMS_DEFINITION", "SELFCAL_RULES", "SELFCAL_BASIS", "LEVELS"]
+           "vignetting_profile", "Check", "Judgement", "RMS_DEFINITION", "ACCURACY_DEFINITION", "SELFCAL_RULES", "SELFCAL_BASIS", "LEVELS"]

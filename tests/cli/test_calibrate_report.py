@@ -26,6 +26,12 @@ def _calibrate(tmp_path: Path, *args: str) -> tuple[str, str]:
     return res.output, (tmp_path / "grid.html").read_text()
 
 
+def _text(html: str) -> str:
+    """The page's visible text: no style, no figures, no markup, single spaces."""
+    html = re.sub(r"<style>.*?</style>|src=\"[^\"]+\"", "", html, flags=re.S)
+    return html_module.unescape(re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html)))
+
+
 def _overlay(html: str, tmp_path: Path) -> tuple[dict[str, float], np.ndarray]:
     """The overlay figure's recorded drawing facts (``data-*`` px) and its PNG as (H, W, 3) uint8."""
     from plenodecode.io.images import read_image
@@ -67,5 +73,33 @@ def test_overlay_markers_scale_with_the_pitch_and_the_legend_stays_off_the_image
     assert png.shape[1] <= 1200                                          # the page's width: shown at full size
     blue = np.all(np.abs(png.astype(np.int64) - BLUE) <= 40, axis=-1).mean()
     assert blue > 0.04, blue
-    text = html_module.unescape(re.sub(r"<[^>]+>", " ", html))
-    assert "drawn at the disk radius the decoder uses" in text
+    assert "drawn at the disk radius the decoder uses" in _text(html)
+
+
+def test_the_antleg_white_report_heads_with_the_lens_centre_accuracy_and_labels_the_lattice_rms(tmp_path):
+    """The ant leg's report said 'RMS 0.569 px (0.071 px about a smooth distortion ...)' in its header and drew
+    'RMS 0.089 px' on its histogram, reconciled by a caption ('... so the RMS line is theirs, not the fit's').  Its
+    header now gives the one figure decoding depends on, the lens-centre accuracy: the RMS distance of the lens
+    centres the decoder uses from the white image's disks, measured here again; the lattice fit's figure follows,
+    named 'lattice RMS' as the CLI's line names it.  Measured: accuracy 0.089 px over 6899 disks, lattice 0.569 px."""
+    from plenodecode.io import read_raw
+    from plenodecode.report.calibration import _white_measure
+    from plenodecode.types import LensletGrid
+
+    white = shared_path("lf-microscopy-antleg", "radiometry_frame.png")
+    out, html = _calibrate(tmp_path, white)
+    text = _text(html)
+    head = re.search(r"verdict: good; lens-centre accuracy (\d\.\d{3}) px RMS \(the lens centres the decoder uses, "
+                     r"measured against (\d+) disks of the white image\)", text)
+    assert head, text[:2000]
+    accuracy, n = float(head.group(1)), int(head.group(2))
+    grid = LensletGrid.from_json((tmp_path / "grid.json").read_text())
+    m = _white_measure(grid, [read_raw(white)])
+    mag = np.hypot(*m["residuals"][m["assigned"]].T)
+    assert n == len(mag) and accuracy == pytest.approx(np.sqrt(np.mean(mag ** 2)), abs=0.0005)
+    assert 0.05 < accuracy < 0.1                                       # 0.089: 'good' (<= 0.1 px)
+    lattice = re.search(r"Fit to a regular lattice: lattice RMS (\d\.\d{3}) px \((\d\.\d{3}) px about a smooth "
+                        r"distortion of up to (\d\.\d+) px\)", text)
+    assert lattice and float(lattice.group(1)) > 0.4 and float(lattice.group(2)) < 0.1, text[:2000]
+    assert f"lattice RMS {lattice.group(1)} px" in out                  # the CLI's line, the same figure, same name
+    assert "not the fit's" not in text
