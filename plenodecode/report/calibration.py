@@ -468,9 +468,31 @@ def _binned(grid: LensletGrid) -> str:
     return f" at binning {b}" if isinstance(b, int) and b > 1 else ""
 
 
-#: Labels of the fit's counts in ``grid.info`` in the parameters table (else the key, '_' as ' ').
+#: Labels of ``grid.info`` keys in the parameters table (else the key in words, '_' as ' ', a '_px' key's unit in
+#: its value).
 INFO_LABELS = {"n_detected": "disks detected by the fit", "n_fit": "disks the fit kept (inliers)",
-               "n_whites": "white images", "binning": "binning of the fit's detection"}
+               "n_whites": "white images", "binning": "binning of the fit's detection",
+               "method": "how the centres were measured", "rim_radius_px": "disk rim radius (fitted)"}
+#: ``grid.info['method']`` in words (the method's name, which the Python API takes, in brackets).
+METHOD_WORDS = {"dog": "peaks of the disks' brightness, difference-of-Gaussians fit (dog)",
+                "parabolic": "peaks of the disks' brightness, 3-point parabola (parabolic)",
+                "rim": "circles fitted to the disks' rims (rim)"}
+
+
+def info_row(key: str, value: Any) -> tuple[str, str]:
+    """A ``grid.info`` entry as a row a person reads: ``('disk rim radius (fitted)', '3.994 px')`` for
+    ``rim_radius_px`` (:data:`INFO_LABELS`, :data:`METHOD_WORDS`); whole floats print whole (zoom step -312)."""
+    unit = " px" if key.endswith("_px") else ""
+    label = INFO_LABELS.get(key, key[:-3] if unit else key).replace("_", " ")
+    if key == "method":
+        text = METHOD_WORDS.get(str(value), str(value))
+    elif key == "binning" and isinstance(value, int) and value > 1:
+        text = f"{value} ({value} x {value} pixels summed)"
+    elif isinstance(value, float):
+        text = f"{value:.0f}" if value.is_integer() and not unit else f"{value:.3f}"
+    else:
+        text = str(value)
+    return label, text + unit
 
 
 def scene_smooth_field(grid: LensletGrid, m: dict[str, Any]) -> dict[str, float] | None:
@@ -641,6 +663,8 @@ def source_line(grid: LensletGrid, raws: Sequence[RawCapture], grid_path: Path |
 
 
 def _params(grid: LensletGrid) -> list[tuple[str, str]]:
+    from ..calib.grid import SOURCE_KINDS
+
     inf = grid.info
     rows = [
         ("lattice", grid.lattice),
@@ -652,8 +676,8 @@ def _params(grid: LensletGrid) -> list[tuple[str, str]]:
         ("lenses (rows x cols)", f"{grid.shape[0]} x {grid.shape[1]} = {grid.shape[0] * grid.shape[1]}"),
         ("sensor (H x W)", f"{grid.sensor_shape[0]} x {grid.sensor_shape[1]}"),
         ("disk radius", f"{grid.radius:.3f} px"),
-        ("refined lenses", str(int(np.isfinite(grid.refined[..., 0]).sum())) if grid.refined is not None else "0"),
-        ("source kind", source_kind(grid)),
+        ("lenses with their own measured centre", str(int(np.isfinite(grid.refined[..., 0]).sum())) if grid.refined is not None else "0"),
+        ("source", SOURCE_KINDS[source_kind(grid)]),
     ]
     if grid.lens_type is not None:
         types, counts = np.unique(np.asarray(grid.lens_type), return_counts=True)
@@ -666,9 +690,7 @@ def _params(grid: LensletGrid) -> list[tuple[str, str]]:
     for key in ("camera_model", "serial", "zoom_step", "focus_step", "n_whites", "method", "binning", "rim_radius_px",
                 "n_detected", "n_fit"):
         if inf.get(key) is not None:
-            v = inf[key]
-            text = (f"{v:.0f}" if float(v).is_integer() else f"{v:.3f}") if isinstance(v, float) else str(v)
-            rows.append((INFO_LABELS.get(key, key.replace("_", " ")), text))     # zoom step -312, not -312.000
+            rows.append(info_row(key, inf[key]))
     return rows
 
 

@@ -103,3 +103,27 @@ def test_the_antleg_white_report_heads_with_the_lens_centre_accuracy_and_labels_
     assert lattice and float(lattice.group(1)) > 0.4 and float(lattice.group(2)) < 0.1, text[:2000]
     assert f"lattice RMS {lattice.group(1)} px" in out                  # the CLI's line, the same figure, same name
     assert "not the fit's" not in text
+
+
+@pytest.mark.parametrize("case", ["f01-jpeg-scene", "antleg-white"])
+def test_the_parameters_read_as_words_with_units(case, tmp_path):
+    """The F01 scene's report listed 'rim radius px 3.994' (a grid.info key with its unit in the name, the number
+    bare), 'method rim', 'method dog' and 'source kind white-image' / 'self-calibration' as stored in the JSON, while
+    every other row reads 'disk radius 4.569 px'.  They now read as the rest of the table."""
+    from plenodecode.types import LensletGrid
+
+    _, html = _calibrate(tmp_path, *CASES[case]())
+    text = _text(html)
+    info = LensletGrid.from_json((tmp_path / "grid.json").read_text()).info
+    for raw_words in ("rim radius px", "radius px ", "source kind", "method rim", "method dog", "refined lenses",
+                      "_px", "white-image"):
+        assert raw_words not in text, raw_words
+    if case == "f01-jpeg-scene":
+        assert f"disk rim radius (fitted) {info['rim_radius_px']:.3f} px" in text
+        assert "how the centres were measured circles fitted to the disks' rims (rim)" in text
+        assert "source self-calibration from a scene (no white image)" in text
+    else:
+        assert "how the centres were measured peaks of the disks' brightness, difference-of-Gaussians fit (dog)" in text
+        assert "binning of the fit's detection 2 (2 x 2 pixels summed)" in text
+        assert "source fitted to white image(s)" in text
+    assert re.search(r" disk radius \d+\.\d{3} px ", text)
