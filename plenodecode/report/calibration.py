@@ -524,7 +524,7 @@ def _judge_selfcal(grid: LensletGrid, m: dict[str, Any] | None = None) -> list[C
             if sigma else ""
         g, c = SELFCAL_RULES["rms_pitch"]
         lv = _level(rms / p, g, c)
-        checks.append(Check("RMS", f"{rms:.3f} px = {rms / p:.3f} pitch{tail}",
+        checks.append(Check("lattice RMS", f"{rms:.3f} px = {rms / p:.3f} pitch{tail}",
                             f"good <= {g} pitch, check <= {c} pitch (expected spread of scene-based centres)", lv,
                             "" if lv == "good" else f"the detected centres scatter by {rms / p:.3f} pitch about the "
                                                     "lattice, more than scene-based detection does"))
