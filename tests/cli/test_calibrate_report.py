@@ -102,6 +102,8 @@ def test_the_antleg_white_report_heads_with_the_lens_centre_accuracy_and_labels_
                         r"distortion of up to (\d\.\d+) px\)", text)
     assert lattice and float(lattice.group(1)) > 0.4 and float(lattice.group(2)) < 0.1, text[:2000]
     assert f"lattice RMS {lattice.group(1)} px" in out                  # the CLI's line, the same figure, same name
+    info = CliRunner().invoke(cli, ["info", str(tmp_path / "grid.json")], obj={})
+    assert info.exit_code == 0 and f"lattice RMS {lattice.group(1)} px" in info.output, info.output
     assert "not the fit's" not in text
 
 
