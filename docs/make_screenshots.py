@@ -64,7 +64,7 @@ def calibration_report(tmp: Path, *, overwrite: bool) -> Path:
     html = write_calibration_report(grid, white, tmp / "calibration_report.html",
                                     title="plenodecode calibration report: sample_raws/illum-mini")
     shot = tmp / "calibration_report.png"
-    screenshot(html, shot, size=(1280, 1640))  # down to the residual figures
+    screenshot(html, shot, size=(1280, 2900))  # down to the residual figures, under the 2 x 3 overlay panels
     return downscale(shot, OUT / "calibration_report.png", overwrite=overwrite)
 
 

@@ -8,8 +8,11 @@ without XDG); ``plenodecode/__init__.py`` calls it, so it runs before any kernel
 Every kernel module decorates its kernels with :func:`njit` (``numba.njit`` with ``cache=True``).  The first
 time a process compiles a kernel that is not in the cache (numba's ``numba:compile`` event, raised only on a
 cache miss), the callback set by :func:`set_compile_notice` (the CLI: one line on stderr) or, without one,
-the log receives ``"compiling decode kernels (first run only, ~4 s)..."``, once per group of kernels.  Batch
-workers relay the group to the process that started them (:func:`relay_compile_notices`), which says it once.
+the log receives ``"compiling decode kernels (first run only, ~4 s)..."``, once per group of kernels and cache
+directory: a group's kernels are compiled by several commands (a white image's fit, its report at full resolution,
+``calibrate --scene``), and the notice of the first says it for all, so that 'first run only' holds; a marker file
+per group and plenodecode version in the cache directory (:func:`notice_marker`) records it.  Batch workers relay
+the group to the process that started them (:func:`relay_compile_notices`), which says it once.
 
 Importing this module is light: numba is imported by :func:`njit`, that is by the kernel modules.
 """
@@ -89,6 +92,28 @@ def compile_message(group: str) -> str:
     return f"compiling {group} kernels (first run only{estimate})..."
 
 
+def notice_marker(group: str) -> Path:
+    """The file whose presence in the kernel cache directory says that ``group``'s compile notice was given for this
+    plenodecode version: ``<cache>/compile-notices/<group>-<version>``."""
+    from . import __version__
+
+    return Path(os.environ.get("NUMBA_CACHE_DIR") or default_cache_dir()) / "compile-notices" / f"{group}-{__version__}"
+
+
+def _first_notice(group: str) -> bool:
+    """Whether ``group``'s notice was never given with this cache directory; marks it given (best effort: an
+    unwritable cache directory gives the notice every time, as numba then compiles every time)."""
+    marker = notice_marker(group)
+    if marker.is_file():
+        return False
+    try:
+        marker.parent.mkdir(parents=True, exist_ok=True)
+        marker.touch()
+    except OSError:
+        pass
+    return True
+
+
 def set_compile_notice(notify: Callable[[str], None] | None) -> None:
     """Send the compile notice to ``notify(message)`` (None: to the log, at INFO)."""
     _state["notify"] = notify
@@ -101,14 +126,16 @@ def relay_compile_notices(send: Callable[[str], None] | None) -> None:
 
 
 def announce(group: str) -> None:
-    """Say (once per process) that ``group``'s kernels are compiling: :func:`set_compile_notice`'s callback, or
-    the log; in a worker with :func:`relay_compile_notices`, the relay."""
+    """Say that ``group``'s kernels are compiling, once per process and cache directory (:func:`notice_marker`):
+    :func:`set_compile_notice`'s callback, or the log; in a worker with :func:`relay_compile_notices`, the relay."""
     if group in _state["announced"]:
         return
     _state["announced"].add(group)
     relay = _state["relay"]
     if relay is not None:
         relay(group)
+        return
+    if not _first_notice(group):
         return
     message = compile_message(group)
     notify = _state["notify"]
@@ -174,4 +201,4 @@ def run_in_blocks(call: Callable[[int, int], Any], n: int, *, blocks_per_thread:
 
 
 __all__ = ["KERNEL_GROUPS", "COMPILE_SECONDS", "default_cache_dir", "use_user_cache", "group_of",
-           "compile_message", "set_compile_notice", "relay_compile_notices", "announce", "njit", "run_in_blocks"]
+           "compile_message", "notice_marker", "set_compile_notice", "relay_compile_notices", "announce", "njit", "run_in_blocks"]

@@ -7,8 +7,8 @@ compiling.  Groups, in order (each needs the one before):
 
 ``synthetic``   the forward model (:func:`plenodecode.synthetic.simulate`), which makes the inputs, and the
                 checkerboard renderer (:func:`plenodecode.synthetic.board_lightfield`);
-``calibration`` :func:`plenodecode.calib.calibrate` on the white image, and the hot-pixel kernel of
-                full-size whites;
+``calibration`` :func:`plenodecode.calib.calibrate` on the white image, the hot-pixel kernel of
+                full-size whites, and self-calibration on the scene (``calibrate --scene``: the disk rims);
 ``decode``      :func:`plenodecode.pipeline.decode_raw` (devignette, demosaic, slice, hex -> rect);
 ``refocus``     shift-sum and Fourier-slice photographs and a shift-sum focal stack
                 (:func:`plenodecode.pipeline.render_product`);
@@ -40,8 +40,10 @@ def _calibration(state: dict[str, Any]) -> None:
 
     from .calib import calibrate
     from .calib.centroids import flatten
+    from .calib.selfcal import calibrate_from_scene
 
     state["grid"] = calibrate([state["sim"].white])
+    calibrate_from_scene(state["sim"].raw)
     # full-size whites repair hot pixels in a compiled kernel (small images go through OpenCV)
     flatten.fix_hot_pixels(np.zeros((1, flatten._KERNEL_MIN_PIXELS), np.float32))
 

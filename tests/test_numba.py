@@ -64,3 +64,46 @@ def test_run_in_blocks_covers_the_range_once_in_order():
     assert len(out) > 1
     assert _numba.run_in_blocks(call, 0) == []
     assert _numba.run_in_blocks(call, 1) == [[0]]
+
+
+def _cached_kernels(cache: Path) -> set[str]:
+    """Names of the compiled kernels (``module.function``) in a numba cache directory."""
+    return {p.name.split("-")[0] for p in cache.rglob("*.nbi")}
+
+
+def test_the_calibration_notice_shows_once_for_a_white_then_its_scene(tmp_path):
+    """'plenodecode calibrate radiometry_frame.png -o w.json && plenodecode calibrate --scene light_field.png -o
+    s.json --report s.html' on a fresh cache said 'compiling calibration kernels (first run only, ~3 s)...' twice:
+    the scene's rim fit compiles kernels the white's fit does not (as a report at full resolution does).  The first
+    command's notice now stands for the group: the second compiles its ~1 s of kernels without repeating it."""
+    from tests.conftest import shared_path
+
+    white = shared_path("lf-microscopy-antleg", "radiometry_frame.png")
+    scene = shared_path("lf-microscopy-antleg", "light_field.png")
+    cache = tmp_path / "cache"
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(ROOT))
+    cmd = [sys.executable, "-m", "plenodecode", "calibrate"]
+    first = subprocess.run([*cmd, str(white), "-o", str(tmp_path / "w.json")], capture_output=True, text=True,
+                           env=env, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    after_white = _cached_kernels(cache)
+    second = subprocess.run([*cmd, "--scene", str(scene), "-o", str(tmp_path / "s.json"), "--report",
+                             str(tmp_path / "s.html")], capture_output=True, text=True, env=env, cwd=tmp_path)
+    assert second.returncode == 0, second.stderr
+    compiled_by_scene = _cached_kernels(cache) - after_white
+    assert {"rims._rim_fit", "rims._splat_votes"} <= compiled_by_scene, compiled_by_scene   # it did compile
+    notices = [line for out in (first.stderr, second.stderr) for line in out.splitlines() if "compiling" in line]
+    assert notices == ["compiling calibration kernels (first run only, ~3 s)..."], (first.stderr, second.stderr)
+    assert "compiling" in first.stderr and [p.name for p in (cache / "compile-notices").iterdir()] == \
+        [f"calibration-{__import__('plenodecode').__version__}"]
+
+
+def test_warmup_compiles_the_self_calibration_kernels(tmp_path):
+    """'plenodecode warmup' then 'calibrate --scene' still compiled the rim-fit kernels and said so: the warmup's
+    calibration group fitted a white image only.  It now self-calibrates its scene too."""
+    code = ("from plenodecode.warmup import _synthetic, _calibration\n"
+            "state = {}\n_synthetic(state)\n_calibration(state)\n")
+    cache = tmp_path / "cache"
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(ROOT))
+    subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+    assert {"rims._rim_fit", "rims._splat_votes"} <= _cached_kernels(cache)

@@ -125,7 +125,7 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
     from ..report.calibration import angle_text, rms_text
     _write_text(output, grid.to_json())
     click.echo(f"grid  {output}  ({grid.lattice}, pitch {grid.pitch:.4f} px, rotation {angle_text(grid.rotation)}, "
-               f"{grid.shape[0]}x{grid.shape[1]} lenses, RMS {rms_text(grid)})")
+               f"{grid.shape[0]}x{grid.shape[1]} lenses, lattice RMS {rms_text(grid)})")
     _warn_high_rms(grid, report)
     if report is not None:
         from ..report.calibration import write_calibration_report
@@ -167,7 +167,7 @@ def _warn_high_rms(grid: Any, report: Path | None) -> None:
     rest = grid.residual_rms if smooth is None else smooth["rest_rms_px"]
     if rest > WHITE_RMS_PX[1]:
         where = f"{report} shows where" if report is not None else "--report shows where"
-        click.echo(f"warning: RMS {rest:.3f} px is high for a white image (good <= {WHITE_RMS_PX[0]} px, check <= "
+        click.echo(f"warning: lattice RMS {rest:.3f} px is high for a white image (good <= {WHITE_RMS_PX[0]} px, check <= "
                    f"{WHITE_RMS_PX[1]} px): a scene, another camera's image, or a wrong --lattice? {where}", err=True)
 
 

@@ -309,7 +309,7 @@ def _describe_project_json(path: Path, doc: Mapping) -> list[str] | None:
             SOURCE_KINDS[kind] + (f": {white}" if white else "")
         return [f"{path}: lenslet grid ({source})",
                 f"  lattice  {g.lattice}, pitch {g.pitch:.4f} px, rotation {angle_text(g.rotation)}, "
-                f"{g.shape[0]} x {g.shape[1]} lenses (rows x cols), RMS {rms_text(g)}",
+                f"{g.shape[0]} x {g.shape[1]} lenses (rows x cols), lattice RMS {rms_text(g)}",
                 f"  sensor   {g.sensor_shape[1]} x {g.sensor_shape[0]}; {g.n_views()} x {g.n_views()} views "
                 "when decoded"]
     if kind == "plenodecode.mosaic":

@@ -16,8 +16,10 @@ rules stated on the page:
 * **the camera's own calibration file** (Raytrix XML) used as given: no residual judgement, the
   grid is drawn on the image only (and a refit on the image, when asked for, is reported as such).
 
-One RMS figure, :data:`RMS_DEFINITION`, is used on the page and by ``plenodecode calibrate``
-(:func:`rms_text`).  Further contents: fitted parameters, zoomed overlays at the sensor centre and
+The header gives one accuracy figure: against white images, the lens-centre accuracy
+(:data:`ACCURACY_DEFINITION`: where the decoder cuts each micro-image against its disk, the residual histogram's
+line); otherwise the lattice RMS (:data:`RMS_DEFINITION`), which ``plenodecode calibrate`` prints
+(:func:`rms_text`) and a white image's page names as such.  Further contents: fitted parameters, zoomed overlays at the sensor centre and
 corners, residual map and histogram, and (white images) the vignetting profile.
 """
 
@@ -38,9 +40,13 @@ from . import html as H
 
 log = logging.getLogger(__name__)
 
-#: The one RMS figure of a calibration, shown on the report and in the CLI's summary line.
-RMS_DEFINITION = ("RMS: root-mean-square distance between the measured micro-image centres and the fitted "
-                  "lattice, px, over the inlier lenses")
+#: The lattice fit's RMS, shown on the report and in the CLI's summary line.
+RMS_DEFINITION = ("lattice RMS: root-mean-square distance between the measured micro-image centres and the fitted "
+                  "regular lattice, px, over the inlier lenses")
+#: The headline of a grid checked against white images: how far the centres the decoder uses are from the disks.
+ACCURACY_DEFINITION = ("lens-centre accuracy: root-mean-square distance between the lens centres the decoder uses "
+                       "(the lattice, or each lens's measured centre where the fit kept one) and the disks of the "
+                       "white image, detected again at full resolution, px, over every disk near a lens")
 #: Verdicts, from best to worst.
 LEVELS = ("good", "check", "bad")
 #: Residual (px) above which a lens of a white image counts as off the grid.
@@ -194,41 +200,92 @@ def _image_measure(grid: LensletGrid, raws: Sequence[RawCapture]) -> dict[str, A
             "lens": np.zeros(0, int), "grid_centres": grid.centres()}
 
 
-def _overlay_figure(grid: LensletGrid, m: dict[str, Any]) -> Any:
+#: Overlay panels, in a 2 x 3 layout: name, (row, col) of the panel, where it looks (0: top / left, 1: centre,
+#: 2: bottom / right); the free slot (1, 1) holds the legend, clear of the image.
+_OVERLAY_SPOTS = (("top left", (0, 0), (0, 0)), ("centre", (0, 1), (1, 1)), ("top right", (0, 2), (0, 2)),
+                  ("bottom left", (1, 0), (2, 0)), ("bottom right", (1, 2), (2, 2)))
+#: Overlay markers in units of the pitch: the arm of a detected centre's '+' and the radius of the grid centre's dot
+#: (the grid's circles are drawn at its disk radius, the micro-image's outline the decoder uses).
+OVERLAY_CROSS_PITCH = 0.2
+OVERLAY_DOT_PITCH = 0.06
+
+
+def _overlay_figure(grid: LensletGrid, m: dict[str, Any]) -> tuple[Any, dict[str, float]]:
+    """The image at its corners and centre (7 pitches across each) with the grid drawn on it in image units: a circle
+    of the disk radius and a dot at every grid centre, a '+' at every detected centre, so the markers keep their size
+    against the micro-images whatever the pitch.
+
+    Returns the figure and its marker sizes in px of the image: ``pitch``, ``circle_radius``, ``cross_arm``,
+    ``dot_radius``, and ``legend_overlap`` (area of the legend over the panels, display px^2: 0)."""
     import matplotlib
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
+    from matplotlib.collections import EllipseCollection, LineCollection
 
     img = m["img"]
     h, w = img.shape
     half = max(12, int(round(3.5 * grid.pitch)))
-    spots = [("top left", half, half), ("top right", half, w - 1 - half), ("centre", h // 2, w // 2),
-             ("bottom left", h - 1 - half, half), ("bottom right", h - 1 - half, w - 1 - half)]
-    fig, axes = plt.subplots(1, 5, figsize=(17, 3.8))
     gc = m["grid_centres"]
     cen = m["centres"]
-    for ax, (name, r, c) in zip(axes, spots):
+    sizes = {"pitch": float(grid.pitch), "circle_radius": float(grid.radius),
+             "cross_arm": OVERLAY_CROSS_PITCH * grid.pitch, "dot_radius": OVERLAY_DOT_PITCH * grid.pitch}
+    fig, axes = plt.subplots(2, 3, figsize=(12, 8.6))
+    for name, (i, j), (py, px) in _OVERLAY_SPOTS:
+        ax = axes[i, j]
+        r = (half, h // 2, h - 1 - half)[py]
+        c = (half, w // 2, w - 1 - half)[px]
         r0, r1 = max(0, r - half), min(h, r + half + 1)
         c0, c1 = max(0, c - half), min(w, c + half + 1)
         vmax = float(np.percentile(img[r0:r1, c0:c1], 99.5)) or 1.0  # per panel: vignetted corners stay visible
         ax.imshow(img[r0:r1, c0:c1], cmap="gray", vmin=0, vmax=vmax, extent=(c0 - 0.5, c1 - 0.5, r1 - 0.5, r0 - 0.5),
                   interpolation="nearest")
-        sel = (gc[:, 0] >= r0) & (gc[:, 0] < r1) & (gc[:, 1] >= c0) & (gc[:, 1] < c1)
-        ax.scatter(gc[sel, 1], gc[sel, 0], s=60, facecolors="none", edgecolors="#2b8cff", linewidths=1.2,
-                   label="grid")
+        pad = grid.radius
+        sel = (gc[:, 0] >= r0 - pad) & (gc[:, 0] < r1 + pad) & (gc[:, 1] >= c0 - pad) & (gc[:, 1] < c1 + pad)
+        xy = gc[sel][:, ::-1]
+        for diameter, style in ((2 * sizes["circle_radius"], {"facecolors": "none", "edgecolors": "#2b8cff",
+                                                              "linewidths": 1.3}),
+                                (2 * sizes["dot_radius"], {"facecolors": "#2b8cff", "edgecolors": "none"})):
+            ax.add_collection(EllipseCollection(diameter, diameter, 0.0, units="xy", offsets=xy,
+                                                offset_transform=ax.transData, **style))
         if len(cen):
             sel = (cen[:, 0] >= r0) & (cen[:, 0] < r1) & (cen[:, 1] >= c0) & (cen[:, 1] < c1)
-            ax.plot(cen[sel, 1], cen[sel, 0], "+", color="#ff3030", ms=7, mew=1.2, label="detected")
-        ax.set_title(f"{name} (rows {r0}-{r1 - 1})", fontsize=9)
+            a = sizes["cross_arm"]
+            y, x = cen[sel, 0], cen[sel, 1]
+            arms = np.concatenate([np.stack([np.stack([x - a, y], 1), np.stack([x + a, y], 1)], 1),
+                                   np.stack([np.stack([x, y - a], 1), np.stack([x, y + a], 1)], 1)])
+            ax.add_collection(LineCollection(arms, colors="#ff3030", linewidths=1.4))
+        ax.set_title(f"{name} (rows {r0}-{r1 - 1}, cols {c0}-{c1 - 1})", fontsize=10)
         ax.set_xlim(c0 - 0.5, c1 - 0.5)
         ax.set_ylim(r1 - 0.5, r0 - 0.5)
-        ax.tick_params(labelsize=7)
-    axes[0].legend(loc="lower left", fontsize=7, framealpha=0.8)
+        ax.tick_params(labelsize=8)
+    key = axes[1, 1]
+    key.axis("off")
+    handles = [plt.Line2D([], [], ls="none", marker="o", ms=14, mfc="none", mec="#2b8cff", mew=1.3,
+                          label=f"grid lens: disk of radius {grid.radius:.1f} px\n(pitch {grid.pitch:.2f} px)"),
+               plt.Line2D([], [], ls="none", marker="o", ms=4, color="#2b8cff", label="grid lens centre")]
+    if len(cen):
+        handles.append(plt.Line2D([], [], ls="none", marker="+", ms=12, mew=1.4, color="#ff3030",
+                                  label="detected disk centre"))
+    legend = key.legend(handles=handles, loc="center", fontsize=10, frameon=False, handletextpad=1.0,
+                        labelspacing=1.2)
     fig.tight_layout()
-    return fig
+    fig.canvas.draw()
+    lb = legend.get_window_extent()
+    overlap = 0.0
+    for ax in axes.flat:
+        if ax is key:
+            continue
+        ab = ax.get_window_extent()
+        dx = min(lb.x1, ab.x1) - max(lb.x0, ab.x0)
+        dy = min(lb.y1, ab.y1) - max(lb.y0, ab.y0)
+        overlap += max(dx, 0.0) * max(dy, 0.0)
+    sizes["legend_overlap"] = float(overlap)
+    return fig, sizes
 
 
-def _residual_figure(grid: LensletGrid, m: dict[str, Any], rms: float | None) -> Any:
+def _residual_figure(grid: LensletGrid, m: dict[str, Any], line: tuple[str, float | None]) -> Any:
+    """Residual map and histogram of the detected centres; ``line``: (label, px) of the dashed RMS line (px None:
+    the RMS of the residuals drawn)."""
     import matplotlib
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
@@ -244,8 +301,8 @@ def _residual_figure(grid: LensletGrid, m: dict[str, Any], rms: float | None) ->
                         reduce_C_function=np.mean, cmap="viridis", vmin=0, vmax=top)
         fig.colorbar(hb, ax=ax0, label="mean |residual| (px)")
         ax1.hist(mag, bins=60, range=(0, max(top * 1.5, 0.05)), color="#4477aa")
-        rms = float(np.sqrt(np.mean(mag ** 2))) if rms is None else rms
-        ax1.axvline(rms, color="k", ls="--", lw=1, label=f"RMS {rms:.3f} px")
+        rms = float(np.sqrt(np.mean(mag ** 2))) if line[1] is None else line[1]
+        ax1.axvline(rms, color="k", ls="--", lw=1, label=f"{line[0]} {rms:.3f} px")
         ax1.legend(fontsize=8)
     ax0.set_xlim(0, w)
     ax0.set_ylim(h, 0)
@@ -334,27 +391,31 @@ def _vignetting_figure(m: dict[str, Any]) -> tuple[Any, str]:
 
 
 def _judge_white(grid: LensletGrid, m: dict[str, Any], kind: str) -> tuple[list[Check], float | None]:
-    """Checks of a grid against white image(s); returns them and the RMS (recorded, else measured here)."""
-    from ..calib.grid import SMOOTH_FIELD_DEGREE, residual_statistics
+    """Checks of a grid against white image(s); returns them and the lens-centre accuracy
+    (:data:`ACCURACY_DEFINITION`, px; None without a disk near a lens)."""
+    from ..calib.grid import SMOOTH_FIELD_DEGREE
 
     checks: list[Check] = []
     a = m["assigned"]
     n_det = len(a)
     mag = np.hypot(*m["residuals"][a].T) if a.sum() else np.zeros(0)
+    accuracy = float(np.sqrt(np.mean(mag ** 2))) if len(mag) else None
+    if accuracy is not None:
+        checks.append(Check("lens-centre accuracy (RMS)", f"{accuracy:.3f} px over {len(mag)} disks",
+                            f"good <= {WHITE_RMS_PX[0]} px, check <= {WHITE_RMS_PX[1]} px (white images)",
+                            _level(accuracy, *WHITE_RMS_PX),
+                            "" if accuracy <= WHITE_RMS_PX[0] else
+                            f"the lens centres the decoder uses are {accuracy:.3f} px RMS from the disks of the white "
+                            f"image (expected < {WHITE_RMS_PX[0]} px)"))
     rms = grid.residual_rms if kind == "white-image" else None
-    how = "of the fit"
-    if rms is None and len(mag):
-        ij = np.stack(np.unravel_index(m["lens"][a], grid.shape), axis=1)
-        inl = mag < max(4.0 * float(np.median(mag)) / 1.1774, 1e-3)
-        rms = residual_statistics(m["residuals"][a][inl], ij[inl])["rms_px"]
-        how = "measured here against the white image"
     smooth = smooth_part(grid, rms)
     if smooth is not None:
         # the centres depart from the regular lattice mostly by a smooth field (optics bending the lens array's
         # image), which the decoder follows through each lens's measured centre: judged by what is left
         rest = smooth["rest_rms_px"]
-        checks.append(Check("RMS", f"{rms:.3f} px ({how}); {rest:.3f} px about a smooth distortion of the lens "
-                                   f"array's image of up to {smooth['max_px']:.2f} px",
+        checks.append(Check("fit to a regular lattice (lattice RMS)",
+                            f"{rms:.3f} px; {rest:.3f} px about a smooth distortion of the lens "
+                            f"array's image of up to {smooth['max_px']:.2f} px",
                             f"good <= {WHITE_RMS_PX[0]} px, check <= {WHITE_RMS_PX[1]} px (white images) about a "
                             f"smooth field (degree {SMOOTH_FIELD_DEGREE} in the lens indices), which the decoder "
                             "follows: it uses each lens's measured centre",
@@ -362,15 +423,15 @@ def _judge_white(grid: LensletGrid, m: dict[str, Any], kind: str) -> tuple[list[
                             "" if rest <= WHITE_RMS_PX[0] else f"the lens centres scatter by {rest:.3f} px about a "
                                                                f"smooth distortion (expected < {WHITE_RMS_PX[0]} px)"))
     elif rms is not None:
-        checks.append(Check("RMS", f"{rms:.3f} px ({how})",
+        checks.append(Check("fit to a regular lattice (lattice RMS)", f"{rms:.3f} px",
                             f"good <= {WHITE_RMS_PX[0]} px, check <= {WHITE_RMS_PX[1]} px (white images)",
                             _level(rms, *WHITE_RMS_PX),
-                            "" if rms <= WHITE_RMS_PX[0] else f"RMS residual {rms:.3f} px is high for a white "
+                            "" if rms <= WHITE_RMS_PX[0] else f"lattice RMS {rms:.3f} px is high for a white "
                                                               f"image (expected < {WHITE_RMS_PX[0]} px)"))
     if not n_det:
         checks.append(Check("disks detected", "0", "a white image shows every lens's disk", "bad",
                             "no lens disk could be detected in the white image"))
-        return checks, rms
+        return checks, accuracy
     near = a.mean()
     fitted = grid.info.get("n_detected") if kind == "white-image" else None
     # this check detects the disks again, at full resolution; the fit's own count (binned) differs by a few
@@ -398,7 +459,7 @@ def _judge_white(grid: LensletGrid, m: dict[str, Any], kind: str) -> tuple[list[
                         "" if ok else f"{int(missing.sum())} of {int(full.sum())} fully visible lenses ({frac:.1%}) "
                                       "show no detectable disk (dust, dead lenses or dark corners); the lattice "
                                       "places them"))
-    return checks, rms
+    return checks, accuracy
 
 
 def _binned(grid: LensletGrid) -> str:
@@ -407,9 +468,31 @@ def _binned(grid: LensletGrid) -> str:
     return f" at binning {b}" if isinstance(b, int) and b > 1 else ""
 
 
-#: Labels of the fit's counts in ``grid.info`` in the parameters table (else the key, '_' as ' ').
+#: Labels of ``grid.info`` keys in the parameters table (else the key in words, '_' as ' ', a '_px' key's unit in
+#: its value).
 INFO_LABELS = {"n_detected": "disks detected by the fit", "n_fit": "disks the fit kept (inliers)",
-               "n_whites": "white images", "binning": "binning of the fit's detection"}
+               "n_whites": "white images", "binning": "binning of the fit's detection",
+               "method": "how the centres were measured", "rim_radius_px": "disk rim radius (fitted)"}
+#: ``grid.info['method']`` in words (the method's name, which the Python API takes, in brackets).
+METHOD_WORDS = {"dog": "peaks of the disks' brightness, difference-of-Gaussians fit (dog)",
+                "parabolic": "peaks of the disks' brightness, 3-point parabola (parabolic)",
+                "rim": "circles fitted to the disks' rims (rim)"}
+
+
+def info_row(key: str, value: Any) -> tuple[str, str]:
+    """A ``grid.info`` entry as a row a person reads: ``('disk rim radius (fitted)', '3.994 px')`` for
+    ``rim_radius_px`` (:data:`INFO_LABELS`, :data:`METHOD_WORDS`); whole floats print whole (zoom step -312)."""
+    unit = " px" if key.endswith("_px") else ""
+    label = INFO_LABELS.get(key, key[:-3] if unit else key).replace("_", " ")
+    if key == "method":
+        text = METHOD_WORDS.get(str(value), str(value))
+    elif key == "binning" and isinstance(value, int) and value > 1:
+        text = f"{value} ({value} x {value} pixels summed)"
+    elif isinstance(value, float):
+        text = f"{value:.0f}" if value.is_integer() and not unit else f"{value:.3f}"
+    else:
+        text = str(value)
+    return label, text + unit
 
 
 def scene_smooth_field(grid: LensletGrid, m: dict[str, Any]) -> dict[str, float] | None:
@@ -441,7 +524,7 @@ def _judge_selfcal(grid: LensletGrid, m: dict[str, Any] | None = None) -> list[C
             if sigma else ""
         g, c = SELFCAL_RULES["rms_pitch"]
         lv = _level(rms / p, g, c)
-        checks.append(Check("RMS", f"{rms:.3f} px = {rms / p:.3f} pitch{tail}",
+        checks.append(Check("lattice RMS", f"{rms:.3f} px = {rms / p:.3f} pitch{tail}",
                             f"good <= {g} pitch, check <= {c} pitch (expected spread of scene-based centres)", lv,
                             "" if lv == "good" else f"the detected centres scatter by {rms / p:.3f} pitch about the "
                                                     "lattice, more than scene-based detection does"))
@@ -489,16 +572,18 @@ class Judgement:
     warnings : list of str
         The grid's own warnings and one line per check below 'good'.
     rms : float or None
-        The one RMS figure (:data:`RMS_DEFINITION`), px.
-    rms_origin : str
-        'fit' (recorded by the calibration) or 'report' (measured against the images given).
+        The lattice RMS recorded by the calibration (:data:`RMS_DEFINITION`), px; None for a grid used as given
+        or of unknown origin.
+    accuracy : float or None
+        The lens-centre accuracy measured against the white images given (:data:`ACCURACY_DEFINITION`), px: the
+        report's headline where there is one.
     """
 
     verdict: str
     checks: list[Check]
     warnings: list[str]
     rms: float | None
-    rms_origin: str
+    accuracy: float | None = None
 
 
 def judge_calibration(grid: LensletGrid, m: dict[str, Any] | None = None) -> Judgement:
@@ -517,20 +602,35 @@ def judge_calibration(grid: LensletGrid, m: dict[str, Any] | None = None) -> Jud
     """
     kind = source_kind(grid)
     warnings = [str(w) for w in grid.info.get("warnings", [])]
-    rms, origin = grid.residual_rms, "fit"
+    rms, accuracy = grid.residual_rms, None
     if kind == "camera-file":
-        return Judgement("as given", [], warnings, rms if refitted(grid) else None, "fit")
+        return Judgement("as given", [], warnings, rms if refitted(grid) else None)
     if kind == "self-calibration":
         checks = _judge_selfcal(grid, m)
     elif m is not None and "found" in m:
-        checks, rms = _judge_white(grid, m, kind)
-        origin = "fit" if kind == "white-image" and grid.residual_rms is not None else "report"
+        checks, accuracy = _judge_white(grid, m, kind)
     else:
         checks = []
     warnings += [c.note for c in checks if c.level != "good" and c.note]
     levels = [c.level for c in checks] + (["check"] if grid.info.get("warnings") else [])
     verdict = max(levels, key=LEVELS.index) if levels else "as given"
-    return Judgement(verdict, checks, warnings, rms, origin)
+    return Judgement(verdict, checks, warnings, rms, accuracy)
+
+
+def _headline(grid: LensletGrid, j: Judgement, m: dict[str, Any] | None) -> tuple[str, str]:
+    """The verdict box's line -- the verdict and one accuracy figure: a white image's lens-centre accuracy
+    (:data:`ACCURACY_DEFINITION`), else the lattice RMS (:func:`rms_text`) -- and the line under it naming the lattice
+    RMS where the accuracy is the headline (a white image's fit: the figure ``plenodecode calibrate`` prints)."""
+    if j.accuracy is None:
+        return f"verdict: {j.verdict}; lattice RMS {rms_text(grid)}", ""
+    n = int(m["assigned"].sum()) if m is not None else 0
+    head = (f"verdict: {j.verdict}; lens-centre accuracy {j.accuracy:.3f} px RMS (the lens centres the decoder uses, "
+            f"measured against {n} disks of the white image)")
+    if j.rms is None:
+        return head, ""
+    tail = (f", measured on the fit's detection{_binned(grid)}" if smooth_part(grid, j.rms) is None else
+            "; the decoder follows that distortion lens by lens, so the lens-centre accuracy is what decoding sees")
+    return head, f"Fit to a regular lattice: lattice RMS {rms_text(grid)}{tail} ('plenodecode calibrate' prints it)."
 
 
 def _files(paths: Sequence[Any]) -> str:
@@ -563,6 +663,8 @@ def source_line(grid: LensletGrid, raws: Sequence[RawCapture], grid_path: Path |
 
 
 def _params(grid: LensletGrid) -> list[tuple[str, str]]:
+    from ..calib.grid import SOURCE_KINDS
+
     inf = grid.info
     rows = [
         ("lattice", grid.lattice),
@@ -574,8 +676,8 @@ def _params(grid: LensletGrid) -> list[tuple[str, str]]:
         ("lenses (rows x cols)", f"{grid.shape[0]} x {grid.shape[1]} = {grid.shape[0] * grid.shape[1]}"),
         ("sensor (H x W)", f"{grid.sensor_shape[0]} x {grid.sensor_shape[1]}"),
         ("disk radius", f"{grid.radius:.3f} px"),
-        ("refined lenses", str(int(np.isfinite(grid.refined[..., 0]).sum())) if grid.refined is not None else "0"),
-        ("source kind", source_kind(grid)),
+        ("lenses with their own measured centre", str(int(np.isfinite(grid.refined[..., 0]).sum())) if grid.refined is not None else "0"),
+        ("source", SOURCE_KINDS[source_kind(grid)]),
     ]
     if grid.lens_type is not None:
         types, counts = np.unique(np.asarray(grid.lens_type), return_counts=True)
@@ -588,9 +690,7 @@ def _params(grid: LensletGrid) -> list[tuple[str, str]]:
     for key in ("camera_model", "serial", "zoom_step", "focus_step", "n_whites", "method", "binning", "rim_radius_px",
                 "n_detected", "n_fit"):
         if inf.get(key) is not None:
-            v = inf[key]
-            text = (f"{v:.0f}" if float(v).is_integer() else f"{v:.3f}") if isinstance(v, float) else str(v)
-            rows.append((INFO_LABELS.get(key, key.replace("_", " ")), text))     # zoom step -312, not -312.000
+            rows.append(info_row(key, inf[key]))
     return rows
 
 
@@ -635,9 +735,9 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
         m = (_scene_measure if kind == "self-calibration" and grid.info.get("method") == "rim" else
              _image_measure if kind == "camera-file" else _white_measure)(grid, raws)
     j = judge_calibration(grid, m)
-    rms = rms_text(grid) if j.rms_origin == "fit" else f"{j.rms:.3f} px (measured against the images given)"
-    head = f"verdict: {j.verdict}; RMS {rms}"
+    head, also = _headline(grid, j, m)
     box = H.notes_html([head], kind="ok" if j.verdict in ("good", "as given") else "warn")
+    box += f'<p class="muted">{H.escape(also)}</p>' if also else ""
     notes = (H.notes_html(j.warnings) if j.warnings else "" if j.verdict == "as given" else
              H.notes_html(["no problems found"], kind="ok"))
     if kind == "camera-file":
@@ -651,7 +751,9 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
         rows = [(c.quantity, c.value, c.rule, c.level) for c in j.checks]
         judged = (H.table_html(rows, header=("quantity", "value", "rule", "level")) if rows else
                   "<p>No image to check the grid against.</p>")
-        judged += f'<p class="muted">{H.escape(RMS_DEFINITION)}.</p>'
+        defined = ([ACCURACY_DEFINITION] if j.accuracy is not None else []) + \
+            ([RMS_DEFINITION] if j.accuracy is None or j.rms is not None else [])
+        judged += "".join(f'<p class="muted">{H.escape(d)}.</p>' for d in defined)
         if kind == "self-calibration":
             judged += (f'<p class="muted">Self-calibration is judged by what a scene can show: the scatter of the '
                        f"detected centres about the lattice, the lattice's local misfit, the lenses found, and "
@@ -661,18 +763,22 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
              H.section("Grid parameters (as given)" if kind == "camera-file" else "Fitted parameters", H.table_html(_params(grid), header=("parameter", "value")))]
     if m is not None and m["img"] is not None:
         detected = "red +: detected disk centres; " if len(m["centres"]) else ""
+        fig, sizes = _overlay_figure(grid, m)
         parts.append(H.section("Lattice on the image", H.figure_html(
-            _overlay_figure(grid, m), f"{detected}blue circles: grid centres, at the corners and the centre")))
+            fig, f"{detected}blue circles: the grid's lenses, drawn at the disk radius the decoder uses, with a dot "
+                 "at each centre; at the corners and the centre of the image",
+            data={f"{k.replace('_', '-')}-px" if k != "legend_overlap" else "legend-overlap": f"{v:.3f}"
+                  for k, v in sizes.items()})))
         if len(m["centres"]):
-            what = ("disk rims fitted at every lens as self-calibration measures them, lenses the fit rejected "
-                    "included; the RMS line is over the fit's inliers") \
-                if kind == "self-calibration" else ("disks of the white image, detected again at full resolution; the "
-                                                    "grid centre is the lens centre the decoder uses, so the RMS line "
-                                                    f"is theirs, not the fit's {rms}")
-            # a white image's residuals are against the centres the decoder uses (measured where a smooth
-            # distortion moves them): their own RMS, not the lattice fit's
-            rms_line = j.rms if kind == "self-calibration" else None
-            parts.append(H.section("Residuals", H.figure_html(_residual_figure(grid, m, rms_line),
+            if kind == "self-calibration":
+                what = ("disk rims fitted at every lens as self-calibration measures them, lenses the fit rejected "
+                        "included; the dashed line is the lattice RMS, over the fit's inliers")
+                line = ("lattice RMS", j.rms)
+            else:   # against the centres the decoder uses (measured where a smooth distortion moves them)
+                what = ("the disks of the white image, detected again at full resolution, against the lens centres the "
+                        "decoder uses; the dashed line is the lens-centre accuracy")
+                line = ("lens-centre accuracy", j.accuracy)
+            parts.append(H.section("Residuals", H.figure_html(_residual_figure(grid, m, line),
                                                                 f"detected minus grid centre ({what})")))
         if kind not in ("self-calibration", "camera-file"):
             parts.append(H.section("Vignetting", H.figure_html(*_vignetting_figure(m))))
@@ -684,4 +790,4 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
 
 __all__ = ["write_calibration_report", "judge_calibration", "source_kind", "source_line", "rms_text", "refitted",
            "scene_smooth_field",
-           "vignetting_profile", "Check", "Judgement", "RMS_DEFINITION", "SELFCAL_RULES", "SELFCAL_BASIS", "LEVELS"]
+           "vignetting_profile", "Check", "Judgement", "RMS_DEFINITION", "ACCURACY_DEFINITION", "SELFCAL_RULES", "SELFCAL_BASIS", "LEVELS"]

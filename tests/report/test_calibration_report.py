@@ -1,5 +1,5 @@
 """The calibration report tells the truth (issue 18, item 5): it names the grid's source and judges
-the grid by what that source can show, with one RMS figure defined once."""
+the grid by what that source can show, with one headline figure and every RMS defined once."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 
 from plenodecode.calib import calibrate
 from plenodecode.calib.selfcal import calibrate_from_scene
-from plenodecode.report.calibration import RMS_DEFINITION, rms_text, write_calibration_report
+from plenodecode.report.calibration import ACCURACY_DEFINITION, RMS_DEFINITION, rms_text, write_calibration_report
 from plenodecode.synthetic import simulate, simulate_white
 
 SHAPE = (300, 320)
@@ -66,26 +66,32 @@ def test_white_fit_shifted_by_half_a_pitch_is_bad(white, tmp_path):
     assert "verdict: bad" in bad and "does not match this white image" in bad
 
 
-def test_one_rms_defined_once(white, tmp_path):
+def test_one_headline_figure_and_the_lattice_rms_labelled(white, tmp_path):
+    """A white image's report showed 'RMS 0.569 px' in its header and 'RMS 0.089 px' on its histogram, reconciled in
+    a caption only (the ant leg).  The header now gives one figure, the lens-centre accuracy (the histogram's line),
+    and names the fit's figure 'lattice RMS' wherever it shows, as the CLI's summary line does."""
     raw, _ = white
     grid = calibrate(raw)
     text = _text(write_calibration_report(grid, raw, tmp_path / "r.html"))
-    assert text.count(RMS_DEFINITION) == 1
+    assert text.count(RMS_DEFINITION) == 1 and text.count(ACCURACY_DEFINITION) == 1
+    head = re.search(r"verdict: good; lens-centre accuracy (\d\.\d{3}) px RMS \(the lens centres the decoder uses, "
+                     r"measured against (\d+) disks of the white image\)", text)
+    assert head, text
+    assert f"lens-centre accuracy (RMS) {head.group(1)} px over {head.group(2)} disks" in text     # the table
     figure = rms_text(grid)
-    assert f"RMS {figure}" in text                       # the header
-    assert f"{figure} (of the fit)" in text              # the table, the same figure
-    assert text.count("RMS") == 4                        # header, table row, definition, residuals' caption
-    # the histogram's RMS line is of the full-resolution detection against the decoder's centres: its caption
-    # says so and names the fit's figure
-    assert f"detected again at full resolution; the grid centre is the lens centre the decoder uses, so the RMS " \
-           f"line is theirs, not the fit's {figure}" in text
+    assert f"Fit to a regular lattice: lattice RMS {figure}" in text
+    assert f"fit to a regular lattice (lattice RMS) {figure}" in text
+    assert "not the fit's" not in text and "the dashed line is the lens-centre accuracy" in text
+    # every RMS on the page says which one it is
+    bare = re.sub(r"lattice RMS|accuracy \(RMS\)|\d px RMS \(the lens centres", "", text)
+    assert "RMS" not in bare, bare
     from click.testing import CliRunner
 
     from plenodecode.cli.main import cli
     from plenodecode.io.lytro import write_raw_pair
     path, _ = write_raw_pair(tmp_path / "MOD_0000.RAW", raw)
     r = CliRunner().invoke(cli, ["calibrate", str(path), "-o", str(tmp_path / "g.json")], obj={})
-    assert r.exit_code == 0 and f"RMS {figure})" in r.output   # the CLI's one line, the same figure
+    assert r.exit_code == 0 and f"lattice RMS {figure})" in r.output   # the CLI's one line, the same figure
 
 
 def _bend(y, x, shape, field_px: float):
