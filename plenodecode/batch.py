@@ -962,42 +962,154 @@ def _check_focus_reach(src: Any, options: BatchOptions) -> None:
                               ) from None
 
 
-#: What a check of :func:`_first_suiting` says of one raw: (reach, error) refused, None suits, False not applying.
+#: What a check of :func:`up_front_refusals` says of one raw: (reach, error) refused, None suits, False not applying.
 Refusal = tuple[float, ValueError] | None | bool
 
+#: The checks of :func:`up_front_refusals`, in the order ``plenodecode batch`` raises their errors.
+UP_FRONT_CHECKS = ("constants", "slope", "outputs", "stack")
 
-def _first_suiting(files: Sequence[str | os.PathLike], options: BatchOptions,
-                   refusal: Callable[[Any], Refusal]) -> list[tuple[float, str, ValueError]]:
-    """Read each raw of ``files`` and choose its calibration (nothing decoded) until ``refusal(source)`` of one is
-    None (it suits); ``refusal`` gives (reach, error) for a raw refused, False for one it does not apply to.  A raw
-    that cannot be read or calibrated is passed over (its task fails for that reason); one whose grid would come
-    from self-calibrating the scene (an image mosaic without a white image) ends the check as suiting, as that
-    costs a scene's fit; its task checks it.  The library's log is held back to errors meanwhile, so the tasks'
-    warnings are not said twice.  Returns the refusals ([] when a raw suits)."""
+
+@dataclass(frozen=True)
+class UpFront:
+    """What :func:`up_front_refusals` found that no raw of a batch can serve (empty / None: some raw can).
+
+    Attributes
+    ----------
+    constants : tuple of MissingConstantsError
+        Of every readable raw, when not one has the camera constants ``alpha``, ``focus_distance``, ``metric``,
+        ``ply`` or alpha stack units ask for (:func:`check_constants_for_any`).
+    slope, outputs, stack : str or None
+        The error of :func:`check_slope_for_any`, :func:`check_outputs_for_any`, :func:`check_stack_for_any`.
+    """
+
+    constants: tuple[MissingConstantsError, ...] = ()
+    slope: str | None = None
+    outputs: str | None = None
+    stack: str | None = None
+
+
+def _checks_asked(options: BatchOptions) -> set[str]:
+    """The :data:`UP_FRONT_CHECKS` that ``options`` give something to check."""
+    asked = set()
+    if (options.alpha is not None or options.focus_distance is not None or options.metric or options.ply
+            or options.stack_units == "alpha"):
+        asked.add("constants")
+    if (options.slope != 0 or options.alpha is not None or options.focus_distance is not None) and any(
+            p in ("refocus", "photo") for p in options.outputs):
+        asked.add("slope")
+    if any(o in VIEW_OUTPUTS for o in options.outputs) and not options.views_anyway and options.grid is None:
+        asked.add("outputs")
+    if options.focal_stack is not None and "focal-stack" in options.outputs:
+        asked.add("stack")
+    return asked
+
+
+def _slope_refusal(src: Any, options: BatchOptions) -> Refusal:
+    """The slope check of one calibrated raw (:func:`_slope_reach_error`)."""
+    found = _slope_reach_error(src, options)
+    return None if found is None else (found[2], found[1])
+
+
+def _stack_refusal(src: Any, options: BatchOptions) -> Refusal:
+    """The focal-stack check of one calibrated raw: False for a focused raw that leaves the stack out."""
+    if src.focused and not options.views_anyway:
+        return False
+    from .decoding.rectify import decoded_shape
+    from .pipeline.products import check_focus_reach
+    from .render._common import slope_reach
+
+    start, stop, n = options.focal_stack
+    try:
+        check_focus_reach(src, "focal-stack", start=start, stop=stop, n=n, units=options.stack_units)
+    except ValueError as exc:
+        return slope_reach(decoded_shape(src.calibration.grid, src.decode_options.get("n_views"))), exc
+    return None
+
+
+def up_front_refusals(files: Sequence[str | os.PathLike], options: BatchOptions,
+                      checks: Sequence[str] = UP_FRONT_CHECKS) -> UpFront:
+    """Every check ``plenodecode batch`` makes before its first task, in one pass that reads each raw once.
+
+    Each check of ``checks`` (:data:`UP_FRONT_CHECKS`) that ``options`` ask for is asked of the raws of ``files`` in
+    turn until one raw suits it; the pass ends when every check is settled or the raws run out.  Raws that cannot be
+    read (or, for the slope and focal-stack checks, calibrated) are passed over: their tasks fail for that reason.
+    The slope and focal-stack checks choose each raw's calibration (nothing is decoded); a raw whose grid would come
+    from self-calibrating its scene (an image mosaic without a white image) settles them as suiting, as that costs a
+    scene's fit (its task checks it).  The library's log is held back to errors meanwhile, so the tasks' warnings are
+    not said twice.
+
+    Returns
+    -------
+    UpFront
+        Each check's refusal when no raw suits it.
+    """
     from . import pipeline
     from .io.generic import is_bare_mosaic
+    from .pipeline.needs import is_focused_raw
+
+    asked = _checks_asked(options)
+    pending = [c for c in checks if c in asked]
+    # per check, what the raws read so far refused: MissingConstantsError ('constants'), a focused raw's name
+    # ('outputs'), (reach, name, error) ('slope', 'stack'); cleared when a raw suits it
+    found: dict[str, list[Any]] = {c: [] for c in UP_FRONT_CHECKS}
+    refusal = {"slope": _slope_refusal, "stack": _stack_refusal}
+
+    def settled(check: str) -> None:
+        pending.remove(check)
+        found[check].clear()
 
     mosaic = options.mosaic_options()
-    refused: list[tuple[float, str, ValueError]] = []
-    for f, raw in _readable_raws(files, options):      # (still quiet while each is calibrated)
-        if options.white is None and is_bare_mosaic(raw):
-            return []
-        try:
-            cal = pipeline.choose_calibration(raw, grid=options.grid, database=options.database,
-                                              white=options.white, mosaic=mosaic)
-            found = refusal(pipeline.Source(raw=raw, calibration=cal, geometry=options.geometric_calibration(),
-                                            decode_options=options.decode_options()))
-        except (PlenodecodeError, OSError, ValueError):
-            continue
-        if found is None:
-            return []
-        if found is not False:
-            refused.append((found[0], Path(f).name, found[1]))
-    return refused
+    for f, raw in _readable_raws(files, options) if pending else ():
+        if "constants" in pending:
+            try:
+                _check_metadata(raw, options)
+            except MissingConstantsError as exc:
+                found["constants"].append(exc)
+            else:
+                settled("constants")
+        if "outputs" in pending:
+            if is_focused_raw(raw):
+                found["outputs"].append(Path(f).name)
+            else:
+                settled("outputs")
+        calibrated = [c for c in pending if c in refusal]
+        if calibrated and options.white is None and is_bare_mosaic(raw):
+            for c in calibrated:      # its grid would come from a fit to its scene: its task checks it
+                settled(c)
+        elif calibrated:
+            try:
+                src = pipeline.Source(raw=raw, calibration=pipeline.choose_calibration(
+                    raw, grid=options.grid, database=options.database, white=options.white, mosaic=mosaic),
+                    geometry=options.geometric_calibration(), decode_options=options.decode_options())
+            except (PlenodecodeError, OSError, ValueError):
+                src = None
+            for c in calibrated if src is not None else ():
+                try:
+                    said = refusal[c](src, options)
+                except (PlenodecodeError, OSError, ValueError):
+                    continue
+                if said is None:
+                    settled(c)
+                elif said is not False:
+                    found[c].append((said[0], Path(f).name, said[1]))
+        if not pending:
+            break
+    focused = found["outputs"]
+    outputs = None
+    if focused:
+        cut = [o for o in options.outputs if o in VIEW_OUTPUTS]
+        which = focused[0] if len(focused) == 1 else f"all {len(focused)} raws here"
+        outputs = (f"{','.join(cut)}: no raw here can serve {'it' if len(cut) == 1 else 'them'}: {which} "
+                   f"{'is a' if len(focused) == 1 else 'are'} focused-plenoptic (Raytrix) "
+                   f"raw{'s' * (len(focused) != 1)}, whose views have one pixel per lens; ask for photo (total "
+                   "focus), total-focus or depth (virtual depth), or pass --views-anyway")
+    return UpFront(constants=tuple(found["constants"]), outputs=outputs,
+                   **{c: _worst(found[c]) if found[c] else None for c in refusal})
 
 
 def _worst(refused: list[tuple[float, str, ValueError]]) -> str:
-    """The error of the raw allowing the most of :func:`_first_suiting`'s refusals, saying how many there were."""
+    """The error of the raw allowing the most of the refusals of a slope or focal-stack check, saying how many
+    there were."""
     reach, name, exc = max(refused, key=lambda r: r[0])
     return str(exc) if len(refused) == 1 else f"{exc} (every one of the {len(refused)} raws; {name} allows the most)"
 
@@ -1007,88 +1119,40 @@ def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOption
     past the picture of every raw of ``files`` it applies to (a batch would fail them all), before any is decoded:
     the error :func:`~plenodecode.render._common.check_slope_reach` gives for the raw allowing the largest slope.
     A raw with no slope to suit (a Raytrix raw's total-focus photograph) suits; how the raws are read:
-    :func:`_first_suiting`.
+    :func:`up_front_refusals`, which makes this check with the others in one pass.
     """
-    if options.slope == 0 and options.alpha is None and options.focus_distance is None or not any(
-            p in ("refocus", "photo") for p in options.outputs):
-        return
-
-    def refusal(src: Any) -> tuple[float, ValueError] | None:
-        found = _slope_reach_error(src, options)
-        return None if found is None else (found[2], found[1])
-
-    refused = _first_suiting(files, options, refusal)
-    if refused:
-        raise ValueError(_worst(refused))
+    found = up_front_refusals(files, options, ("slope",)).slope
+    if found:
+        raise ValueError(found)
 
 
 def check_stack_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
     """Raise ValueError when ``options.focal_stack`` is past the picture of every raw of ``files`` that writes a
     focal stack (:func:`plenodecode.pipeline.products.check_focus_reach`), before any is decoded: the error of the
     raw allowing the largest slope.  A focused-plenoptic raw that leaves the stack out
-    (:func:`_focused_views_left_out`) is not counted; how the raws are read: :func:`_first_suiting`."""
-    if options.focal_stack is None or "focal-stack" not in options.outputs:
-        return
-    from .decoding.rectify import decoded_shape
-    from .pipeline.products import check_focus_reach
-    from .render._common import slope_reach
-
-    start, stop, n = options.focal_stack
-
-    def refusal(src: Any) -> Refusal:
-        if src.focused and not options.views_anyway:
-            return False
-        try:
-            check_focus_reach(src, "focal-stack", start=start, stop=stop, n=n, units=options.stack_units)
-        except ValueError as exc:
-            return slope_reach(decoded_shape(src.calibration.grid, src.decode_options.get("n_views"))), exc
-        return None
-
-    refused = _first_suiting(files, options, refusal)
-    if refused:
-        raise ValueError(_worst(refused))
+    (:func:`_focused_views_left_out`) is not counted; how the raws are read: :func:`up_front_refusals`."""
+    found = up_front_refusals(files, options, ("stack",)).stack
+    if found:
+        raise ValueError(found)
 
 
 def check_outputs_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
     """Raise ValueError when no raw of ``files`` can serve the view outputs asked for (:data:`VIEW_OUTPUTS`): every
     readable one is a focused-plenoptic (Raytrix) raw, whose views have one pixel per lens, and
     ``options.views_anyway`` is off.  A raw's metadata tells (:func:`plenodecode.pipeline.needs.is_focused_raw`;
-    with ``options.grid`` given by hand nothing is checked); raws that cannot be read are passed over."""
-    cut = [o for o in options.outputs if o in VIEW_OUTPUTS]
-    if not cut or options.views_anyway or options.grid is not None:
-        return
-    from .pipeline.needs import is_focused_raw
-
-    focused = []
-    for f, raw in _readable_raws(files, options):
-        if not is_focused_raw(raw):
-            return
-        focused.append(Path(f).name)
-    if focused:
-        which = focused[0] if len(focused) == 1 else f"all {len(focused)} raws here"
-        raise ValueError(f"{','.join(cut)}: no raw here can serve {'it' if len(cut) == 1 else 'them'}: {which} "
-                         f"{'is a' if len(focused) == 1 else 'are'} focused-plenoptic (Raytrix) "
-                         f"raw{'s' * (len(focused) != 1)}, whose views have one pixel per lens; ask for photo (total "
-                         "focus), total-focus or depth (virtual depth), or pass --views-anyway")
+    with ``options.grid`` given by hand nothing is checked); raws that cannot be read are passed over
+    (:func:`up_front_refusals`)."""
+    found = up_front_refusals(files, options, ("outputs",)).outputs
+    if found:
+        raise ValueError(found)
 
 
 def check_constants_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> list[MissingConstantsError]:
     """The MissingConstantsError of every readable raw of ``files`` (:func:`_check_metadata`) when not one of them
     has the constants ``options`` ask for (``alpha``, ``focus_distance``, ``metric``, ``ply``, alpha stack units), so
     that a batch would fail them all before decoding; [] as soon as one has them.  Raws that cannot be read are
-    passed over (their tasks fail for that reason); nothing is calibrated or decoded."""
-    if (options.alpha is None and options.focus_distance is None and not options.metric and not options.ply
-            and options.stack_units != "alpha"):
-        return []
-    refused: list[MissingConstantsError] = []
-    for _, raw in _readable_raws(files, options):
-        try:
-            _check_metadata(raw, options)
-        except MissingConstantsError as exc:
-            refused.append(exc)
-            continue
-        return []
-    return refused
+    passed over (their tasks fail for that reason); nothing is calibrated or decoded (:func:`up_front_refusals`)."""
+    return list(up_front_refusals(files, options, ("constants",)).constants)
 
 
 def _readable_raws(files: Sequence[str | os.PathLike], options: BatchOptions
@@ -1500,5 +1564,5 @@ def write_summary(summary: BatchSummary, out_dir: str | os.PathLike, *, overwrit
 
 __all__ = ["BATCH_OUTPUTS", "MEASURED", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
            "task_key", "outputs_to_replace", "check_outputs_to_replace", "check_slope_for_any", "check_stack_for_any",
-           "check_outputs_for_any", "check_constants_for_any", "process_raw",
-           "run_batch", "write_summary", "check_summary_files"]
+           "check_outputs_for_any", "check_constants_for_any", "UP_FRONT_CHECKS", "UpFront", "up_front_refusals",
+           "process_raw", "run_batch", "write_summary", "check_summary_files"]

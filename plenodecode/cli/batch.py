@@ -142,16 +142,15 @@ def _no_database(db_dir: Path, default: bool, inputs: tuple[Path, ...]) -> str:
             "or --self-calibrate")
 
 
-def _refuse_constants_none_has(files: list[Path], options: Any) -> None:
+def _refuse_constants_none_has(refused: tuple[Any, ...]) -> None:
     """When not one raw has the camera constants an option needs (--focus-distance, --alpha, --metric, --ply,
-    --stack-units alpha), raise the first raw's MissingConstantsError saying so, which the command group turns
-    into a usage error naming the option (:func:`plenodecode.cli.main.constants_usage_error`).  A batch of real F01
-    JPEGs and synthetic raws with --focus-distance failed every raw and wrote a summary of that; with one raw that
-    has them, the others fail on their rows."""
-    from ..batch import check_constants_for_any
+    --stack-units alpha), raise the first raw's MissingConstantsError of ``refused`` (those of every readable raw,
+    :attr:`~plenodecode.batch.UpFront.constants`) saying so, which the command group turns into a usage error naming
+    the option (:func:`plenodecode.cli.main.constants_usage_error`).  A batch of real F01 JPEGs and synthetic raws
+    with --focus-distance failed every raw and wrote a summary of that; with one raw that has them, the others fail
+    on their rows."""
     from ..errors import MissingConstantsError
 
-    refused = check_constants_for_any(files, options)
     if not refused:
         return
     first = refused[0]
@@ -268,9 +267,8 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
       plenodecode batch shoot/ -o decoded/ --outputs centre,refocus,depth --jobs 2
       plenodecode batch shoot/ -o decoded/ --scheduler tcp://10.0.0.5:8786
     """
-    from ..batch import (DONE_MARKER, BatchOptions, check_outputs_for_any, check_outputs_to_replace,
-                         check_slope_for_any, check_stack_for_any, check_summary_files, find_raws, run_batch,
-                         write_summary)
+    from ..batch import (DONE_MARKER, BatchOptions, check_outputs_to_replace, check_summary_files, find_raws,
+                         run_batch, up_front_refusals, write_summary)
     from ..io.discovery import desktop_exports_not_taken, images_not_taken, needs_no_database
     from ..calib.store import DEFAULT_DB
 
@@ -342,17 +340,14 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
             check_outputs_to_replace(files, out_dir, options)
         except FileExistsError as exc:
             raise _refused(exc) from None
-    _refuse_constants_none_has(files, options)
-    try:        # a slope past every raw's picture: refused as 'plenodecode refocus' refuses it, before decoding
-        check_slope_for_any(files, options)
-    except ValueError as exc:
-        hint = "--alpha" if alpha is not None else "--focus-distance" if focus_distance is not None else "--slope"
-        raise click.BadParameter(str(exc), param_hint=hint) from None
-    for check, hint in ((check_outputs_for_any, "--outputs"), (check_stack_for_any, "--focal-stack")):
-        try:    # an output no raw can serve, a focal stack past every raw's picture: refused before decoding
-            check(files, options)
-        except ValueError as exc:
-            raise click.BadParameter(str(exc), param_hint=hint) from None
+    # what no raw can serve, refused before decoding as the single commands refuse it; each raw read once for all
+    found = up_front_refusals(files, options)
+    _refuse_constants_none_has(found.constants)
+    slope_hint = "--alpha" if alpha is not None else "--focus-distance" if focus_distance is not None else "--slope"
+    # a slope past every raw's picture, an output no raw can serve, a focal stack past every raw's picture
+    for refused, hint in ((found.slope, slope_hint), (found.outputs, "--outputs"), (found.stack, "--focal-stack")):
+        if refused:
+            raise click.BadParameter(refused, param_hint=hint)
     try:
         summary = run_batch(files, out_dir, options, jobs=jobs, scheduler=scheduler, overwrite=overwrite,
                             progress=progress_bar(f"decoding {len(files)} raw{'s' * (len(files) != 1)}", ctx))

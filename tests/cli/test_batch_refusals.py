@@ -97,3 +97,38 @@ def test_batch_unreachable_scheduler_fails_in_seconds_naming_the_option(tmp_path
         "error: cannot use the Dask scheduler tcp://127.0.0.1:1 (--scheduler): Timed out trying to connect to "
         "tcp://127.0.0.1:1 after 5 s")
     assert not out.exists()
+
+
+def test_batch_reads_each_raw_once_before_its_first_task(tmp_path, monkeypatch):
+    """The checks made before the first task (camera constants for --metric, --slope and --focal-stack past the
+    pictures, view outputs no raw serves) each read the raws in a pass of their own: on two real F01 JPEGs beside the
+    Lytro sample raws IMG_1.jpg was read 4 times and IMG_2.jpg and scene.lfp 3 times before any task.  One pass now
+    asks every check of each raw, and ends when all are settled (scene.lfp has the constants: scene.lfr is not read)."""
+    from collections import Counter
+    from pathlib import Path
+
+    import plenodecode.pipeline.inputs as inputs
+    from plenodecode import batch
+
+    reads: Counter = Counter()
+    real = inputs._read_raw
+
+    def counting(p, *args, **kwargs):
+        reads[Path(p).name] += 1
+        return real(p, *args, **kwargs)
+
+    started = []
+
+    def first_task(*args, **kwargs):        # the batch starts: how many reads so far
+        started.append(dict(reads))
+        raise SystemExit(0)
+
+    monkeypatch.setattr(inputs, "_read_raw", counting)
+    monkeypatch.setattr(batch, "run_batch", first_task)
+    folder = _folder(tmp_path, shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg"),
+                     shared_path("lytro-f01-lenslet-jpg", "IMG_2.jpg"), F01, ILLUM)
+    res = CliRunner().invoke(cli, ["batch", str(folder), "-o", str(tmp_path / "out"), "--database", str(DB),
+                                   "--outputs", "refocus,centre,focal-stack,depth", "--metric",
+                                   "--depth-focus-distance", "0.5", "--slope", "0.5", "--focal-stack", "-0.5:0.5:3"])
+    assert res.exit_code == 0 and started, res.output
+    assert started[0] == {"IMG_1.jpg": 1, "IMG_2.jpg": 1, "scene.lfp": 1}
