@@ -404,10 +404,13 @@ class BatchOptions:
                              dark_frame=None if self.dark is None else Path(self.dark).name)
 
 
-#: What a raw's dark note names per product measured (:attr:`TaskResult.level_of`), as the single commands name it;
-#: others: 'the <product>'.
+#: What a raw's dark note names per product measured (:attr:`TaskResult.level_of`), as the single commands name it,
+#: when the result does not say which file it measured (a run before :attr:`TaskResult.level_file`); others:
+#: 'the <product>'.
 MEASURED = {"views": "the centre view", "centre": "the centre view", "focal-stack": "the focal stack's middle slice",
             "parallax": "the parallax's middle frame"}
+#: The picture measured of an output that holds several (:attr:`TaskResult.level_file`): 'the centre view of views/'.
+MEASURED_IN = {"views": "the centre view", "focal-stack": "the middle slice", "parallax": "the middle frame"}
 
 
 @dataclass(frozen=True)
@@ -441,6 +444,9 @@ class TaskResult:
         its middle image in linear light, full scale 1) and its product ('photo', 'views': the centre view, ...);
         None without a picture, or with an ``exposure`` chosen (the pictures are as asked).  The command line and
         the index page note a dark one (:meth:`dark_note`).
+    level_file : str or None
+        The output measured, as the index page captions it: its name in the raw's folder ('refocus_s+0.00.png',
+        'views/', 'focal_stack/', 'parallax.gif').
     started : float
         When the task started on the worker (``time.time()``, s): the earliest task of each worker is the one
         that paid its imports and kernel loading (:meth:`BatchSummary.latency`).
@@ -458,15 +464,21 @@ class TaskResult:
     started: float = 0.0
     level: float | None = None
     level_of: str | None = None
+    level_file: str | None = None
 
     def dark_note(self, name: str | None = None) -> str | None:
-        """The single commands' note (:func:`plenodecode.pipeline.dark_note`) when the first picture is dark:
-        'the photo is dark (...); --exposure auto brightens it ...', 'the photo of ``name``' when named; else None."""
+        """The single commands' note (:func:`plenodecode.pipeline.dark_note`) when the first picture is dark, naming
+        the file as the index page captions it: 'refocus_s+0.00.png is dark (...); --exposure auto brightens it ...',
+        'the centre view of views/ is dark ...'; 'refocus_s+0.00.png of ``name``' when named; else None."""
         if self.level is None:
             return None
         from .pipeline import dark_note
 
-        what = MEASURED.get(self.level_of or "", f"the {self.level_of}")
+        if self.level_file is None:     # the result of an earlier version: the product measured
+            what = MEASURED.get(self.level_of or "", f"the {self.level_of}")
+        else:
+            part = MEASURED_IN.get(self.level_of or "")
+            what = self.level_file if part is None else f"{part} of {self.level_file}"
         return dark_note(self.level, what if name is None else f"{what} of {name}")
 
 
@@ -684,7 +696,8 @@ def _skip_result(src: Path, target: Path, key: str, t0: float, started: float) -
     return TaskResult(str(src), "skipped", tuple(str(o) for o in outs), thumbs,
                       left_out=tuple(str(n) for n in done.get("left_out", [])), seconds=time.perf_counter() - t0,
                       worker=_worker_id(), worker_peak_mb=_peak_mb(),
-                      started=started, level=done.get("level"), level_of=done.get("level_of"))
+                      started=started, level=done.get("level"), level_of=done.get("level_of"),
+                      level_file=done.get("level_file"))
 
 
 #: The file name of the raw the current task (thread) works on: its log lines start with it.
@@ -791,17 +804,19 @@ def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | Non
         _check_metadata(raw, options)       # what the metadata cannot serve fails now, before calibrating
         # the folder is staged under a temporary name and replaces ``target`` (checked above) only when complete
         with atomic_output(target, overwrite=True, folder=True) as staging:
-            products, left_out, (level_of, level) = _write_products(raw, staging, options, threads=threads)
+            products, left_out, (level_of, level, level_file) = _write_products(raw, staging, options,
+                                                                                 threads=threads)
             rel_out = [str(p.relative_to(staging)) for p, _ in products]
             rel_thumb = [None if t is None else str(t.relative_to(staging)) for _, t in products]
             marker = {"key": key, "source": str(src.resolve()), "outputs": rel_out, "thumbnails": rel_thumb,
                       "left_out": list(left_out), "options": options.as_key_dict(), "level": level,
-                      "level_of": level_of}
+                      "level_of": level_of, "level_file": level_file}
             (staging / DONE_MARKER).write_text(json.dumps(marker, indent=1), encoding="utf-8")
         return TaskResult(str(src), "done", tuple(str(target / o) for o in rel_out),
                           tuple(None if t is None else str(target / t) for t in rel_thumb), left_out=left_out,
                           seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb(),
-                          started=started, level=level, level_of=level_of)
+                          started=started, level=level, level_of=level_of,
+                          level_file=level_file)
     except (PlenodecodeError, OSError) as exc:
         log.info("%s failed: %s", src, exc)
         error = os_error_text(exc) if isinstance(exc, OSError) else one_line(exc)
@@ -1210,7 +1225,8 @@ def depth_stem(rendered: Any) -> str:
 
 
 def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: int | None = None
-                    ) -> tuple[list[tuple[Path, Path | None]], tuple[str, ...], tuple[str | None, float | None]]:
+                    ) -> tuple[list[tuple[Path, Path | None]], tuple[str, ...],
+                               tuple[str | None, float | None, str | None]]:
     """Calibrate and decode ``raw`` and write ``options.outputs`` into ``folder``, all through
     :mod:`plenodecode.pipeline` (the same calibration policy, products, display encoding and writers as the
     single-purpose commands).
@@ -1226,9 +1242,9 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: i
     left_out : tuple of str
         One line per reason an output asked for was not written ('centre,parallax: not for a focused-plenoptic
         (Raytrix) raw (...)'; :func:`_focused_views_left_out`), or empty.
-    level : (str, float) or (None, None)
-        The first picture product and its :func:`plenodecode.pipeline.image_level` (:attr:`TaskResult.level`), at
-        the default exposure only.
+    level : (str, float, str) or (None, None, None)
+        The first picture product, its :func:`plenodecode.pipeline.image_level` (:attr:`TaskResult.level`), at
+        the default exposure only, and its output's name in ``folder`` (:attr:`TaskResult.level_file`).
     """
     import numpy as np
 
@@ -1252,13 +1268,13 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: i
     thumbs = folder / THUMB_DIR
     thumbs.mkdir()
     written: list[tuple[Path, Path | None]] = []
-    level: tuple[str | None, float | None] = (None, None)
+    level: tuple[str | None, float | None, str | None] = (None, None, None)
 
-    def measured(product: str, rendered: Any) -> None:
+    def measured(product: str, rendered: Any, output: str) -> None:
         nonlocal level
         # the first picture: how bright it is, at the default exposure only (a chosen one is as asked: no note)
         if level[0] is None and options.exposure == 0.0:
-            level = (product, pipeline.image_level(rendered))
+            level = (product, pipeline.image_level(rendered), output)
 
     def centre_thumbnail(name: str, lf: Any = None) -> Path:
         from .render import perspective
@@ -1275,7 +1291,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: i
             # the pictures 'plenodecode views' writes (view_VV_UU, views outside the micro-images black), with its
             # --exposure (one gain, from the centre view); the 'lightfield' output is the data as decoded
             rendered = pipeline.render_product(src, "views")
-            measured(product, rendered)
+            measured(product, rendered, "views/")
             gain = pipeline.exposure_gain(rendered, options.exposure)
             pipeline.write_product(rendered, folder / "views", bit_depth=bits, exposure=math.log2(gain))
             lf = src.lightfield
@@ -1284,7 +1300,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: i
             written.append((folder / "views", centre_thumbnail("views", lf)))
         elif product == "focal-stack":
             rendered = pipeline.render_product(src, "focal-stack", **_stack_options(src, options))
-            measured(product, rendered)
+            measured(product, rendered, f"{FOCAL_STACK_DIR}/")
             gain = pipeline.exposure_gain(rendered, options.exposure)      # one gain for the stack and thumbnail
             pipeline.write_product(rendered, folder / FOCAL_STACK_DIR, bit_depth=bits, exposure=math.log2(gain))
             (_, aif), = [item for item in rendered.images if item[0] == "all_in_focus"]
@@ -1298,7 +1314,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: i
                 if options.radius is None:
                     raise
                 raise DecodeError(f"--radius {options.radius:g} does not suit {_raw_name(raw)}: {exc}") from None
-            measured(product, rendered)
+            measured(product, rendered, PARALLAX_NAME)
             gain = pipeline.exposure_gain(rendered, options.exposure)
             frames_dir = folder / PARALLAX_FRAMES_DIR if options.parallax_frames else None
             pipeline.write_parallax(rendered, folder / PARALLAX_NAME, fps=options.fps, frames_dir=frames_dir,
@@ -1343,7 +1359,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: i
                 # 'photo' is the 'refocus' at the same focus, or a focused raw's 'total-focus': one file
                 log.info("%s: %s is the same image as an earlier output", product, name)
                 continue
-            measured(product, rendered)
+            measured(product, rendered, name)
             # one gain for the file and its thumbnail ('auto' measures the image once)
             gain = pipeline.exposure_gain(rendered, options.exposure)
             dest, = pipeline.write_product(rendered, folder / name, bit_depth=bits, exposure=math.log2(gain))

@@ -359,18 +359,21 @@ def test_antleg_batch_names_its_dark_picture_once(tmp_path):
     assert r.exit_code == 0, r.output
     notes = [line for line in r.output.splitlines() if "is dark" in line]
     assert len(notes) == 1, r.output
-    found = re.fullmatch(r"note: the photo of light_field\.png is dark \(its brightest 0\.5 % reach (\d+) % of full "
-                         r"scale, in linear light\); --exposure auto brightens it to full scale, --exposure 2 by two "
-                         r"stops", notes[0])
+    found = re.fullmatch(r"note: refocus_s\+0\.00\.png of light_field\.png is dark \(its brightest 0\.5 % reach "
+                         r"(\d+) % of full scale, in linear light\); --exposure auto brightens it to full scale, "
+                         r"--exposure 2 by two stops", notes[0])
     assert found, notes
     folder_out = tmp_path / "out" / "light_field"
     level = brightest(folder_out / "refocus_s+0.00.png")
     assert 0.05 < level < 0.25 and int(found.group(1)) == pytest.approx(100 * level, abs=1.0)    # measured 14 %
     assert brightest(folder_out / "thumbs" / "refocus_s+0.00.png") == pytest.approx(level, abs=0.03)
-    # the index page's card said nothing of it (its dim thumbnails alone); it says the same note, of its raw's photo
+    # the index page's card said nothing of it (its dim thumbnails alone); it says the same note, naming the picture
+    # as its caption does (it said 'the photo' under a picture captioned refocus_s+0.00.png)
     card = f"note: {notes[0].removeprefix('note: ').replace(' of light_field.png', '')}"
-    assert card.startswith("note: the photo is dark (its brightest 0.5 % reach ")
-    assert (tmp_path / "out" / "index.html").read_text().count(f'<div class="note">{html.escape(card)}</div>') == 1
+    assert card.startswith("note: refocus_s+0.00.png is dark (its brightest 0.5 % reach ")
+    page = (tmp_path / "out" / "index.html").read_text()
+    assert page.count(f'<div class="note">{html.escape(card)}</div>') == 1
+    assert page.count("<figcaption>refocus_s+0.00.png</figcaption>") == 1
     # run again, the raw skipped as done: its pictures are as dark, and the terminal and the rewritten page say so
     r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "out")], obj={})
     assert r.exit_code == 0 and "0 done, 1 skipped" in r.output and notes[0] in r.output.splitlines(), r.output
