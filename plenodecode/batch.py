@@ -1451,7 +1451,9 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
     options = replace(options, database=str(Path(options.database).resolve()))
     out = Path(out_dir).resolve()
     refuse_unwritable(out / SUMMARY_JSON)      # before any work (NotADirectoryError, PermissionError)
-    files = [f.resolve() for f in find_raws(inputs, exclude=[out])]
+    # absolute, links not followed: a raw linked into a folder is read there, with the sidecar, Raytrix XML or
+    # metadata.txt beside the link (as the single commands read it), not beside its target
+    files = [Path(os.path.abspath(f)) for f in find_raws(inputs, exclude=[out])]
     if not overwrite:
         check_outputs_to_replace(files, out, options)
     if scheduler is None:

@@ -1,5 +1,6 @@
-"""A folder that mixes cameras: the real Raytrix R42 crop and its RayCalibData XML beside a real Lytro F01 JPEG.  The
-XML is the R42 crop's; the JPEG is read as the F01 mosaic it is."""
+"""Folders a user assembles from real captures: the Raytrix R42 crop and its RayCalibData XML beside a Lytro F01 JPEG
+(the XML is the R42 crop's; the JPEG is read as the F01 mosaic it is), and raws linked into a folder with files of
+the user's beside the links."""
 
 from __future__ import annotations
 
@@ -59,3 +60,29 @@ def test_batch_of_an_f01_jpeg_beside_a_raytrix_image_serves_its_views(tmp_path, 
     res = CliRunner().invoke(cli, ["batch", str(folder), "-o", str(tmp_path / "out"), "--outputs", "centre",
                                    "--database", str(ROOT / "calib")])
     assert res.exit_code == 0 and ran == [["IMG_1.jpg", "sc2_klein.png"]], res.output
+
+
+def test_batch_reads_a_linked_raw_with_the_sidecar_beside_the_link(tmp_path):
+    """The real F01 JPEG linked into a folder (the data stay where they are) beside a sidecar written for it: 'info'
+    and the single commands read it with that sidecar, but batch followed the link and read the JPEG beside its
+    target, without it ('no JSON sidecar; CFA BGGR ...'), so the sidecar's monochrome reading (cfa null) gave a colour
+    photo.  The batch reads the raw at the link: a grey photo, and no 'no JSON sidecar' warning."""
+    import json
+
+    from plenodecode.io.images import read_image
+
+    folder = tmp_path / "linked"
+    folder.mkdir()
+    try:
+        (folder / "IMG_1.jpg").symlink_to(shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg"))
+    except OSError as exc:                  # a file system without links
+        pytest.skip(f"cannot make a symbolic link here: {exc}")
+    (folder / "IMG_1.json").write_text(json.dumps({
+        "format": "plenodecode.mosaic", "version": 1, "cfa": None, "black": [[16, 16], [16, 16]],
+        "white": [[255, 255], [255, 255]], "metadata": {"make": "Lytro", "model": "F01"}}))
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["batch", str(folder), "-o", str(out), "--self-calibrate", "--jobs", "1"])
+    assert res.exit_code == 0, res.output
+    assert "no JSON sidecar" not in res.output
+    photo = read_image(out / "IMG_1" / "refocus_s+0.00.png")
+    assert photo.shape == (383, 382)            # one channel: the sidecar's monochrome reading (colour: (383, 382, 3))
