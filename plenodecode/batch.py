@@ -981,7 +981,7 @@ def _check_focus_reach(src: Any, options: BatchOptions) -> None:
 Refusal = tuple[float, ValueError] | None | bool
 
 #: The checks of :func:`up_front_refusals`, in the order ``plenodecode batch`` raises their errors.
-UP_FRONT_CHECKS = ("constants", "slope", "outputs", "stack")
+UP_FRONT_CHECKS = ("constants", "dark", "slope", "outputs", "stack")
 
 
 @dataclass(frozen=True)
@@ -993,11 +993,15 @@ class UpFront:
     constants : tuple of MissingConstantsError
         Of every readable raw, when not one has the camera constants ``alpha``, ``focus_distance``, ``metric``,
         ``ply`` or alpha stack units ask for (:func:`check_constants_for_any`).
+    dark : str or None
+        The ``dark`` frame suits no raw: another size, or it would leave the raw black (a white or scene frame;
+        :func:`plenodecode.pipeline.read_dark_frame`), said for the first raw.
     slope, outputs, stack : str or None
         The error of :func:`check_slope_for_any`, :func:`check_outputs_for_any`, :func:`check_stack_for_any`.
     """
 
     constants: tuple[MissingConstantsError, ...] = ()
+    dark: str | None = None
     slope: str | None = None
     outputs: str | None = None
     stack: str | None = None
@@ -1009,6 +1013,8 @@ def _checks_asked(options: BatchOptions) -> set[str]:
     if (options.alpha is not None or options.focus_distance is not None or options.metric or options.ply
             or options.stack_units == "alpha"):
         asked.add("constants")
+    if options.dark is not None:
+        asked.add("dark")
     if (options.slope != 0 or options.alpha is not None or options.focus_distance is not None) and any(
             p in ("refocus", "photo") for p in options.outputs):
         asked.add("slope")
@@ -1065,7 +1071,7 @@ def up_front_refusals(files: Sequence[str | os.PathLike], options: BatchOptions,
     asked = _checks_asked(options)
     pending = [c for c in checks if c in asked]
     # per check, what the raws read so far refused: MissingConstantsError ('constants'), a focused raw's name
-    # ('outputs'), (reach, name, error) ('slope', 'stack'); cleared when a raw suits it
+    # ('outputs'), (reach, name, error) ('slope', 'stack'), the error ('dark'); cleared when a raw suits it
     found: dict[str, list[Any]] = {c: [] for c in UP_FRONT_CHECKS}
     refusal = {"slope": _slope_refusal, "stack": _stack_refusal}
 
@@ -1074,6 +1080,12 @@ def up_front_refusals(files: Sequence[str | os.PathLike], options: BatchOptions,
         found[check].clear()
 
     mosaic = options.mosaic_options()
+    dark = None
+    if "dark" in pending:
+        try:            # read once for every raw; an unreadable one fails each task for its reason
+            dark = pipeline.read_dark_frame(options.dark, mosaic)
+        except (PlenodecodeError, OSError, ValueError):
+            pending.remove("dark")
     for f, raw in _readable_raws(files, options) if pending else ():
         if "constants" in pending:
             try:
@@ -1082,6 +1094,13 @@ def up_front_refusals(files: Sequence[str | os.PathLike], options: BatchOptions,
                 found["constants"].append(exc)
             else:
                 settled("constants")
+        if "dark" in pending:
+            try:
+                pipeline.read_dark_frame(dark, raw=raw)
+            except ValueError as exc:           # DarkFrameMismatchError
+                found["dark"].append(str(exc))
+            else:
+                settled("dark")
         if "outputs" in pending:
             if is_focused_raw(raw):
                 found["outputs"].append(Path(f).name)
@@ -1118,7 +1137,10 @@ def up_front_refusals(files: Sequence[str | os.PathLike], options: BatchOptions,
                    f"{'is a' if len(focused) == 1 else 'are'} focused-plenoptic (Raytrix) "
                    f"raw{'s' * (len(focused) != 1)}, whose views have one pixel per lens; ask for photo (total "
                    "focus), total-focus or depth (virtual depth), or pass --views-anyway")
-    return UpFront(constants=tuple(found["constants"]), outputs=outputs,
+    dark_found = found["dark"]
+    dark_said = None if not dark_found else dark_found[0] if len(dark_found) == 1 else (
+        f"{dark_found[0]} (the {len(dark_found)} raws here: none suits it)")
+    return UpFront(constants=tuple(found["constants"]), dark=dark_said, outputs=outputs,
                    **{c: _worst(found[c]) if found[c] else None for c in refusal})
 
 

@@ -43,13 +43,17 @@ def _check_scheduler(ctx: click.Context, param: click.Parameter, value: str | No
 
 
 def _check_frames(white: Path | None, mosaic: Any) -> None:
-    """--white and --dark, read once before the batch: a file that is no raw is a usage error naming the option,
-    not one identical failure per raw."""
+    """--white and --dark, read once before the batch: a file that is no raw, or a white that is uniformly dark (the
+    dark frame given as the white), is a usage error naming the option, not one identical failure per raw."""
+    from ..calib.white import check_not_dark
     from ..errors import PlenodecodeError
     from ..pipeline.inputs import open_raw, quieted, read_dark_frame
 
-    for path, hint, read in ((white, "--white", open_raw), (current_microscope_inputs()["dark"], "--dark",
-                                                            read_dark_frame)):
+    def read_white(path: Path, mosaic: Any) -> None:
+        check_not_dark(open_raw(path, mosaic=mosaic))
+
+    for path, hint, read in ((white, "--white", read_white), (current_microscope_inputs()["dark"], "--dark",
+                                                              read_dark_frame)):
         if path is None:
             continue
         try:
@@ -344,8 +348,10 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
     found = up_front_refusals(files, options)
     _refuse_constants_none_has(found.constants)
     slope_hint = "--alpha" if alpha is not None else "--focus-distance" if focus_distance is not None else "--slope"
-    # a slope past every raw's picture, an output no raw can serve, a focal stack past every raw's picture
-    for refused, hint in ((found.slope, slope_hint), (found.outputs, "--outputs"), (found.stack, "--focal-stack")):
+    # a dark frame that suits no raw, a slope past every raw's picture, an output no raw can serve, a focal stack past
+    # every raw's picture
+    for refused, hint in ((found.dark, "--dark"), (found.slope, slope_hint), (found.outputs, "--outputs"),
+                          (found.stack, "--focal-stack")):
         if refused:
             raise click.BadParameter(refused, param_hint=hint)
     try:
