@@ -994,8 +994,8 @@ class UpFront:
         Of every readable raw, when not one has the camera constants ``alpha``, ``focus_distance``, ``metric``,
         ``ply`` or alpha stack units ask for (:func:`check_constants_for_any`).
     dark : str or None
-        The ``dark`` frame suits no raw: another size, or it would leave the raw black (a white or scene frame;
-        :func:`plenodecode.pipeline.read_dark_frame`), said for the first raw.
+        The ``dark`` frame suits no raw: it cannot be read, or it has another size or would leave the raw black (a
+        white or scene frame; :func:`plenodecode.pipeline.read_dark_frame`), said for the first raw.
     slope, outputs, stack : str or None
         The error of :func:`check_slope_for_any`, :func:`check_outputs_for_any`, :func:`check_stack_for_any`.
     """
@@ -1082,9 +1082,10 @@ def up_front_refusals(files: Sequence[str | os.PathLike], options: BatchOptions,
     mosaic = options.mosaic_options()
     dark = None
     if "dark" in pending:
-        try:            # read once for every raw; an unreadable one fails each task for its reason
+        try:            # read once for every raw
             dark = pipeline.read_dark_frame(options.dark, mosaic)
-        except (PlenodecodeError, OSError, ValueError):
+        except PlenodecodeError as exc:         # no raw can use it
+            found["dark"].append(str(exc))
             pending.remove("dark")
     for f, raw in _readable_raws(files, options) if pending else ():
         if "constants" in pending:

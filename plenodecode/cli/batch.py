@@ -42,25 +42,21 @@ def _check_scheduler(ctx: click.Context, param: click.Parameter, value: str | No
         raise click.BadParameter(str(exc).removeprefix("scheduler: "), ctx, param) from None
 
 
-def _check_frames(white: Path | None, mosaic: Any) -> None:
-    """--white and --dark, read once before the batch: a file that is no raw, or a white that is uniformly dark (the
-    dark frame given as the white), is a usage error naming the option, not one identical failure per raw."""
+def _check_white(white: Path | None, mosaic: Any) -> None:
+    """--white, read once before the batch: a file that is no raw, or one uniformly dark (the dark frame given as
+    the white), is a usage error naming the option, not one identical failure per raw (--dark: in
+    :func:`~plenodecode.batch.up_front_refusals`, which reads it once for every raw)."""
     from ..calib.white import check_not_dark
     from ..errors import PlenodecodeError
-    from ..pipeline.inputs import open_raw, quieted, read_dark_frame
+    from ..pipeline.inputs import open_raw, quieted
 
-    def read_white(path: Path, mosaic: Any) -> None:
-        check_not_dark(open_raw(path, mosaic=mosaic))
-
-    for path, hint, read in ((white, "--white", read_white), (current_microscope_inputs()["dark"], "--dark",
-                                                              read_dark_frame)):
-        if path is None:
-            continue
-        try:
-            with quieted("plenodecode.io.generic"):      # its level notes come again with each raw
-                read(path, mosaic=mosaic)
-        except PlenodecodeError as exc:
-            raise click.BadParameter(str(exc), param_hint=hint) from None
+    if white is None:
+        return
+    try:
+        with quieted("plenodecode.io.generic"):      # its level notes come again with each raw
+            check_not_dark(open_raw(white, mosaic=mosaic))
+    except PlenodecodeError as exc:
+        raise click.BadParameter(str(exc), param_hint="--white") from None
 
 
 def _latency_note(summary) -> str:
@@ -338,7 +334,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
                            frames=frames, radius=radius, fps=fps, interp=interp, parallax_frames=not no_frames,
                            metric=metric, ply=ply, depth_focus_distance=depth_focus_distance,
                            **_microscope_fields())
-    _check_frames(white, mosaic)
+    _check_white(white, mosaic)
     if not overwrite:       # a second run with other options must not replace the first run's folders
         try:
             check_outputs_to_replace(files, out_dir, options)
