@@ -1056,8 +1056,8 @@ def up_front_refusals(files: Sequence[str | os.PathLike], options: BatchOptions,
     read (or, for the slope and focal-stack checks, calibrated) are passed over: their tasks fail for that reason.
     The slope and focal-stack checks choose each raw's calibration (nothing is decoded); a raw whose grid would come
     from self-calibrating its scene (an image mosaic without a white image) settles them as suiting, as that costs a
-    scene's fit (its task checks it).  The library's log is held back to errors meanwhile, so the tasks' warnings are
-    not said twice.
+    scene's fit (its task checks it).  The ``dark`` frame is read once and asked of each raw.  The library's log is
+    held back to errors meanwhile, so the tasks' warnings are not said twice.
 
     Returns
     -------
