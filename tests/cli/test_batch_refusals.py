@@ -102,8 +102,8 @@ def test_batch_unreachable_scheduler_fails_in_seconds_naming_the_option(tmp_path
 def test_batch_reads_each_raw_once_before_its_first_task(tmp_path, monkeypatch):
     """The checks made before the first task (camera constants for --metric, --slope and --focal-stack past the
     pictures, view outputs no raw serves) each read the raws in a pass of their own: on two real F01 JPEGs beside the
-    Lytro sample raws IMG_1.jpg was read 4 times and IMG_2.jpg and scene.lfp 3 times before any task.  One pass now
-    asks every check of each raw, and ends when all are settled (scene.lfp has the constants: scene.lfr is not read)."""
+    Lytro sample raws IMG_1.jpg was read 4 times before any task, once per check.  One pass now asks every check of
+    each raw, and ends when all are settled (scene.lfp has the constants: scene.lfr is not read)."""
     from collections import Counter
     from pathlib import Path
 
