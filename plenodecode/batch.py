@@ -404,10 +404,13 @@ class BatchOptions:
                              dark_frame=None if self.dark is None else Path(self.dark).name)
 
 
-#: What a raw's dark note names per product measured (:attr:`TaskResult.level_of`), as the single commands name it;
-#: others: 'the <product>'.
+#: What a raw's dark note names per product measured (:attr:`TaskResult.level_of`), as the single commands name it,
+#: when the result does not say which file it measured (a run before :attr:`TaskResult.level_file`); others:
+#: 'the <product>'.
 MEASURED = {"views": "the centre view", "centre": "the centre view", "focal-stack": "the focal stack's middle slice",
             "parallax": "the parallax's middle frame"}
+#: The picture measured of an output that holds several (:attr:`TaskResult.level_file`): 'the centre view of views/'.
+MEASURED_IN = {"views": "the centre view", "focal-stack": "the middle slice", "parallax": "the middle frame"}
 
 
 @dataclass(frozen=True)
@@ -441,6 +444,9 @@ class TaskResult:
         its middle image in linear light, full scale 1) and its product ('photo', 'views': the centre view, ...);
         None without a picture, or with an ``exposure`` chosen (the pictures are as asked).  The command line and
         the index page note a dark one (:meth:`dark_note`).
+    level_file : str or None
+        The output measured, as the index page captions it: its name in the raw's folder ('refocus_s+0.00.png',
+        'views/', 'focal_stack/', 'parallax.gif').
     started : float
         When the task started on the worker (``time.time()``, s): the earliest task of each worker is the one
         that paid its imports and kernel loading (:meth:`BatchSummary.latency`).
@@ -458,15 +464,21 @@ class TaskResult:
     started: float = 0.0
     level: float | None = None
     level_of: str | None = None
+    level_file: str | None = None
 
     def dark_note(self, name: str | None = None) -> str | None:
-        """The single commands' note (:func:`plenodecode.pipeline.dark_note`) when the first picture is dark:
-        'the photo is dark (...); --exposure auto brightens it ...', 'the photo of ``name``' when named; else None."""
+        """The single commands' note (:func:`plenodecode.pipeline.dark_note`) when the first picture is dark, naming
+        the file as the index page captions it: 'refocus_s+0.00.png is dark (...); --exposure auto brightens it ...',
+        'the centre view of views/ is dark ...'; 'refocus_s+0.00.png of ``name``' when named; else None."""
         if self.level is None:
             return None
         from .pipeline import dark_note
 
-        what = MEASURED.get(self.level_of or "", f"the {self.level_of}")
+        if self.level_file is None:     # the result of an earlier version: the product measured
+            what = MEASURED.get(self.level_of or "", f"the {self.level_of}")
+        else:
+            part = MEASURED_IN.get(self.level_of or "")
+            what = self.level_file if part is None else f"{part} of {self.level_file}"
         return dark_note(self.level, what if name is None else f"{what} of {name}")
 
 
@@ -684,7 +696,8 @@ def _skip_result(src: Path, target: Path, key: str, t0: float, started: float) -
     return TaskResult(str(src), "skipped", tuple(str(o) for o in outs), thumbs,
                       left_out=tuple(str(n) for n in done.get("left_out", [])), seconds=time.perf_counter() - t0,
                       worker=_worker_id(), worker_peak_mb=_peak_mb(),
-                      started=started, level=done.get("level"), level_of=done.get("level_of"))
+                      started=started, level=done.get("level"), level_of=done.get("level_of"),
+                      level_file=done.get("level_file"))
 
 
 #: The file name of the raw the current task (thread) works on: its log lines start with it.
@@ -791,17 +804,19 @@ def _process_raw(src: Path, out: Path, options: BatchOptions, *, name: str | Non
         _check_metadata(raw, options)       # what the metadata cannot serve fails now, before calibrating
         # the folder is staged under a temporary name and replaces ``target`` (checked above) only when complete
         with atomic_output(target, overwrite=True, folder=True) as staging:
-            products, left_out, (level_of, level) = _write_products(raw, staging, options, threads=threads)
+            products, left_out, (level_of, level, level_file) = _write_products(raw, staging, options,
+                                                                                 threads=threads)
             rel_out = [str(p.relative_to(staging)) for p, _ in products]
             rel_thumb = [None if t is None else str(t.relative_to(staging)) for _, t in products]
             marker = {"key": key, "source": str(src.resolve()), "outputs": rel_out, "thumbnails": rel_thumb,
                       "left_out": list(left_out), "options": options.as_key_dict(), "level": level,
-                      "level_of": level_of}
+                      "level_of": level_of, "level_file": level_file}
             (staging / DONE_MARKER).write_text(json.dumps(marker, indent=1), encoding="utf-8")
         return TaskResult(str(src), "done", tuple(str(target / o) for o in rel_out),
                           tuple(None if t is None else str(target / t) for t in rel_thumb), left_out=left_out,
                           seconds=time.perf_counter() - t0, worker=_worker_id(), worker_peak_mb=_peak_mb(),
-                          started=started, level=level, level_of=level_of)
+                          started=started, level=level, level_of=level_of,
+                          level_file=level_file)
     except (PlenodecodeError, OSError) as exc:
         log.info("%s failed: %s", src, exc)
         error = os_error_text(exc) if isinstance(exc, OSError) else one_line(exc)
@@ -962,42 +977,177 @@ def _check_focus_reach(src: Any, options: BatchOptions) -> None:
                               ) from None
 
 
-#: What a check of :func:`_first_suiting` says of one raw: (reach, error) refused, None suits, False not applying.
+#: What a check of :func:`up_front_refusals` says of one raw: (reach, error) refused, None suits, False not applying.
 Refusal = tuple[float, ValueError] | None | bool
 
+#: The checks of :func:`up_front_refusals`, in the order ``plenodecode batch`` raises their errors.
+UP_FRONT_CHECKS = ("constants", "dark", "slope", "outputs", "stack")
 
-def _first_suiting(files: Sequence[str | os.PathLike], options: BatchOptions,
-                   refusal: Callable[[Any], Refusal]) -> list[tuple[float, str, ValueError]]:
-    """Read each raw of ``files`` and choose its calibration (nothing decoded) until ``refusal(source)`` of one is
-    None (it suits); ``refusal`` gives (reach, error) for a raw refused, False for one it does not apply to.  A raw
-    that cannot be read or calibrated is passed over (its task fails for that reason); one whose grid would come
-    from self-calibrating the scene (an image mosaic without a white image) ends the check as suiting, as that
-    costs a scene's fit; its task checks it.  The library's log is held back to errors meanwhile, so the tasks'
-    warnings are not said twice.  Returns the refusals ([] when a raw suits)."""
+
+@dataclass(frozen=True)
+class UpFront:
+    """What :func:`up_front_refusals` found that no raw of a batch can serve (empty / None: some raw can).
+
+    Attributes
+    ----------
+    constants : tuple of MissingConstantsError
+        Of every readable raw, when not one has the camera constants ``alpha``, ``focus_distance``, ``metric``,
+        ``ply`` or alpha stack units ask for (:func:`check_constants_for_any`).
+    dark : str or None
+        The ``dark`` frame suits no raw: it cannot be read, or it has another size or would leave the raw black (a
+        white or scene frame; :func:`plenodecode.pipeline.read_dark_frame`), said for the first raw.
+    slope, outputs, stack : str or None
+        The error of :func:`check_slope_for_any`, :func:`check_outputs_for_any`, :func:`check_stack_for_any`.
+    """
+
+    constants: tuple[MissingConstantsError, ...] = ()
+    dark: str | None = None
+    slope: str | None = None
+    outputs: str | None = None
+    stack: str | None = None
+
+
+def _checks_asked(options: BatchOptions) -> set[str]:
+    """The :data:`UP_FRONT_CHECKS` that ``options`` give something to check."""
+    asked = set()
+    if (options.alpha is not None or options.focus_distance is not None or options.metric or options.ply
+            or options.stack_units == "alpha"):
+        asked.add("constants")
+    if options.dark is not None:
+        asked.add("dark")
+    if (options.slope != 0 or options.alpha is not None or options.focus_distance is not None) and any(
+            p in ("refocus", "photo") for p in options.outputs):
+        asked.add("slope")
+    if any(o in VIEW_OUTPUTS for o in options.outputs) and not options.views_anyway and options.grid is None:
+        asked.add("outputs")
+    if options.focal_stack is not None and "focal-stack" in options.outputs:
+        asked.add("stack")
+    return asked
+
+
+def _slope_refusal(src: Any, options: BatchOptions) -> Refusal:
+    """The slope check of one calibrated raw (:func:`_slope_reach_error`)."""
+    found = _slope_reach_error(src, options)
+    return None if found is None else (found[2], found[1])
+
+
+def _stack_refusal(src: Any, options: BatchOptions) -> Refusal:
+    """The focal-stack check of one calibrated raw: False for a focused raw that leaves the stack out."""
+    if src.focused and not options.views_anyway:
+        return False
+    from .decoding.rectify import decoded_shape
+    from .pipeline.products import check_focus_reach
+    from .render._common import slope_reach
+
+    start, stop, n = options.focal_stack
+    try:
+        check_focus_reach(src, "focal-stack", start=start, stop=stop, n=n, units=options.stack_units)
+    except ValueError as exc:
+        return slope_reach(decoded_shape(src.calibration.grid, src.decode_options.get("n_views"))), exc
+    return None
+
+
+def up_front_refusals(files: Sequence[str | os.PathLike], options: BatchOptions,
+                      checks: Sequence[str] = UP_FRONT_CHECKS) -> UpFront:
+    """Every check ``plenodecode batch`` makes before its first task, in one pass that reads each raw once.
+
+    Each check of ``checks`` (:data:`UP_FRONT_CHECKS`) that ``options`` ask for is asked of the raws of ``files`` in
+    turn until one raw suits it; the pass ends when every check is settled or the raws run out.  Raws that cannot be
+    read (or, for the slope and focal-stack checks, calibrated) are passed over: their tasks fail for that reason.
+    The slope and focal-stack checks choose each raw's calibration (nothing is decoded); a raw whose grid would come
+    from self-calibrating its scene (an image mosaic without a white image) settles them as suiting, as that costs a
+    scene's fit (its task checks it).  The ``dark`` frame is read once and asked of each raw.  The library's log is
+    held back to errors meanwhile, so the tasks' warnings are not said twice.
+
+    Returns
+    -------
+    UpFront
+        Each check's refusal when no raw suits it.
+    """
     from . import pipeline
     from .io.generic import is_bare_mosaic
+    from .pipeline.needs import is_focused_raw
+
+    asked = _checks_asked(options)
+    pending = [c for c in checks if c in asked]
+    # per check, what the raws read so far refused: MissingConstantsError ('constants'), a focused raw's name
+    # ('outputs'), (reach, name, error) ('slope', 'stack'), the error ('dark'); cleared when a raw suits it
+    found: dict[str, list[Any]] = {c: [] for c in UP_FRONT_CHECKS}
+    refusal = {"slope": _slope_refusal, "stack": _stack_refusal}
+
+    def settled(check: str) -> None:
+        pending.remove(check)
+        found[check].clear()
 
     mosaic = options.mosaic_options()
-    refused: list[tuple[float, str, ValueError]] = []
-    for f, raw in _readable_raws(files, options):      # (still quiet while each is calibrated)
-        if options.white is None and is_bare_mosaic(raw):
-            return []
-        try:
-            cal = pipeline.choose_calibration(raw, grid=options.grid, database=options.database,
-                                              white=options.white, mosaic=mosaic)
-            found = refusal(pipeline.Source(raw=raw, calibration=cal, geometry=options.geometric_calibration(),
-                                            decode_options=options.decode_options()))
-        except (PlenodecodeError, OSError, ValueError):
-            continue
-        if found is None:
-            return []
-        if found is not False:
-            refused.append((found[0], Path(f).name, found[1]))
-    return refused
+    dark = None
+    if "dark" in pending:
+        try:            # read once for every raw
+            dark = pipeline.read_dark_frame(options.dark, mosaic)
+        except PlenodecodeError as exc:         # no raw can use it
+            found["dark"].append(str(exc))
+            pending.remove("dark")
+    for f, raw in _readable_raws(files, options) if pending else ():
+        if "constants" in pending:
+            try:
+                _check_metadata(raw, options)
+            except MissingConstantsError as exc:
+                found["constants"].append(exc)
+            else:
+                settled("constants")
+        if "dark" in pending:
+            try:
+                pipeline.read_dark_frame(dark, raw=raw)
+            except ValueError as exc:           # DarkFrameMismatchError
+                found["dark"].append(str(exc))
+            else:
+                settled("dark")
+        if "outputs" in pending:
+            if is_focused_raw(raw):
+                found["outputs"].append(Path(f).name)
+            else:
+                settled("outputs")
+        calibrated = [c for c in pending if c in refusal]
+        if calibrated and options.white is None and is_bare_mosaic(raw):
+            for c in calibrated:      # its grid would come from a fit to its scene: its task checks it
+                settled(c)
+        elif calibrated:
+            try:
+                src = pipeline.Source(raw=raw, calibration=pipeline.choose_calibration(
+                    raw, grid=options.grid, database=options.database, white=options.white, mosaic=mosaic),
+                    geometry=options.geometric_calibration(), decode_options=options.decode_options())
+            except (PlenodecodeError, OSError, ValueError):
+                src = None
+            for c in calibrated if src is not None else ():
+                try:
+                    said = refusal[c](src, options)
+                except (PlenodecodeError, OSError, ValueError):
+                    continue
+                if said is None:
+                    settled(c)
+                elif said is not False:
+                    found[c].append((said[0], Path(f).name, said[1]))
+        if not pending:
+            break
+    focused = found["outputs"]
+    outputs = None
+    if focused:
+        cut = [o for o in options.outputs if o in VIEW_OUTPUTS]
+        which = focused[0] if len(focused) == 1 else f"all {len(focused)} raws here"
+        outputs = (f"{','.join(cut)}: no raw here can serve {'it' if len(cut) == 1 else 'them'}: {which} "
+                   f"{'is a' if len(focused) == 1 else 'are'} focused-plenoptic (Raytrix) "
+                   f"raw{'s' * (len(focused) != 1)}, whose views have one pixel per lens; ask for photo (total "
+                   "focus), total-focus or depth (virtual depth), or pass --views-anyway")
+    dark_found = found["dark"]
+    dark_said = None if not dark_found else dark_found[0] if len(dark_found) == 1 else (
+        f"{dark_found[0]} (the {len(dark_found)} raws here: none suits it)")
+    return UpFront(constants=tuple(found["constants"]), dark=dark_said, outputs=outputs,
+                   **{c: _worst(found[c]) if found[c] else None for c in refusal})
 
 
 def _worst(refused: list[tuple[float, str, ValueError]]) -> str:
-    """The error of the raw allowing the most of :func:`_first_suiting`'s refusals, saying how many there were."""
+    """The error of the raw allowing the most of the refusals of a slope or focal-stack check, saying how many
+    there were."""
     reach, name, exc = max(refused, key=lambda r: r[0])
     return str(exc) if len(refused) == 1 else f"{exc} (every one of the {len(refused)} raws; {name} allows the most)"
 
@@ -1007,88 +1157,40 @@ def check_slope_for_any(files: Sequence[str | os.PathLike], options: BatchOption
     past the picture of every raw of ``files`` it applies to (a batch would fail them all), before any is decoded:
     the error :func:`~plenodecode.render._common.check_slope_reach` gives for the raw allowing the largest slope.
     A raw with no slope to suit (a Raytrix raw's total-focus photograph) suits; how the raws are read:
-    :func:`_first_suiting`.
+    :func:`up_front_refusals`, which makes this check with the others in one pass.
     """
-    if options.slope == 0 and options.alpha is None and options.focus_distance is None or not any(
-            p in ("refocus", "photo") for p in options.outputs):
-        return
-
-    def refusal(src: Any) -> tuple[float, ValueError] | None:
-        found = _slope_reach_error(src, options)
-        return None if found is None else (found[2], found[1])
-
-    refused = _first_suiting(files, options, refusal)
-    if refused:
-        raise ValueError(_worst(refused))
+    found = up_front_refusals(files, options, ("slope",)).slope
+    if found:
+        raise ValueError(found)
 
 
 def check_stack_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
     """Raise ValueError when ``options.focal_stack`` is past the picture of every raw of ``files`` that writes a
     focal stack (:func:`plenodecode.pipeline.products.check_focus_reach`), before any is decoded: the error of the
     raw allowing the largest slope.  A focused-plenoptic raw that leaves the stack out
-    (:func:`_focused_views_left_out`) is not counted; how the raws are read: :func:`_first_suiting`."""
-    if options.focal_stack is None or "focal-stack" not in options.outputs:
-        return
-    from .decoding.rectify import decoded_shape
-    from .pipeline.products import check_focus_reach
-    from .render._common import slope_reach
-
-    start, stop, n = options.focal_stack
-
-    def refusal(src: Any) -> Refusal:
-        if src.focused and not options.views_anyway:
-            return False
-        try:
-            check_focus_reach(src, "focal-stack", start=start, stop=stop, n=n, units=options.stack_units)
-        except ValueError as exc:
-            return slope_reach(decoded_shape(src.calibration.grid, src.decode_options.get("n_views"))), exc
-        return None
-
-    refused = _first_suiting(files, options, refusal)
-    if refused:
-        raise ValueError(_worst(refused))
+    (:func:`_focused_views_left_out`) is not counted; how the raws are read: :func:`up_front_refusals`."""
+    found = up_front_refusals(files, options, ("stack",)).stack
+    if found:
+        raise ValueError(found)
 
 
 def check_outputs_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> None:
     """Raise ValueError when no raw of ``files`` can serve the view outputs asked for (:data:`VIEW_OUTPUTS`): every
     readable one is a focused-plenoptic (Raytrix) raw, whose views have one pixel per lens, and
     ``options.views_anyway`` is off.  A raw's metadata tells (:func:`plenodecode.pipeline.needs.is_focused_raw`;
-    with ``options.grid`` given by hand nothing is checked); raws that cannot be read are passed over."""
-    cut = [o for o in options.outputs if o in VIEW_OUTPUTS]
-    if not cut or options.views_anyway or options.grid is not None:
-        return
-    from .pipeline.needs import is_focused_raw
-
-    focused = []
-    for f, raw in _readable_raws(files, options):
-        if not is_focused_raw(raw):
-            return
-        focused.append(Path(f).name)
-    if focused:
-        which = focused[0] if len(focused) == 1 else f"all {len(focused)} raws here"
-        raise ValueError(f"{','.join(cut)}: no raw here can serve {'it' if len(cut) == 1 else 'them'}: {which} "
-                         f"{'is a' if len(focused) == 1 else 'are'} focused-plenoptic (Raytrix) "
-                         f"raw{'s' * (len(focused) != 1)}, whose views have one pixel per lens; ask for photo (total "
-                         "focus), total-focus or depth (virtual depth), or pass --views-anyway")
+    with ``options.grid`` given by hand nothing is checked); raws that cannot be read are passed over
+    (:func:`up_front_refusals`)."""
+    found = up_front_refusals(files, options, ("outputs",)).outputs
+    if found:
+        raise ValueError(found)
 
 
 def check_constants_for_any(files: Sequence[str | os.PathLike], options: BatchOptions) -> list[MissingConstantsError]:
     """The MissingConstantsError of every readable raw of ``files`` (:func:`_check_metadata`) when not one of them
     has the constants ``options`` ask for (``alpha``, ``focus_distance``, ``metric``, ``ply``, alpha stack units), so
     that a batch would fail them all before decoding; [] as soon as one has them.  Raws that cannot be read are
-    passed over (their tasks fail for that reason); nothing is calibrated or decoded."""
-    if (options.alpha is None and options.focus_distance is None and not options.metric and not options.ply
-            and options.stack_units != "alpha"):
-        return []
-    refused: list[MissingConstantsError] = []
-    for _, raw in _readable_raws(files, options):
-        try:
-            _check_metadata(raw, options)
-        except MissingConstantsError as exc:
-            refused.append(exc)
-            continue
-        return []
-    return refused
+    passed over (their tasks fail for that reason); nothing is calibrated or decoded (:func:`up_front_refusals`)."""
+    return list(up_front_refusals(files, options, ("constants",)).constants)
 
 
 def _readable_raws(files: Sequence[str | os.PathLike], options: BatchOptions
@@ -1146,7 +1248,8 @@ def depth_stem(rendered: Any) -> str:
 
 
 def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: int | None = None
-                    ) -> tuple[list[tuple[Path, Path | None]], tuple[str, ...], tuple[str | None, float | None]]:
+                    ) -> tuple[list[tuple[Path, Path | None]], tuple[str, ...],
+                               tuple[str | None, float | None, str | None]]:
     """Calibrate and decode ``raw`` and write ``options.outputs`` into ``folder``, all through
     :mod:`plenodecode.pipeline` (the same calibration policy, products, display encoding and writers as the
     single-purpose commands).
@@ -1162,9 +1265,9 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: i
     left_out : tuple of str
         One line per reason an output asked for was not written ('centre,parallax: not for a focused-plenoptic
         (Raytrix) raw (...)'; :func:`_focused_views_left_out`), or empty.
-    level : (str, float) or (None, None)
-        The first picture product and its :func:`plenodecode.pipeline.image_level` (:attr:`TaskResult.level`), at
-        the default exposure only.
+    level : (str, float, str) or (None, None, None)
+        The first picture product, its :func:`plenodecode.pipeline.image_level` (:attr:`TaskResult.level`), at
+        the default exposure only, and its output's name in ``folder`` (:attr:`TaskResult.level_file`).
     """
     import numpy as np
 
@@ -1188,13 +1291,13 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: i
     thumbs = folder / THUMB_DIR
     thumbs.mkdir()
     written: list[tuple[Path, Path | None]] = []
-    level: tuple[str | None, float | None] = (None, None)
+    level: tuple[str | None, float | None, str | None] = (None, None, None)
 
-    def measured(product: str, rendered: Any) -> None:
+    def measured(product: str, rendered: Any, output: str) -> None:
         nonlocal level
         # the first picture: how bright it is, at the default exposure only (a chosen one is as asked: no note)
         if level[0] is None and options.exposure == 0.0:
-            level = (product, pipeline.image_level(rendered))
+            level = (product, pipeline.image_level(rendered), output)
 
     def centre_thumbnail(name: str, lf: Any = None) -> Path:
         from .render import perspective
@@ -1211,7 +1314,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: i
             # the pictures 'plenodecode views' writes (view_VV_UU, views outside the micro-images black), with its
             # --exposure (one gain, from the centre view); the 'lightfield' output is the data as decoded
             rendered = pipeline.render_product(src, "views")
-            measured(product, rendered)
+            measured(product, rendered, "views/")
             gain = pipeline.exposure_gain(rendered, options.exposure)
             pipeline.write_product(rendered, folder / "views", bit_depth=bits, exposure=math.log2(gain))
             lf = src.lightfield
@@ -1220,7 +1323,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: i
             written.append((folder / "views", centre_thumbnail("views", lf)))
         elif product == "focal-stack":
             rendered = pipeline.render_product(src, "focal-stack", **_stack_options(src, options))
-            measured(product, rendered)
+            measured(product, rendered, f"{FOCAL_STACK_DIR}/")
             gain = pipeline.exposure_gain(rendered, options.exposure)      # one gain for the stack and thumbnail
             pipeline.write_product(rendered, folder / FOCAL_STACK_DIR, bit_depth=bits, exposure=math.log2(gain))
             (_, aif), = [item for item in rendered.images if item[0] == "all_in_focus"]
@@ -1234,7 +1337,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: i
                 if options.radius is None:
                     raise
                 raise DecodeError(f"--radius {options.radius:g} does not suit {_raw_name(raw)}: {exc}") from None
-            measured(product, rendered)
+            measured(product, rendered, PARALLAX_NAME)
             gain = pipeline.exposure_gain(rendered, options.exposure)
             frames_dir = folder / PARALLAX_FRAMES_DIR if options.parallax_frames else None
             pipeline.write_parallax(rendered, folder / PARALLAX_NAME, fps=options.fps, frames_dir=frames_dir,
@@ -1279,7 +1382,7 @@ def _write_products(raw: Any, folder: Path, options: BatchOptions, *, threads: i
                 # 'photo' is the 'refocus' at the same focus, or a focused raw's 'total-focus': one file
                 log.info("%s: %s is the same image as an earlier output", product, name)
                 continue
-            measured(product, rendered)
+            measured(product, rendered, name)
             # one gain for the file and its thumbnail ('auto' measures the image once)
             gain = pipeline.exposure_gain(rendered, options.exposure)
             dest, = pipeline.write_product(rendered, folder / name, bit_depth=bits, exposure=math.log2(gain))
@@ -1371,7 +1474,9 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
     options = replace(options, database=str(Path(options.database).resolve()))
     out = Path(out_dir).resolve()
     refuse_unwritable(out / SUMMARY_JSON)      # before any work (NotADirectoryError, PermissionError)
-    files = [f.resolve() for f in find_raws(inputs, exclude=[out])]
+    # absolute, links not followed: a raw linked into a folder is read there, with the sidecar, Raytrix XML or
+    # metadata.txt beside the link (as the single commands read it), not beside its target
+    files = [Path(os.path.abspath(f)) for f in find_raws(inputs, exclude=[out])]
     if not overwrite:
         check_outputs_to_replace(files, out, options)
     if scheduler is None:
@@ -1500,5 +1605,5 @@ def write_summary(summary: BatchSummary, out_dir: str | os.PathLike, *, overwrit
 
 __all__ = ["BATCH_OUTPUTS", "MEASURED", "BatchOptions", "TaskResult", "BatchSummary", "find_raws", "output_names",
            "task_key", "outputs_to_replace", "check_outputs_to_replace", "check_slope_for_any", "check_stack_for_any",
-           "check_outputs_for_any", "check_constants_for_any", "process_raw",
-           "run_batch", "write_summary", "check_summary_files"]
+           "check_outputs_for_any", "check_constants_for_any", "UP_FRONT_CHECKS", "UpFront", "up_front_refusals",
+           "process_raw", "run_batch", "write_summary", "check_summary_files"]

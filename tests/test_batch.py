@@ -1424,3 +1424,20 @@ def test_index_card_notes_a_dark_first_picture_as_the_terminal_does(tmp_path):
             "--exposure auto brightens it to full scale, --exposure 2 by two stops")
     assert page.count('class="note"') == 1 and f'<div class="note">{html.escape(said)}</div>' in page
     assert results[0].dark_note("dim.lfr") == said.removeprefix("note: ").replace("view is", "view of dim.lfr is")
+
+
+@pytest.mark.parametrize("level_of, level_file, what", [
+    ("photo", "refocus_s+0.00.png", "refocus_s+0.00.png"), ("photo", "total_focus.png", "total_focus.png"),
+    ("views", "views/", "the centre view of views/"), ("focal-stack", "focal_stack/", "the middle slice of focal_stack/"),
+    ("parallax", "parallax.gif", "the middle frame of parallax.gif"), ("photo", None, "the photo")])
+def test_dark_note_names_the_picture_as_the_card_captions_it(tmp_path, level_of, level_file, what):
+    """The card under a thumbnail captioned 'refocus_s+0.00.png' said 'the photo is dark': the note names the file
+    measured as the caption does (the picture it holds for a folder or an animation); a result written before
+    level_file (None) keeps naming the product."""
+    from plenodecode.report.batch import render_batch_index
+
+    r = TaskResult(str(tmp_path / "dim.lfr"), "done", level=0.104, level_of=level_of, level_file=level_file)
+    tail = " is dark (its brightest 0.5 % reach 10 % of full scale, in linear light); --exposure auto brightens it"
+    assert r.dark_note().startswith(what + tail) and r.dark_note("dim.lfr").startswith(f"{what} of dim.lfr{tail}")
+    page = render_batch_index(BatchSummary(results=(r,)), tmp_path)
+    assert f'<div class="note">note: {html.escape(what + tail)}' in page

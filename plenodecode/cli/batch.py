@@ -42,21 +42,21 @@ def _check_scheduler(ctx: click.Context, param: click.Parameter, value: str | No
         raise click.BadParameter(str(exc).removeprefix("scheduler: "), ctx, param) from None
 
 
-def _check_frames(white: Path | None, mosaic: Any) -> None:
-    """--white and --dark, read once before the batch: a file that is no raw is a usage error naming the option,
-    not one identical failure per raw."""
+def _check_white(white: Path | None, mosaic: Any) -> None:
+    """--white, read once before the batch: a file that is no raw, or one uniformly dark (the dark frame given as
+    the white), is a usage error naming the option, not one identical failure per raw (--dark: in
+    :func:`~plenodecode.batch.up_front_refusals`, which reads it once for every raw)."""
+    from ..calib.white import check_not_dark
     from ..errors import PlenodecodeError
-    from ..pipeline.inputs import open_raw, quieted, read_dark_frame
+    from ..pipeline.inputs import open_raw, quieted
 
-    for path, hint, read in ((white, "--white", open_raw), (current_microscope_inputs()["dark"], "--dark",
-                                                            read_dark_frame)):
-        if path is None:
-            continue
-        try:
-            with quieted("plenodecode.io.generic"):      # its level notes come again with each raw
-                read(path, mosaic=mosaic)
-        except PlenodecodeError as exc:
-            raise click.BadParameter(str(exc), param_hint=hint) from None
+    if white is None:
+        return
+    try:
+        with quieted("plenodecode.io.generic"):      # its level notes come again with each raw
+            check_not_dark(open_raw(white, mosaic=mosaic))
+    except PlenodecodeError as exc:
+        raise click.BadParameter(str(exc), param_hint="--white") from None
 
 
 def _latency_note(summary) -> str:
@@ -145,16 +145,15 @@ def _no_database(db_dir: Path, default: bool, inputs: tuple[Path, ...], first: P
             "or --self-calibrate")
 
 
-def _refuse_constants_none_has(files: list[Path], options: Any) -> None:
+def _refuse_constants_none_has(refused: tuple[Any, ...]) -> None:
     """When not one raw has the camera constants an option needs (--focus-distance, --alpha, --metric, --ply,
-    --stack-units alpha), raise the first raw's MissingConstantsError saying so, which the command group turns
-    into a usage error naming the option (:func:`plenodecode.cli.main.constants_usage_error`).  A batch of real F01
-    JPEGs and synthetic raws with --focus-distance failed every raw and wrote a summary of that; with one raw that
-    has them, the others fail on their rows."""
-    from ..batch import check_constants_for_any
+    --stack-units alpha), raise the first raw's MissingConstantsError of ``refused`` (those of every readable raw,
+    :attr:`~plenodecode.batch.UpFront.constants`) saying so, which the command group turns into a usage error naming
+    the option (:func:`plenodecode.cli.main.constants_usage_error`).  A batch of real F01 JPEGs and synthetic raws
+    with --focus-distance failed every raw and wrote a summary of that; with one raw that has them, the others fail
+    on their rows."""
     from ..errors import MissingConstantsError
 
-    refused = check_constants_for_any(files, options)
     if not refused:
         return
     first = refused[0]
@@ -271,9 +270,8 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
       plenodecode batch shoot/ -o decoded/ --outputs centre,refocus,depth --jobs 2
       plenodecode batch shoot/ -o decoded/ --scheduler tcp://10.0.0.5:8786
     """
-    from ..batch import (DONE_MARKER, BatchOptions, check_outputs_for_any, check_outputs_to_replace,
-                         check_slope_for_any, check_stack_for_any, check_summary_files, find_raws, run_batch,
-                         write_summary)
+    from ..batch import (DONE_MARKER, BatchOptions, check_outputs_to_replace, check_summary_files, find_raws,
+                         run_batch, up_front_refusals, write_summary)
     from ..io.discovery import desktop_exports_not_taken, images_not_taken, needs_no_database
     from ..calib.store import DEFAULT_DB, find_database
 
@@ -340,23 +338,22 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
                            frames=frames, radius=radius, fps=fps, interp=interp, parallax_frames=not no_frames,
                            metric=metric, ply=ply, depth_focus_distance=depth_focus_distance,
                            **_microscope_fields())
-    _check_frames(white, mosaic)
+    _check_white(white, mosaic)
     if not overwrite:       # a second run with other options must not replace the first run's folders
         try:
             check_outputs_to_replace(files, out_dir, options)
         except FileExistsError as exc:
             raise _refused(exc) from None
-    _refuse_constants_none_has(files, options)
-    try:        # a slope past every raw's picture: refused as 'plenodecode refocus' refuses it, before decoding
-        check_slope_for_any(files, options)
-    except ValueError as exc:
-        hint = "--alpha" if alpha is not None else "--focus-distance" if focus_distance is not None else "--slope"
-        raise click.BadParameter(str(exc), param_hint=hint) from None
-    for check, hint in ((check_outputs_for_any, "--outputs"), (check_stack_for_any, "--focal-stack")):
-        try:    # an output no raw can serve, a focal stack past every raw's picture: refused before decoding
-            check(files, options)
-        except ValueError as exc:
-            raise click.BadParameter(str(exc), param_hint=hint) from None
+    # what no raw can serve, refused before decoding as the single commands refuse it; each raw read once for all
+    found = up_front_refusals(files, options)
+    _refuse_constants_none_has(found.constants)
+    slope_hint = "--alpha" if alpha is not None else "--focus-distance" if focus_distance is not None else "--slope"
+    # a dark frame that suits no raw, a slope past every raw's picture, an output no raw can serve, a focal stack past
+    # every raw's picture
+    for refused, hint in ((found.dark, "--dark"), (found.slope, slope_hint), (found.outputs, "--outputs"),
+                          (found.stack, "--focal-stack")):
+        if refused:
+            raise click.BadParameter(refused, param_hint=hint)
     try:
         summary = run_batch(files, out_dir, options, jobs=jobs, scheduler=scheduler, overwrite=overwrite,
                             progress=progress_bar(f"decoding {len(files)} raw{'s' * (len(files) != 1)}", ctx))

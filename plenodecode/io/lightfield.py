@@ -537,9 +537,10 @@ def detect_format(path: str | os.PathLike, *, option: str = "format=") -> str:
             return "zarr"
         if (p / VIEWS_JSON).is_file() or _view_files(p):
             return "views"
+    found = format_of_extension(p)
+    if found is not None:
+        return found
     ext = p.suffix.lower()
-    if format_of_extension(p) is not None:
-        return format_of_extension(p)
     if ext in PAGE_EXTENSIONS:
         raise ValueError(_page_error(p))
     if ext == "" and not p.is_file():

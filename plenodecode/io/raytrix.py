@@ -37,7 +37,7 @@ import numpy as np
 
 from ..errors import FormatError, MetadataError
 from ..types import CameraMetadata, LensletGrid, RawCapture
-from .generic import _FAST_PNG, find_sidecar, json_safe, read_sidecar, sidecar_document
+from .generic import _FAST_PNG, find_sidecar, is_known_sensor_image, json_safe, read_sidecar, sidecar_document
 from .atomic import atomic_outputs, refuse_existing
 from .images import read_image, write_image
 
@@ -196,9 +196,11 @@ def find_calibration_xml(path: str | os.PathLike) -> Path | None:
     """The RayCalibData XML of a Raytrix image, or None.
 
     The rule: ``X.xml`` (or ``X.XML``) beside ``X.png`` (or another image extension in
-    :data:`RAYTRIX_IMAGE_EXTENSIONS`); else the only RayCalibData XML in the image's folder.  A
-    candidate counts only if it contains ``<RayCalibData``.  Never raises: several XMLs and no
-    same-stem one give None here (:func:`calibration_xml_for` says so as an error).
+    :data:`RAYTRIX_IMAGE_EXTENSIONS`); else the only RayCalibData XML in the image's folder, unless the image
+    has a Lytro sensor's size (:func:`~.generic.is_known_sensor_image`: an F01 JPEG beside a Raytrix image and
+    its XML is no Raytrix image; a Raytrix image of that size takes its XML by stem).  A candidate counts only if
+    it contains ``<RayCalibData``.  Never raises: several XMLs and no same-stem one give None here
+    (:func:`calibration_xml_for` says so as an error).
     """
     p = Path(path)
     if p.suffix.lower() not in RAYTRIX_IMAGE_EXTENSIONS:
@@ -207,7 +209,7 @@ def find_calibration_xml(path: str | os.PathLike) -> Path | None:
         if cand.is_file() and is_raycalib_xml(cand):
             return cand
     found = _calibrations_in_folder(p.parent)
-    return found[0] if len(found) == 1 else None
+    return found[0] if len(found) == 1 and not is_known_sensor_image(p) else None
 
 
 def calibration_xml_for(path: str | os.PathLike, xml: str | os.PathLike | None = None) -> Path | None:
@@ -218,7 +220,8 @@ def calibration_xml_for(path: str | os.PathLike, xml: str | os.PathLike | None =
     ------
     MetadataError
         ``xml`` is not a RayCalibData document, or ``path`` is no image; or no XML of the image's stem and
-        several RayCalibData XMLs in its folder (ambiguous: the message lists them and names ``--raytrix-xml``).
+        several RayCalibData XMLs in its folder (ambiguous: the message lists them and names ``--raytrix-xml``),
+        unless the image has a Lytro sensor's size.
     """
     p = Path(path)
     if xml is not None:
@@ -233,7 +236,7 @@ def calibration_xml_for(path: str | os.PathLike, xml: str | os.PathLike | None =
     if found is not None or p.suffix.lower() not in RAYTRIX_IMAGE_EXTENSIONS:
         return found
     several = _calibrations_in_folder(p.parent)
-    if len(several) > 1:
+    if len(several) > 1 and not is_known_sensor_image(p):
         names = ", ".join(f.name for f in several)
         raise MetadataError(f"{p.name}: {len(several)} RayCalibData XMLs beside it ({names}) and none named "
                             f"{p.stem}.xml; say which one with --raytrix-xml FILE")

@@ -97,3 +97,85 @@ def test_batch_unreachable_scheduler_fails_in_seconds_naming_the_option(tmp_path
         "error: cannot use the Dask scheduler tcp://127.0.0.1:1 (--scheduler): Timed out trying to connect to "
         "tcp://127.0.0.1:1 after 5 s")
     assert not out.exists()
+
+
+def test_batch_reads_each_raw_once_before_its_first_task(tmp_path, monkeypatch):
+    """The checks made before the first task (camera constants for --metric, --slope and --focal-stack past the
+    pictures, view outputs no raw serves) each read the raws in a pass of their own: on two real F01 JPEGs beside the
+    Lytro sample raws IMG_1.jpg was read 4 times before any task, once per check.  One pass now asks every check of
+    each raw, and ends when all are settled (scene.lfp has the constants: scene.lfr is not read)."""
+    from collections import Counter
+    from pathlib import Path
+
+    import plenodecode.pipeline.inputs as inputs
+    from plenodecode import batch
+
+    reads: Counter = Counter()
+    real = inputs._read_raw
+
+    def counting(p, *args, **kwargs):
+        reads[Path(p).name] += 1
+        return real(p, *args, **kwargs)
+
+    started = []
+
+    def first_task(*args, **kwargs):        # the batch starts: how many reads so far
+        started.append(dict(reads))
+        raise SystemExit(0)
+
+    monkeypatch.setattr(inputs, "_read_raw", counting)
+    monkeypatch.setattr(batch, "run_batch", first_task)
+    folder = _folder(tmp_path, shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg"),
+                     shared_path("lytro-f01-lenslet-jpg", "IMG_2.jpg"), F01, ILLUM)
+    res = CliRunner().invoke(cli, ["batch", str(folder), "-o", str(tmp_path / "out"), "--database", str(DB),
+                                   "--outputs", "refocus,centre,focal-stack,depth", "--metric",
+                                   "--depth-focus-distance", "0.5", "--slope", "0.5", "--focal-stack", "-0.5:0.5:3"])
+    assert res.exit_code == 0 and started, res.output
+    assert started[0] == {"IMG_1.jpg": 1, "IMG_2.jpg": 1, "scene.lfp": 1}
+
+
+ANTLEG = ("lf-microscopy-antleg",)
+
+
+@pytest.mark.parametrize("frames, error", [
+    (["-w", "dark_frame.tif"], "Invalid value for --white: {dir}/dark_frame.tif is uniformly dark (99.9th percentile "
+                               "0.0017 of the white level); expected a white image"),
+    (["--dark", "radiometry_frame.png"], "Invalid value for --dark: radiometry_frame.png is no dark frame for "
+                                         "light_field.png: subtracted from it, the brightest 0.1 % keep 0.0% of the "
+                                         "range"),
+    (["--dark", "F01"], "Invalid value for --dark: IMG_1.jpg is 3280 x 3280 px but the raw light_field.png is 2592 x "
+                        "2160; pass the dark frame of this camera"),
+], ids=["dark-as-white", "white-as-dark", "other-camera-dark"])
+def test_batch_refuses_a_white_or_dark_frame_that_suits_no_raw(tmp_path, frames, error):
+    """The ant leg with its frames swapped or another camera's picture as the dark frame: batch failed the raw on its
+    row (exit 1) after writing its summary and index, the message naming a file but not the option; refused now
+    before any work, naming -w/--white or --dark, with nothing written."""
+    folder = shared_path(*ANTLEG)
+    f01 = shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg")
+    option, name = frames
+    given = ["-w", str(folder / "radiometry_frame.png")] if option == "--dark" else []
+    given += [option, str(f01 if name == "F01" else folder / name)]
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["batch", str(folder / "light_field.png"), "-o", str(out), *given])
+    assert res.exit_code == 2, res.output
+    assert res.output.strip().splitlines()[-1].startswith(f"Error: {error.format(dir=folder)}"), res.output
+    assert not out.exists()
+
+
+def test_batch_with_a_dark_frame_of_one_of_its_raws_runs_and_fails_the_other_on_its_row(tmp_path, monkeypatch):
+    """The ant leg's dark frame suits the ant leg, not the F01 JPEG beside it: the batch is not refused (the JPEG
+    fails on its row, as a batch goes past a bad file)."""
+    from plenodecode import batch
+
+    folder = shared_path(*ANTLEG)
+    ran = []
+
+    def first_task(files, *args, **kwargs):
+        ran.append([f.name for f in files])
+        raise SystemExit(0)
+
+    monkeypatch.setattr(batch, "run_batch", first_task)
+    res = CliRunner().invoke(cli, ["batch", str(shared_path("lytro-f01-lenslet-jpg", "IMG_1.jpg")),
+                                   str(folder / "light_field.png"), "-o", str(tmp_path / "out"), "--self-calibrate",
+                                   "--dark", str(folder / "dark_frame.tif")])
+    assert res.exit_code == 0 and ran == [["IMG_1.jpg", "light_field.png"]], res.output

@@ -359,18 +359,21 @@ def test_antleg_batch_names_its_dark_picture_once(tmp_path):
     assert r.exit_code == 0, r.output
     notes = [line for line in r.output.splitlines() if "is dark" in line]
     assert len(notes) == 1, r.output
-    found = re.fullmatch(r"note: the photo of light_field\.png is dark \(its brightest 0\.5 % reach (\d+) % of full "
-                         r"scale, in linear light\); --exposure auto brightens it to full scale, --exposure 2 by two "
-                         r"stops", notes[0])
+    found = re.fullmatch(r"note: refocus_s\+0\.00\.png of light_field\.png is dark \(its brightest 0\.5 % reach "
+                         r"(\d+) % of full scale, in linear light\); --exposure auto brightens it to full scale, "
+                         r"--exposure 2 by two stops", notes[0])
     assert found, notes
     folder_out = tmp_path / "out" / "light_field"
     level = brightest(folder_out / "refocus_s+0.00.png")
     assert 0.05 < level < 0.25 and int(found.group(1)) == pytest.approx(100 * level, abs=1.0)    # measured 14 %
     assert brightest(folder_out / "thumbs" / "refocus_s+0.00.png") == pytest.approx(level, abs=0.03)
-    # the index page's card said nothing of it (its dim thumbnails alone); it says the same note, of its raw's photo
+    # the index page's card said nothing of it (its dim thumbnails alone); it says the same note, naming the picture
+    # as its caption does (it said 'the photo' under a picture captioned refocus_s+0.00.png)
     card = f"note: {notes[0].removeprefix('note: ').replace(' of light_field.png', '')}"
-    assert card.startswith("note: the photo is dark (its brightest 0.5 % reach ")
-    assert (tmp_path / "out" / "index.html").read_text().count(f'<div class="note">{html.escape(card)}</div>') == 1
+    assert card.startswith("note: refocus_s+0.00.png is dark (its brightest 0.5 % reach ")
+    page = (tmp_path / "out" / "index.html").read_text()
+    assert page.count(f'<div class="note">{html.escape(card)}</div>') == 1
+    assert page.count("<figcaption>refocus_s+0.00.png</figcaption>") == 1
     # run again, the raw skipped as done: its pictures are as dark, and the terminal and the rewritten page say so
     r = CliRunner().invoke(cli, base + ["-o", str(tmp_path / "out")], obj={})
     assert r.exit_code == 0 and "0 done, 1 skipped" in r.output and notes[0] in r.output.splitlines(), r.output
@@ -540,10 +543,11 @@ def test_dark_frame_of_another_size_is_refused_before_any_work(tmp_path, monkeyp
                              "light_field.png is 2592 x 2160; pass the dark frame of this camera"), errors
         assert not out.exists()
     assert calibrated == []
+    # batch failed the raw on its row (exit 1, a summary of that); a dark frame that suits no raw of the batch is now
+    # refused as the single commands refuse it
     res = CliRunner().invoke(cli, ["batch", *common, "-o", str(tmp_path / "batch")])
-    assert res.exit_code == 1, res.output
-    row = [line for line in res.output.splitlines() if line.startswith("light_field.png")]
-    assert len(row) == 1 and "failed" in row[0] and "IMG_1.jpg is 3280 x 3280 px" in row[0], res.output
+    assert res.exit_code == 2, res.output
+    assert res.output.strip().splitlines()[-1] == errors[0] and not (tmp_path / "batch").exists()
     assert "Traceback" not in res.output
 
 

@@ -410,3 +410,16 @@ def test_a_colour_state_of_a_newer_version_says_upgrade(tmp_path):
     doc_path.write_text(json.dumps(doc))
     with pytest.raises(FormatError, match="'camera-log' is unknown to this plenodecode .*upgrade plenodecode$"):
         load_lightfield(out)
+
+
+@pytest.mark.parametrize("name, fmt", [("lf.mat", "mat"), ("lf.NPY", "npy"), ("lf.zarr", "zarr"), ("lf.tif", "eslf")])
+def test_detect_format_looks_the_extension_up_once(tmp_path, monkeypatch, name, fmt):
+    """detect_format asked format_of_extension twice for every path with a format's extension (once to test, once
+    to return)."""
+    import plenodecode.io.lightfield as lightfield
+
+    asked = []
+    real = lightfield.format_of_extension
+    monkeypatch.setattr(lightfield, "format_of_extension", lambda p: asked.append(Path(p).name) or real(p))
+    assert detect_format(tmp_path / name) == fmt
+    assert asked == [name]
