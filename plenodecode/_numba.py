@@ -11,7 +11,7 @@ cache miss), the callback set by :func:`set_compile_notice` (the CLI: one line o
 the log receives ``"compiling decode kernels (first run only, ~4 s)..."``, once per group of kernels and cache
 directory: a group's kernels are compiled by several commands (a white image's fit, its report at full resolution,
 ``calibrate --scene``), and the notice of the first says it for all, so that 'first run only' holds; a marker file
-per group and plenodecode version in the cache directory (:func:`notice_marker`) records it.  Batch workers relay
+per group, plenodecode and numba version in the cache directory (:func:`notice_marker`) records it.  Batch workers relay
 the group to the process that started them (:func:`relay_compile_notices`), which says it once.
 
 Importing this module is light: numba is imported by :func:`njit`, that is by the kernel modules.
@@ -94,10 +94,17 @@ def compile_message(group: str) -> str:
 
 def notice_marker(group: str) -> Path:
     """The file whose presence in the kernel cache directory says that ``group``'s compile notice was given for this
-    plenodecode version: ``<cache>/compile-notices/<group>-<version>``."""
-    from . import __version__
+    plenodecode and numba: ``<cache>/compile-notices/<group>-<plenodecode version>-numba<numba version>`` (a new
+    numba recompiles every kernel, so it gets the notice again)."""
+    from importlib import metadata
 
-    return Path(os.environ.get("NUMBA_CACHE_DIR") or default_cache_dir()) / "compile-notices" / f"{group}-{__version__}"
+    try:
+        version = metadata.version("plenodecode")
+    except metadata.PackageNotFoundError:     # run from a source tree that was never installed
+        version = "source"
+    numba_version = getattr(sys.modules.get("numba"), "__version__", None) or metadata.version("numba")
+    cache = Path(os.environ.get("NUMBA_CACHE_DIR") or default_cache_dir())
+    return cache / "compile-notices" / f"{group}-{version}-numba{numba_version}"
 
 
 def _first_notice(group: str) -> bool:

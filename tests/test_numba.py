@@ -94,8 +94,10 @@ def test_the_calibration_notice_shows_once_for_a_white_then_its_scene(tmp_path):
     assert {"rims._rim_fit", "rims._splat_votes"} <= compiled_by_scene, compiled_by_scene   # it did compile
     notices = [line for out in (first.stderr, second.stderr) for line in out.splitlines() if "compiling" in line]
     assert notices == ["compiling calibration kernels (first run only, ~3 s)..."], (first.stderr, second.stderr)
+    from importlib import metadata
+
     assert "compiling" in first.stderr and [p.name for p in (cache / "compile-notices").iterdir()] == \
-        [f"calibration-{__import__('plenodecode').__version__}"]
+        [f"calibration-{metadata.version('plenodecode')}-numba{metadata.version('numba')}"]
 
 
 def test_warmup_compiles_the_self_calibration_kernels(tmp_path):
