@@ -84,3 +84,26 @@ def test_batch_finds_the_database_above_its_raws(tmp_path, monkeypatch):
     assert res.exit_code == 0, res.output
     (photo,) = (tmp_path / "out" / "scene").glob("*.png")
     assert read_image(photo).std() > 0
+
+
+def test_batch_row_of_a_raw_without_database_says_where_it_looked(tmp_path, monkeypatch):
+    """The real R42 image (its own XML) decodes beside a Lytro raw that finds no database: the batch goes on, and
+    the Lytro raw's row named '<cwd>/calib (no index.json)', a folder the batch had made up, not where it looked."""
+    from tests.conftest import shared_path
+
+    shots = tmp_path / "shoot"
+    shots.mkdir()
+    for f in (shared_path("raytrix-r42", "sc2_klein.png"), shared_path("raytrix-r42", "sc2_klein.xml"),
+              ILLUM_MINI / "scene.lfr"):
+        shutil.copy(f, shots / f.name)
+    monkeypatch.chdir(tmp_path)                     # no calib/ here, beside the raws or above them
+    res = invoke("-q", "batch", shots, "-o", "out", "--jobs", "1")
+    assert res.exit_code == 1, res.output
+    import json
+
+    rows = {Path(r["source"]).name: r for r in json.loads((tmp_path / "out" / "summary.json").read_text())["results"]}
+    assert rows["sc2_klein.png"]["status"] == "done"
+    assert rows["scene.lfr"]["error"].startswith(
+        f"no calibration for scene.lfr (camera ILLUM B5143909630): no calibration database (looked for its "
+        f"index.json in {tmp_path / 'calib'} (the current folder's), then calib/ in {shots} and each folder above "
+        "it); 'plenodecode calibrate --database calib FOLDER'"), rows["scene.lfr"]["error"]
