@@ -198,13 +198,16 @@ def test_database_for_a_raw_without_serial_takes_only_a_white_of_its_sensor_size
     (["--database", "DB", "FOLDER", "--report", "r.html"], "--report does nothing with --database DIR"),
     (["--database", "DB", "FOLDER", "--scene"], "--scene does nothing with --database DIR"),
     (["--database", "DB", "--for", "WHITE", "WHITE", "-o", "g.json"], "so WHITE (MOD_0000.RAW) is not used"),
-    (["--for", "WHITE", "-o", "g.json"], "--for RAW picks a white image from a calibration database: add --database"),
-], ids=["output", "report", "scene", "white-and-for", "for-alone"])
-def test_database_options_that_would_be_ignored_are_refused(white_pair, tmp_path, args, words):
+    (["--for", "WHITE", "-o", "g.json"], "--for MOD_0000.RAW picks a white image from a calibration database, and "
+                                         "there is none (looked for its index.json in "),
+    (["--for", "WHITE", "-o", "g.json", "--scene"], "--scene does nothing with --for MOD_0000.RAW"),
+], ids=["output", "report", "scene", "white-and-for", "for-alone", "for-scene"])
+def test_database_options_that_would_be_ignored_are_refused(white_pair, tmp_path, monkeypatch, args, words):
     """'calibrate --database DB FOLDER -o grid.json' indexed the folder and wrote no grid.json, in silence (so did
     --report and --scene); '--for RAW' without --database said 'give at least one WHITE image'.  Each is now a
     usage error naming the option, before anything is written."""
     path, _ = white_pair
+    monkeypatch.chdir(tmp_path)           # no calib/ here (the project's would serve --for alone)
     names = {"DB": tmp_path / "db", "FOLDER": path.parent, "WHITE": path}
     full = [str(names.get(a, tmp_path / a if a.endswith((".json", ".html")) else a)) for a in args]
     r = CliRunner().invoke(cli, ["calibrate", *full], obj={})
