@@ -48,13 +48,15 @@ def _check_white(white: Path | None, mosaic: Any) -> None:
     :func:`~plenodecode.batch.up_front_refusals`, which reads it once for every raw)."""
     from ..calib.white import check_not_dark
     from ..errors import PlenodecodeError
+    from ..pipeline.calibration import white_hint
     from ..pipeline.inputs import open_raw, quieted
 
     if white is None:
         return
     try:
         with quieted("plenodecode.io.generic"):      # its level notes come again with each raw
-            check_not_dark(open_raw(white, mosaic=mosaic))
+            raw = open_raw(white, mosaic=mosaic)
+            check_not_dark(raw, instead=white_hint(raw))
     except PlenodecodeError as exc:
         raise click.BadParameter(str(exc), param_hint="--white") from None
 

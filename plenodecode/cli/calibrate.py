@@ -235,6 +235,11 @@ def _calibrate_inputs(ctx: click.Context, inputs: tuple[Path, ...], *, lattice: 
     if refine:
         raise click.BadParameter(f"refines a Raytrix image's RayCalibData grid; {inputs[0].name} has none (a white "
                                  "image's grid is fitted to it anyway)", param_hint="--refine")
+    from ..calib.white import check_not_dark
+    from ..pipeline.calibration import white_hint
+
+    for r in raws:          # a dark frame given as a white: named with the flat-field frame beside it, if any
+        check_not_dark(r, instead=white_hint(r))
     try:
         grid = calibrate(raws, lattice=lattice, pitch_hint=pitch_hint, progress=progress_bar("calibrating", ctx))
     except CalibrationError as exc:

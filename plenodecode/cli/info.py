@@ -187,9 +187,16 @@ def _calibration_lines(raw) -> list[str]:
                  + f"; {g.shape[0]} x {g.shape[1]} lenses{types}")
     why = ""
     if cal.source == "self-calibration":
+        from ..io.microscope import flat_field_beside, is_flat_field_name
+
+        frame = flat_field_beside(raw.path) if raw.path else None
         why = (" (no white image" + (" or camera identity for a database" if is_bare_mosaic(raw) else "")
                + ": not devignetted" + ("; stays camera RGB, no colour matrix" if raw.cfa and m.ccm is None else "")
-               + "; -w WHITE_IMAGE devignettes)")
+               + (f"; -w {frame}, the flat-field frame beside it, calibrates and devignettes)" if frame else "; -w WHITE_IMAGE "
+                  "devignettes)"))
+        if raw.path and is_flat_field_name(raw.path):
+            why = (" (by its name the flat-field frame: given as -w to decode the light fields beside it, it "
+                   "calibrates and devignettes them)")
     lines.append(f"  calib    {cal.source} {cal.detail}{why}")
     if g.lens_type is not None:
         from ..decoding.focused import shown_virtual_depth_range

@@ -369,3 +369,27 @@ def test_grid_named_other_than_json_is_refused_before_fitting(tmp_path, monkeypa
                                                    f"JSON, the one format calibrate writes: name it {stem}.json, not "
                                                    f"{name}")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_dark_white_hint_names_what_suits_the_camera(tmp_path):
+    """A uniformly dark --white was answered 'use a flat-field (MOD_*.RAW) image' for every camera: the ant leg's
+    dark frame now names the microscope's radiometry frame beside it (decode, whose reader finds its optics;
+    calibrate, which reads no optics, names the frame all the same); a Lytro white still names MOD_NNNN.RAW."""
+    from tests.conftest import shared_path
+
+    folder = shared_path("lf-microscopy-antleg")
+    r = CliRunner().invoke(cli, ["decode", str(folder / "light_field.png"), "-w", str(folder / "dark_frame.tif"),
+                                 "-o", str(tmp_path / "lf.npy")], obj={})
+    assert r.exit_code == 1 and not (tmp_path / "lf.npy").exists(), r.output
+    assert r.output.strip().endswith(
+        f"{folder / 'dark_frame.tif'} is uniformly dark (99.9th percentile 0.0017 of the white level); expected a "
+        f"white image: use the microscope's radiometry (flat-field) frame, e.g. {folder / 'radiometry_frame.png'} "
+        "beside it, not a dark frame"), r.output
+    r = CliRunner().invoke(cli, ["calibrate", str(folder / "dark_frame.tif"), "-o", str(tmp_path / "g.json")], obj={})
+    assert r.exit_code == 1 and f"e.g. {folder / 'radiometry_frame.png'} beside it, not a dark frame" in r.output
+    raw, _ = simulate_white("f01-mini", seed=4, shape=SHAPE)
+    write_raw_pair(tmp_path / "MOD_0001.RAW", replace(raw, mosaic=np.full_like(raw.mosaic, 168)))
+    r = CliRunner().invoke(cli, ["calibrate", str(tmp_path / "MOD_0001.RAW"), "-o", str(tmp_path / "g.json")], obj={})
+    assert r.exit_code == 1 and r.output.strip().endswith(
+        "expected a white image: use a flat-field MOD_NNNN.RAW white image of the camera, not a dark frame"), r.output
+    assert not (tmp_path / "g.json").exists()

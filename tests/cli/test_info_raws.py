@@ -167,3 +167,15 @@ def test_raytrix_xml_option_follows_the_two_xml_hint(tmp_path):
     assert lfr.exit_code == 1 and lfr.output.strip() == (
         "error: scene.lfr: --raytrix-xml applies to Raytrix images (.png, .tif, .tiff, .bmp, .jpg, .jpeg, .exr, "
         ".pgm, .ppm); this is not one"), lfr.output
+
+
+def test_microscope_hints_name_the_radiometry_frame_beside_it():
+    """The ant leg's info said '-w WHITE_IMAGE devignettes' with radiometry_frame.png beside it, and described that
+    frame as a scene to devignette with a white image; each now names what to do with it."""
+    folder = shared_path("lf-microscopy-antleg")
+    f = fields(info(folder / "light_field.png"))
+    assert f["calib"].endswith(f"; -w {folder / 'radiometry_frame.png'}, the flat-field frame beside it, calibrates "
+                               "and devignettes)"), f["calib"]
+    f = fields(info(folder / "radiometry_frame.png"))
+    assert f["calib"] == ("self-calibration from radiometry_frame.png (by its name the flat-field frame: given as -w "
+                          "to decode the light fields beside it, it calibrates and devignettes them)"), f["calib"]
