@@ -109,7 +109,8 @@ class BatchOptions:
         Non-empty subset of :data:`BATCH_OUTPUTS`; default 'photo', the camera's photograph
         (:func:`plenodecode.pipeline.products.render_photo`, as the one-liner writes it).
     database : str or None
-        Calibration database folder (``--database``; default :data:`plenodecode.calib.store.DEFAULT_DB`).
+        Calibration database folder (``--database``); None (default): each raw's, as the single commands find it
+        (:func:`plenodecode.calib.store.find_database`: ./calib, else calib/ beside the raw or above it).
     format : str
         Format of the 'lightfield' output (``--format``), a key of :data:`LIGHTFIELD_NAMES`.
     bit_depth : {8, 16, 32}
@@ -270,11 +271,8 @@ class BatchOptions:
             value = getattr(self, name)
             if value is not None and not (float(value) > 0 and math.isfinite(float(value))):
                 raise ValueError(f"{name} must be a finite number > 0, got {value}")
-        if self.database is None:
-            from .calib.store import DEFAULT_DB
-
-            object.__setattr__(self, "database", DEFAULT_DB)
-        object.__setattr__(self, "database", str(self.database))
+        if self.database is not None:
+            object.__setattr__(self, "database", str(self.database))
         self._check_decoding()
         if not (0 < float(self.aperture) <= 1):
             raise ValueError(f"aperture must be in (0, 1] (a fraction of the view grid), got {self.aperture!r}")
@@ -357,7 +355,9 @@ class BatchOptions:
         """
         d = {RENAMED_FIELDS.get(k, k): v for k, v in asdict(self).items()}
         d["outputs"] = list(self.outputs)
-        d["db_dir"] = str(Path(self.database).resolve())
+        from .calib.store import DEFAULT_DB
+
+        d["db_dir"] = str(Path(self.database or DEFAULT_DB).resolve())     # None keyed as before it was searched
         from .io.depthio import DEFAULT_MIN_CONFIDENCE
 
         if d["min_confidence"] == DEFAULT_MIN_CONFIDENCE:
@@ -1471,7 +1471,11 @@ def run_batch(inputs: Sequence[str | os.PathLike], output: str | os.PathLike | N
     if not isinstance(options, BatchOptions):
         raise TypeError(f"options must be a BatchOptions, got {type(options).__name__} (BatchOptions(**it))")
     # an absolute database path: forked workers keep the working directory of their fork server's start
-    options = replace(options, database=str(Path(options.database).resolve()))
+    # (none given: the working directory's calib/ when it has an index, else each raw's own, find_database)
+    from .calib.store import find_database
+
+    database = options.database if options.database is not None else find_database()
+    options = replace(options, database=None if database is None else str(Path(database).resolve()))
     out = Path(out_dir).resolve()
     refuse_unwritable(out / SUMMARY_JSON)      # before any work (NotADirectoryError, PermissionError)
     # absolute, links not followed: a raw linked into a folder is read there, with the sidecar, Raytrix XML or

@@ -908,7 +908,9 @@ def test_cli_without_a_database_decodes_what_needs_none_and_fails_the_rest_with_
     assert centre.is_file()
     from plenodecode.io.images import read_image
     assert read_image(centre).std() > 0                            # a picture, not a constant
-    assert rows["scene1.lfr"]["status"] == "failed" and "no calibration database in " in rows["scene1.lfr"]["error"]
+    assert rows["scene1.lfr"]["status"] == "failed" and (
+        f"no calibration database (looked for its index.json in {tmp_path / 'calib'} (the current folder's), then "
+        f"calib/ in {shoot / 'take1'} and each folder above it)") in rows["scene1.lfr"]["error"]
     assert "--database DIR" in rows["scene1.lfr"]["error"]
     assert rows["damaged.lfr"]["status"] == "failed" and "not a Lytro container" in rows["damaged.lfr"]["error"]
     # only raws that need the database: refused before any work, nothing written

@@ -48,8 +48,20 @@ def _as_raws(white: WhiteInput) -> list[RawCapture]:
     raise ValueError(f"white must be a RawCapture, a path or a sequence of them, got {type(white).__name__}")
 
 
-def check_not_dark(raw: RawCapture, *, level: float = DARK_LEVEL) -> float:
-    """Raise CalibrationError when a frame is uniformly dark; return its normalised 99.9th percentile."""
+def white_words(raw: RawCapture) -> str:
+    """What a white image of ``raw``'s camera is, for a hint: 'a flat-field MOD_NNNN.RAW white image' (Lytro),
+    "the microscope's radiometry (flat-field) frame" (optics known), else 'a white (flat-field) image'."""
+    m = raw.metadata
+    if (m.make or "").lower().startswith("lytro"):
+        return "a flat-field MOD_NNNN.RAW white image of the camera"
+    if m.microscope is not None and not m.microscope.empty:
+        return "the microscope's radiometry (flat-field) frame"
+    return "a white (flat-field) image taken through the same lenses"
+
+
+def check_not_dark(raw: RawCapture, *, level: float = DARK_LEVEL, instead: str | None = None) -> float:
+    """Raise CalibrationError when a frame is uniformly dark, suggesting ``instead`` (default: :func:`white_words`);
+    return its normalised 99.9th percentile."""
     sub = raw.mosaic[::8, ::8].astype(np.float32)
     black = float(raw.black.mean())
     rng = float((raw.white - raw.black).mean())
@@ -57,7 +69,7 @@ def check_not_dark(raw: RawCapture, *, level: float = DARK_LEVEL) -> float:
     if top < level:
         name = raw.path or "the frame"
         raise CalibrationError(f"{name} is uniformly dark (99.9th percentile {top:.4f} of the white level); "
-                               "expected a white image: use a flat-field (MOD_*.RAW) image, not a dark frame")
+                               f"expected a white image: use {instead or white_words(raw)}, not a dark frame")
     return top
 
 
@@ -242,9 +254,9 @@ def calibrate(white: WhiteInput, *, lattice: str = "auto", pitch_hint: float | N
     warnings = []
     if not any(r.metadata.is_white_image for r in raws) and likeness > 0.12:
         warnings.append(f"this looks like a scene, not a white image (lenslet-scale brightness varies by "
-                        f"{likeness:.0%}); calibrate from a flat-field MOD_*.RAW white image")
+                        f"{likeness:.0%}); calibrate from {white_words(raws[0])}")
         log.warning(warnings[-1])
     return grid.replace(info={**grid.info, "scene_likeness": likeness, "warnings": warnings})
 
 
-__all__ = ["calibrate", "calibrate_image", "check_not_dark", "scene_likeness", "DARK_LEVEL"]
+__all__ = ["calibrate", "calibrate_image", "check_not_dark", "white_words", "scene_likeness", "DARK_LEVEL"]

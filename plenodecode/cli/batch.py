@@ -48,13 +48,15 @@ def _check_white(white: Path | None, mosaic: Any) -> None:
     :func:`~plenodecode.batch.up_front_refusals`, which reads it once for every raw)."""
     from ..calib.white import check_not_dark
     from ..errors import PlenodecodeError
+    from ..pipeline.calibration import white_hint
     from ..pipeline.inputs import open_raw, quieted
 
     if white is None:
         return
     try:
         with quieted("plenodecode.io.generic"):      # its level notes come again with each raw
-            check_not_dark(open_raw(white, mosaic=mosaic))
+            raw = open_raw(white, mosaic=mosaic)
+            check_not_dark(raw, instead=white_hint(raw))
     except PlenodecodeError as exc:
         raise click.BadParameter(str(exc), param_hint="--white") from None
 
@@ -316,8 +318,10 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
     for note in (not_taken, lf_note, export_note):
         if note and not (ctx.obj or {}).get("quiet"):
             click.echo(f"note: {note}", err=True)
-    # no --database: ./calib, else the calib/ beside the first raw that has one or above it (find_database)
-    db_dir = database or next((d for d in map(find_database, files) if d is not None), Path(DEFAULT_DB))
+    # no --database: ./calib, else the calib/ beside the first raw that has one or above it (find_database); none:
+    # each raw looks for its own, and one that needs it fails saying where it looked
+    found = database or next((d for d in map(find_database, files) if d is not None), None)
+    db_dir = found or Path(DEFAULT_DB)
     # a --database typed that is no folder is refused; the default one missing only when no raw can do without it
     # (the others are decoded; those that need it fail with the reason, as a batch goes past any bad raw)
     if white is None and calibration is None and not self_calibrate and not db_dir.is_dir() and (
@@ -325,7 +329,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
             or database is None and not any(needs_no_database(f) for f in files)):
         raise click.BadParameter(_no_database(db_dir, database is None, inputs, files[0]), param_hint="--database")
     mosaic = current_mosaic_options()
-    options = BatchOptions(outputs=outputs, database=str(db_dir), format=lf_format, bit_depth=int(bit_depth),
+    options = BatchOptions(outputs=outputs, database=None if found is None else str(found), format=lf_format, bit_depth=int(bit_depth),
                            exposure=exposure, slope=slope, alpha=alpha, focus_distance=focus_distance,
                            depth_method=depth_method, min_confidence=min_confidence, cfa=mosaic.cfa,
                            black_level=mosaic.black_level, white_level=mosaic.white_level,

@@ -34,7 +34,8 @@ def _write_text(path: Path, text: str) -> None:
                    "the grids it lacks are fitted and cached (no WHITE: only that); with --for RAW the grid of the "
                    "matching white image is written to -o.")
 @click.option("--for", "for_raw", type=click.Path(exists=True, path_type=Path, dir_okay=False), default=None,
-              help="With --database: pick the white image for this raw (same serial, nearest zoom/focus).")
+              help="Pick the white image for this raw (same serial, nearest zoom/focus) from --database, default "
+                   "the database decoding it uses (./calib, else calib/ beside RAW or in a folder above it).")
 @click.option("--scene", "--self-calibrate", "scene", is_flag=True,
               help="Self-calibrate from a scene raw or image (no white image).")
 @click.option("--refine", is_flag=True, help="Raytrix: refine the RayCalibData grid on the image.")
@@ -57,14 +58,23 @@ def command(ctx: click.Context, inputs: tuple[Path, ...], output: Path | None, r
       plenodecode calibrate --database calib/ sn-A000424242/data.C.0    # follows nextFile
       plenodecode calibrate --database calib/            # fit and cache the grids the index lacks
       plenodecode calibrate --database calib/ --for scene.lfr -o grid.json
+      plenodecode calibrate --for scene.lfr -o grid.json   # the database decoding finds
     """
     from ..calib import store
     from ..io.lytro.archive import archive_kind
 
-    if for_raw is not None and database is None:
-        raise click.UsageError("--for RAW picks a white image from a calibration database: add --database DIR")
-    if database is not None:
+    if database is not None or for_raw is not None:
         _refuse_unused_with_database(ctx, for_raw, inputs, output, report, scene, refine)
+    if for_raw is not None and database is None:    # the database decoding RAW would use (find_database)
+        database = store.find_database(for_raw)
+        if database is None:
+            beside = store.find_whites(for_raw.parent, recursive=False)
+            source = (f"{for_raw.parent}' from the white images beside it ({', '.join(w.name for w in beside)})"
+                      if beside else "FOLDER' from a FOLDER of the camera's white images")
+            raise click.UsageError(f"--for {for_raw.name} picks a white image from a calibration database, and there "
+                                   f"is none (looked for its {store.INDEX_NAME} in {store.where_looked(for_raw)}); "
+                                   f"pass --database DIR, or build one with 'plenodecode calibrate --database calib "
+                                   f"{source}")
     for path, option in ((output, "-o / --output"), (report, "--report")):
         if path is None:
             continue
@@ -173,12 +183,17 @@ def _warn_high_rms(grid: Any, report: Path | None) -> None:
 
 def _refuse_unused_with_database(ctx: click.Context, for_raw: Path | None, inputs: tuple[Path, ...],
                                  output: Path | None, report: Path | None, scene: bool, refine: bool) -> None:
-    """Usage errors, before any work, for options that would be ignored with --database: -o and --report
-    without --for (indexing writes no grid file), WHITE with --for, --scene and --refine (a database holds
-    white images)."""
+    """Usage errors, before any work, for options that would be ignored with --database or --for: -o and
+    --report without --for (indexing writes no grid file), WHITE with --for, --scene and --refine (a database
+    holds white images)."""
     unused = [opt for opt, given in (("-o/--output", output is not None and for_raw is None),
                                      ("--report", report is not None and for_raw is None),
                                      ("--scene", scene), ("--refine", refine)) if given]
+    if unused and for_raw is not None:
+        raise click.UsageError(f"{' and '.join(unused)} {'does' if len(unused) == 1 else 'do'} nothing with --for "
+                               f"{for_raw.name}, which writes the grid of its white image from the calibration "
+                               f"database; 'plenodecode calibrate --scene {for_raw.name} -o grid.json' finds the "
+                               "grid in the scene")
     if unused:
         raise click.UsageError(f"{' and '.join(unused)} {'does' if len(unused) == 1 else 'do'} nothing with "
                                "--database DIR, which indexes white images and caches their grids inside DIR; "
@@ -220,6 +235,11 @@ def _calibrate_inputs(ctx: click.Context, inputs: tuple[Path, ...], *, lattice: 
     if refine:
         raise click.BadParameter(f"refines a Raytrix image's RayCalibData grid; {inputs[0].name} has none (a white "
                                  "image's grid is fitted to it anyway)", param_hint="--refine")
+    from ..calib.white import check_not_dark
+    from ..pipeline.calibration import white_hint
+
+    for r in raws:          # a dark frame given as a white: named with the flat-field frame beside it, if any
+        check_not_dark(r, instead=white_hint(r))
     try:
         grid = calibrate(raws, lattice=lattice, pitch_hint=pitch_hint, progress=progress_bar("calibrating", ctx))
     except CalibrationError as exc:

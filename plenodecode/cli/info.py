@@ -10,6 +10,7 @@ from typing import Mapping
 import click
 
 from ..errors import FormatError, PlenodecodeError
+from .common import RAYTRIX_XML_META, raytrix_xml_option
 
 
 def _levels(a) -> str:
@@ -186,9 +187,16 @@ def _calibration_lines(raw) -> list[str]:
                  + f"; {g.shape[0]} x {g.shape[1]} lenses{types}")
     why = ""
     if cal.source == "self-calibration":
+        from ..io.microscope import flat_field_beside, is_flat_field_name
+
+        frame = flat_field_beside(raw.path) if raw.path else None
         why = (" (no white image" + (" or camera identity for a database" if is_bare_mosaic(raw) else "")
                + ": not devignetted" + ("; stays camera RGB, no colour matrix" if raw.cfa and m.ccm is None else "")
-               + "; -w WHITE_IMAGE devignettes)")
+               + (f"; -w {frame}, the flat-field frame beside it, calibrates and devignettes)" if frame else "; -w WHITE_IMAGE "
+                  "devignettes)"))
+        if raw.path and is_flat_field_name(raw.path):
+            why = (" (by its name the flat-field frame: given as -w to decode the light fields beside it, it "
+                   "calibrates and devignettes them)")
     lines.append(f"  calib    {cal.source} {cal.detail}{why}")
     if g.lens_type is not None:
         from ..decoding.focused import shown_virtual_depth_range
@@ -431,20 +439,23 @@ def _describe_mat_centres(path: Path) -> list[str] | None:
             "centres in the lenslet image"]
 
 
-def _describe_other(path: Path) -> list[str]:
+def _describe_other(path: Path, raytrix_xml: Path | None = None) -> list[str]:
     from ..errors import MetadataError
 
     unusable = None
     try:
         from ..pipeline import open_raw
 
-        raw = open_raw(path)        # as decoding reads it: a Raytrix image with its XML, a microscope's optics
+        # as decoding reads it: a Raytrix image with its XML (``--raytrix-xml``, else beside it), a microscope's optics
+        raw = open_raw(path, raytrix_xml=raytrix_xml)
     except ImportError as exc:
         raise FormatError(f"{path}: not a Lytro file, and the reader for other formats is not available "
                           f"({exc}); install the full plenodecode") from None
     except MetadataError as exc:    # e.g. several RayCalibData XMLs beside it: described as an image, with why
         from ..io import read_raw
 
+        if raytrix_xml is not None:     # --raytrix-xml refused for this file, as decoding refuses it
+            raise
         try:
             raw, unusable = read_raw(path), exc
         except PlenodecodeError:
@@ -471,14 +482,20 @@ def _describe_other(path: Path) -> list[str]:
     return lines if m.is_white_image else lines + _calibration_lines(raw)
 
 
-def describe(path: Path) -> list[str]:
-    """Lines that ``plenodecode info`` prints for one file."""
+def describe(path: Path, raytrix_xml: Path | None = None) -> list[str]:
+    """Lines that ``plenodecode info`` prints for one file (a Raytrix image read with ``raytrix_xml`` when given,
+    which any other file refuses, as decoding does)."""
     from ..io import LYTRO_MAGIC
     from ..io import lytro
     from ..pipeline import input_kind, is_lightfield_path
 
     from ..calib.store import INDEX_NAME
     from ..io.lightfield import holds_lightfield
+
+    if raytrix_xml is not None:     # refused for what is no Raytrix image (e.g. a .lfr), as decoding refuses it
+        from ..io.raytrix import calibration_xml_for
+
+        calibration_xml_for(path, raytrix_xml)
 
     if path.is_dir() and (path / INDEX_NAME).is_file():
         return _describe_database(path)
@@ -508,12 +525,14 @@ def describe(path: Path) -> list[str]:
 
         if is_raycalib_xml(path):
             return _describe_raycalib(path)
-    return _describe_other(path)
+    return _describe_other(path, raytrix_xml)
 
 
 @click.command("info")
 @click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path))
-def info(files: tuple[Path, ...]) -> None:
+@raytrix_xml_option
+@click.pass_context
+def info(ctx: click.Context, files: tuple[Path, ...]) -> None:
     """Describe raws and containers: camera, serial, kind, image sizes, sections; for a
     raw, the calibration decoding would use (database, white image, Raytrix XML or
     self-calibration, and its files), the lens pitch it reads or measures, the decoded
@@ -530,13 +549,15 @@ def info(files: tuple[Path, ...]) -> None:
     Example:
       plenodecode info IMG_0001.lfr MOD_0000.RAW demo.LFP
       plenodecode info lf.zarr
+      plenodecode info scene.png --raytrix-xml calib_b.xml
     """
+    xml = ctx.meta.get(RAYTRIX_XML_META)
     failed = 0
     for i, path in enumerate(files):
         if i:
             click.echo("")
         try:
-            lines = describe(path)
+            lines = describe(path, xml)
         except PlenodecodeError as exc:        # one file's problem: say it, and describe the others
             if len(files) == 1:
                 raise

@@ -176,6 +176,31 @@ def optics_beside(raw_path: str | os.PathLike) -> MicroscopeOptics | None:
     return optics
 
 
+#: Words in the name of a flat-field (white, radiometry) frame kept beside light-field images (LFAnalyze's
+#: ``radiometry_frame.png``).
+FLAT_FIELD_WORDS = ("radiometry", "flat", "white")
+
+
+def is_flat_field_name(path: str | os.PathLike) -> bool:
+    """True when the file name of ``path`` says a flat field: an image whose stem holds one of
+    :data:`FLAT_FIELD_WORDS` (case-insensitive)."""
+    from .discovery import MOSAIC_SUFFIXES
+
+    p = Path(path)
+    return p.suffix.lower() in MOSAIC_SUFFIXES and any(w in p.stem.lower() for w in FLAT_FIELD_WORDS)
+
+
+def flat_field_beside(raw_path: str | os.PathLike) -> Path | None:
+    """The first file (by name) in the folder of ``raw_path``, the raw itself excepted, that
+    :func:`is_flat_field_name` takes for its flat-field frame (``radiometry_frame.png``), as ``raw_path``'s folder
+    joined with its name; None when there is none."""
+    p = Path(raw_path)
+    if not p.parent.is_dir():
+        return None
+    names = sorted(f.name for f in p.parent.iterdir() if f.name != p.name and f.is_file() and is_flat_field_name(f))
+    return p.parent / names[0] if names else None
+
+
 def format_metadata_txt(optics: MicroscopeOptics, *, comments: str = "") -> str:
     """A napari-LF ``metadata.txt`` (``main`` + ``calibrate`` sections) holding ``optics``."""
     calibrate: dict[str, Any] = {}
@@ -193,5 +218,5 @@ def format_optics_json(optics: MicroscopeOptics) -> str:
     return json.dumps(doc, indent=1) + "\n"
 
 
-__all__ = ["METADATA_NAME", "NAPARI_KEYS", "LFANALYZE_NAMES", "parse_optics", "read_optics", "optics_beside",
+__all__ = ["FLAT_FIELD_WORDS", "is_flat_field_name", "flat_field_beside", "METADATA_NAME", "NAPARI_KEYS", "LFANALYZE_NAMES", "parse_optics", "read_optics", "optics_beside",
            "format_metadata_txt", "format_optics_json"]

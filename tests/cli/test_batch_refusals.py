@@ -139,7 +139,8 @@ ANTLEG = ("lf-microscopy-antleg",)
 
 @pytest.mark.parametrize("frames, error", [
     (["-w", "dark_frame.tif"], "Invalid value for --white: {dir}/dark_frame.tif is uniformly dark (99.9th percentile "
-                               "0.0017 of the white level); expected a white image"),
+                               "0.0017 of the white level); expected a white image: use the microscope's radiometry "
+                               "(flat-field) frame, e.g. {dir}/radiometry_frame.png beside it, not a dark frame"),
     (["--dark", "radiometry_frame.png"], "Invalid value for --dark: radiometry_frame.png is no dark frame for "
                                          "light_field.png: subtracted from it, the brightest 0.1 % keep 0.0% of the "
                                          "range"),

@@ -198,13 +198,16 @@ def test_database_for_a_raw_without_serial_takes_only_a_white_of_its_sensor_size
     (["--database", "DB", "FOLDER", "--report", "r.html"], "--report does nothing with --database DIR"),
     (["--database", "DB", "FOLDER", "--scene"], "--scene does nothing with --database DIR"),
     (["--database", "DB", "--for", "WHITE", "WHITE", "-o", "g.json"], "so WHITE (MOD_0000.RAW) is not used"),
-    (["--for", "WHITE", "-o", "g.json"], "--for RAW picks a white image from a calibration database: add --database"),
-], ids=["output", "report", "scene", "white-and-for", "for-alone"])
-def test_database_options_that_would_be_ignored_are_refused(white_pair, tmp_path, args, words):
+    (["--for", "WHITE", "-o", "g.json"], "--for MOD_0000.RAW picks a white image from a calibration database, and "
+                                         "there is none (looked for its index.json in "),
+    (["--for", "WHITE", "-o", "g.json", "--scene"], "--scene does nothing with --for MOD_0000.RAW"),
+], ids=["output", "report", "scene", "white-and-for", "for-alone", "for-scene"])
+def test_database_options_that_would_be_ignored_are_refused(white_pair, tmp_path, monkeypatch, args, words):
     """'calibrate --database DB FOLDER -o grid.json' indexed the folder and wrote no grid.json, in silence (so did
     --report and --scene); '--for RAW' without --database said 'give at least one WHITE image'.  Each is now a
     usage error naming the option, before anything is written."""
     path, _ = white_pair
+    monkeypatch.chdir(tmp_path)           # no calib/ here (the project's would serve --for alone)
     names = {"DB": tmp_path / "db", "FOLDER": path.parent, "WHITE": path}
     full = [str(names.get(a, tmp_path / a if a.endswith((".json", ".html")) else a)) for a in args]
     r = CliRunner().invoke(cli, ["calibrate", *full], obj={})
@@ -366,3 +369,27 @@ def test_grid_named_other_than_json_is_refused_before_fitting(tmp_path, monkeypa
                                                    f"JSON, the one format calibrate writes: name it {stem}.json, not "
                                                    f"{name}")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_dark_white_hint_names_what_suits_the_camera(tmp_path):
+    """A uniformly dark --white was answered 'use a flat-field (MOD_*.RAW) image' for every camera: the ant leg's
+    dark frame now names the microscope's radiometry frame beside it (decode, whose reader finds its optics;
+    calibrate, which reads no optics, names the frame all the same); a Lytro white still names MOD_NNNN.RAW."""
+    from tests.conftest import shared_path
+
+    folder = shared_path("lf-microscopy-antleg")
+    r = CliRunner().invoke(cli, ["decode", str(folder / "light_field.png"), "-w", str(folder / "dark_frame.tif"),
+                                 "-o", str(tmp_path / "lf.npy")], obj={})
+    assert r.exit_code == 1 and not (tmp_path / "lf.npy").exists(), r.output
+    assert r.output.strip().endswith(
+        f"{folder / 'dark_frame.tif'} is uniformly dark (99.9th percentile 0.0017 of the white level); expected a "
+        f"white image: use the microscope's radiometry (flat-field) frame, e.g. {folder / 'radiometry_frame.png'} "
+        "beside it, not a dark frame"), r.output
+    r = CliRunner().invoke(cli, ["calibrate", str(folder / "dark_frame.tif"), "-o", str(tmp_path / "g.json")], obj={})
+    assert r.exit_code == 1 and f"e.g. {folder / 'radiometry_frame.png'} beside it, not a dark frame" in r.output
+    raw, _ = simulate_white("f01-mini", seed=4, shape=SHAPE)
+    write_raw_pair(tmp_path / "MOD_0001.RAW", replace(raw, mosaic=np.full_like(raw.mosaic, 168)))
+    r = CliRunner().invoke(cli, ["calibrate", str(tmp_path / "MOD_0001.RAW"), "-o", str(tmp_path / "g.json")], obj={})
+    assert r.exit_code == 1 and r.output.strip().endswith(
+        "expected a white image: use a flat-field MOD_NNNN.RAW white image of the camera, not a dark frame"), r.output
+    assert not (tmp_path / "g.json").exists()

@@ -84,3 +84,50 @@ def test_batch_finds_the_database_above_its_raws(tmp_path, monkeypatch):
     assert res.exit_code == 0, res.output
     (photo,) = (tmp_path / "out" / "scene").glob("*.png")
     assert read_image(photo).std() > 0
+
+
+def test_batch_row_of_a_raw_without_database_says_where_it_looked(tmp_path, monkeypatch):
+    """The real R42 image (its own XML) decodes beside a Lytro raw that finds no database: the batch goes on, and
+    the Lytro raw's row named '<cwd>/calib (no index.json)', a folder the batch had made up, not where it looked."""
+    from tests.conftest import shared_path
+
+    shots = tmp_path / "shoot"
+    shots.mkdir()
+    for f in (shared_path("raytrix-r42", "sc2_klein.png"), shared_path("raytrix-r42", "sc2_klein.xml"),
+              ILLUM_MINI / "scene.lfr"):
+        shutil.copy(f, shots / f.name)
+    monkeypatch.chdir(tmp_path)                     # no calib/ here, beside the raws or above them
+    res = invoke("-q", "batch", shots, "-o", "out", "--jobs", "1")
+    assert res.exit_code == 1, res.output
+    import json
+
+    rows = {Path(r["source"]).name: r for r in json.loads((tmp_path / "out" / "summary.json").read_text())["results"]}
+    assert rows["sc2_klein.png"]["status"] == "done"
+    assert rows["scene.lfr"]["error"].startswith(
+        f"no calibration for scene.lfr (camera ILLUM B5143909630): no calibration database (looked for its "
+        f"index.json in {tmp_path / 'calib'} (the current folder's), then calib/ in {shots} and each folder above "
+        "it); 'plenodecode calibrate --database calib FOLDER'"), rows["scene.lfr"]["error"]
+
+
+def test_calibrate_for_uses_the_database_decoding_finds(tmp_path, monkeypatch):
+    """'calibrate --for RAW -o grid.json' refused to run without --database although decoding RAW finds its
+    database: it now writes the grid decoding would use (the project's, found above the raw from another folder,
+    equal to '--database calib's), and without one says where it looked and which white images lie beside RAW."""
+    from plenodecode.types import LensletGrid
+
+    monkeypatch.chdir(tmp_path)
+    res = invoke("calibrate", "--for", ILLUM_MINI / "scene.lfr", "-o", "found.json")
+    assert res.exit_code == 0, res.output
+    res = invoke("calibrate", "--database", ROOT / "calib", "--for", ILLUM_MINI / "scene.lfr", "-o", "given.json")
+    assert res.exit_code == 0, res.output
+    found, given = (LensletGrid.from_json((tmp_path / f).read_text()) for f in ("found.json", "given.json"))
+    assert found.pitch == given.pitch and abs(found.pitch - 14.2857) < 1e-3
+    assert np.array_equal(found.centres(), given.centres())
+    shoot = tmp_path / "shoot"
+    shutil.copytree(ILLUM_MINI, shoot)
+    res = invoke("calibrate", "--for", shoot / "scene.lfr", "-o", "none.json")
+    assert res.exit_code == 2 and not (tmp_path / "none.json").exists()
+    assert (f"Error: --for scene.lfr picks a white image from a calibration database, and there is none (looked for "
+            f"its index.json in {tmp_path / 'calib'} (the current folder's), then calib/ in {shoot} and each folder "
+            f"above it); pass --database DIR, or build one with 'plenodecode calibrate --database calib {shoot}' from "
+            "the white images beside it (MOD_0000.RAW)") in " ".join(res.output.split()), res.output

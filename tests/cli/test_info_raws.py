@@ -144,3 +144,38 @@ def test_raytrix_image_between_two_xmls_says_which_choice_decoding_needs(tmp_pat
     assert res.exit_code == 1 and res.output.strip() == (
         "error: scene.png: 2 RayCalibData XMLs beside it (a.xml, b.xml) and none named scene.xml; say which one "
         "with --raytrix-xml FILE"), res.output
+
+
+def test_raytrix_xml_option_follows_the_two_xml_hint(tmp_path):
+    """info named '--raytrix-xml FILE' for the R42 image between two XMLs but had no such option: it now takes it
+    as decoding does (the pitch and lens types read from the file chosen), and refuses it, as decoding does, for
+    what is no XML and for a file that is no Raytrix image."""
+    import shutil
+
+    shutil.copy(shared_path("raytrix-r42", "sc2_klein.png"), tmp_path / "scene.png")
+    shutil.copy(shared_path("raytrix-r42", "sc2_klein.xml"), tmp_path / "a.xml")
+    shutil.copy(shared_path("raytrix-r42", "sc2_klein.xml"), tmp_path / "b.xml")
+    res = CliRunner().invoke(cli, ["info", str(tmp_path / "scene.png"), "--raytrix-xml", str(tmp_path / "b.xml")])
+    assert res.exit_code == 0, res.output
+    f = fields(res.output)
+    assert f["lenses"] == "hex, pitch 34.865 px read from b.xml; 22 x 28 lenses, 3 lens types", f
+    assert f["calib"] == "camera (Raytrix RayCalibData b.xml)"
+    bad = CliRunner().invoke(cli, ["info", str(tmp_path / "scene.png"), "--raytrix-xml", str(ROOT / "README.md")])
+    assert bad.exit_code == 2 and "Invalid value for '--raytrix-xml'" in bad.output, bad.output
+    lfr = CliRunner().invoke(cli, ["info", str(ROOT / "sample_raws" / "illum-mini" / "scene.lfr"), "--raytrix-xml",
+                                   str(tmp_path / "a.xml")])
+    assert lfr.exit_code == 1 and lfr.output.strip() == (
+        "error: scene.lfr: --raytrix-xml applies to Raytrix images (.png, .tif, .tiff, .bmp, .jpg, .jpeg, .exr, "
+        ".pgm, .ppm); this is not one"), lfr.output
+
+
+def test_microscope_hints_name_the_radiometry_frame_beside_it():
+    """The ant leg's info said '-w WHITE_IMAGE devignettes' with radiometry_frame.png beside it, and described that
+    frame as a scene to devignette with a white image; each now names what to do with it."""
+    folder = shared_path("lf-microscopy-antleg")
+    f = fields(info(folder / "light_field.png"))
+    assert f["calib"].endswith(f"; -w {folder / 'radiometry_frame.png'}, the flat-field frame beside it, calibrates "
+                               "and devignettes)"), f["calib"]
+    f = fields(info(folder / "radiometry_frame.png"))
+    assert f["calib"] == ("self-calibration from radiometry_frame.png (by its name the flat-field frame: given as -w "
+                          "to decode the light fields beside it, it calibrates and devignettes them)"), f["calib"]
