@@ -41,7 +41,7 @@ def raytrix_run(tmp_path_factory):
     (raws / "corrupt.lfr").write_bytes(CORRUPT)
     shutil.copy(ROOT / "sample_raws" / "f01-mini" / "scene.lfp", raws / "f01.lfp")
     out = tmp / "out"
-    res = CliRunner().invoke(cli, ["-q", "batch", str(raws), "-o", str(out), "--outputs", "centre,depth",
+    res = CliRunner().invoke(cli, ["batch", str(raws), "-o", str(out), "--outputs", "centre,depth",
                                    "--jobs", "1", "--database", str(ROOT / "calib")])
     assert res.exit_code == 1, res.output          # the corrupt raw fails
     return out, res.output
@@ -64,8 +64,9 @@ def test_a_linked_raw_keeps_the_name_the_user_gave(raytrix_run, tmp_path):
 
 def test_a_failed_raws_message_leaves_out_the_path_its_card_names(raytrix_run):
     """The card titled corrupt.lfr said '/tmp/.../raws/corrupt.lfr: expected exactly one LFM ...', and so did the
-    Failures table beside the name: now the message alone; summary.json keeps the whole line for scripts."""
-    out, _ = raytrix_run
+    Failures table and the terminal's row beside the name: now the message alone; summary.json keeps the whole line
+    for scripts."""
+    out, said = raytrix_run
     doc = json.loads((out / "summary.json").read_text())
     (failed,) = [r for r in doc["results"] if r["status"] == "failed"]
     src = failed["source"]
@@ -74,6 +75,9 @@ def test_a_failed_raws_message_leaves_out_the_path_its_card_names(raytrix_run):
     assert src not in page.replace(f'title="{src}"', "")     # only in the card name's tooltip
     shown = re.findall(r"class=.err.>([^<]+)<", page)
     assert len(shown) == 2 and all(s.startswith("expected exactly one LFM") for s in shown), shown
+    # the terminal's row likewise
+    (row,) = [line for line in said.splitlines() if line.startswith("corrupt.lfr ")]
+    assert row.split()[1:4] == ["failed", "0.0", "expected"], row
 
 
 def test_the_depth_picture_is_captioned_with_the_file_it_shows_and_opens(raytrix_run):
