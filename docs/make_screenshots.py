@@ -80,7 +80,7 @@ def batch_index(tmp: Path, *, overwrite: bool) -> Path:
     out = tmp / "batch"
     _, index = write_summary(run_batch([raws], out, opts, jobs=1), out)
     shot = tmp / "batch_index.png"
-    screenshot(index, shot, size=(1280, 1200))    # down to the failures table under the cards
+    screenshot(index, shot, size=(1280, 800))     # down to the failures table under the cards
     return downscale(shot, OUT / "batch_index.png", overwrite=overwrite)
 
 

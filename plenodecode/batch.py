@@ -583,9 +583,9 @@ def output_names(files: Sequence[str | os.PathLike]) -> list[str]:
     Raws with the same stem in different folders get their folder path (relative to the
     folders' common ancestor) as a prefix, joined by ``__``: ``a/IMG_1.LFR`` and ``b/IMG_1.LFR`` ->
     ``a__IMG_1``, ``b__IMG_1``; any name still repeated gets its suffix (``IMG_1.lfr`` ->
-    ``IMG_1_lfr``).
+    ``IMG_1_lfr``).  Links are not followed: a link ``a.jpg -> IMG_1.jpg`` gives ``a``, the name the user gave.
     """
-    paths = [Path(f).resolve() for f in files]
+    paths = [Path(os.path.abspath(f)) for f in files]
     names = [p.stem for p in paths]
     for attempt in ("folder", "suffix"):
         counts: dict[str, int] = {}

@@ -93,7 +93,8 @@ def test_the_calibration_notice_shows_once_for_a_white_then_its_scene(tmp_path):
     compiled_by_scene = _cached_kernels(cache) - after_white
     assert {"rims._rim_fit", "rims._splat_votes"} <= compiled_by_scene, compiled_by_scene   # it did compile
     notices = [line for out in (first.stderr, second.stderr) for line in out.splitlines() if "compiling" in line]
-    assert notices == ["compiling calibration kernels (first run only, ~3 s)..."], (first.stderr, second.stderr)
+    # what the first command compiles: 0.9-1.0 s for a white, 1.9 s for a full-size scene (COMPILE_SECONDS), not 3 s
+    assert notices == ["compiling calibration kernels (first run only, ~1-2 s)..."], (first.stderr, second.stderr)
     from importlib import metadata
 
     assert "compiling" in first.stderr and [p.name for p in (cache / "compile-notices").iterdir()] == \

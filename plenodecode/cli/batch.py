@@ -72,14 +72,15 @@ def _latency_note(summary) -> str:
 
 
 def _echo_table(summary) -> None:
-    """The summary table: one line per raw (its error when it failed; the outputs it left out)."""
-    from ..report.batch import display_names
+    """The summary table: one line per raw (its error when it failed, without the raw's path the row names; the
+    outputs it left out)."""
+    from ..report.batch import display_names, error_text
 
     names = display_names([r.source for r in summary.results])
     width = max([len("raw"), *map(len, names)])
     click.echo(f"{'raw':{width}s}  {'status':8s} {'seconds':>8s}  detail")
     for name, r in zip(names, summary.results):
-        detail = r.error if r.error else "; ".join((f"{len(r.outputs)} output{'s' * (len(r.outputs) != 1)}",
+        detail = error_text(r) if r.error else "; ".join((f"{len(r.outputs)} output{'s' * (len(r.outputs) != 1)}",
                                                     *r.left_out))
         click.echo(f"{name:{width}s}  {r.status:8s} {r.seconds:8.1f}  {detail}")
 

@@ -18,19 +18,21 @@ GENERATOR = "plenodecode batch index"
 _STYLE = """
 body{font-family:system-ui,-apple-system,sans-serif;margin:1.5em;color:#222;background:#fafafa}
 h1{font-size:1.4em;margin:0 0 .4em} .sum{margin-bottom:1em} .sum b{font-size:1.1em}
-.grid{display:flex;flex-wrap:wrap;gap:12px}
-.card{background:#fff;border:1px solid #ddd;border-radius:6px;padding:8px;max-width:540px}
+.grid{display:flex;flex-wrap:wrap;gap:12px;align-items:flex-start}
+.card{background:#fff;border:1px solid #ddd;border-radius:6px;padding:8px;min-width:330px;max-width:100%;
+box-sizing:border-box}
+.card>:not(.thumbs){width:0;min-width:100%}
 .done{border-left:6px solid #2a2}.skipped{border-left:6px solid #68a}.failed{border-left:6px solid #c22}
-.name{font-weight:600;word-break:break-all;margin-bottom:4px}
+.name{font-weight:600;overflow-wrap:anywhere;margin-bottom:4px}
 .meta{color:#555;font-size:.85em;margin-bottom:6px}
 .thumbs{display:flex;flex-wrap:wrap;gap:6px}
 figure{margin:0;text-align:center;font-size:.8em}
 figure img{display:block;width:160px;height:auto;background:#eee;border:1px solid #ccc}
 figure img.legend{width:240px}
-figcaption{margin-top:2px;word-break:break-all}
-.files{font-size:.85em;margin-top:6px;word-break:break-all}
-.left,.note{color:#850;font-size:.85em;margin-top:6px;max-width:520px}
-.err{color:#a00;font-family:ui-monospace,monospace;font-size:.85em;white-space:pre-wrap;max-width:520px}
+figcaption{margin-top:2px;overflow-wrap:anywhere}
+.files{font-size:.85em;margin-top:6px;overflow-wrap:break-word}
+.left,.note{color:#850;font-size:.85em;margin-top:6px}
+.err{color:#a00;font-family:ui-monospace,monospace;font-size:.85em;white-space:pre-wrap;overflow-wrap:anywhere}
 table{border-collapse:collapse;margin-top:1.2em;font-size:.85em}
 td,th{border:1px solid #ddd;padding:3px 8px;text-align:left}
 """
@@ -42,26 +44,44 @@ def _rel(path: str, base: Path) -> str:
     return html.escape(Path(rel).as_posix(), quote=True)
 
 
+def error_text(r: Any) -> str | None:
+    """``r.error`` without the raw's own path that the card or row already names: '/x/raws/a.lfr: not a Lytro
+    container ...' -> 'not a Lytro container ...', 'No such file or directory: /x/raws/a.lfr' -> 'No such file or
+    directory'.  Other paths (an output, a sidecar) stay; ``summary.json`` keeps the whole message."""
+    if not r.error:
+        return r.error
+    text = r.error
+    for path in dict.fromkeys((r.source, os.path.abspath(r.source), str(Path(r.source).resolve()))):
+        if text.startswith(f"{path}: "):
+            return text[len(path) + 2:]
+        if text.endswith(f": {path}"):
+            return text[:-len(path) - 2]
+    return text
+
+
 def _card(r: Any, base: Path, shown: str) -> str:
     name = html.escape(shown)
     meta = f"{html.escape(r.status)} &middot; {r.seconds:.1f} s"
-    figs, files = [], []
+    figs, linked = [], set()
     thumbs = tuple(r.thumbnails) + (None,) * max(0, len(r.outputs) - len(r.thumbnails))
     for out, thumb in zip(r.outputs, thumbs):
-        label = html.escape(Path(out).name + ("/" if Path(out).is_dir() else ""))
         if not (thumb and Path(thumb).is_file()):
-            # outputs with no picture of their own (parallax frames, a point cloud): file links under the pictures
-            files.append(f'<a href="{_rel(out, base)}">{label}</a>')
             continue
         # depth thumbnails carry a colour bar with its unit: shown larger so the text stays legible
         wide = ' class="legend"' if Path(out).suffix.lower() == ".pfm" else ""
+        # a depth map's picture is its colour-mapped PNG, and opens it (a browser cannot show the PFM) when written;
+        # the caption names the file the picture opens
+        png = str(Path(out).with_suffix(".png"))
+        opens = png if wide and png in r.outputs else out
+        linked.add(opens)
+        label = html.escape(Path(opens).name + ("/" if Path(opens).is_dir() else ""))
         img = f'<img{wide} alt="{label}" src="{_rel(thumb, base)}">'
-        # a depth map's picture opens its colour-mapped PNG (a browser cannot show the PFM), when written
-        shown_file = str(Path(out).with_suffix(".png")) if wide and str(Path(out).with_suffix(".png")) in r.outputs \
-            else out
-        figs.append(f'<figure><a href="{_rel(shown_file, base)}">{img}</a><figcaption>{label}</figcaption></figure>')
+        figs.append(f'<figure><a href="{_rel(opens, base)}">{img}</a><figcaption>{label}</figcaption></figure>')
+    # the outputs no picture opens (a depth map's PFM, parallax frames, a point cloud): file links under the pictures
+    files = [f'<a href="{_rel(out, base)}">{html.escape(Path(out).name + ("/" if Path(out).is_dir() else ""))}</a>'
+             for out in r.outputs if out not in linked]
     more = f'<div class="files">also: {" &middot; ".join(files)}</div>' if files else ""
-    err = f'<div class="err">{html.escape(r.error)}</div>' if r.error else ""
+    err = f'<div class="err">{html.escape(error_text(r))}</div>' if r.error else ""
     err += "".join(f'<div class="left">left out: {html.escape(note)}</div>' for note in getattr(r, "left_out", ()))
     dark = r.dark_note() if hasattr(r, "dark_note") else None     # as the terminal says it, without the raw's name
     err += f'<div class="note">note: {html.escape(dark)}</div>' if dark else ""
@@ -72,7 +92,8 @@ def _card(r: Any, base: Path, shown: str) -> str:
 def display_names(files: Sequence[str | os.PathLike]) -> list[str]:
     """How the terminal table and the index page name each raw: its file name, or where two raws share one, as
     many of its last folders as tell them apart (``a/scene.lfr``, ``b/scene.lfr``)."""
-    parts = [Path(f).resolve().parts for f in files]
+    # links not followed: a link a.jpg -> IMG_1.jpg is shown as a.jpg, the name the user gave
+    parts = [Path(os.path.abspath(f)).parts for f in files]
     depth = [1] * len(parts)
     while True:
         names = ["/".join(p[-k:]) for p, k in zip(parts, depth)]
@@ -104,7 +125,7 @@ def render_batch_index(summary: Any, base: str | os.PathLike = ".") -> str:
     names = display_names([r.source for r in summary.results])
     cards = "".join(_card(r, base, n) for r, n in zip(summary.results, names))
     failed = [(r, n) for r, n in zip(summary.results, names) if r.status == "failed"]
-    rows = "".join(f"<tr><td>{html.escape(n)}</td><td class='err'>{html.escape(r.error or '')}"
+    rows = "".join(f"<tr><td>{html.escape(n)}</td><td class='err'>{html.escape(error_text(r) or '')}"
                    f"</td></tr>" for r, n in failed)
     table = (f"<h2>Failures</h2><table><tr><th>raw</th><th>error</th></tr>{rows}</table>" if failed else "")
     n_partial = len(getattr(summary, "partial", ()))

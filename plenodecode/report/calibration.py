@@ -19,7 +19,8 @@ rules stated on the page:
 The header gives one accuracy figure: against white images, the lens-centre accuracy
 (:data:`ACCURACY_DEFINITION`: where the decoder cuts each micro-image against its disk, the residual histogram's
 line); otherwise the lattice RMS (:data:`RMS_DEFINITION`), which ``plenodecode calibrate`` prints
-(:func:`rms_text`) and a white image's page names as such.  Further contents: fitted parameters, zoomed overlays at the sensor centre and
+(:func:`rms_text`) and a white image's page names as such; a camera's file used as given has none, and its headline
+says the grid is drawn on the image to check by eye.  Further contents: fitted parameters, zoomed overlays at the sensor centre and
 corners, residual map and histogram, and (white images) the vignetting profile.
 """
 
@@ -619,8 +620,15 @@ def judge_calibration(grid: LensletGrid, m: dict[str, Any] | None = None) -> Jud
 
 def _headline(grid: LensletGrid, j: Judgement, m: dict[str, Any] | None) -> tuple[str, str]:
     """The verdict box's line -- the verdict and one accuracy figure: a white image's lens-centre accuracy
-    (:data:`ACCURACY_DEFINITION`), else the lattice RMS (:func:`rms_text`) -- and the line under it naming the lattice
-    RMS where the accuracy is the headline (a white image's fit: the figure ``plenodecode calibrate`` prints)."""
+    (:data:`ACCURACY_DEFINITION`), else the lattice RMS (:func:`rms_text`), else (a camera's file used as given) what
+    the page shows instead -- and the line under it naming the lattice RMS where the accuracy is the headline (a
+    white image's fit: the figure ``plenodecode calibrate`` prints)."""
+    if source_kind(grid) == "camera-file" and not refitted(grid):
+        # nothing was fitted, so there is no RMS to give: say what the page offers instead
+        drawn = ("its grid is drawn on the image below (Lattice on the image) to check by eye"
+                 if m is not None and m["img"] is not None else "no image was given to draw its grid on")
+        return (f"verdict: {j.verdict}; the camera's own calibration, used without a fit (so no lattice RMS): "
+                f"{drawn}"), ""
     if j.accuracy is None:
         return f"verdict: {j.verdict}; lattice RMS {rms_text(grid)}", ""
     n = int(m["assigned"].sum()) if m is not None else 0
@@ -672,7 +680,7 @@ def _params(grid: LensletGrid) -> list[tuple[str, str]]:
         ("row spacing", f"{grid.row_spacing:.5f} px ({grid.row_spacing / grid.pitch:.5f} x pitch)"),
         ("rotation", angle_text(grid.rotation)),
         ("origin (lens 0, 0)", f"row {grid.origin[0]:.3f}, col {grid.origin[1]:.3f}"),
-        ("odd row shift", f"{grid.odd_row_shift:+.1f} pitch"),
+        *([("odd row shift", f"{grid.odd_row_shift:+.1f} pitch")] if grid.lattice == "hex" else []),  # 0: square
         ("lenses (rows x cols)", f"{grid.shape[0]} x {grid.shape[1]} = {grid.shape[0] * grid.shape[1]}"),
         ("sensor (H x W)", f"{grid.sensor_shape[0]} x {grid.sensor_shape[1]}"),
         ("disk radius", f"{grid.radius:.3f} px"),

@@ -52,7 +52,10 @@ def test_raytrix_grid_reported_as_given(tmp_path):
     assert "used as given" in text and "verdict: as given" in text
     assert "no residual or off-grid judgement" in text
     assert "px off" not in text and "more than 0.5 px" not in text and not re.search(r"\d\s?%", text)
-    assert "RMS n/a (grid used as given)" in text and rms_text(grid) == "n/a (grid used as given)"
+    # the headline says what the page offers for a grid nothing was fitted to, not 'lattice RMS n/a'
+    assert ("verdict: as given; the camera's own calibration, used without a fit (so no lattice RMS): its grid is "
+            "drawn on the image below (Lattice on the image) to check by eye") in text
+    assert "RMS n/a" not in text and rms_text(grid) == "n/a (grid used as given)"     # (the calibrate command's line)
 
 
 def test_white_fit_shifted_by_half_a_pitch_is_bad(white, tmp_path):
@@ -178,6 +181,8 @@ def test_the_two_disk_counts_of_a_real_white_are_labelled(tmp_path):
             f"{info['n_detected']})") in text, text
     assert f"disks detected by the fit {info['n_detected']} disks the fit kept (inliers) {info['n_fit']}" in text
     assert "n detected" not in text
+    # a square grid has no alternating rows: its report showed 'odd row shift +0.0 pitch', now no such row
+    assert "lattice square" in text and "odd row shift" not in text
 
 
 def test_the_camera_steps_of_a_real_white_read_as_whole_numbers(tmp_path):
@@ -285,7 +290,9 @@ def test_a_skipped_raytrix_refit_is_not_reported_as_a_refit(tmp_path):
     assert "refitted on the image" not in text and "the one measurement made" not in text, text
     assert "sc2_klein.png; the refit on the image was skipped" in text
     assert f"refit on the image skipped: {grid.info['refit']['reason']}" in text
-    assert "RMS n/a (grid used as given)" in res.output and "RMS n/a (grid used as given)" in text
+    assert "RMS n/a (grid used as given)" in res.output
+    assert "the camera's own calibration, used without a fit (so no lattice RMS)" in text and "RMS n/a" not in text
+    assert "odd row shift +0.5 pitch" in text                      # a hex grid's rows alternate by half a pitch
 
 
 _SMOOTH = re.compile(r"smooth departure of the centres from the lattice \(largest\) (\d+\.\d+) px = (\d\.\d+) pitch, "
