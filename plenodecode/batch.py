@@ -582,30 +582,19 @@ def output_names(files: Sequence[str | os.PathLike]) -> list[str]:
 
     Raws with the same stem in different folders get their folder path (relative to the
     folders' common ancestor) as a prefix, joined by ``__``: ``a/IMG_1.LFR`` and ``b/IMG_1.LFR`` ->
-    ``a__IMG_1``, ``b__IMG_1``; any name still repeated gets its suffix (``IMG_1.lfr`` ->
-    ``IMG_1_lfr``).  Links are not followed: a link ``a.jpg -> IMG_1.jpg`` gives ``a``, the name the user gave.
+    ``a__IMG_1``, ``b__IMG_1`` (:func:`plenodecode.report.batch.clash_folders`, which the shown names take too);
+    any name still repeated gets its suffix (``IMG_1.lfr`` -> ``IMG_1_lfr``).  Links are not followed: a link
+    ``a.jpg -> IMG_1.jpg`` gives ``a``, the name the user gave.
     """
+    from .report.batch import clash_folders
+
     paths = [Path(os.path.abspath(f)) for f in files]
-    names = [p.stem for p in paths]
-    for attempt in ("folder", "suffix"):
-        counts: dict[str, int] = {}
-        for n in names:
-            counts[n] = counts.get(n, 0) + 1
-        dup = [i for i, n in enumerate(names) if counts[n] > 1]
-        if not dup:
-            break
-        if attempt == "folder":
-            groups: dict[str, list[int]] = {}
-            for i in dup:
-                groups.setdefault(names[i], []).append(i)
-            for group in groups.values():
-                root = Path(os.path.commonpath([str(paths[i].parent) for i in group]))
-                for i in group:
-                    rel = paths[i].parent.relative_to(root).parts
-                    names[i] = "__".join((*rel, names[i])) if rel else names[i]
-        else:
-            for i in dup:
-                names[i] = f"{names[i]}_{paths[i].suffix.lstrip('.').lower()}"
+    names = ["__".join((*folders, p.stem)) for p, folders in zip(paths, clash_folders(paths))]
+    counts: dict[str, int] = {}
+    for n in names:
+        counts[n] = counts.get(n, 0) + 1
+    # raws of one stem in one folder (IMG_1.lfr, IMG_1.jpg): their suffix
+    names = [f"{n}_{p.suffix.lstrip('.').lower()}" if counts[n] > 1 else n for n, p in zip(names, paths)]
     counts = {}
     for n in names:
         counts[n] = counts.get(n, 0) + 1

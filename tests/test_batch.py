@@ -1211,9 +1211,11 @@ def test_cli_a_slope_past_every_raws_picture_is_refused_up_front_before_decoding
     assert decoded == [] and not out.exists()
     # a slope within one raw's picture only: that raw is decoded, the other fails in its line
     res = CliRunner().invoke(cli, [*base, "--slope", "12", "--outputs", "refocus"])
-    rows = {line.split()[0]: line for line in res.stdout.splitlines() if line.startswith("scene.")}
-    assert res.exit_code == 1 and " done " in rows["scene.lfr"], res.output
-    assert " failed " in rows["scene.png"] and "--slope 12 does not suit scene.png" in rows["scene.png"], rows
+    # both raws are 'scene': the rows name their folders, as the output folders do
+    rows = {line.split()[0]: line for line in res.stdout.splitlines() if "/scene." in line}
+    assert res.exit_code == 1 and " done " in rows["illum-mini/scene.lfr"], res.output
+    square = rows["square/scene.png"]
+    assert " failed " in square and "--slope 12 does not suit scene.png" in square, rows
     # an alpha past the picture, too (it decoded every raw first): the line 'plenodecode refocus --alpha' gives
     single = CliRunner().invoke(cli, ["refocus", raws[0], "-o", str(tmp_path / "a.png"), "--alpha", "5",
                                       "--database", str(root / "calib")])

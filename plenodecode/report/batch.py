@@ -89,22 +89,30 @@ def _card(r: Any, base: Path, shown: str) -> str:
             f'<div class="meta">{meta}</div><div class="thumbs">{"".join(figs)}</div>{more}{err}</div>')
 
 
+def clash_folders(files: Sequence[str | os.PathLike]) -> list[tuple[str, ...]]:
+    """The folders that tell raws sharing a file stem apart: for each raw whose stem another raw in a different
+    folder has, its folder relative to the common ancestor of that stem's folders (``a/IMG_1.LFR``,
+    ``b/IMG_1.LFR`` -> ``('a',)``, ``('b',)``); ``()`` for the others.  Links are not followed (the name the user
+    gave).  The output folders (:func:`plenodecode.batch.output_names`) and the shown names
+    (:func:`display_names`) both take them."""
+    paths = [Path(os.path.abspath(f)) for f in files]
+    groups: dict[str, list[int]] = {}
+    for i, path in enumerate(paths):
+        groups.setdefault(path.stem, []).append(i)
+    out: list[tuple[str, ...]] = [()] * len(paths)
+    for group in groups.values():
+        if len(group) > 1:
+            root = Path(os.path.commonpath([str(paths[i].parent) for i in group]))
+            for i in group:
+                out[i] = paths[i].parent.relative_to(root).parts
+    return out
+
+
 def display_names(files: Sequence[str | os.PathLike]) -> list[str]:
-    """How the terminal table and the index page name each raw: its file name, or where two raws share one, as
-    many of its last folders as tell them apart (``a/scene.lfr``, ``b/scene.lfr``)."""
-    # links not followed: a link a.jpg -> IMG_1.jpg is shown as a.jpg, the name the user gave
-    parts = [Path(os.path.abspath(f)).parts for f in files]
-    depth = [1] * len(parts)
-    while True:
-        names = ["/".join(p[-k:]) for p, k in zip(parts, depth)]
-        seen: dict[str, list[int]] = {}
-        for i, n in enumerate(names):
-            seen.setdefault(n, []).append(i)
-        grow = [i for group in seen.values() if len(group) > 1 for i in group if depth[i] < len(parts[i])]
-        if not grow:
-            return [n.lstrip("/") or n for n in names]
-        for i in grow:
-            depth[i] += 1
+    """How the terminal table and the index page name each raw: its file name, after the folders that tell it
+    apart from raws of the same stem (:func:`clash_folders`), as its output folder is named: ``a/scene.lfr``,
+    ``b/scene.lfr``; ``f01-mini/scene.lfp``, ``illum-mini/scene.lfr``."""
+    return ["/".join((*folders, Path(f).name)) for f, folders in zip(files, clash_folders(files))]
 
 
 def render_batch_index(summary: Any, base: str | os.PathLike = ".") -> str:

@@ -121,3 +121,22 @@ def test_cards_are_as_wide_as_their_pictures_and_as_tall_as_their_content(raytri
     f01, r42 = _card_boxes(rgb, (0x22, 0xaa, 0x22))
     assert 320 <= failed[0] <= 360 and 320 <= r42[0] <= 360, (failed, r42)
     assert failed[1] < 150 and f01[1] > 2 * failed[1], (failed, f01)
+
+
+def test_raws_sharing_a_stem_are_named_by_their_folders(tmp_path):
+    """The bundled samples f01-mini/scene.lfp, illum-mini/scene.lfr and square/scene.png went to the output folders
+    f01-mini__scene, illum-mini__scene and square__scene, but their cards and rows were titled scene.lfp, scene.lfr
+    and scene.png: three 'scene' a user could not tell apart.  Now as many folders as tell them apart."""
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["batch", str(ROOT / "sample_raws"), "-o", str(out), "--outputs", "centre",
+                                   "--jobs", "1", "--database", str(ROOT / "calib")])
+    assert res.exit_code == 0, res.output
+    page = (out / "index.html").read_text()
+    names = re.findall(r'class="name" title="[^"]+">([^<]+)<', page)
+    assert names == ["f01-mini/scene.lfp", "illum-mini/scene.lfr", "square/scene.png"], names
+    assert sorted(p.name for p in out.iterdir() if p.is_dir()) == ["f01-mini__scene", "illum-mini__scene",
+                                                                   "square__scene"]
+    rows = [line.split()[0] for line in res.output.splitlines() if "scene." in line and " done " in line]
+    assert rows == names, res.output
+    # one folder: the suffix tells them apart, no folder is added
+    assert display_names([tmp_path / "IMG_1.lfr", tmp_path / "IMG_1.jpg"]) == ["IMG_1.lfr", "IMG_1.jpg"]
