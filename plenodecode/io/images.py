@@ -292,6 +292,13 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
         data = inp.read_image(0, 0, 0, spec.nchannels, "unknown")
         if data is None:
             raise FormatError(f"{p}: image data unreadable ({inp.geterror().strip()}); the file may be truncated")
+        if inp.has_error:
+            # a JPEG cut short is still returned whole, its missing rows filled with mid-grey: refused, not decoded
+            message = inp.geterror().strip()
+            if "premature end" in message.lower():
+                raise FormatError(f"{p}: the image data ends early ({message}); the file is truncated "
+                                  "(an interrupted copy or download?)")
+            log.warning("%s: %s", p.name, message)
     finally:
         inp.close()
     data = np.asarray(data)

@@ -179,3 +179,4 @@ def test_microscope_hints_name_the_radiometry_frame_beside_it():
     f = fields(info(folder / "radiometry_frame.png"))
     assert f["calib"] == ("self-calibration from radiometry_frame.png (by its name the flat-field frame: given as -w "
                           "to decode the light fields beside it, it calibrates and devignettes them)"), f["calib"]
+

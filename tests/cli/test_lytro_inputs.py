@@ -136,3 +136,21 @@ def test_info_on_a_text_file_that_is_no_metadata_says_so(tmp_path):
     (tmp_path / "MOD_0000.TXT").write_text("{broken")
     res = CliRunner().invoke(cli, ["info", str(tmp_path / "MOD_0000.TXT")])
     assert res.exit_code == 1 and "the metadata file is damaged" in res.output, res.output
+
+
+def test_a_truncated_real_lenslet_jpeg_is_refused_as_truncated(tmp_path):
+    """A copy of the real F01 IMG_2.jpg cut at 300 kB (an interrupted download) decoded its missing rows as
+    mid-grey and failed with 'the image is uniform (no lenslet pattern): expected a white image'; now one line says
+    the file is truncated, before any calibration, and nothing is written."""
+    import subprocess
+    import sys
+
+    src = shared_path("lytro-f01-lenslet-jpg", "IMG_2.jpg")
+    cut = tmp_path / "cut.jpg"
+    cut.write_bytes(src.read_bytes()[:300_000])
+    res = subprocess.run([sys.executable, "-m", "plenodecode", str(cut), "-o", str(tmp_path / "y.png")],
+                         capture_output=True, text=True)
+    assert res.returncode == 1
+    last = res.stderr.strip().splitlines()[-1]
+    assert last.startswith("error: ") and "truncated" in last and "uniform" not in res.stderr, res.stderr
+    assert not (tmp_path / "y.png").exists()

@@ -249,3 +249,16 @@ def test_unknown_colour_state_refused(tmp_path, rgb):
     with pytest.raises(ValueError, match="colour must be one of"):
         write_image(tmp_path / "a.png", rgb, bit_depth=8, colour="xyz")
     assert not (tmp_path / "a.png").exists()
+
+
+def test_a_jpeg_cut_short_is_refused_not_filled(tmp_path):
+    """OpenImageIO returns a truncated JPEG whole, its missing rows mid-grey (128), and only flags the error on the
+    reader: a cut copy of a lenslet JPEG then failed self-calibration with 'the image is uniform (no lenslet
+    pattern)'.  Now it is refused as truncated; the whole file still reads."""
+    img = (np.random.default_rng(3).random((96, 128)) * 255).astype(np.uint8)
+    whole = write_image(tmp_path / "whole.jpg", img, bit_depth=8)
+    np.testing.assert_allclose(read_image(whole).astype(float).mean(), img.mean(), atol=2)
+    cut = tmp_path / "cut.jpg"
+    cut.write_bytes(whole.read_bytes()[: whole.stat().st_size // 2])
+    with pytest.raises(FormatError, match="ends early .*truncated"):
+        read_image(cut)
