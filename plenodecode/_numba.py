@@ -215,4 +215,5 @@ def run_in_blocks(call: Callable[[int, int], Any], n: int, *, blocks_per_thread:
 
 
 __all__ = ["KERNEL_GROUPS", "COMPILE_SECONDS", "default_cache_dir", "use_user_cache", "group_of",
-           "compile_message", "notice_marker", "set_compile_notice", "relay_compile_notices", "announce", "njit", "run_in_blocks"]
+           "compile_message", "notice_marker", "set_compile_notice", "relay_compile_notices", "announce", "njit",
+           "run_in_blocks"]

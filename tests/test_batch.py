@@ -1434,7 +1434,8 @@ def test_index_card_notes_a_dark_first_picture_as_the_terminal_does(tmp_path):
 
 @pytest.mark.parametrize("level_of, level_file, what", [
     ("photo", "refocus_s+0.00.png", "refocus_s+0.00.png"), ("photo", "total_focus.png", "total_focus.png"),
-    ("views", "views/", "the centre view of views/"), ("focal-stack", "focal_stack/", "the middle slice of focal_stack/"),
+    ("views", "views/", "the centre view of views/"),
+    ("focal-stack", "focal_stack/", "the middle slice of focal_stack/"),
     ("parallax", "parallax.gif", "the middle frame of parallax.gif"), ("photo", None, "the photo")])
 def test_dark_note_names_the_picture_as_the_card_captions_it(tmp_path, level_of, level_file, what):
     """The card under a thumbnail captioned 'refocus_s+0.00.png' said 'the photo is dark': the note names the file

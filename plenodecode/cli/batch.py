@@ -275,7 +275,8 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
     """
     from ..batch import (DONE_MARKER, BatchOptions, check_outputs_to_replace, check_summary_files, find_raws,
                          run_batch, up_front_refusals, write_summary)
-    from ..io.discovery import desktop_exports_not_taken, images_not_taken, needs_no_database
+    from ..io.discovery import (desktop_exports_not_taken, images_not_taken, needs_no_database,
+                                 raws_without_metadata)
     from ..calib.store import DEFAULT_DB, find_database
 
     if alpha is not None and focus_distance is not None:
@@ -311,12 +312,17 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
     export_note = (f"{len(exports)} Lytro Desktop export(s) ({_some_names(exports)}) hold no raw and were not taken: "
                    f"'plenodecode extract {exports[0]} -o DIR' writes out their pictures and depth maps"
                    ) if exports else ""
+    # a camera's IMG_0001.RAW copied without its IMG_0001.TXT: named, not passed over in silence
+    lone = raws_without_metadata(inputs, exclude=[out_dir], stop_marker=DONE_MARKER)
+    lone_note = (f"{len(lone)} headerless Lytro raw(s) ({_some_names(lone)}) were not taken: such a raw is read with "
+                 f"its metadata beside it ({lone[0].stem}.TXT or .json), which is missing; copy it next to the raw"
+                 ) if lone else ""
     if not files:
         hint = (f"; {not_taken}, 'plenodecode batch {images[0].parent}/RAW_IMAGE -o OUT' (a microscope's with "
                 f"-w WHITE_IMAGE)") if images else ""
         raise click.UsageError(f"no raws found under {', '.join(map(str, inputs))}{hint}"
-                               + "".join(f"; {n}" for n in (lf_note, export_note) if n))
-    for note in (not_taken, lf_note, export_note):
+                               + "".join(f"; {n}" for n in (lf_note, export_note, lone_note) if n))
+    for note in (not_taken, lf_note, export_note, lone_note):
         if note and not (ctx.obj or {}).get("quiet"):
             click.echo(f"note: {note}", err=True)
     # no --database: ./calib, else the calib/ beside the first raw that has one or above it (find_database); none:
@@ -330,7 +336,8 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
             or database is None and not any(needs_no_database(f) for f in files)):
         raise click.BadParameter(_no_database(db_dir, database is None, inputs, files[0]), param_hint="--database")
     mosaic = current_mosaic_options()
-    options = BatchOptions(outputs=outputs, database=None if found is None else str(found), format=lf_format, bit_depth=int(bit_depth),
+    options = BatchOptions(outputs=outputs, database=None if found is None else str(found), format=lf_format,
+                           bit_depth=int(bit_depth),
                            exposure=exposure, slope=slope, alpha=alpha, focus_distance=focus_distance,
                            depth_method=depth_method, min_confidence=min_confidence, cfa=mosaic.cfa,
                            black_level=mosaic.black_level, white_level=mosaic.white_level,

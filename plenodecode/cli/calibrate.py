@@ -177,7 +177,8 @@ def _warn_high_rms(grid: Any, report: Path | None) -> None:
     rest = grid.residual_rms if smooth is None else smooth["rest_rms_px"]
     if rest > WHITE_RMS_PX[1]:
         where = f"{report} shows where" if report is not None else "--report shows where"
-        click.echo(f"warning: lattice RMS {rest:.3f} px is high for a white image (good <= {WHITE_RMS_PX[0]} px, check <= "
+        click.echo(f"warning: lattice RMS {rest:.3f} px is high for a white image (good <= {WHITE_RMS_PX[0]} px, "
+                   f"check <= "
                    f"{WHITE_RMS_PX[1]} px): a scene, another camera's image, or a wrong --lattice? {where}", err=True)
 
 

@@ -59,7 +59,8 @@ def command(ctx: click.Context, raw_path: Path, output: Path, calibration: Path 
 
     The lenslet grid comes from --calibration, from --white (calibrated on the fly), from the camera's
     own calibration (Raytrix XML), or from the calibration database (--database, default ./calib, else
-    calib/ beside the raw or above it) by camera serial, zoom and focus; an image mosaic without a sidecar is self-calibrated.  With --geometry the
+    calib/ beside the raw or above it) by camera serial, zoom and focus; an image mosaic without a sidecar is
+    self-calibrated.  With --geometry the
     light field is rectified (undistorted pinhole views) and carries the calibrated ray model for metric depth.
     A focused-plenoptic (Raytrix) raw is refused (exit 2) unless --views-anyway: render it with
     'plenodecode render RAW --total-focus'.

@@ -192,8 +192,8 @@ def _calibration_lines(raw) -> list[str]:
         frame = flat_field_beside(raw.path) if raw.path else None
         why = (" (no white image" + (" or camera identity for a database" if is_bare_mosaic(raw) else "")
                + ": not devignetted" + ("; stays camera RGB, no colour matrix" if raw.cfa and m.ccm is None else "")
-               + (f"; -w {frame}, the flat-field frame beside it, calibrates and devignettes)" if frame else "; -w WHITE_IMAGE "
-                  "devignettes)"))
+               + (f"; -w {frame}, the flat-field frame beside it, calibrates and devignettes)" if frame
+                  else "; -w WHITE_IMAGE devignettes)"))
         if raw.path and is_flat_field_name(raw.path):
             why = (" (by its name the flat-field frame: given as -w to decode the light fields beside it, it "
                    "calibrates and devignettes them)")

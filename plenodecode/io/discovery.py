@@ -194,6 +194,20 @@ def desktop_exports_not_taken(inputs: Iterable[str | os.PathLike], *, exclude: I
     return _in_folders(inputs, exclude, stop_marker, lambda p: not p.name.startswith(".") and is_desktop_export(p))
 
 
+def raws_without_metadata(inputs: Iterable[str | os.PathLike], *, exclude: Iterable[str | os.PathLike] = (),
+                          stop_marker: str | None = None) -> list[Path]:
+    """Headerless Lytro raws (:data:`PAIR_SUFFIXES`, not white images ``MOD_*``) in the folders among ``inputs``
+    that :func:`find_raws` passes over because their metadata (``.TXT`` / ``.json``) is not beside them; each
+    folder's files sorted."""
+    from . import lytro
+
+    def lone(p: Path) -> bool:
+        return (p.suffix.lower() in PAIR_SUFFIXES and not p.name.startswith(".")
+                and not p.name.upper().startswith("MOD_") and lytro.find_sidecar(p) is None)
+
+    return _in_folders(inputs, exclude, stop_marker, lone)
+
+
 def _in_folders(inputs: Iterable[str | os.PathLike], exclude: Iterable[str | os.PathLike], stop_marker: str | None,
                 take: Callable[[Path], bool]) -> list[Path]:
     """The files ``take`` accepts in the folders among ``inputs`` (one path or several), searched as
@@ -204,4 +218,4 @@ def _in_folders(inputs: Iterable[str | os.PathLike], exclude: Iterable[str | os.
 
 
 __all__ = ["RAW_SUFFIXES", "PAIR_SUFFIXES", "MOSAIC_SUFFIXES", "find_raws", "needs_no_database", "images_not_taken",
-           "is_desktop_export", "desktop_exports_not_taken"]
+           "is_desktop_export", "desktop_exports_not_taken", "raws_without_metadata"]

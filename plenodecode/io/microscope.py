@@ -218,5 +218,6 @@ def format_optics_json(optics: MicroscopeOptics) -> str:
     return json.dumps(doc, indent=1) + "\n"
 
 
-__all__ = ["FLAT_FIELD_WORDS", "is_flat_field_name", "flat_field_beside", "METADATA_NAME", "NAPARI_KEYS", "LFANALYZE_NAMES", "parse_optics", "read_optics", "optics_beside",
+__all__ = ["FLAT_FIELD_WORDS", "is_flat_field_name", "flat_field_beside", "METADATA_NAME", "NAPARI_KEYS",
+           "LFANALYZE_NAMES", "parse_optics", "read_optics", "optics_beside",
            "format_metadata_txt", "format_optics_json"]

@@ -104,7 +104,8 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
     1. ``grid`` (a grid JSON written by ``plenodecode calibrate``); ``white``, when given, devignettes;
     2. ``white`` alone: calibrated on the spot (:func:`plenodecode.calib.calibrate`), and devignettes;
        refused when it does not fit the raw (:func:`plenodecode.calib.check.check_white_fit`, as in 4);
-    3. the camera's own calibration: a Raytrix raw's ``RayCalibData`` (:func:`~plenodecode.calib.selfcal.calibrate_raytrix`);
+    3. the camera's own calibration: a Raytrix raw's ``RayCalibData``
+       (:func:`~plenodecode.calib.selfcal.calibrate_raytrix`);
     4. a Lytro raw LFP's own white image (``modulationDataRef``), else the calibration database ``database``
        (default: ``./calib``, else ``calib/`` beside the raw or above it,
        :func:`plenodecode.calib.store.find_database`): the white image the raw's ``geometryCorrectionRef``

@@ -20,7 +20,8 @@ The header gives one accuracy figure: against white images, the lens-centre accu
 (:data:`ACCURACY_DEFINITION`: where the decoder cuts each micro-image against its disk, the residual histogram's
 line); otherwise the lattice RMS (:data:`RMS_DEFINITION`), which ``plenodecode calibrate`` prints
 (:func:`rms_text`) and a white image's page names as such; a camera's file used as given has none, and its headline
-says the grid is drawn on the image to check by eye.  Further contents: fitted parameters, zoomed overlays at the sensor centre and
+says the grid is drawn on the image to check by eye.  Further contents: fitted parameters, zoomed overlays at the
+sensor centre and
 corners, residual map and histogram, and (white images) the vignetting profile.
 """
 
@@ -684,7 +685,8 @@ def _params(grid: LensletGrid) -> list[tuple[str, str]]:
         ("lenses (rows x cols)", f"{grid.shape[0]} x {grid.shape[1]} = {grid.shape[0] * grid.shape[1]}"),
         ("sensor (H x W)", f"{grid.sensor_shape[0]} x {grid.sensor_shape[1]}"),
         ("disk radius", f"{grid.radius:.3f} px"),
-        ("lenses with their own measured centre", str(int(np.isfinite(grid.refined[..., 0]).sum())) if grid.refined is not None else "0"),
+        ("lenses with their own measured centre",
+         str(int(np.isfinite(grid.refined[..., 0]).sum())) if grid.refined is not None else "0"),
         ("source", SOURCE_KINDS[source_kind(grid)]),
     ]
     if grid.lens_type is not None:
@@ -798,4 +800,5 @@ def write_calibration_report(grid: LensletGrid | str | os.PathLike, white: Any, 
 
 __all__ = ["write_calibration_report", "judge_calibration", "source_kind", "source_line", "rms_text", "refitted",
            "scene_smooth_field",
-           "vignetting_profile", "Check", "Judgement", "RMS_DEFINITION", "ACCURACY_DEFINITION", "SELFCAL_RULES", "SELFCAL_BASIS", "LEVELS"]
+           "vignetting_profile", "Check", "Judgement", "RMS_DEFINITION", "ACCURACY_DEFINITION", "SELFCAL_RULES",
+           "SELFCAL_BASIS", "LEVELS"]

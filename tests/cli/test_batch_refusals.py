@@ -180,3 +180,20 @@ def test_batch_with_a_dark_frame_of_one_of_its_raws_runs_and_fails_the_other_on_
                                    str(folder / "light_field.png"), "-o", str(tmp_path / "out"), "--self-calibrate",
                                    "--dark", str(folder / "dark_frame.tif")])
     assert res.exit_code == 0 and ran == [["IMG_1.jpg", "light_field.png"]], res.output
+
+
+def test_a_lytro_raw_without_its_metadata_is_named_not_passed_over(tmp_path):
+    """A camera's IMG_0001.RAW copied without its IMG_0001.TXT was passed over in silence: alone, the batch said
+    'no raws found'; beside other raws, nothing at all.  Now a note (or the refusal) names it and the missing file."""
+    folder = _folder(tmp_path, ILLUM)
+    shutil.copy(ROOT / "sample_raws" / "illum-mini" / "MOD_0000.RAW", folder / "IMG_0001.RAW")
+    res = CliRunner().invoke(cli, ["batch", str(folder), "-o", str(tmp_path / "out"), "--outputs", "centre",
+                                   "--jobs", "1", "--database", str(DB)])
+    assert res.exit_code == 0, res.output
+    assert ("note: 1 headerless Lytro raw(s) (IMG_0001.RAW) were not taken: such a raw is read with its metadata "
+            "beside it (IMG_0001.TXT or .json), which is missing") in res.stderr
+    assert (tmp_path / "out" / "scene" / "centre.png").is_file()
+    (folder / ILLUM.name).unlink()
+    res = CliRunner().invoke(cli, ["batch", str(folder), "-o", str(tmp_path / "out2"), "--database", str(DB)])
+    assert res.exit_code == 2 and not (tmp_path / "out2").exists()
+    assert f"Error: no raws found under {folder}; 1 headerless Lytro raw(s) (IMG_0001.RAW)" in res.stderr
