@@ -698,13 +698,16 @@ _FACTORY_STATE: dict[str, Any] = {"tasks": 0, "base": None}
 
 def _naming_factory(base: Callable[..., logging.LogRecord]) -> Callable[..., logging.LogRecord]:
     """A log record factory over ``base`` that starts the library's lines with the task's raw (:data:`_TASK_RAW`),
-    unless they already name it."""
+    unless they already name it (a line starting with the raw's whole path starts with its name instead)."""
     def factory(*args: Any, **kwargs: Any) -> logging.LogRecord:
         record = base(*args, **kwargs)
         raw = _TASK_RAW.get()
         if raw is not None and record.name.startswith("plenodecode.") and record.name != __name__:
             text = record.getMessage()
-            if not text.startswith(f"{raw}:"):
+            head, sep, rest = text.partition(": ")
+            if sep and head != raw and os.path.basename(head) == raw:   # the raw's whole path: its name
+                record.msg, record.args = f"{raw}: {rest}", ()
+            elif not text.startswith(f"{raw}:"):
                 record.msg, record.args = f"{raw}: {text}", ()
         return record
     return factory

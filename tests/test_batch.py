@@ -1448,3 +1448,26 @@ def test_dark_note_names_the_picture_as_the_card_captions_it(tmp_path, level_of,
     assert r.dark_note().startswith(what + tail) and r.dark_note("dim.lfr").startswith(f"{what} of dim.lfr{tail}")
     page = render_batch_index(BatchSummary(results=(r,)), tmp_path)
     assert f'<div class="note">note: {html.escape(what + tail)}' in page
+
+
+def test_cli_a_damaged_containers_warning_is_said_once_naming_the_raw(tmp_path):
+    """A container of version 0 beside a good raw: its 'container version 0' warning came three times, twice from
+    the discovery's probes of the headers (is it a Lytro Desktop export?) before 'decoding 2 raws' and once from its
+    task as 'corrupt.lfr: /tmp/.../corrupt.lfr: container version 0 ...'.  Now once, from the task, by its name."""
+    import shutil
+
+    root = Path(__file__).resolve().parents[1]
+    shoot = tmp_path / "shoot"
+    shoot.mkdir()
+    (shoot / "corrupt.lfr").write_bytes(b"\x89LFP\r\n\x1a\n" + bytes(64))
+    shutil.copy(root / "sample_raws" / "illum-mini" / "scene.lfr", shoot / "scene.lfr")
+    import subprocess
+    import sys
+
+    res = subprocess.run([sys.executable, "-m", "plenodecode", "batch", str(shoot), "-o", str(tmp_path / "out"),
+                          "--outputs", "centre", "--database", str(root / "calib"), "--jobs", "1"],
+                         capture_output=True, text=True)
+    assert res.returncode == 1, res.stderr                   # the damaged raw fails, the other is decoded
+    said = [line for line in res.stderr.splitlines() if "container version 0" in line]
+    assert said == ["warning: corrupt.lfr: container version 0 (expected 1); reading anyway"], res.stderr
+    assert (tmp_path / "out" / "scene" / "centre.png").is_file()

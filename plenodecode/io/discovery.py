@@ -6,6 +6,7 @@ Reading only (headers and sidecars); nothing is written.
 from __future__ import annotations
 
 import json
+import logging
 import os
 from pathlib import Path
 from typing import Callable, Iterable
@@ -57,10 +58,16 @@ def is_desktop_export(p: Path) -> bool:
     from ..errors import PlenodecodeError
     from .lytro.container import read_container
 
+    # a probe of the headers: what they warn about (an odd container version) the raw's task says once
+    container_log = logging.getLogger(read_container.__module__)
+    level = container_log.level
+    container_log.setLevel(logging.ERROR)
     try:
         return read_container(p, verify=False).kind == "processed"
     except (PlenodecodeError, OSError, ValueError):
         return False
+    finally:
+        container_log.setLevel(level)
 
 
 def _is_raw_candidate(p: Path) -> bool:
