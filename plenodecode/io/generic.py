@@ -141,6 +141,7 @@ def _image_bits(path: Path, dtype: np.dtype) -> int:
 
         inp = oiio.ImageInput.open(str(path))
         if inp is None:
+            oiio.geterror()     # taken, or OpenImageIO prints it when the process exits
             return default
         bits = inp.spec().get_int_attribute("oiio:BitsPerSample", default)
         inp.close()
@@ -268,6 +269,7 @@ def is_known_sensor_image(path: str | os.PathLike) -> bool:
 
         inp = oiio.ImageInput.open(str(path))
         if inp is None:
+            oiio.geterror()     # a probe: taken, or OpenImageIO prints it when the process exits
             return False
         spec = inp.spec()
         inp.close()
