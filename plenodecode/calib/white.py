@@ -59,8 +59,18 @@ def white_words(raw: RawCapture) -> str:
     return "a white (flat-field) image taken through the same lenses"
 
 
-def check_not_dark(raw: RawCapture, *, level: float = DARK_LEVEL, instead: str | None = None) -> float:
-    """Raise CalibrationError when a frame is uniformly dark, suggesting ``instead`` (default: :func:`white_words`);
+def white_hint(raw: RawCapture) -> str:
+    """What to give as the white image of ``raw``'s camera, in words (:func:`white_words`), with the flat-field frame
+    beside ``raw`` when there is one (:func:`plenodecode.io.microscope.flat_field_beside`: "the microscope's
+    radiometry (flat-field) frame, e.g. data/radiometry_frame.png beside it")."""
+    from ..io.microscope import flat_field_beside
+
+    frame = flat_field_beside(raw.path) if raw.path else None
+    return white_words(raw) + (f", e.g. {frame} beside it" if frame is not None else "")
+
+
+def check_not_dark(raw: RawCapture, *, level: float = DARK_LEVEL) -> float:
+    """Raise CalibrationError when a frame is uniformly dark, saying what to give instead (:func:`white_hint`);
     return its normalised 99.9th percentile."""
     sub = raw.mosaic[::8, ::8].astype(np.float32)
     black = float(raw.black.mean())
@@ -69,7 +79,7 @@ def check_not_dark(raw: RawCapture, *, level: float = DARK_LEVEL, instead: str |
     if top < level:
         name = raw.path or "the frame"
         raise CalibrationError(f"{name} is uniformly dark (99.9th percentile {top:.4f} of the white level); "
-                               f"expected a white image: use {instead or white_words(raw)}, not a dark frame")
+                               f"expected a white image: use {white_hint(raw)}, not a dark frame")
     return top
 
 
@@ -259,4 +269,5 @@ def calibrate(white: WhiteInput, *, lattice: str = "auto", pitch_hint: float | N
     return grid.replace(info={**grid.info, "scene_likeness": likeness, "warnings": warnings})
 
 
-__all__ = ["calibrate", "calibrate_image", "check_not_dark", "white_words", "scene_likeness", "DARK_LEVEL"]
+__all__ = ["calibrate", "calibrate_image", "check_not_dark", "white_words", "white_hint", "scene_likeness",
+           "DARK_LEVEL"]

@@ -48,7 +48,6 @@ def _check_white(white: Path | None, mosaic: Any) -> None:
     :func:`~plenodecode.batch.up_front_refusals`, which reads it once for every raw)."""
     from ..calib.white import check_not_dark
     from ..errors import PlenodecodeError
-    from ..pipeline.calibration import white_hint
     from ..pipeline.inputs import open_raw, quieted
 
     if white is None:
@@ -56,7 +55,7 @@ def _check_white(white: Path | None, mosaic: Any) -> None:
     try:
         with quieted("plenodecode.io.generic"):      # its level notes come again with each raw
             raw = open_raw(white, mosaic=mosaic)
-            check_not_dark(raw, instead=white_hint(raw))
+            check_not_dark(raw)
     except PlenodecodeError as exc:
         raise click.BadParameter(str(exc), param_hint="--white") from None
 
@@ -133,12 +132,10 @@ def _no_database(db_dir: Path, default: bool, inputs: tuple[Path, ...], first: P
     default: where it was looked for, from ``first``, the first raw), with the command that builds it: from the
     inputs' folders that hold white images (``MOD_0000.RAW`` beside the raws), else from a FOLDER of them; and the
     options that do without one."""
-    from ..calib.store import find_whites
+    from ..calib.store import find_whites, where_looked
 
     folders = [p if p.is_dir() else p.parent for p in inputs]
     with_whites = [str(f) for f in dict.fromkeys(folders) if find_whites(f)]
-    from ..calib.store import where_looked
-
     what = (f"no calibration database (looked for its index.json in {where_looked(first)}) and every raw here "
             "needs one" if default else f"{db_dir} is not a folder")
     source = (f"the white images in {' '.join(with_whites)}" if with_whites else "a FOLDER of the camera's white "
@@ -327,8 +324,8 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
             click.echo(f"note: {note}", err=True)
     # no --database: ./calib, else the calib/ beside the first raw that has one or above it (find_database); none:
     # each raw looks for its own, and one that needs it fails saying where it looked
-    found = database or next((d for d in map(find_database, files) if d is not None), None)
-    db_dir = found or Path(DEFAULT_DB)
+    found_db = database or next((d for d in map(find_database, files) if d is not None), None)
+    db_dir = found_db or Path(DEFAULT_DB)
     # a --database typed that is no folder is refused; the default one missing only when no raw can do without it
     # (the others are decoded; those that need it fail with the reason, as a batch goes past any bad raw)
     if white is None and calibration is None and not self_calibrate and not db_dir.is_dir() and (
@@ -336,7 +333,7 @@ def command(ctx: click.Context, inputs, out_dir, jobs, scheduler, outputs, calib
             or database is None and not any(needs_no_database(f) for f in files)):
         raise click.BadParameter(_no_database(db_dir, database is None, inputs, files[0]), param_hint="--database")
     mosaic = current_mosaic_options()
-    options = BatchOptions(outputs=outputs, database=None if found is None else str(found), format=lf_format,
+    options = BatchOptions(outputs=outputs, database=None if found_db is None else str(found_db), format=lf_format,
                            bit_depth=int(bit_depth),
                            exposure=exposure, slope=slope, alpha=alpha, focus_distance=focus_distance,
                            depth_method=depth_method, min_confidence=min_confidence, cfa=mosaic.cfa,

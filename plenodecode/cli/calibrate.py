@@ -178,8 +178,7 @@ def _warn_high_rms(grid: Any, report: Path | None) -> None:
     if rest > WHITE_RMS_PX[1]:
         where = f"{report} shows where" if report is not None else "--report shows where"
         click.echo(f"warning: lattice RMS {rest:.3f} px is high for a white image (good <= {WHITE_RMS_PX[0]} px, "
-                   f"check <= "
-                   f"{WHITE_RMS_PX[1]} px): a scene, another camera's image, or a wrong --lattice? {where}", err=True)
+                   f"check <= {WHITE_RMS_PX[1]} px): a scene, another camera's image, or a wrong --lattice? {where}", err=True)
 
 
 def _refuse_unused_with_database(ctx: click.Context, for_raw: Path | None, inputs: tuple[Path, ...],
@@ -237,10 +236,9 @@ def _calibrate_inputs(ctx: click.Context, inputs: tuple[Path, ...], *, lattice: 
         raise click.BadParameter(f"refines a Raytrix image's RayCalibData grid; {inputs[0].name} has none (a white "
                                  "image's grid is fitted to it anyway)", param_hint="--refine")
     from ..calib.white import check_not_dark
-    from ..pipeline.calibration import white_hint
 
-    for r in raws:          # a dark frame given as a white: named with the flat-field frame beside it, if any
-        check_not_dark(r, instead=white_hint(r))
+    for r in raws:          # a dark frame given as a white: said as such, not as a --pitch that failed
+        check_not_dark(r)
     try:
         grid = calibrate(raws, lattice=lattice, pitch_hint=pitch_hint, progress=progress_bar("calibrating", ctx))
     except CalibrationError as exc:

@@ -153,9 +153,6 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
     elif white_raw is not None:
         from ..calib import calibrate
         from ..calib.check import check_white_fit
-        from ..calib.white import check_not_dark
-
-        check_not_dark(white_raw, instead=white_hint(white_raw))   # naming the flat-field frame beside it, if any
 
         cal = Calibration(calibrate(white_raw, progress=progress), white_raw, "white image",
                           Path(white_raw.path or "?").name)
@@ -176,17 +173,6 @@ def choose_calibration(raw: RawCapture, *, grid: str | os.PathLike | None = None
         cal = _database_or_scene(raw, db, self_calibrate=self_calibrate, progress=progress)
     log.info("%s", cal.describe())
     return cal
-
-
-def white_hint(raw: RawCapture) -> str:
-    """What to give as the white image of ``raw``'s camera, in words (:func:`plenodecode.calib.white.white_words`),
-    with the flat-field frame beside ``raw`` when there is one (:func:`plenodecode.io.microscope.flat_field_beside`:
-    "the microscope's radiometry (flat-field) frame, e.g. data/radiometry_frame.png beside it")."""
-    from ..calib.white import white_words
-    from ..io.microscope import flat_field_beside
-
-    frame = flat_field_beside(raw.path) if raw.path else None
-    return white_words(raw) + (f", e.g. {frame} beside it" if frame is not None else "")
 
 
 def _database_or_scene(raw: RawCapture, db: Path | None, *, self_calibrate: bool, progress: Progress) -> Calibration:
