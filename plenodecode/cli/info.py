@@ -124,14 +124,6 @@ def _raw_refocus_lines(cam) -> list[str]:
     return [f"  refocus  {refocus_range_units(geometry).describe()} (from the metadata, hex lenslets)"]
 
 
-def _optics_file(path: Path) -> Path | None:
-    """The file beside the raw ``path`` that :func:`plenodecode.io.microscope.optics_beside` reads its microscope
-    optics from: napari-LF's ``metadata.txt``, else an LFAnalyze README."""
-    from ..io.microscope import METADATA_NAME, README_NAMES
-
-    return next((f for f in (path.parent / n for n in (METADATA_NAME, *README_NAMES)) if f.is_file()), None)
-
-
 def _how_measured(cal) -> str:
     """Where the pitch of the calibration ``cal`` (a :class:`~plenodecode.pipeline.Calibration`) comes from."""
     if cal.source == "camera":
@@ -164,8 +156,10 @@ def _calibration_lines(raw) -> list[str]:
     m = raw.metadata
     lines = []
     if m.microscope is not None and not m.microscope.empty:
-        source = _optics_file(Path(raw.path)) if raw.path else None
-        lines.append(f"  optics   {m.microscope.describe()}" + (f" (read from {source.name})" if source else ""))
+        from ..io.microscope import optics_and_file_beside
+
+        found = optics_and_file_beside(raw.path) if raw.path else None
+        lines.append(f"  optics   {m.microscope.describe()}" + (f" (read from {found[1].name})" if found else ""))
     full = (m.extra.get(BARE_MOSAIC_KEY) or {}).get("file_full_scale") or float(np.max(raw.white))
     flat = nearly_uniform(raw.mosaic, float(full))
     if flat is not None:       # self-calibration would only fail on it, after seconds

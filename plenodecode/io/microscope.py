@@ -140,9 +140,10 @@ def read_optics(path: str | os.PathLike) -> MicroscopeOptics:
     return parse_optics(text, p)
 
 
-def _readme_optics(folder: Path) -> MicroscopeOptics | None:
+def _readme_optics(folder: Path) -> tuple[MicroscopeOptics, Path] | None:
     """The optics an LFAnalyze sample's README in ``folder`` lists (:data:`README_NAMES`, text dialect), when it
-    gives every one of :data:`README_REQUIRED`; else None (any other README says nothing of optics)."""
+    gives every one of :data:`README_REQUIRED`, and that README; else None (any other README says nothing of
+    optics)."""
     for name in README_NAMES:
         readme = folder / name
         try:
@@ -153,14 +154,14 @@ def _readme_optics(folder: Path) -> MicroscopeOptics | None:
             continue
         if all(getattr(optics, f) is not None for f in README_REQUIRED):
             log.info("microscope optics from %s: %s", readme, optics.describe())
-            return optics
+            return optics, readme
     return None
 
 
-def optics_beside(raw_path: str | os.PathLike) -> MicroscopeOptics | None:
+def optics_and_file_beside(raw_path: str | os.PathLike) -> tuple[MicroscopeOptics, Path] | None:
     """The optics of the napari-LF ``metadata.txt`` in the raw's folder, else those an LFAnalyze sample's README
-    beside it lists (``pitch 125 um`` lines giving at least pitch, pixel size, magnification and NA); None
-    when there are none.
+    beside it lists (``pitch 125 um`` lines giving at least pitch, pixel size, magnification and NA), with the file
+    they come from; None when there are none.
 
     A ``metadata.txt`` that holds no optical value (another program's file) is ignored with a warning.
     """
@@ -173,7 +174,13 @@ def optics_beside(raw_path: str | os.PathLike) -> MicroscopeOptics | None:
         log.warning("ignoring %s: %s", meta, exc)
         return None
     log.info("microscope optics from %s: %s", meta, optics.describe())
-    return optics
+    return optics, meta
+
+
+def optics_beside(raw_path: str | os.PathLike) -> MicroscopeOptics | None:
+    """The optics :func:`optics_and_file_beside` finds beside the raw, None when there are none."""
+    found = optics_and_file_beside(raw_path)
+    return None if found is None else found[0]
 
 
 #: Words in the name of a flat-field (white, radiometry) frame kept beside light-field images (LFAnalyze's
@@ -219,5 +226,5 @@ def format_optics_json(optics: MicroscopeOptics) -> str:
 
 
 __all__ = ["FLAT_FIELD_WORDS", "is_flat_field_name", "flat_field_beside", "METADATA_NAME", "NAPARI_KEYS",
-           "LFANALYZE_NAMES", "parse_optics", "read_optics", "optics_beside",
+           "LFANALYZE_NAMES", "parse_optics", "read_optics", "optics_beside", "optics_and_file_beside",
            "format_metadata_txt", "format_optics_json"]
