@@ -128,13 +128,18 @@ def _rel(path: Path | str, db: Path) -> str:
         return str(path.resolve())
 
 
+def _raw_folder(raw_path: str | os.PathLike) -> Path:
+    """The folder of a raw (absolute); an archive member's (``ARCHIVE::MEMBER``): its archive's."""
+    return Path(str(raw_path).split("::", 1)[0]).resolve().parent
+
+
 def database_candidates(raw_path: str | os.PathLike | None = None) -> list[Path]:
     """The folders :func:`find_database` tries, in order: ``calib`` in the working directory (relative), then
     ``calib/`` in the raw's folder and in each folder above it up to the root (absolute), as git finds its
     ``.git``: a project's database serves its raws from any working directory."""
     out = [Path(DEFAULT_DB)]
     if raw_path is not None:
-        folder = Path(str(raw_path).split("::", 1)[0]).resolve().parent     # an archive member: its archive
+        folder = _raw_folder(raw_path)
         here = Path(DEFAULT_DB).resolve()
         out += [d / DEFAULT_DB for d in (folder, *folder.parents) if (d / DEFAULT_DB) != here]
     return out
@@ -153,8 +158,7 @@ def where_looked(raw_path: str | os.PathLike | None = None) -> str:
     text = f"{Path(DEFAULT_DB).resolve()} (the current folder's)"
     if raw_path is None:
         return text
-    folder = Path(str(raw_path).split("::", 1)[0]).resolve().parent
-    return f"{text}, then {DEFAULT_DB}/ in {folder} and each folder above it"
+    return f"{text}, then {DEFAULT_DB}/ in {_raw_folder(raw_path)} and each folder above it"
 
 
 def load_index(db_dir: str | os.PathLike = DEFAULT_DB) -> list[WhiteEntry]:

@@ -59,6 +59,11 @@ def error_text(r: Any) -> str | None:
     return text
 
 
+def _label(path: str) -> str:
+    """An output's file name as a card shows it, a folder's with a trailing '/' (HTML-escaped)."""
+    return html.escape(Path(path).name + ("/" if Path(path).is_dir() else ""))
+
+
 def _card(r: Any, base: Path, shown: str) -> str:
     name = html.escape(shown)
     meta = f"{html.escape(r.status)} &middot; {r.seconds:.1f} s"
@@ -74,12 +79,11 @@ def _card(r: Any, base: Path, shown: str) -> str:
         png = str(Path(out).with_suffix(".png"))
         opens = png if wide and png in r.outputs else out
         linked.add(opens)
-        label = html.escape(Path(opens).name + ("/" if Path(opens).is_dir() else ""))
+        label = _label(opens)
         img = f'<img{wide} alt="{label}" src="{_rel(thumb, base)}">'
         figs.append(f'<figure><a href="{_rel(opens, base)}">{img}</a><figcaption>{label}</figcaption></figure>')
     # the outputs no picture opens (a depth map's PFM, parallax frames, a point cloud): file links under the pictures
-    files = [f'<a href="{_rel(out, base)}">{html.escape(Path(out).name + ("/" if Path(out).is_dir() else ""))}</a>'
-             for out in r.outputs if out not in linked]
+    files = [f'<a href="{_rel(out, base)}">{_label(out)}</a>' for out in r.outputs if out not in linked]
     more = f'<div class="files">also: {" &middot; ".join(files)}</div>' if files else ""
     err = f'<div class="err">{html.escape(error_text(r))}</div>' if r.error else ""
     err += "".join(f'<div class="left">left out: {html.escape(note)}</div>' for note in getattr(r, "left_out", ()))
